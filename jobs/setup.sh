@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Installs what volspline needs on a fresh Debian 12 machine: OpenMPI, parallel HDF5 (OpenMPI
+# flavour), libclang and pkg-config for the -sys crates, hdf5-tools, and the Python packages the
+# tests use (vtk, numpy). Idempotent and quiet when everything is present.
+set -euo pipefail
+
+need_apt=()
+for pkg in libopenmpi-dev openmpi-bin libhdf5-openmpi-dev libclang-dev pkg-config hdf5-tools; do
+    dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" || need_apt+=("$pkg")
+done
+if [ ${#need_apt[@]} -gt 0 ]; then
+    echo "setup: installing ${need_apt[*]}"
+    SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${need_apt[@]}" >/dev/null
+fi
+
+# two MPI flavours in one build make binaries abort at start ("Invalid communicator")
+if dpkg-query -W -f='${Status}' libmpich-dev 2>/dev/null | grep -q "install ok installed"; then
+    echo "setup: warning: libmpich-dev is installed next to OpenMPI; volspline builds against OpenMPI" >&2
+fi
+
+if [ "${VOLSPLINE_SKIP_PYTHON:-0}" != 1 ]; then
+    PY=${PYTHON:-python3}
+    if ! "$PY" -c 'import vtk, numpy' 2>/dev/null; then
+        echo "setup: installing Python packages vtk, numpy"
+        "$PY" -m pip install -q --disable-pip-version-check vtk numpy
+    fi
+fi
+
+# mpirun refuses to run as root without these; harmless otherwise
+if [ "$(id -u)" -eq 0 ]; then
+    export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+fi

@@ -1,0 +1,318 @@
+//! Carrier solids f_c (paper 000, section 3): simple solids whose defining function the volume
+//! spline interpolates at the data points. f_c >= 0 inside. The reconstructed solid is
+//! f = f_c - U (math.md, section 1: the paper's U - f_c is inside-out).
+//!
+//! Specs (also the canonical text stored in model files, see `Display`):
+//! `ball` (automatic: fitted to the data's bounding box), `ball:cx,cy,cz,r` (f = r^2 - |x - c|^2,
+//! the FRep sphere), `ellipsoid:cx,cy,cz,a,b,c` (f = 1 - sum (x_j - c_j)^2 / a_j^2), and the
+//! R-functions `union(A,B)`, `intersection(A,B)`, `difference(A,B)`. In two dimensions the same
+//! specs take two centre coordinates (`ball:cx,cy,r` is a disc).
+
+use std::fmt;
+
+use crate::error::{Error, Result};
+
+/// A carrier solid in `dim` dimensions.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Carrier {
+    /// Placeholder for "fit a ball to the data"; resolved by [`Carrier::resolve`] before use.
+    AutoBall,
+    Ball {
+        centre: Vec<f64>,
+        radius: f64,
+    },
+    Ellipsoid {
+        centre: Vec<f64>,
+        semi_axes: Vec<f64>,
+    },
+    Union(Box<Carrier>, Box<Carrier>),
+    Intersection(Box<Carrier>, Box<Carrier>),
+    Difference(Box<Carrier>, Box<Carrier>),
+}
+
+impl Carrier {
+    /// Parses a carrier spec for `dim`-dimensional data.
+    pub fn parse(spec: &str, dim: usize) -> Result<Carrier> {
+        let mut p = Parser { s: spec.as_bytes(), pos: 0, spec, dim };
+        let c = p.carrier()?;
+        p.skip_ws();
+        if p.pos != p.s.len() {
+            return Err(p.error("unexpected text after the carrier"));
+        }
+        Ok(c)
+    }
+
+    /// Replaces `AutoBall` by the ball centred on the bounding box with radius half its diagonal,
+    /// so every data point is inside. Any ball gives the same solid (math.md, section 1).
+    pub fn resolve(&self, lo: &[f64], hi: &[f64]) -> Carrier {
+        match self {
+            Carrier::AutoBall => {
+                let centre: Vec<f64> = lo.iter().zip(hi).map(|(a, b)| 0.5 * (a + b)).collect();
+                let diag = lo.iter().zip(hi).map(|(a, b)| (b - a) * (b - a)).sum::<f64>().sqrt();
+                Carrier::Ball { centre, radius: (0.5 * diag).max(f64::MIN_POSITIVE) }
+            }
+            Carrier::Union(a, b) => Carrier::Union(Box::new(a.resolve(lo, hi)), Box::new(b.resolve(lo, hi))),
+            Carrier::Intersection(a, b) => {
+                Carrier::Intersection(Box::new(a.resolve(lo, hi)), Box::new(b.resolve(lo, hi)))
+            }
+            Carrier::Difference(a, b) => {
+                Carrier::Difference(Box::new(a.resolve(lo, hi)), Box::new(b.resolve(lo, hi)))
+            }
+            other => other.clone(),
+        }
+    }
+
+    /// The degree of f_c when it is a polynomial (balls and ellipsoids: 2), None otherwise. A spline
+    /// whose polynomial part reaches that degree reproduces such a carrier exactly, leaving f = 0.
+    pub fn polynomial_degree(&self) -> Option<usize> {
+        match self {
+            Carrier::AutoBall | Carrier::Ball { .. } | Carrier::Ellipsoid { .. } => Some(2),
+            _ => None,
+        }
+    }
+
+    /// f_c(x); `x` has at least `dim` components. Panics on an unresolved `AutoBall`.
+    #[inline]
+    pub fn eval(&self, x: &[f64]) -> f64 {
+        match self {
+            Carrier::AutoBall => panic!("automatic ball carrier used before Carrier::resolve"),
+            Carrier::Ball { centre, radius } => {
+                let d2: f64 = centre.iter().zip(x).map(|(c, v)| (v - c) * (v - c)).sum();
+                radius * radius - d2
+            }
+            Carrier::Ellipsoid { centre, semi_axes } => {
+                let s: f64 =
+                    centre.iter().zip(semi_axes).zip(x).map(|((c, a), v)| ((v - c) / a).powi(2)).sum();
+                1.0 - s
+            }
+            Carrier::Union(a, b) => r_union(a.eval(x), b.eval(x)),
+            Carrier::Intersection(a, b) => r_intersection(a.eval(x), b.eval(x)),
+            Carrier::Difference(a, b) => r_intersection(a.eval(x), -b.eval(x)),
+        }
+    }
+}
+
+/// R-function union (R_0 system, as in HyperFun): positive where either argument is.
+#[inline]
+pub fn r_union(f1: f64, f2: f64) -> f64 {
+    f1 + f2 + (f1 * f1 + f2 * f2).sqrt()
+}
+
+/// R-function intersection: positive where both arguments are.
+#[inline]
+pub fn r_intersection(f1: f64, f2: f64) -> f64 {
+    f1 + f2 - (f1 * f1 + f2 * f2).sqrt()
+}
+
+impl fmt::Display for Carrier {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let list = |v: &[f64]| v.iter().map(|x| format!("{x:?}")).collect::<Vec<_>>().join(",");
+        match self {
+            Carrier::AutoBall => write!(f, "ball"),
+            Carrier::Ball { centre, radius } => write!(f, "ball:{},{radius:?}", list(centre)),
+            Carrier::Ellipsoid { centre, semi_axes } => {
+                write!(f, "ellipsoid:{},{}", list(centre), list(semi_axes))
+            }
+            Carrier::Union(a, b) => write!(f, "union({a},{b})"),
+            Carrier::Intersection(a, b) => write!(f, "intersection({a},{b})"),
+            Carrier::Difference(a, b) => write!(f, "difference({a},{b})"),
+        }
+    }
+}
+
+struct Parser<'a> {
+    s: &'a [u8],
+    pos: usize,
+    spec: &'a str,
+    dim: usize,
+}
+
+impl Parser<'_> {
+    fn error(&self, why: &str) -> Error {
+        Error::Usage(format!("carrier '{}' at character {}: {why}", self.spec, self.pos + 1))
+    }
+
+    fn skip_ws(&mut self) {
+        while self.pos < self.s.len() && self.s[self.pos].is_ascii_whitespace() {
+            self.pos += 1;
+        }
+    }
+
+    fn word(&mut self) -> String {
+        self.skip_ws();
+        let start = self.pos;
+        while self.pos < self.s.len() && self.s[self.pos].is_ascii_alphabetic() {
+            self.pos += 1;
+        }
+        String::from_utf8_lossy(&self.s[start..self.pos]).to_ascii_lowercase()
+    }
+
+    fn expect(&mut self, c: u8) -> Result<()> {
+        self.skip_ws();
+        if self.s.get(self.pos) == Some(&c) {
+            self.pos += 1;
+            Ok(())
+        } else {
+            Err(self.error(&format!("expected '{}'", c as char)))
+        }
+    }
+
+    fn numbers(&mut self) -> Result<Vec<f64>> {
+        let start = self.pos;
+        while self.pos < self.s.len() && !matches!(self.s[self.pos], b')') {
+            if self.s[self.pos] == b','
+                && self.pos + 1 < self.s.len()
+                && self.s[self.pos + 1].is_ascii_alphabetic()
+            {
+                break;
+            }
+            self.pos += 1;
+        }
+        let text = std::str::from_utf8(&self.s[start..self.pos]).unwrap_or("");
+        let mut out = Vec::new();
+        for tok in text.split(',') {
+            let tok = tok.trim();
+            match tok.parse::<f64>() {
+                Ok(v) if v.is_finite() => out.push(v),
+                _ => {
+                    self.pos = start;
+                    return Err(self.error(&format!("'{tok}' is not a finite number")));
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    fn carrier(&mut self) -> Result<Carrier> {
+        let start = self.pos;
+        let name = self.word();
+        let d = self.dim;
+        match name.as_str() {
+            "ball" | "sphere" | "disc" => {
+                self.skip_ws();
+                if self.s.get(self.pos) != Some(&b':') {
+                    return Ok(Carrier::AutoBall);
+                }
+                self.pos += 1;
+                let v = self.numbers()?;
+                if v.len() != d + 1 {
+                    return Err(self.error(&format!(
+                        "ball needs {} numbers (centre, radius), got {}",
+                        d + 1,
+                        v.len()
+                    )));
+                }
+                if v[d] <= 0.0 {
+                    return Err(self.error("ball radius must be positive"));
+                }
+                Ok(Carrier::Ball { centre: v[..d].to_vec(), radius: v[d] })
+            }
+            "ellipsoid" | "ellipse" => {
+                self.expect(b':')?;
+                let v = self.numbers()?;
+                if v.len() != 2 * d {
+                    return Err(self.error(&format!(
+                        "ellipsoid needs {} numbers (centre, semi-axes), got {}",
+                        2 * d,
+                        v.len()
+                    )));
+                }
+                if v[d..].iter().any(|&a| a <= 0.0) {
+                    return Err(self.error("ellipsoid semi-axes must be positive"));
+                }
+                Ok(Carrier::Ellipsoid { centre: v[..d].to_vec(), semi_axes: v[d..].to_vec() })
+            }
+            "union" | "intersection" | "difference" => {
+                self.expect(b'(')?;
+                let a = self.carrier()?;
+                self.expect(b',')?;
+                let b = self.carrier()?;
+                self.expect(b')')?;
+                let (a, b) = (Box::new(a), Box::new(b));
+                Ok(match name.as_str() {
+                    "union" => Carrier::Union(a, b),
+                    "intersection" => Carrier::Intersection(a, b),
+                    _ => Carrier::Difference(a, b),
+                })
+            }
+            "" => Err(self.error("expected a carrier (ball, ellipsoid, union, intersection, difference)")),
+            other => {
+                self.pos = start;
+                Err(self.error(&format!(
+                    "unknown carrier '{other}' (expected ball, ellipsoid, union, intersection, difference)"
+                )))
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn specs_parse_and_round_trip() {
+        for spec in [
+            "ball",
+            "ball:1.0,2.0,3.0,4.0",
+            "ellipsoid:0.0,0.0,0.0,1.0,2.0,3.0",
+            "union(ball:-1.0,0.0,0.0,1.5,ball:1.0,0.0,0.0,1.5)",
+            "difference(intersection(ball,ball:0.0,0.0,0.0,1.0),ellipsoid:0.0,0.0,0.0,1.0,1.0,0.5)",
+        ] {
+            let c = Carrier::parse(spec, 3).unwrap();
+            assert_eq!(c.to_string(), spec);
+            assert_eq!(Carrier::parse(&c.to_string(), 3).unwrap(), c);
+        }
+        let disc = Carrier::parse("ball: 0, 0, 2", 2).unwrap();
+        assert_eq!(disc.eval(&[1.0, 1.0]), 2.0);
+    }
+
+    #[test]
+    fn bad_specs_are_rejected_with_position() {
+        for spec in [
+            "ball:1,2,3",
+            "ball:0,0,0,-1",
+            "cube",
+            "union(ball,ball",
+            "ellipsoid:0,0,0,1,0,1",
+            "ball:a,b,c,d",
+            "ball x",
+        ] {
+            let e = Carrier::parse(spec, 3).unwrap_err();
+            assert!(matches!(e, Error::Usage(ref m) if m.contains(spec)), "{spec}: {e}");
+        }
+    }
+
+    #[test]
+    fn sign_convention_inside_positive() {
+        let b = Carrier::parse("ball:1,2,3,2", 3).unwrap();
+        assert_eq!(b.eval(&[1.0, 2.0, 3.0]), 4.0);
+        assert_eq!(b.eval(&[3.0, 2.0, 3.0]), 0.0);
+        assert!(b.eval(&[4.0, 2.0, 3.0]) < 0.0);
+        let e = Carrier::parse("ellipsoid:0,0,0,2,1,1", 3).unwrap();
+        assert_eq!(e.eval(&[2.0, 0.0, 0.0]), 0.0);
+        assert!(e.eval(&[0.0, 1.5, 0.0]) < 0.0);
+    }
+
+    #[test]
+    fn r_functions_are_set_operations() {
+        // two unit balls at x = -1 and x = +1 (paper Figure 5 uses such an R-union)
+        let u = Carrier::parse("union(ball:-1,0,0,1,ball:1,0,0,1)", 3).unwrap();
+        let i = Carrier::parse("intersection(ball:-0.5,0,0,1,ball:0.5,0,0,1)", 3).unwrap();
+        let d = Carrier::parse("difference(ball:0,0,0,2,ball:0,0,0,1)", 3).unwrap();
+        assert!(u.eval(&[-1.5, 0.0, 0.0]) > 0.0 && u.eval(&[1.5, 0.0, 0.0]) > 0.0);
+        assert!(u.eval(&[0.0, 0.5, 0.0]) < 0.0);
+        assert!(i.eval(&[0.0, 0.0, 0.0]) > 0.0 && i.eval(&[1.2, 0.0, 0.0]) < 0.0);
+        assert!(d.eval(&[1.5, 0.0, 0.0]) > 0.0 && d.eval(&[0.5, 0.0, 0.0]) < 0.0);
+        // the zero sets are exactly the boundary of the set operation
+        assert!(u.eval(&[2.0, 0.0, 0.0]).abs() < 1e-12);
+    }
+
+    #[test]
+    fn auto_ball_contains_the_box() {
+        let c = Carrier::AutoBall.resolve(&[0.0, 0.0, 0.0], &[2.0, 2.0, 1.0]);
+        for corner in [[0.0, 0.0, 0.0], [2.0, 2.0, 1.0], [2.0, 0.0, 1.0]] {
+            assert!(c.eval(&corner) >= -1e-12);
+        }
+    }
+}

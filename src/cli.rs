@@ -1,0 +1,231 @@
+//! The command line: argument definitions, defaults and the report printed after a run. `main`
+//! only sets up MPI and threads and calls [`run`].
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand};
+
+use crate::dist::{Comm, SolverKind, DEFAULT_PANEL};
+use crate::error::{Error, Result};
+use crate::grid::{parse_bounds, GridSize};
+use crate::kernel::Kernel;
+use crate::pipeline::{self, EvalOptions, FitOptions, VolumeSummary};
+use crate::report::{stage_table, Stages};
+
+/// volspline: reconstruct solids from scattered surface points as a volume spline f(x,y,z) with
+/// f >= 0 inside (Savchenko et al. 1995), on any number of MPI ranks.
+///
+/// Run under `mpirun -n P volspline ...` (or as one process without mpirun). The rows of the dense
+/// system and the evaluation grid are split across ranks; each rank uses threads for its share.
+#[derive(Debug, Parser)]
+#[command(name = "volspline", version, about, long_about)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Fit a volume spline to scattered points; write PREFIX.model.h5, PREFIX.hdf (VTKHDF volume of
+    /// f for ParaView) and PREFIX.ply (the surface f = 0).
+    Fit(FitArgs),
+    /// Evaluate a saved model on a new grid without solving again; write PREFIX.hdf and PREFIX.ply.
+    Eval(EvalArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct GridArgs {
+    /// Grid nodes: N along the longest side of the box with cubic cells, or NX,NY,NZ.
+    #[arg(long, default_value = "64", value_name = "N|NX,NY,NZ")]
+    pub grid: String,
+    /// Margin added on every side of the data's bounding box, as a fraction of its longest side.
+    #[arg(long, default_value_t = 0.05, value_name = "F")]
+    pub margin: f64,
+    /// Threads per rank (0: the cores of this node divided by the ranks on it).
+    #[arg(long, default_value_t = 0, value_name = "T")]
+    pub threads: usize,
+}
+
+#[derive(Debug, Args)]
+pub struct FitArgs {
+    /// Points: .obj (vertices), .ply (ascii or binary; vertex x, y, z), .xyz/.txt/.csv (x y z per line).
+    pub input: PathBuf,
+    /// Output prefix: writes PREFIX.model.h5, PREFIX.hdf, PREFIX.ply.
+    #[arg(long, value_name = "PREFIX")]
+    pub out: PathBuf,
+    /// Carrier solid: ball (fitted to the data), ball:cx,cy,cz,r, ellipsoid:cx,cy,cz,a,b,c, or
+    /// union(A,B) / intersection(A,B) / difference(A,B) of carriers (R-functions).
+    #[arg(long, default_value = "ball", value_name = "SPEC")]
+    pub carrier: String,
+    /// Green's function: r (m = 2, biharmonic) or r3 (m = 3, triharmonic).
+    #[arg(long, default_value = "r", value_name = "r|r3")]
+    pub kernel: String,
+    /// Distributed dense solver: householder (QR, the paper's method) or lu (partial pivoting).
+    #[arg(long, default_value = "householder", value_name = "householder|lu")]
+    pub solver: String,
+    /// Panel (block) width of the distributed solvers.
+    #[arg(long, default_value_t = DEFAULT_PANEL, value_name = "NB")]
+    pub panel: usize,
+    /// Points closer than this fraction of the bounding-box diagonal are merged into one.
+    #[arg(long, default_value_t = 1e-6, value_name = "F")]
+    pub merge_tol: f64,
+    #[command(flatten)]
+    pub grid: GridArgs,
+}
+
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    /// A model written by `volspline fit` (PREFIX.model.h5).
+    pub model: PathBuf,
+    /// Output prefix: writes PREFIX.hdf, PREFIX.ply.
+    #[arg(long, value_name = "PREFIX")]
+    pub out: PathBuf,
+    /// Box to evaluate: xmin,ymin,zmin,xmax,ymax,zmax (default: the centres' box plus --margin).
+    #[arg(long, value_name = "BOX", allow_hyphen_values = true)]
+    pub bounds: Option<String>,
+    #[command(flatten)]
+    pub grid: GridArgs,
+}
+
+/// Runs a parsed command on `comm` with `threads` threads per rank. Collective.
+pub fn run(cli: &Cli, comm: &dyn Comm, threads: usize) -> Result<()> {
+    let mut stages = Stages::default();
+    match &cli.command {
+        Command::Fit(a) => {
+            check_margin(a.grid.margin)?;
+            if a.panel == 0 {
+                return Err(Error::Usage("--panel must be at least 1".into()));
+            }
+            if !(a.merge_tol >= 0.0 && a.merge_tol < 0.1) {
+                return Err(Error::Usage("--merge-tol must be in [0, 0.1)".into()));
+            }
+            let opts = FitOptions {
+                input: a.input.clone(),
+                prefix: a.out.clone(),
+                carrier: a.carrier.clone(),
+                kernel: Kernel::from_name_3d(&a.kernel)?,
+                solver: SolverKind::parse(&a.solver)?,
+                grid: GridSize::parse(&a.grid.grid)?,
+                margin: a.grid.margin,
+                panel: a.panel,
+                merge_tol: a.merge_tol,
+                threads,
+            };
+            let s = pipeline::fit(comm, &opts, &mut stages)?;
+            let times = stages.summarise(comm);
+            if comm.rank() == 0 {
+                let t = |name: &str| times.iter().find(|t| t.name == name).map_or(0.0, |t| t.max);
+                println!("volspline fit: {}", opts.input.display());
+                println!(
+                    "  N = {} points ({} read, {} duplicates merged), kernel {}, solver {}, panel {}",
+                    s.points_used,
+                    s.points_read,
+                    s.merged,
+                    opts.kernel.name(),
+                    opts.solver.name(),
+                    opts.panel
+                );
+                println!("  ranks = {}, threads per rank = {}", comm.size(), threads);
+                println!("  relative residual |Mx - b|/|b| = {:.3e}", s.residual);
+                println!("  max |f| at the data points   = {:.3e}", s.max_abs_f_at_points);
+                print_volume(&s.volume);
+                print!("{}", stage_table(&times));
+                println!(
+                    "  paper 000 Table 2 columns: matrix formation {:.3} s, solution of the SLAE {:.3} s, \
+                     evaluation of {} grid nodes {:.3} s",
+                    t("assemble"),
+                    t("solve"),
+                    s.volume.grid.node_count(),
+                    t("evaluate")
+                );
+                println!("  outputs:");
+                println!("    {}", s.model_path.display());
+                println!("    {}", s.volume.hdf_path.display());
+                println!("    {}", s.volume.ply_path.display());
+            }
+        }
+        Command::Eval(a) => {
+            check_margin(a.grid.margin)?;
+            let opts = EvalOptions {
+                model: a.model.clone(),
+                prefix: a.out.clone(),
+                grid: GridSize::parse(&a.grid.grid)?,
+                bounds: a.bounds.as_deref().map(parse_bounds).transpose()?,
+                margin: a.grid.margin,
+                threads,
+            };
+            let (model, v) = pipeline::eval(comm, &opts, &mut stages)?;
+            let times = stages.summarise(comm);
+            if comm.rank() == 0 {
+                println!("volspline eval: {}", opts.model.display());
+                println!(
+                    "  N = {} centres, kernel {}, carrier {}",
+                    model.spline.len(),
+                    model.spline.kernel.name(),
+                    model.carrier
+                );
+                println!("  ranks = {}, threads per rank = {}", comm.size(), threads);
+                print_volume(&v);
+                print!("{}", stage_table(&times));
+                println!("  outputs:");
+                println!("    {}", v.hdf_path.display());
+                println!("    {}", v.ply_path.display());
+            }
+        }
+    }
+    Ok(())
+}
+
+fn check_margin(m: f64) -> Result<()> {
+    if !(0.0..=10.0).contains(&m) {
+        return Err(Error::Usage(format!("--margin {m}: expected a number in [0, 10]")));
+    }
+    Ok(())
+}
+
+fn print_volume(v: &VolumeSummary) {
+    let g = &v.grid;
+    println!(
+        "  grid {} x {} x {} nodes, origin ({:.6}, {:.6}, {:.6}), spacing ({:.6}, {:.6}, {:.6})",
+        g.dims[0],
+        g.dims[1],
+        g.dims[2],
+        g.origin[0],
+        g.origin[1],
+        g.origin[2],
+        g.spacing[0],
+        g.spacing[1],
+        g.spacing[2]
+    );
+    println!("  surface f = 0: {} triangles, {} vertices", v.triangles, v.vertices);
+}
+
+/// Threads per rank when the user gave 0: this node's cores divided by the ranks on it (from the
+/// launcher's environment), at least 1, so that the defaults never oversubscribe the cores.
+pub fn default_threads(requested: usize) -> usize {
+    if requested > 0 {
+        return requested;
+    }
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let local = [
+        "OMPI_COMM_WORLD_LOCAL_SIZE",
+        "MPI_LOCALNRANKS",
+        "MV2_COMM_WORLD_LOCAL_SIZE",
+        "SLURM_NTASKS_PER_NODE",
+    ]
+    .iter()
+    .find_map(|v| std::env::var(v).ok()?.parse::<usize>().ok())
+    .unwrap_or(1)
+    .max(1);
+    (cores / local).max(1)
+}
+
+impl Cli {
+    /// The --threads value of whichever command was given.
+    pub fn threads(&self) -> usize {
+        match &self.command {
+            Command::Fit(a) => a.grid.threads,
+            Command::Eval(a) => a.grid.threads,
+        }
+    }
+}

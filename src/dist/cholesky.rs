@@ -1,0 +1,264 @@
+//! Projected Cholesky for the bordered spline system (math.md, section 1): the Householder
+//! reflectors that triangularise the polynomial block P are applied to both sides of A, which
+//! leaves a definite (N-k) x (N-k) block B = Q2^T A Q2; B (or -B) is factored by a blocked,
+//! right-looking, row-cyclic Cholesky (a third of LU's flops, counting only the lower triangle),
+//! and lambda = Q2 mu, R c = Q1^T (r - A lambda) recover the spline. Collective throughout.
+
+use faer::linalg::matmul::matmul;
+use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
+use faer::reborrow::Reborrow;
+use faer::{Accum, Mat, MatRef, Par};
+
+use super::comm::Comm;
+use super::system::LocalRows;
+use crate::error::{Error, Result};
+use crate::report::Progress;
+
+/// Local rows updated per GEMM of the trailing update: small enough that the triangle is followed
+/// closely, large enough for BLAS-3 speed.
+const ROW_CHUNK: usize = 96;
+
+/// Solves the bordered system in `rows` (its polynomial border of width `rows.border` >= 1 and
+/// its right-hand side as the last column). Returns the solution on every rank, or
+/// `Error::NotDefinite` (on every rank) when a pivot of B is not positive, in which case the
+/// caller should fall back to LU on a freshly assembled system: `rows` is overwritten.
+pub fn cholesky_solve(
+    comm: &dyn Comm,
+    rows: &mut LocalRows,
+    panel: usize,
+    progress: &Progress,
+) -> Result<Vec<f64>> {
+    let lay = rows.layout;
+    let k = rows.border;
+    let n = lay.n - k;
+    assert!(k >= 1, "the projected Cholesky needs a polynomial border");
+    if n <= k {
+        return Err(Error::NotDefinite(format!("{n} centres leave no definite block")));
+    }
+    let nb = panel.max(1);
+    let ld = rows.ld();
+    let rhs = rows.cols - 1;
+    let la = lay.first_local_from(n); // this rank's rows of A are local 0..la
+    let gl: Vec<usize> = (0..la).map(|l| lay.global(l)).collect();
+
+    // P^T (the border rows) on every rank, and its reflectors
+    let pt = rows.gather_rows(comm, n, n + k, 0, n);
+    let (vs, taus, r) = reflectors(&pt, n, k)?;
+
+    // A <- Q^T A (columns of A and the right-hand side): one all-reduce of a row per reflector
+    let mut w = vec![0.0; n + 1];
+    for (v, &tau) in vs.iter().zip(&taus) {
+        let vl: Vec<f64> = gl.iter().map(|&g| v[g]).collect();
+        for (c, wc) in (0..n).chain([rhs]).zip(w.iter_mut()) {
+            let col = &rows.data[c * ld..c * ld + la];
+            *wc = col.iter().zip(&vl).map(|(a, b)| a * b).sum();
+        }
+        comm.sum_f64(&mut w);
+        for (c, wc) in (0..n).chain([rhs]).zip(w.iter()) {
+            let t = tau * wc;
+            for (a, b) in rows.data[c * ld..c * ld + la].iter_mut().zip(&vl) {
+                *a -= t * b;
+            }
+        }
+    }
+    // A <- A Q: local, row by row through the columns
+    let mut s = vec![0.0; la];
+    for (v, &tau) in vs.iter().zip(&taus) {
+        s.iter_mut().for_each(|x| *x = 0.0);
+        for c in 0..n {
+            if v[c] != 0.0 {
+                for (sl, a) in s.iter_mut().zip(&rows.data[c * ld..c * ld + la]) {
+                    *sl += a * v[c];
+                }
+            }
+        }
+        for c in 0..n {
+            if v[c] != 0.0 {
+                let t = tau * v[c];
+                for (a, sl) in rows.data[c * ld..c * ld + la].iter_mut().zip(&s) {
+                    *a -= t * sl;
+                }
+            }
+        }
+    }
+
+    // B = rows/columns k..n: make it positive definite (sign of any diagonal entry)
+    let mut d0 = [if lay.owner(k) == lay.rank { rows.get(lay.local(k), k) } else { 0.0 }];
+    comm.broadcast_f64(lay.owner(k), &mut d0);
+    let sign = if d0[0] < 0.0 { -1.0 } else { 1.0 };
+    let b0 = lay.first_local_from(k);
+    if sign < 0.0 {
+        for c in (k..n).chain([rhs]) {
+            rows.data[c * ld + b0..c * ld + la].iter_mut().for_each(|a| *a = -*a);
+        }
+    }
+
+    // blocked right-looking Cholesky of B, lower triangle, in place
+    let par = Par::rayon(0);
+    let mut p0 = k;
+    while p0 < n {
+        let pb = nb.min(n - p0);
+        let d = rows.gather_rows(comm, p0, p0 + pb, p0, p0 + pb);
+        let l11 = cholesky_small(&d, pb).ok_or_else(|| {
+            Error::NotDefinite(format!(
+                "a pivot of the projected block is not positive near row {p0} of {n} \
+                 (the kernel is not conditionally definite on these points to working precision)"
+            ))
+        })?;
+        for l in lay.first_local_from(p0)..lay.first_local_from(p0 + pb) {
+            let i = lay.global(l) - p0;
+            for c in 0..pb {
+                rows.set(l, p0 + c, if c <= i { l11[(i, c)] } else { 0.0 });
+            }
+        }
+        let t0 = lay.first_local_from(p0 + pb);
+        if p0 + pb < n {
+            // L21 = B21 L11^-T, i.e. L11 L21^T = B21^T
+            {
+                let b21 = rows.view_mut().submatrix_mut(t0, p0, la - t0, pb);
+                solve_lower_triangular_in_place(l11.as_ref(), b21.transpose_mut(), Par::Seq);
+            }
+            // every rank needs all of L21 for its rows of B22 -= L21 L21^T
+            let rest = n - p0 - pb;
+            let l21_all = rows.gather_rows(comm, p0 + pb, n, p0, p0 + pb);
+            let lt = MatRef::from_column_major_slice(&l21_all, pb, rest);
+            let mut a = t0;
+            while a < la {
+                let b = (a + ROW_CHUNK).min(la);
+                let ncols = lay.global(b - 1) + 1 - (p0 + pb);
+                let m = rows.view_mut().submatrix_mut(a, 0, b - a, p0 + pb + ncols);
+                let (left, right) = m.split_at_col_mut(p0 + pb);
+                matmul(right, Accum::Add, left.rb().subcols(p0, pb), lt.subcols(0, ncols), -1.0, par);
+                a = b;
+            }
+        }
+        p0 += pb;
+        progress.update(p0, n);
+    }
+
+    // forward substitution L z = y (y: the right-hand side rows k..n)
+    let mut z = vec![0.0; n];
+    let mut q0 = k;
+    while q0 < n {
+        let q1 = (q0 + nb).min(n);
+        let bs = q1 - q0;
+        let d = rows.gather_rows(comm, q0, q1, q0, q1);
+        let y = rows.gather_rows(comm, q0, q1, rhs, rhs + 1);
+        for i in 0..bs {
+            let s: f64 = (0..i).map(|j| d[i * bs + j] * z[q0 + j]).sum();
+            z[q0 + i] = (y[i] - s) / d[i * bs + i];
+        }
+        let u0 = lay.first_local_from(q1);
+        for c in q0..q1 {
+            let zc = z[c];
+            for l in u0..la {
+                rows.data[l + rhs * ld] -= rows.data[l + c * ld] * zc;
+            }
+        }
+        q0 = q1;
+    }
+    // back substitution L^T mu = z
+    let mut mu = vec![0.0; n];
+    let mut q1 = n;
+    while q1 > k {
+        let q0 = q1.saturating_sub(nb).max(k);
+        let bs = q1 - q0;
+        let u0 = lay.first_local_from(q1);
+        let mut sums = vec![0.0; bs];
+        for (t, c) in (q0..q1).enumerate() {
+            sums[t] = (u0..la).map(|l| rows.data[l + c * ld] * mu[gl[l]]).sum();
+        }
+        comm.sum_f64(&mut sums);
+        let d = rows.gather_rows(comm, q0, q1, q0, q1);
+        for i in (0..bs).rev() {
+            let s: f64 = (i + 1..bs).map(|j| d[j * bs + i] * mu[q0 + j]).sum();
+            mu[q0 + i] = (z[q0 + i] - sums[i] - s) / d[i * bs + i];
+        }
+        q1 = q0;
+    }
+
+    // lambda = Q [0; mu]
+    let mut lambda = mu.clone();
+    lambda[..k].iter_mut().for_each(|x| *x = 0.0);
+    for (v, &tau) in vs.iter().zip(&taus).rev() {
+        let t = tau * v.iter().zip(&lambda).map(|(a, b)| a * b).sum::<f64>();
+        lambda.iter_mut().zip(v).for_each(|(x, vi)| *x -= t * vi);
+    }
+    // R c = (Q^T r)_1 - (Q^T A Q)[0..k, k..n] mu, from the owners of rows 0..k
+    let mut t = vec![0.0; k];
+    for i in 0..k {
+        if lay.owner(i) == lay.rank {
+            let l = lay.local(i);
+            t[i] = rows.get(l, rhs) - (k..n).map(|j| rows.get(l, j) * mu[j]).sum::<f64>();
+        }
+    }
+    comm.sum_f64(&mut t);
+    let mut c = vec![0.0; k];
+    for i in (0..k).rev() {
+        let s: f64 = (i + 1..k).map(|j| r[i * k + j] * c[j]).sum();
+        c[i] = (t[i] - s) / r[i * k + i];
+    }
+    lambda.extend(c);
+    Ok(lambda)
+}
+
+/// Reflectors v_j, their tau_j, and R (row-major k x k).
+type Reflectors = (Vec<Vec<f64>>, Vec<f64>, Vec<f64>);
+
+/// Householder QR of the N x k matrix P given as P^T (row-major k x N): the reflectors v_j
+/// (length N, zero before j, one at j), their tau_j (H_j = I - tau_j v_j v_j^T), and R (row-major
+/// k x k) with Q^T P = [R; 0], Q = H_1 ... H_k.
+fn reflectors(pt: &[f64], n: usize, k: usize) -> Result<Reflectors> {
+    let mut p: Vec<Vec<f64>> = (0..k).map(|j| pt[j * n..(j + 1) * n].to_vec()).collect(); // columns
+    let mut vs = Vec::with_capacity(k);
+    let mut taus = Vec::with_capacity(k);
+    let mut r = vec![0.0; k * k];
+    for j in 0..k {
+        let x0 = p[j][j];
+        let norm = p[j][j..].iter().map(|v| v * v).sum::<f64>().sqrt();
+        if !(norm > 0.0) {
+            return Err(Error::Numerical(format!(
+                "the polynomial block has rank < {k}: points not unisolvent"
+            )));
+        }
+        let alpha = if x0 >= 0.0 { -norm } else { norm };
+        let mut v = vec![0.0; n];
+        v[j] = 1.0;
+        let scale = 1.0 / (x0 - alpha);
+        for i in j + 1..n {
+            v[i] = p[j][i] * scale;
+        }
+        let tau = (alpha - x0) / alpha;
+        r[j * k + j] = alpha;
+        for c in j + 1..k {
+            let wv: f64 = (j..n).map(|i| v[i] * p[c][i]).sum();
+            for i in j..n {
+                p[c][i] -= tau * v[i] * wv;
+            }
+            r[j * k + c] = p[c][j];
+        }
+        vs.push(v);
+        taus.push(tau);
+    }
+    Ok((vs, taus, r))
+}
+
+/// Cholesky of a small symmetric matrix (row-major, lower triangle used); None unless every pivot
+/// is positive.
+fn cholesky_small(d: &[f64], m: usize) -> Option<Mat<f64>> {
+    let mut l = Mat::<f64>::zeros(m, m);
+    for j in 0..m {
+        let s: f64 = (0..j).map(|t| l[(j, t)] * l[(j, t)]).sum();
+        let piv = d[j * m + j] - s;
+        if !(piv > 0.0) {
+            return None;
+        }
+        let djj = piv.sqrt();
+        l[(j, j)] = djj;
+        for i in j + 1..m {
+            let s: f64 = (0..j).map(|t| l[(i, t)] * l[(j, t)]).sum();
+            l[(i, j)] = (d[i * m + j] - s) / djj;
+        }
+    }
+    Some(l)
+}

@@ -1,0 +1,163 @@
+//! Distributed Householder QR on the row-cyclic layout, blocked in compact-WY form (as ScaLAPACK's
+//! PDGEQRF; math.md, section 2): per panel column one all-reduce for the norm and one for v^T A
+//! of the panel; per panel an all-reduce of V^T V to form T and one of W = V^T A_trail for the
+//! trailing update A_trail -= V T^T W, a local GEMM. The right-hand side is a trailing column, so
+//! it receives Q^T b without a separate pass. The matrix is never gathered.
+
+use faer::linalg::matmul::matmul;
+use faer::reborrow::Reborrow;
+use faer::{Accum, MatMut, MatRef, Par};
+
+use super::backsub::back_substitute;
+use super::comm::Comm;
+use super::system::LocalRows;
+use crate::error::Result;
+use crate::report::Progress;
+
+/// Solves the distributed system in `rows` (right-hand side in the last column) and returns the
+/// solution on every rank. Collective. `rows` is overwritten by R, the reflectors and Q^T b.
+pub fn householder_solve(
+    comm: &dyn Comm,
+    rows: &mut LocalRows,
+    panel: usize,
+    progress: &Progress,
+) -> Result<Vec<f64>> {
+    let lay = rows.layout;
+    let n = lay.n;
+    let cols = rows.cols;
+    let nb = panel.max(1);
+    let tol = rows.max_abs(comm) * f64::EPSILON * n as f64;
+    let par = Par::rayon(0);
+    let lc = rows.ld();
+    let mut k = 0;
+    while k < n {
+        let kb = nb.min(n - k);
+        let taus = factor_panel(comm, rows, k, kb);
+        let rest = cols - (k + kb);
+        if rest > 0 {
+            // V: this rank's rows k.. of the panel, unit lower trapezoidal, made explicit
+            let r0 = lay.first_local_from(k);
+            let mr = lc - r0;
+            let mut v = vec![0.0; mr * kb];
+            for c in 0..kb {
+                for (t, l) in (r0..lc).enumerate() {
+                    let g = lay.global(l);
+                    v[t + c * mr] = match g.cmp(&(k + c)) {
+                        std::cmp::Ordering::Less => 0.0,
+                        std::cmp::Ordering::Equal => 1.0,
+                        std::cmp::Ordering::Greater => rows.get(l, k + c),
+                    };
+                }
+            }
+            let vref = MatRef::from_column_major_slice(&v, mr, kb);
+            // T from V^T V (dlarft, forward, column-wise)
+            let mut vtv = vec![0.0; kb * kb];
+            matmul(
+                MatMut::from_column_major_slice_mut(&mut vtv, kb, kb),
+                Accum::Replace,
+                vref.transpose(),
+                vref,
+                1.0,
+                Par::Seq,
+            );
+            comm.sum_f64(&mut vtv);
+            let mut t = vec![0.0; kb * kb];
+            for i in 0..kb {
+                t[i + i * kb] = taus[i];
+                for r in 0..i {
+                    let s: f64 = (r..i).map(|s| t[r + s * kb] * vtv[s + i * kb]).sum();
+                    t[r + i * kb] = -taus[i] * s;
+                }
+            }
+            // W = V^T A_trail, summed over ranks; then W <- T^T W and A_trail -= V W
+            let mut wbuf = vec![0.0; kb * rest];
+            {
+                let a_trail = rows.view().submatrix(r0, k + kb, mr, rest);
+                matmul(
+                    MatMut::from_column_major_slice_mut(&mut wbuf, kb, rest),
+                    Accum::Replace,
+                    vref.transpose(),
+                    a_trail,
+                    1.0,
+                    par,
+                );
+            }
+            comm.sum_f64(&mut wbuf);
+            let mut tw = vec![0.0; kb * rest];
+            matmul(
+                MatMut::from_column_major_slice_mut(&mut tw, kb, rest),
+                Accum::Replace,
+                MatRef::from_column_major_slice(&t, kb, kb).transpose(),
+                MatRef::from_column_major_slice(&wbuf, kb, rest),
+                1.0,
+                par,
+            );
+            let a_trail = rows.view_mut().submatrix_mut(r0, k + kb, mr, rest);
+            matmul(a_trail, Accum::Add, vref.rb(), MatRef::from_column_major_slice(&tw, kb, rest), -1.0, par);
+        }
+        k += kb;
+        progress.update(k, n);
+    }
+    back_substitute(comm, rows, nb, tol)
+}
+
+/// Unblocked Householder QR of the panel columns k..k+kb (rows k..n); returns the tau of each
+/// reflector H = I - tau v v^T (v(0) = 1, stored below the diagonal; R on and above it).
+fn factor_panel(comm: &dyn Comm, rows: &mut LocalRows, k: usize, kb: usize) -> Vec<f64> {
+    let lay = rows.layout;
+    let lc = rows.ld();
+    let ld = lc;
+    let me = lay.rank;
+    let mut taus = vec![0.0; kb];
+    let mut w = vec![0.0; kb];
+    for j in k..k + kb {
+        let l0 = lay.first_local_from(j + 1);
+        let owns_j = lay.owner(j) == me;
+        let lj = lay.local(j);
+        let mut s = [
+            (l0..lc).map(|l| rows.data[l + j * ld].powi(2)).sum::<f64>(),
+            if owns_j { rows.data[lj + j * ld] } else { 0.0 },
+        ];
+        comm.sum_f64(&mut s);
+        let (below, x0) = (s[0], s[1]);
+        if below == 0.0 {
+            // already triangular in this column: H = I
+            continue;
+        }
+        let norm = (x0 * x0 + below).sqrt();
+        let alpha = if x0 >= 0.0 { -norm } else { norm };
+        let tau = (alpha - x0) / alpha;
+        let scale = 1.0 / (x0 - alpha);
+        for l in l0..lc {
+            rows.data[l + j * ld] *= scale;
+        }
+        if owns_j {
+            rows.data[lj + j * ld] = alpha;
+        }
+        taus[j - k] = tau;
+        // apply H_j to the panel columns right of j
+        let width = k + kb - j - 1;
+        if width == 0 {
+            continue;
+        }
+        let wv = &mut w[..width];
+        for (t, c) in (j + 1..k + kb).enumerate() {
+            let mut acc = if owns_j { rows.data[lj + c * ld] } else { 0.0 };
+            for l in l0..lc {
+                acc += rows.data[l + j * ld] * rows.data[l + c * ld];
+            }
+            wv[t] = acc;
+        }
+        comm.sum_f64(wv);
+        for (t, c) in (j + 1..k + kb).enumerate() {
+            let tw = tau * wv[t];
+            if owns_j {
+                rows.data[lj + c * ld] -= tw;
+            }
+            for l in l0..lc {
+                rows.data[l + c * ld] -= rows.data[l + j * ld] * tw;
+            }
+        }
+    }
+    taus
+}

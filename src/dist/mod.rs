@@ -1,0 +1,97 @@
+//! The distributed layer: the communicator interface, the row-cyclic layout of the bordered system
+//! (the transputer network's distribution) and the collective solvers built on them.
+//!
+//! Everything that crosses ranks goes through [`Comm`]; `MpiComm` implements it over MPI and
+//! `Solo` over a single process, so the solvers are the same code in tests, on one process and
+//! under `mpirun`. Nothing outside this module and the collective I/O calls MPI.
+
+mod backsub;
+mod cholesky;
+mod comm;
+mod householder;
+mod layout;
+mod lu;
+mod system;
+
+pub use cholesky::cholesky_solve;
+pub use comm::{agree, Comm, MpiComm, Solo};
+pub use householder::householder_solve;
+pub use layout::{RowCyclic, Slabs};
+pub use lu::lu_solve;
+pub use system::LocalRows;
+
+use crate::error::{Error, Result};
+use crate::report::Progress;
+
+/// The distributed dense solvers, chosen by name at run time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SolverKind {
+    /// Householder QR in compact-WY blocks (the paper's method).
+    Householder,
+    /// LU with partial pivoting, right-looking blocked.
+    Lu,
+    /// Projected Cholesky of the definite block (about a quarter of Householder's flops).
+    Cholesky,
+}
+
+impl SolverKind {
+    pub fn parse(name: &str) -> Result<Self> {
+        match name {
+            "householder" | "qr" => Ok(SolverKind::Householder),
+            "lu" => Ok(SolverKind::Lu),
+            "cholesky" => Ok(SolverKind::Cholesky),
+            other => {
+                Err(Error::Usage(format!("unknown solver '{other}' (expected householder, lu or cholesky)")))
+            }
+        }
+    }
+
+    pub fn name(&self) -> &'static str {
+        match self {
+            SolverKind::Householder => "householder",
+            SolverKind::Lu => "lu",
+            SolverKind::Cholesky => "cholesky",
+        }
+    }
+
+    /// Solves the distributed system held in `rows` (its right-hand side is the last column) and
+    /// returns the whole solution on every rank. Collective. `Cholesky` may return
+    /// `Error::NotDefinite`, after which `rows` must be assembled again for another solver.
+    pub fn solve(
+        &self,
+        comm: &dyn Comm,
+        rows: &mut LocalRows,
+        panel: usize,
+        progress: &Progress,
+    ) -> Result<Vec<f64>> {
+        match self {
+            SolverKind::Householder => householder_solve(comm, rows, panel, progress),
+            SolverKind::Lu => lu_solve(comm, rows, panel, progress),
+            SolverKind::Cholesky => cholesky_solve(comm, rows, panel, progress),
+        }
+    }
+}
+
+/// Default panel width of the blocked solvers.
+pub const DEFAULT_PANEL: usize = 64;
+
+/// Collects an error from any rank and returns it on every rank; the error message travels from the
+/// lowest failing rank. Collective; used by [`agree`].
+fn first_error(comm: &dyn Comm, local: Option<&Error>) -> Option<Error> {
+    let mut who = [if local.is_some() { comm.rank() as f64 } else { f64::INFINITY }];
+    comm.min_f64(&mut who);
+    if who[0].is_infinite() {
+        return None;
+    }
+    let root = who[0] as usize;
+    let mut msg = match local {
+        Some(e) if root == comm.rank() => e.to_string().into_bytes(),
+        _ => Vec::new(),
+    };
+    comm.broadcast_bytes(root, &mut msg);
+    if root == comm.rank() {
+        local.cloned()
+    } else {
+        Some(Error::Rank { rank: root, message: String::from_utf8_lossy(&msg).into_owned() })
+    }
+}

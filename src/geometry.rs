@@ -1,0 +1,157 @@
+//! Data hygiene for scattered points before they become spline centres: bounding boxes, merging of
+//! duplicate and near-duplicate points (two equal rows make the system singular) and the
+//! unisolvency check of the polynomial part (math.md, section 1).
+
+use std::collections::HashMap;
+
+use crate::dense::{qr_r_diagonal, Matrix};
+use crate::error::{Error, Result};
+use crate::kernel::Kernel;
+
+/// Axis-aligned bounding box of `dim`-dimensional points stored `dim` values per point.
+pub fn bounding_box(points: &[f64], dim: usize) -> (Vec<f64>, Vec<f64>) {
+    let mut lo = vec![f64::INFINITY; dim];
+    let mut hi = vec![f64::NEG_INFINITY; dim];
+    for p in points.chunks_exact(dim) {
+        for d in 0..dim {
+            lo[d] = lo[d].min(p[d]);
+            hi[d] = hi[d].max(p[d]);
+        }
+    }
+    (lo, hi)
+}
+
+/// Length of the diagonal of a box.
+pub fn diagonal(lo: &[f64], hi: &[f64]) -> f64 {
+    lo.iter().zip(hi).map(|(a, b)| (b - a) * (b - a)).sum::<f64>().sqrt()
+}
+
+/// Removes every point closer than `tol` to an earlier kept point (the first of a cluster is
+/// kept, so the result does not depend on anything but the input order). Returns the kept points
+/// and how many were merged away.
+pub fn merge_duplicates(points: &[f64], dim: usize, tol: f64) -> (Vec<f64>, usize) {
+    let n = points.len() / dim;
+    let cell = if tol > 0.0 { tol } else { f64::MIN_POSITIVE };
+    let key = |p: &[f64]| -> [i64; 3] {
+        let mut k = [0i64; 3];
+        for d in 0..dim {
+            k[d] = (p[d] / cell).floor() as i64;
+        }
+        k
+    };
+    let mut grid: HashMap<[i64; 3], Vec<usize>> = HashMap::new();
+    let mut kept: Vec<f64> = Vec::with_capacity(points.len());
+    let mut merged = 0;
+    for i in 0..n {
+        let p = &points[i * dim..(i + 1) * dim];
+        let c = key(p);
+        let mut dup = false;
+        'search: for dx in -1..=1i64 {
+            for dy in if dim > 1 { -1..=1i64 } else { 0..=0 } {
+                for dz in if dim > 2 { -1..=1i64 } else { 0..=0 } {
+                    if let Some(list) = grid.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) {
+                        for &q in list {
+                            let kq = &kept[q * dim..(q + 1) * dim];
+                            let d2: f64 = kq.iter().zip(p).map(|(a, b)| (a - b) * (a - b)).sum();
+                            if d2 <= tol * tol {
+                                dup = true;
+                                break 'search;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        if dup {
+            merged += 1;
+        } else {
+            grid.entry(c).or_default().push(kept.len() / dim);
+            kept.extend_from_slice(p);
+        }
+    }
+    (kept, merged)
+}
+
+/// Checks that the (normalised) points determine the polynomial part uniquely: the N x k matrix
+/// of the basis polynomials must have full column rank. Says what is wrong when it has not.
+pub fn check_unisolvent(kernel: &Kernel, points: &[f64]) -> Result<()> {
+    let dim = kernel.dim();
+    let n = points.len() / dim;
+    let k = kernel.poly_count();
+    if n < k {
+        return Err(Error::Numerical(format!(
+            "{n} distinct points are too few: kernel {} in {dim}D needs at least {k} points \
+             not on a common {}",
+            kernel.name(),
+            degenerate_set(kernel)
+        )));
+    }
+    let mut vals = vec![0.0; k];
+    let mut p = Matrix::zeros(n, k);
+    for (i, x) in points.chunks_exact(dim).enumerate() {
+        kernel.poly_eval(x, &mut vals);
+        for (j, v) in vals.iter().enumerate() {
+            p.set(i, j, *v);
+        }
+    }
+    let diag = qr_r_diagonal(&p);
+    let biggest = diag.iter().fold(0.0f64, |a, b| a.max(*b));
+    if diag.iter().any(|&d| d <= 1e-10 * biggest) {
+        return Err(Error::Numerical(format!(
+            "the {n} points all lie on one {}, so the polynomial part of degree {} is not \
+             determined (the points are not unisolvent); kernel {} needs points that span {dim}D",
+            degenerate_set(kernel),
+            kernel.order() - 1,
+            kernel.name(),
+        )));
+    }
+    Ok(())
+}
+
+fn degenerate_set(kernel: &Kernel) -> &'static str {
+    match (kernel.dim(), kernel.order()) {
+        (3, 2) => "plane",
+        (2, 2) => "line",
+        (1, 2) => "point",
+        (3, _) => "quadric surface",
+        (2, _) => "conic",
+        _ => "low-degree algebraic set",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn duplicates_and_near_duplicates_are_merged() {
+        let pts = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0 + 1e-9, 0.0, 0.0, 0.0, 0.0, 0.0, 0.5, 0.5, 0.5];
+        let (kept, merged) = merge_duplicates(&pts, 3, 1e-6);
+        assert_eq!(merged, 2);
+        assert_eq!(kept, vec![0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.5, 0.5, 0.5]);
+        let (_, none) = merge_duplicates(&pts, 3, 0.0);
+        assert_eq!(none, 1); // only the exact duplicate
+    }
+
+    #[test]
+    fn merging_works_across_cell_boundaries() {
+        // two points 1e-7 apart straddling a grid-cell boundary of size tol
+        let tol = 1e-6;
+        let pts = [tol * 10.0 - 5e-8, 0.0, 0.0, tol * 10.0 + 5e-8, 0.0, 0.0];
+        assert_eq!(merge_duplicates(&pts, 3, tol).1, 1);
+    }
+
+    #[test]
+    fn coplanar_points_are_not_unisolvent() {
+        let k = Kernel::new(3, 2).unwrap();
+        let plane: Vec<f64> = (0..20).flat_map(|i| [i as f64 * 0.1, (i * i % 7) as f64 * 0.1, 0.3]).collect();
+        let err = check_unisolvent(&k, &plane).unwrap_err();
+        assert!(err.to_string().contains("plane"), "{err}");
+        let mut solid = plane.clone();
+        solid.extend_from_slice(&[0.0, 0.0, 1.0]);
+        check_unisolvent(&k, &solid).unwrap();
+        let line = Kernel::new(2, 2).unwrap();
+        let collinear: Vec<f64> = (0..10).flat_map(|i| [i as f64, 2.0 * i as f64 + 1.0]).collect();
+        assert!(check_unisolvent(&line, &collinear).unwrap_err().to_string().contains("line"));
+    }
+}

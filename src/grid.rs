@@ -1,0 +1,150 @@
+//! The regular evaluation grid: its geometry (origin, spacing, node counts, x fastest) and the
+//! z-slab each rank evaluates and writes.
+
+use crate::dist::Slabs;
+use crate::error::{Error, Result};
+
+/// Node counts requested on the command line: `N` (nodes along the longest side, cubic cells) or
+/// `NX,NY,NZ`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GridSize {
+    Longest(usize),
+    Each([usize; 3]),
+}
+
+impl GridSize {
+    pub fn parse(s: &str) -> Result<Self> {
+        let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+        let num = |t: &str| -> Result<usize> {
+            match t.parse::<usize>() {
+                Ok(v) if v >= 2 => Ok(v),
+                _ => Err(Error::Usage(format!("grid '{s}': '{t}' is not a node count >= 2"))),
+            }
+        };
+        match parts.len() {
+            1 => Ok(GridSize::Longest(num(parts[0])?)),
+            3 => Ok(GridSize::Each([num(parts[0])?, num(parts[1])?, num(parts[2])?])),
+            _ => Err(Error::Usage(format!("grid '{s}': expected N or NX,NY,NZ"))),
+        }
+    }
+}
+
+/// Parses `xmin,ymin,zmin,xmax,ymax,zmax`.
+pub fn parse_bounds(s: &str) -> Result<([f64; 3], [f64; 3])> {
+    let v: Vec<f64> =
+        s.split(',').map(|t| t.trim().parse::<f64>()).collect::<std::result::Result<_, _>>().map_err(
+            |_| Error::Usage(format!("bounds '{s}': expected six numbers xmin,ymin,zmin,xmax,ymax,zmax")),
+        )?;
+    if v.len() != 6 || v.iter().any(|x| !x.is_finite()) {
+        return Err(Error::Usage(format!("bounds '{s}': expected six finite numbers")));
+    }
+    let (lo, hi) = ([v[0], v[1], v[2]], [v[3], v[4], v[5]]);
+    if (0..3).any(|d| hi[d] <= lo[d]) {
+        return Err(Error::Usage(format!("bounds '{s}': every max must exceed its min")));
+    }
+    Ok((lo, hi))
+}
+
+/// A regular grid of nx x ny x nz nodes; node (i, j, k) is at origin + (i, j, k) * spacing and has
+/// index i + nx (j + ny k).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Grid {
+    pub dims: [usize; 3],
+    pub origin: [f64; 3],
+    pub spacing: [f64; 3],
+}
+
+impl Grid {
+    /// A grid covering the box lo..hi. `Longest(n)`: cubic cells, n nodes along the longest side,
+    /// the other sides rounded up to whole cells and centred on the box.
+    pub fn covering(lo: [f64; 3], hi: [f64; 3], size: GridSize) -> Result<Grid> {
+        let ext: Vec<f64> = (0..3).map(|d| hi[d] - lo[d]).collect();
+        let longest = ext.iter().cloned().fold(0.0, f64::max);
+        if !(longest > 0.0) || ext.iter().any(|e| !e.is_finite() || *e < 0.0) {
+            return Err(Error::Usage("the grid box is empty or not finite".into()));
+        }
+        let mut g = Grid { dims: [0; 3], origin: [0.0; 3], spacing: [0.0; 3] };
+        for d in 0..3 {
+            match size {
+                GridSize::Longest(n) => {
+                    let h = longest / (n - 1) as f64;
+                    let cells = ((ext[d] / h) - 1e-9).ceil().max(1.0) as usize;
+                    g.dims[d] = cells + 1;
+                    g.spacing[d] = h;
+                    g.origin[d] = 0.5 * (lo[d] + hi[d]) - 0.5 * cells as f64 * h;
+                }
+                GridSize::Each(n) => {
+                    let e = if ext[d] > 0.0 { ext[d] } else { longest * 1e-3 };
+                    g.dims[d] = n[d];
+                    g.spacing[d] = e / (n[d] - 1) as f64;
+                    g.origin[d] = 0.5 * (lo[d] + hi[d]) - 0.5 * e;
+                }
+            }
+        }
+        let nodes = g.dims.iter().map(|&n| n as u128).product::<u128>();
+        if nodes > 1 << 36 {
+            return Err(Error::Usage(format!("grid {:?} has {nodes} nodes, more than 2^36", g.dims)));
+        }
+        Ok(g)
+    }
+
+    pub fn node_count(&self) -> usize {
+        self.dims.iter().product()
+    }
+
+    /// Position of node (i, j, k).
+    #[inline]
+    pub fn node(&self, i: usize, j: usize, k: usize) -> [f64; 3] {
+        [
+            self.origin[0] + i as f64 * self.spacing[0],
+            self.origin[1] + j as f64 * self.spacing[1],
+            self.origin[2] + k as f64 * self.spacing[2],
+        ]
+    }
+
+    /// The z-layers of every rank.
+    pub fn slabs(&self, ranks: usize) -> Slabs {
+        Slabs { n: self.dims[2], ranks }
+    }
+}
+
+/// Box lo..hi of points grown by `margin` times its longest side on every side.
+pub fn padded_box(lo: &[f64], hi: &[f64], margin: f64) -> ([f64; 3], [f64; 3]) {
+    let longest = (0..3).map(|d| hi[d] - lo[d]).fold(0.0, f64::max);
+    let pad = margin * longest;
+    let mut l = [0.0; 3];
+    let mut h = [0.0; 3];
+    for d in 0..3 {
+        l[d] = lo[d] - pad;
+        h[d] = hi[d] + pad;
+    }
+    (l, h)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn longest_side_gives_cubic_cells_covering_the_box() {
+        let g = Grid::covering([0.0, 0.0, 0.0], [2.0, 1.0, 0.5], GridSize::Longest(21)).unwrap();
+        assert_eq!(g.dims, [21, 11, 6]);
+        assert!(g.spacing.iter().all(|&h| (h - 0.1).abs() < 1e-15));
+        let far = g.node(20, 10, 5);
+        assert!(g.origin[0] <= 0.0 && far[0] >= 2.0 - 1e-12);
+        assert!(g.origin[2] <= 0.0 && far[2] >= 0.5 - 1e-12);
+    }
+
+    #[test]
+    fn explicit_dims_and_bad_sizes() {
+        let g = Grid::covering([0.0; 3], [1.0, 2.0, 3.0], GridSize::parse("5,6,7").unwrap()).unwrap();
+        assert_eq!(g.dims, [5, 6, 7]);
+        assert_eq!(g.node(4, 5, 6), [1.0, 2.0, 3.0]);
+        for bad in ["1", "a", "4,4", "0,4,4", ""] {
+            assert!(GridSize::parse(bad).is_err(), "{bad}");
+        }
+        assert!(parse_bounds("0,0,0,1,1").is_err());
+        assert!(parse_bounds("0,0,0,1,1,0").is_err());
+        assert_eq!(parse_bounds("0,0,0,1,1,1").unwrap().1, [1.0; 3]);
+    }
+}

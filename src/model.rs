@@ -1,0 +1,63 @@
+//! The reconstructed solid as a function model f = f_c - U (f >= 0 inside, math.md section 1):
+//! the carrier, the solved spline and the record of how it was made. Evaluation of f at points and
+//! on grid slabs, threaded with rayon.
+
+use rayon::prelude::*;
+
+use crate::carrier::Carrier;
+use crate::eval::Evaluator;
+use crate::grid::Grid;
+use crate::spline::Spline;
+
+/// How a model was made; stored with it.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Provenance {
+    pub input: String,
+    /// Bounding box of the input points (the default domain of the grid).
+    pub box_lo: [f64; 3],
+    pub box_hi: [f64; 3],
+    pub points_read: usize,
+    pub duplicates_merged: usize,
+    pub solver: String,
+    pub residual: f64,
+    pub ranks: usize,
+    pub threads: usize,
+    /// (stage, max seconds over ranks)
+    pub timings: Vec<(String, f64)>,
+    pub version: String,
+}
+
+/// f(x) = f_c(x) - U(x).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Model {
+    pub carrier: Carrier,
+    pub spline: Spline,
+    pub provenance: Provenance,
+}
+
+impl Model {
+    /// f at a point in the caller's coordinates.
+    #[inline]
+    pub fn eval(&self, x: &[f64]) -> f64 {
+        self.carrier.eval(x) - self.spline.eval(x)
+    }
+
+    /// f at the nodes of grid layers k0..k0+layers, x fastest, threaded over rows of nodes. The
+    /// value of a node depends on nothing but its position, so slabs computed on different ranks
+    /// agree bit for bit where they overlap.
+    pub fn eval_layers(&self, grid: &Grid, k0: usize, layers: usize) -> Vec<f64> {
+        let [nx, ny, _] = grid.dims;
+        let ev = Evaluator::new(&self.spline);
+        let xs: Vec<f64> = (0..nx).map(|i| grid.node(i, 0, 0)[0]).collect();
+        let mut out = vec![0.0; nx * ny * layers];
+        out.par_chunks_mut(nx.max(1)).enumerate().for_each(|(row, vals)| {
+            let (j, k) = (row % ny, k0 + row / ny);
+            let p = grid.node(0, j, k);
+            ev.eval_row(&xs, p[1], p[2], vals);
+            for (v, &x) in vals.iter_mut().zip(&xs) {
+                *v = self.carrier.eval(&[x, p[1], p[2]]) - *v;
+            }
+        });
+        out
+    }
+}

@@ -1,0 +1,70 @@
+//! Shared helpers of the integration tests: real data, temporary folders, running the binary.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use volspline::io::points::read_points;
+
+pub const BUNNY: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/bunny10k.obj");
+pub const COW: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/cow.obj");
+pub const BIN: &str = env!("CARGO_BIN_EXE_volspline");
+
+/// The bunny's vertices, 3 values per point.
+pub fn bunny() -> Vec<f64> {
+    read_points(Path::new(BUNNY)).unwrap().points.iter().flatten().copied().collect()
+}
+
+/// Every `step`-th bunny vertex starting at `offset`.
+pub fn bunny_subset(step: usize, offset: usize) -> Vec<f64> {
+    bunny().chunks_exact(3).skip(offset).step_by(step).flatten().copied().collect()
+}
+
+/// A fresh, empty folder for one test.
+pub fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("volspline-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Writes points as an .xyz file with full precision.
+pub fn write_xyz(path: &Path, pts: &[f64]) {
+    let mut s = String::from("# volspline test points\n");
+    for p in pts.chunks_exact(3) {
+        s.push_str(&format!("{:?} {:?} {:?}\n", p[0], p[1], p[2]));
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+/// Runs the binary under `mpirun -n ranks` (or directly for ranks == 0).
+pub fn run(ranks: usize, args: &[&str]) -> Output {
+    let mut cmd = if ranks == 0 {
+        Command::new(BIN)
+    } else {
+        let mut c = Command::new("mpirun");
+        c.args(["-n", &ranks.to_string(), "--oversubscribe", BIN]);
+        c
+    };
+    cmd.args(args)
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .env("OMPI_MCA_rmaps_base_oversubscribe", "1")
+        .env("RAYON_NUM_THREADS", "1");
+    cmd.output().expect("failed to start the volspline binary (is mpirun installed? run jobs/setup.sh)")
+}
+
+/// Runs and asserts success, printing the output on failure.
+pub fn run_ok(ranks: usize, args: &[&str]) -> String {
+    let out = run(ranks, args);
+    let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(out.status.success(), "volspline {args:?} on {ranks} ranks failed:\n{text}");
+    text
+}
+
+/// max |a - b| / max |b|.
+pub fn rel_diff(a: &[f64], b: &[f64]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    let scale = b.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(f64::MIN_POSITIVE);
+    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max) / scale
+}

@@ -1,0 +1,186 @@
+//! The real binary under `mpirun -n 1`, `-n 2` and `-n 3 --oversubscribe` on bunny points: the
+//! model coefficients and the grid values agree with the serial oracle; `eval` reproduces `fit`;
+//! bad input fails cleanly on every rank count.
+
+mod common;
+
+use std::path::Path;
+
+use volspline::carrier::Carrier;
+use volspline::dist::SolverKind;
+use volspline::io::model_file::read_model;
+use volspline::io::vtkhdf::read_image;
+use volspline::kernel::Kernel;
+use volspline::model::Model;
+use volspline::pipeline::{prepare, solve_serial};
+
+#[test]
+fn distributed_runs_match_the_serial_oracle() {
+    let dir = common::temp_dir("oracle");
+    let input = dir.join("bunny253.xyz");
+    let raw = common::bunny_subset(20, 0);
+    common::write_xyz(&input, &raw);
+    let k = Kernel::new(3, 2).unwrap();
+    // the points go through the .xyz text and back: read them as the binary does
+    let read: Vec<f64> =
+        volspline::io::points::read_points(&input).unwrap().points.iter().flatten().copied().collect();
+    let prep = prepare(&read, &k, &Carrier::AutoBall, 1e-6).unwrap();
+    for solver in [SolverKind::Householder, SolverKind::Lu, SolverKind::Cholesky] {
+        let oracle = Model {
+            carrier: prep.carrier.clone(),
+            spline: solve_serial(&prep, &k, solver).unwrap(),
+            provenance: Default::default(),
+        };
+        for ranks in [1, 2, 3] {
+            let prefix = dir.join(format!("{}-{ranks}", solver.name()));
+            let p = prefix.to_str().unwrap();
+            // panel 16 over 257 rows: many panels, rows of each panel on every rank
+            common::run_ok(
+                ranks,
+                &[
+                    "fit",
+                    input.to_str().unwrap(),
+                    "--out",
+                    p,
+                    "--solver",
+                    solver.name(),
+                    "--grid",
+                    "20",
+                    "--panel",
+                    "16",
+                ],
+            );
+            let model = read_model(&dir.join(format!("{p}.model.h5"))).unwrap();
+            assert_eq!(model.spline.len(), 253);
+            assert_eq!(model.provenance.ranks, ranks);
+            let dw = common::rel_diff(&model.spline.weights, &oracle.spline.weights);
+            let dc = common::rel_diff(&model.spline.poly, &oracle.spline.poly);
+            assert!(dw < 1e-9 && dc < 1e-9, "{solver:?} on {ranks} ranks: weights {dw:e}, poly {dc:e}");
+            assert!(model.provenance.residual < 1e-10, "residual {}", model.provenance.residual);
+            let (grid, values) = read_image(Path::new(&format!("{p}.hdf")), "f").unwrap();
+            let [nx, ny, nz] = grid.dims;
+            let expect: Vec<f64> = (0..nz)
+                .flat_map(|kk| (0..ny).flat_map(move |j| (0..nx).map(move |i| (i, j, kk))))
+                .map(|(i, j, kk)| oracle.eval(&grid.node(i, j, kk)))
+                .collect();
+            let dv = common::rel_diff(&values, &expect);
+            assert!(dv < 1e-9, "{solver:?} on {ranks} ranks: grid values differ by {dv:e}");
+            // no temporary files are left behind
+            assert!(!Path::new(&format!("{p}.hdf.partial")).exists());
+        }
+    }
+}
+
+#[test]
+fn eval_reproduces_the_fit_grid_and_mesh_exactly() {
+    let dir = common::temp_dir("eval");
+    let input = dir.join("bunny.xyz");
+    common::write_xyz(&input, &common::bunny_subset(10, 4));
+    let fit = dir.join("fit");
+    let out =
+        common::run_ok(2, &["fit", input.to_str().unwrap(), "--out", fit.to_str().unwrap(), "--grid", "40"]);
+    assert!(out.contains("fit.model.h5") && out.contains("fit.hdf") && out.contains("fit.ply"), "{out}");
+    for ranks in [1, 3] {
+        let ev = dir.join(format!("eval{ranks}"));
+        let model = format!("{}.model.h5", fit.display());
+        common::run_ok(ranks, &["eval", &model, "--out", ev.to_str().unwrap(), "--grid", "40"]);
+        let (g1, v1) = read_image(&dir.join("fit.hdf"), "f").unwrap();
+        let (g2, v2) = read_image(&dir.join(format!("eval{ranks}.hdf")), "f").unwrap();
+        assert_eq!(g1, g2);
+        assert_eq!(v1, v2, "eval on {ranks} ranks must reproduce fit's grid bit for bit");
+        let m1 = std::fs::read(dir.join("fit.ply")).unwrap();
+        let m2 = std::fs::read(dir.join(format!("eval{ranks}.ply"))).unwrap();
+        assert!(m1.len() > 1000);
+        assert_eq!(m1, m2, "the welded mesh must not depend on the number of ranks");
+    }
+    // a different box re-evaluates the same function elsewhere
+    let ev = dir.join("box");
+    let model = format!("{}.model.h5", fit.display());
+    common::run_ok(
+        2,
+        &["eval", &model, "--out", ev.to_str().unwrap(), "--grid", "5,6,7", "--bounds", "-5,4,-3,3,15,4"],
+    );
+    let (g, v) = read_image(&dir.join("box.hdf"), "f").unwrap();
+    assert_eq!(g.dims, [5, 6, 7]);
+    let m = read_model(Path::new(&model)).unwrap();
+    assert!((v[0] - m.eval(&[-5.0, 4.0, -3.0])).abs() < 1e-12 * v[0].abs().max(1.0));
+    assert!((v[v.len() - 1] - m.eval(&[3.0, 15.0, 4.0])).abs() < 1e-12 * v[v.len() - 1].abs().max(1.0));
+}
+
+fn assert_fails(ranks: usize, args: &[&str], code: i32, needles: &[&str]) {
+    let out = common::run(ranks, args);
+    let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(!out.status.success(), "{args:?} should fail:\n{text}");
+    if ranks == 0 {
+        assert_eq!(out.status.code(), Some(code), "{text}");
+    }
+    for n in needles {
+        assert!(text.contains(n), "{args:?}: expected '{n}' in:\n{text}");
+    }
+    assert!(!text.contains("panicked"), "{text}");
+}
+
+#[test]
+fn bad_input_fails_cleanly_on_every_rank_count() {
+    let dir = common::temp_dir("errors");
+    let nan = dir.join("nan.xyz");
+    std::fs::write(&nan, "0 0 0\n1 0 0\n0 1 0\n0 0 nan\n1 1 1\n").unwrap();
+    let flat = dir.join("flat.xyz");
+    std::fs::write(&flat, "0 0 0\n1 0 0\n0 1 0\n1 1 0\n2 3 0\n").unwrap();
+    let prefix = dir.join("out");
+    let p = prefix.to_str().unwrap();
+    for ranks in [0, 1, 2, 3] {
+        assert_fails(
+            ranks,
+            &["fit", dir.join("missing.obj").to_str().unwrap(), "--out", p],
+            1,
+            &["missing.obj"],
+        );
+        assert_fails(ranks, &["fit", nan.to_str().unwrap(), "--out", p], 1, &["nan.xyz", "line 4"]);
+        assert_fails(ranks, &["fit", flat.to_str().unwrap(), "--out", p], 1, &["plane"]);
+        assert_fails(
+            ranks,
+            &["fit", nan.to_str().unwrap(), "--out", p, "--carrier", "cube:1"],
+            2,
+            &["unknown carrier"],
+        );
+        assert_fails(ranks, &["fit", nan.to_str().unwrap(), "--out", p, "--grid", "1"], 2, &["grid"]);
+        assert_fails(ranks, &["eval", nan.to_str().unwrap(), "--out", p], 1, &["nan.xyz"]);
+        // an output folder that does not exist: HDF5 cannot create the file
+        let input = common::BUNNY;
+        assert_fails(
+            ranks,
+            &["fit", input, "--out", dir.join("no/such/dir/x").to_str().unwrap(), "--grid", "8"],
+            1,
+            &["no/such/dir"],
+        );
+    }
+    let left: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(left.len(), 2, "failed runs must leave no output files: {left:?}");
+}
+
+#[test]
+fn help_documents_every_option_with_its_default() {
+    let out = common::run_ok(0, &["fit", "--help"]);
+    for needle in [
+        "--carrier",
+        "[default: ball]",
+        "--kernel",
+        "[default: r]",
+        "--solver",
+        "[default: householder]",
+        "--grid",
+        "[default: 64]",
+        "--margin",
+        "[default: 0.05]",
+        "--panel",
+        "--threads",
+        "--merge-tol",
+    ] {
+        assert!(out.contains(needle), "fit --help lacks '{needle}':\n{out}");
+    }
+    let out = common::run_ok(0, &["eval", "--help"]);
+    for needle in ["--bounds", "--grid", "--out"] {
+        assert!(out.contains(needle), "eval --help lacks '{needle}':\n{out}");
+    }
+}
