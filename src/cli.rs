@@ -60,8 +60,10 @@ pub struct FitArgs {
     /// Green's function: r (m = 2, biharmonic) or r3 (m = 3, triharmonic).
     #[arg(long, default_value = "r", value_name = "r|r3")]
     pub kernel: String,
-    /// Distributed dense solver: householder (QR, the paper's method) or lu (partial pivoting).
-    #[arg(long, default_value = "householder", value_name = "householder|lu")]
+    /// Distributed dense solver: auto (the fastest: cholesky), cholesky (projected Cholesky of the
+    /// definite block, falls back to lu with a message when a pivot is not positive), householder
+    /// (QR, the paper's method) or lu (partial pivoting).
+    #[arg(long, default_value = "auto", value_name = "auto|cholesky|householder|lu")]
     pub solver: String,
     /// Panel (block) width of the distributed solvers.
     #[arg(long, default_value_t = DEFAULT_PANEL, value_name = "NB")]
@@ -122,7 +124,7 @@ pub fn run(cli: &Cli, comm: &dyn Comm, threads: usize) -> Result<()> {
                     s.points_read,
                     s.merged,
                     opts.kernel.name(),
-                    opts.solver.name(),
+                    s.solver_used,
                     opts.panel
                 );
                 println!("  ranks = {}, threads per rank = {}", comm.size(), threads);
@@ -130,6 +132,7 @@ pub fn run(cli: &Cli, comm: &dyn Comm, threads: usize) -> Result<()> {
                 println!("  max |f| at the data points   = {:.3e}", s.max_abs_f_at_points);
                 print_volume(&s.volume);
                 print!("{}", stage_table(&times));
+                print_throughput(s.volume.grid.node_count(), s.points_used, t("evaluate"));
                 println!(
                     "  paper 000 Table 2 columns: matrix formation {:.3} s, solution of the SLAE {:.3} s, \
                      evaluation of {} grid nodes {:.3} s",
@@ -167,6 +170,8 @@ pub fn run(cli: &Cli, comm: &dyn Comm, threads: usize) -> Result<()> {
                 println!("  ranks = {}, threads per rank = {}", comm.size(), threads);
                 print_volume(&v);
                 print!("{}", stage_table(&times));
+                let t = times.iter().find(|t| t.name == "evaluate").map_or(0.0, |t| t.max);
+                print_throughput(v.grid.node_count(), model.spline.len(), t);
                 println!("  outputs:");
                 println!("    {}", v.hdf_path.display());
                 println!("    {}", v.ply_path.display());
@@ -181,6 +186,13 @@ fn check_margin(m: f64) -> Result<()> {
         return Err(Error::Usage(format!("--margin {m}: expected a number in [0, 10]")));
     }
     Ok(())
+}
+
+fn print_throughput(nodes: usize, centres: usize, seconds: f64) {
+    let evals = nodes as f64 * centres as f64;
+    if seconds > 0.0 {
+        println!("  evaluation: {evals:.3e} kernel evaluations, {:.3e} per second", evals / seconds);
+    }
 }
 
 fn print_volume(v: &VolumeSummary) {

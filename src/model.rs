@@ -27,6 +27,16 @@ pub struct Provenance {
     pub version: String,
 }
 
+/// A function on 3D space that can be sampled on grid slabs: what the volume and mesh outputs
+/// need of a model, whether it came from scattered points or from contours.
+pub trait Field: Sync {
+    /// f at the nodes of grid layers k0..k0+layers, x fastest. Must depend on nothing but the node
+    /// positions, so that slabs computed on different ranks agree bit for bit where they overlap.
+    fn eval_layers(&self, grid: &Grid, k0: usize, layers: usize) -> Vec<f64>;
+    /// Kernel evaluations per node (for the throughput report).
+    fn kernel_evals_per_node(&self) -> usize;
+}
+
 /// f(x) = f_c(x) - U(x).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Model {
@@ -41,11 +51,11 @@ impl Model {
     pub fn eval(&self, x: &[f64]) -> f64 {
         self.carrier.eval(x) - self.spline.eval(x)
     }
+}
 
-    /// f at the nodes of grid layers k0..k0+layers, x fastest, threaded over rows of nodes. The
-    /// value of a node depends on nothing but its position, so slabs computed on different ranks
-    /// agree bit for bit where they overlap.
-    pub fn eval_layers(&self, grid: &Grid, k0: usize, layers: usize) -> Vec<f64> {
+impl Field for Model {
+    /// Threaded over rows of nodes with the blocked evaluator.
+    fn eval_layers(&self, grid: &Grid, k0: usize, layers: usize) -> Vec<f64> {
         let [nx, ny, _] = grid.dims;
         let ev = Evaluator::new(&self.spline);
         let xs: Vec<f64> = (0..nx).map(|i| grid.node(i, 0, 0)[0]).collect();
@@ -59,5 +69,9 @@ impl Model {
             }
         });
         out
+    }
+
+    fn kernel_evals_per_node(&self) -> usize {
+        self.spline.len()
     }
 }

@@ -13,7 +13,7 @@ use crate::grid::{padded_box, Grid, GridSize};
 use crate::io::{self, model_file, points, vtkhdf};
 use crate::kernel::Kernel;
 use crate::mesh::{self, MeshPiece, SlabGrid, TriMesh};
-use crate::model::{Model, Provenance};
+use crate::model::{Field, Model, Provenance};
 use crate::report::{Progress, Stages};
 use crate::spline::{assemble_rows, residual_parts, system_size, Normalisation, Spline};
 
@@ -51,6 +51,8 @@ pub struct FitSummary {
     pub points_used: usize,
     pub merged: usize,
     pub residual: f64,
+    /// The solver that produced the solution (cholesky may have fallen back to lu).
+    pub solver_used: &'static str,
     pub max_abs_f_at_points: f64,
     pub volume: VolumeSummary,
     pub model_path: PathBuf,
@@ -242,6 +244,7 @@ pub fn fit(comm: &dyn Comm, opts: &FitOptions, stages: &mut Stages) -> Result<Fi
         points_used: n,
         merged,
         residual,
+        solver_used: solver_used.name(),
         max_abs_f_at_points: max_abs,
         volume,
         model_path,
@@ -266,7 +269,7 @@ pub fn eval(comm: &dyn Comm, opts: &EvalOptions, stages: &mut Stages) -> Result<
 /// rank 0. Collective.
 pub fn volume_outputs(
     comm: &dyn Comm,
-    model: &Model,
+    model: &dyn Field,
     grid: &Grid,
     prefix: &Path,
     stages: &mut Stages,
@@ -280,12 +283,12 @@ pub fn volume_outputs(
     let values = stages.time("evaluate", || model.eval_layers(grid, k0, layers + ghost));
     if comm.rank() == 0 {
         eprintln!(
-            "volspline: grid {}x{}x{} = {} nodes, {} centres",
+            "volspline: grid {}x{}x{} = {} nodes, {} kernel evaluations per node",
             nx,
             ny,
             nz,
             grid.node_count(),
-            model.spline.len()
+            model.kernel_evals_per_node()
         );
     }
 

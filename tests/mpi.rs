@@ -168,7 +168,7 @@ fn help_documents_every_option_with_its_default() {
         "--kernel",
         "[default: r]",
         "--solver",
-        "[default: householder]",
+        "[default: auto]",
         "--grid",
         "[default: 64]",
         "--margin",

@@ -39,10 +39,11 @@ impl SolverKind {
         match name {
             "householder" | "qr" => Ok(SolverKind::Householder),
             "lu" => Ok(SolverKind::Lu),
-            "cholesky" => Ok(SolverKind::Cholesky),
-            other => {
-                Err(Error::Usage(format!("unknown solver '{other}' (expected householder, lu or cholesky)")))
-            }
+            // the fastest correct solver; the pipeline falls back to LU if the block is not definite
+            "cholesky" | "auto" => Ok(SolverKind::Cholesky),
+            other => Err(Error::Usage(format!(
+                "unknown solver '{other}' (expected auto, cholesky, householder or lu)"
+            ))),
         }
     }
 
