@@ -28,9 +28,10 @@ pub trait Comm {
     fn all_gather_f64(&self, send: &[f64], counts: &[usize], recv: &mut [f64]);
     /// Every rank's bytes on `root` (None on the others).
     fn gather_bytes(&self, root: usize, send: &[u8]) -> Option<Vec<Vec<u8>>>;
-    /// Sends `send` to `partner` and receives its message of the same length into `recv`.
-    /// Point-to-point between two ranks only.
-    fn exchange_f64(&self, partner: usize, send: &[f64], recv: &mut [f64]);
+    /// Sends `send` to rank `dest` and receives the message of rank `source` into `recv` (whose
+    /// length the caller knows). Point-to-point; `dest` must at the same time receive from this
+    /// rank and `source` send to it (a shift or a pairwise exchange), so nothing deadlocks.
+    fn shift_f64(&self, dest: usize, source: usize, send: &[f64], recv: &mut [f64]);
     /// The MPI communicator, where there is one (for MPI-IO).
     fn mpi(&self) -> Option<&SimpleCommunicator> {
         None
@@ -70,7 +71,7 @@ impl Comm for Solo {
     fn gather_bytes(&self, _: usize, send: &[u8]) -> Option<Vec<Vec<u8>>> {
         Some(vec![send.to_vec()])
     }
-    fn exchange_f64(&self, _: usize, send: &[f64], recv: &mut [f64]) {
+    fn shift_f64(&self, _: usize, _: usize, send: &[f64], recv: &mut [f64]) {
         recv.copy_from_slice(send);
     }
 }
@@ -177,13 +178,14 @@ impl Comm for MpiComm {
             None
         }
     }
-    fn exchange_f64(&self, partner: usize, send: &[f64], recv: &mut [f64]) {
-        if partner == self.rank {
+    fn shift_f64(&self, dest: usize, source: usize, send: &[f64], recv: &mut [f64]) {
+        if dest == self.rank && source == self.rank {
             recv.copy_from_slice(send);
             return;
         }
-        let p = self.comm.process_at_rank(partner as i32);
-        mpi::point_to_point::send_receive_into(send, &p, recv, &p);
+        let d = self.comm.process_at_rank(dest as i32);
+        let s = self.comm.process_at_rank(source as i32);
+        mpi::point_to_point::send_receive_into(send, &d, recv, &s);
     }
     fn mpi(&self) -> Option<&SimpleCommunicator> {
         Some(&self.comm)

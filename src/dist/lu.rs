@@ -16,7 +16,8 @@ use crate::error::{Error, Result};
 use crate::report::Progress;
 
 /// Solves the distributed system in `rows` (right-hand side in the last column) and returns the
-/// solution on every rank. Collective. `rows` is overwritten by L\U and L^-1 P b.
+/// solution on every rank. Collective. `rows` is overwritten by U (and the multipliers of L, not
+/// row-interchanged) and L^-1 P b.
 pub fn lu_solve(
     comm: &dyn Comm,
     rows: &mut LocalRows,
@@ -32,43 +33,83 @@ pub fn lu_solve(
     let mut k = 0;
     while k < n {
         let kb = nb.min(n - k);
-        factor_panel(comm, rows, k, kb, tol)?;
-        // the block row k..k+kb, columns k.. on every rank: [L11\U11 | A12 | y]
-        let w = cols - k;
-        let brow = rows.gather_rows(comm, k, k + kb, k, cols);
-        let rest = cols - (k + kb);
-        if rest > 0 {
-            // U12 = L11^-1 A12, computed redundantly; column-major copies for faer
-            let l11 = faer::Mat::<f64>::from_fn(kb, kb, |i, j| brow[i * w + j]);
-            let mut u12 = faer::Mat::<f64>::from_fn(kb, rest, |i, j| brow[i * w + kb + j]);
-            solve_unit_lower_triangular_in_place(l11.as_ref(), u12.as_mut(), Par::Seq);
-            // owners of the block row keep U12
-            let (l0, l1) = (lay.first_local_from(k), lay.first_local_from(k + kb));
-            for l in l0..l1 {
-                let i = lay.global(l) - k;
-                for j in 0..rest {
-                    rows.set(l, k + kb + j, u12[(i, j)]);
-                }
-            }
-            // trailing update of this rank's rows below the block row
-            let t0 = lay.first_local_from(k + kb);
-            let lc = rows.ld();
-            if t0 < lc {
-                let m = rows.view_mut().submatrix_mut(t0, 0, lc - t0, cols);
-                let (left, right) = m.split_at_col_mut(k + kb);
-                let l21: MatRef<'_, f64> = left.rb().subcols(k, kb);
-                let a22: MatMut<'_, f64> = right;
-                matmul(a22, Accum::Add, l21, u12.as_ref(), -1.0, par);
-            }
-        }
+        // the panel's interchanges are applied to the panel at once and to the columns right of
+        // it afterwards, in one pass; columns left of it hold L, which nothing reads again
+        let mut swaps = Vec::with_capacity(kb);
+        factor_panel(comm, rows, k, k + kb, (k, k + kb), tol, &mut swaps)?;
+        rows.permute_rows(comm, &swaps, k + kb, cols);
+        eliminate_block(comm, rows, k, k + kb, cols, par);
         k += kb;
         progress.update(k, n);
     }
     back_substitute(comm, rows, nb, tol)
 }
 
-/// Unblocked LU of the panel columns k..k+kb (rows k..n), swapping whole rows.
-fn factor_panel(comm: &dyn Comm, rows: &mut LocalRows, k: usize, kb: usize, tol: f64) -> Result<()> {
+/// Columns at most this wide are factored column by column; wider ones recursively.
+const LEAF: usize = 8;
+
+/// LU of the panel columns a..b (rows a..n), recursively: the left half, its block elimination
+/// on the right half (a GEMM), then the right half. Swaps whole rows.
+fn factor_panel(
+    comm: &dyn Comm,
+    rows: &mut LocalRows,
+    a: usize,
+    b: usize,
+    panel: (usize, usize),
+    tol: f64,
+    swaps: &mut Vec<(usize, usize)>,
+) -> Result<()> {
+    if b - a <= LEAF {
+        return factor_columns(comm, rows, a, b - a, panel, tol, swaps);
+    }
+    let m = a + (b - a) / 2;
+    factor_panel(comm, rows, a, m, panel, tol, swaps)?;
+    eliminate_block(comm, rows, a, m, b, Par::Seq);
+    factor_panel(comm, rows, m, b, panel, tol, swaps)
+}
+
+/// Given the factored columns a..m (L11\U11 in rows a..m, L21 below), computes
+/// U12 = L11^-1 A12 for columns m..c1 from the gathered block row (redundantly on every rank),
+/// stores it in the owners' rows and updates this rank's rows below: A22 -= L21 U12.
+fn eliminate_block(comm: &dyn Comm, rows: &mut LocalRows, a: usize, m: usize, c1: usize, par: Par) {
+    let lay = rows.layout;
+    let (w, rest) = (m - a, c1 - m);
+    if rest == 0 {
+        return;
+    }
+    let brow = rows.gather_rows(comm, a, m, a, c1);
+    let width = c1 - a;
+    let l11 = faer::Mat::<f64>::from_fn(w, w, |i, j| brow[i * width + j]);
+    let mut u12 = faer::Mat::<f64>::from_fn(w, rest, |i, j| brow[i * width + w + j]);
+    solve_unit_lower_triangular_in_place(l11.as_ref(), u12.as_mut(), Par::Seq);
+    let (o0, o1) = (lay.first_local_from(a), lay.first_local_from(m));
+    for j in 0..rest {
+        for l in o0..o1 {
+            rows.set(l, m + j, u12[(lay.global(l) - a, j)]);
+        }
+    }
+    let t0 = lay.first_local_from(m);
+    let lc = rows.ld();
+    if t0 < lc {
+        let sub = rows.view_mut().submatrix_mut(t0, a, lc - t0, width);
+        let (left, right) = sub.split_at_col_mut(w);
+        let l21: MatRef<'_, f64> = left.rb();
+        let a22: MatMut<'_, f64> = right;
+        matmul(a22, Accum::Add, l21, u12.as_ref(), -1.0, par);
+    }
+}
+
+/// Unblocked LU of the columns k..k+kb (rows k..n); row interchanges are applied to the panel
+/// columns `panel.0..panel.1` and recorded in `swaps`.
+fn factor_columns(
+    comm: &dyn Comm,
+    rows: &mut LocalRows,
+    k: usize,
+    kb: usize,
+    panel: (usize, usize),
+    tol: f64,
+    swaps: &mut Vec<(usize, usize)>,
+) -> Result<()> {
     let lay = rows.layout;
     let lc = rows.ld();
     let ranks = lay.ranks;
@@ -97,7 +138,8 @@ fn factor_panel(comm: &dyn Comm, rows: &mut LocalRows, k: usize, kb: usize, tol:
                 lay.n
             )));
         }
-        rows.swap_rows(comm, j, piv.1 as usize);
+        rows.swap_rows(comm, j, piv.1 as usize, panel.0, panel.1);
+        swaps.push((j, piv.1 as usize));
         // pivot row's panel part (columns j..k+kb) to every rank
         let width = k + kb - j;
         let owner = lay.owner(j);
@@ -108,14 +150,16 @@ fn factor_panel(comm: &dyn Comm, rows: &mut LocalRows, k: usize, kb: usize, tol:
         let d = pivot_row[0];
         let l0 = lay.first_local_from(j + 1);
         let ld = lc;
-        for l in l0..lc {
-            rows.data[l + j * ld] /= d;
-        }
-        for (t, c) in (j + 1..k + kb).enumerate() {
+        // column j below the pivot becomes L; the panel columns right of it get the rank-1 update
+        let (left, right) = rows.data.split_at_mut((j + 1) * ld);
+        let lcol = &mut left[j * ld + l0..j * ld + lc];
+        let inv = 1.0 / d;
+        lcol.iter_mut().for_each(|v| *v *= inv);
+        for (t, col) in right.chunks_exact_mut(ld).take(k + kb - j - 1).enumerate() {
             let u = pivot_row[t + 1];
             if u != 0.0 {
-                for l in l0..lc {
-                    rows.data[l + c * ld] -= rows.data[l + j * ld] * u;
+                for (a, l) in col[l0..lc].iter_mut().zip(lcol.iter()) {
+                    *a -= l * u;
                 }
             }
         }

@@ -79,8 +79,12 @@ impl LocalRows {
         let w = c1 - c0;
         let (l0, l1) = (lay.first_local_from(g0), lay.first_local_from(g1));
         let mut send = vec![0.0; (l1 - l0) * w];
-        for (t, l) in (l0..l1).enumerate() {
-            self.read_row(l, c0, c1, &mut send[t * w..(t + 1) * w]);
+        let ld = self.ld();
+        // column by column through the local matrix (contiguous), row-major into the buffer
+        for c in c0..c1 {
+            for (t, v) in self.data[l0 + c * ld..l1 + c * ld].iter().enumerate() {
+                send[t * w + (c - c0)] = *v;
+            }
         }
         let counts: Vec<usize> = (0..lay.ranks).map(|r| lay.count_in_on(r, g0, g1) * w).collect();
         let mut recv = vec![0.0; (g1 - g0) * w];
@@ -99,9 +103,9 @@ impl LocalRows {
         out
     }
 
-    /// Exchanges global rows a and b (all columns) between their owners. Collective only for the
-    /// two owners; the other ranks return at once.
-    pub fn swap_rows(&mut self, comm: &dyn Comm, a: usize, b: usize) {
+    /// Exchanges global rows a and b in columns c0..c1 between their owners. Only the two owners
+    /// take part; the other ranks return at once.
+    pub fn swap_rows(&mut self, comm: &dyn Comm, a: usize, b: usize, c0: usize, c1: usize) {
         if a == b {
             return;
         }
@@ -111,16 +115,75 @@ impl LocalRows {
         let ld = self.ld();
         if oa == me && ob == me {
             let (la, lb) = (lay.local(a), lay.local(b));
-            for c in 0..self.cols {
+            for c in c0..c1 {
                 self.data.swap(la + c * ld, lb + c * ld);
             }
         } else if oa == me || ob == me {
             let (mine, partner) = if oa == me { (lay.local(a), ob) } else { (lay.local(b), oa) };
-            let mut send = vec![0.0; self.cols];
-            self.read_row(mine, 0, self.cols, &mut send);
-            let mut recv = vec![0.0; self.cols];
-            comm.exchange_f64(partner, &send, &mut recv);
-            self.write_row(mine, 0, &recv);
+            let mut send = vec![0.0; c1 - c0];
+            self.read_row(mine, c0, c1, &mut send);
+            let mut recv = vec![0.0; c1 - c0];
+            comm.shift_f64(partner, partner, &send, &mut recv);
+            self.write_row(mine, c0, &recv);
+        }
+    }
+
+    /// Applies a sequence of row interchanges (a_i <-> b_i, in order, as partial pivoting records
+    /// them) to columns c0..c1 at once: the net permutation moves each affected row once, local
+    /// rows column by column, remote rows in one message per pair of ranks. Collective.
+    pub fn permute_rows(&mut self, comm: &dyn Comm, swaps: &[(usize, usize)], c0: usize, c1: usize) {
+        if c0 >= c1 || swaps.is_empty() {
+            return;
+        }
+        // net permutation: new content of row g is the old row src[g]
+        let mut src: std::collections::BTreeMap<usize, usize> = std::collections::BTreeMap::new();
+        for &(a, b) in swaps {
+            let sa = *src.get(&a).unwrap_or(&a);
+            let sb = *src.get(&b).unwrap_or(&b);
+            src.insert(a, sb);
+            src.insert(b, sa);
+        }
+        let moves: Vec<(usize, usize)> = src.into_iter().filter(|(d, s)| d != s).collect();
+        let lay = self.layout;
+        let (me, p) = (lay.rank, lay.ranks);
+        let ld = self.ld();
+        let w = c1 - c0;
+        // read every source first (rows may be both source and destination), column by column
+        let pack = |data: &[f64], list: &[(usize, usize)]| -> Vec<f64> {
+            let mut buf = vec![0.0; list.len() * w];
+            for c in c0..c1 {
+                for (t, &(_, s)) in list.iter().enumerate() {
+                    buf[(c - c0) * list.len() + t] = data[lay.local(s) + c * ld];
+                }
+            }
+            buf
+        };
+        let to = |r: usize| -> Vec<(usize, usize)> {
+            moves.iter().copied().filter(|&(d, s)| lay.owner(s) == me && lay.owner(d) == r).collect()
+        };
+        let from = |r: usize| -> Vec<(usize, usize)> {
+            moves.iter().copied().filter(|&(d, s)| lay.owner(d) == me && lay.owner(s) == r).collect()
+        };
+        let local_moves = to(me);
+        let local_buf = pack(&self.data, &local_moves);
+        let mut incoming: Vec<(Vec<(usize, usize)>, Vec<f64>)> = Vec::new();
+        for step in 1..p {
+            let (dest, source) = ((me + step) % p, (me + p - step) % p);
+            let out = to(dest);
+            let inn = from(source);
+            let send = pack(&self.data, &out);
+            let mut recv = vec![0.0; inn.len() * w];
+            // always sent, even empty: the partner's receive is posted regardless
+            comm.shift_f64(dest, source, &send, &mut recv);
+            incoming.push((inn, recv));
+        }
+        incoming.push((local_moves, local_buf));
+        for (list, buf) in incoming {
+            for c in c0..c1 {
+                for (t, &(d, _)) in list.iter().enumerate() {
+                    self.data[lay.local(d) + c * ld] = buf[(c - c0) * list.len() + t];
+                }
+            }
         }
     }
 }
