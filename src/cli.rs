@@ -5,12 +5,12 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
 
-use crate::dist::{Comm, SolverKind, DEFAULT_PANEL};
+use crate::dist::{agree, Comm, SolverKind, DEFAULT_PANEL};
 use crate::error::{Error, Result};
 use crate::grid::{parse_bounds, GridSize};
 use crate::kernel::Kernel;
 use crate::pipeline::{self, EvalOptions, FitOptions, VolumeSummary};
-use crate::report::{stage_table, Stages};
+use crate::report::{peak_rss_max, stage_table, Record, Stages};
 
 /// volspline: reconstruct solids from scattered surface points as a volume spline f(x,y,z) with
 /// f >= 0 inside (Savchenko et al. 1995), on any number of MPI ranks.
@@ -44,6 +44,10 @@ pub struct GridArgs {
     /// Threads per rank (0: the cores of this node divided by the ranks on it).
     #[arg(long, default_value_t = 0, value_name = "T")]
     pub threads: usize,
+    /// Also write the run's figures (sizes, stage min/max seconds, residual, peak memory) as
+    /// `key,value` CSV to this file, for scaling studies.
+    #[arg(long, value_name = "FILE")]
+    pub timings: Option<PathBuf>,
 }
 
 #[derive(Debug, Args)]
@@ -115,8 +119,27 @@ pub fn run(cli: &Cli, comm: &dyn Comm, threads: usize) -> Result<()> {
             };
             let s = pipeline::fit(comm, &opts, &mut stages)?;
             let times = stages.summarise(comm);
+            let peak = peak_rss_max(comm);
+            let t = |name: &str| times.iter().find(|t| t.name == name).map_or(0.0, |t| t.max);
+            let mut rec = Record::default();
+            rec.put("command", "fit");
+            rec.put("input", opts.input.display());
+            rec.put("points", s.points_used);
+            rec.put("system_size", s.points_used + opts.kernel.poly_count());
+            rec.put("kernel", opts.kernel.name());
+            rec.put("solver", s.solver_used);
+            rec.put("panel", opts.panel);
+            rec.put("ranks", comm.size());
+            rec.put("threads", threads);
+            rec.put("residual", format!("{:e}", s.residual));
+            rec.put("max_abs_f_at_points", format!("{:e}", s.max_abs_f_at_points));
+            rec.put("grid_nodes", s.volume.grid.node_count());
+            rec.put("kernel_evals", s.volume.grid.node_count() as f64 * s.points_used as f64);
+            rec.put("triangles", s.volume.triangles);
+            rec.put("peak_rss_bytes_max", peak);
+            rec.stages(&times);
+            write_record(comm, a.grid.timings.as_deref(), &rec)?;
             if comm.rank() == 0 {
-                let t = |name: &str| times.iter().find(|t| t.name == name).map_or(0.0, |t| t.max);
                 println!("volspline fit: {}", opts.input.display());
                 println!(
                     "  N = {} points ({} read, {} duplicates merged), kernel {}, solver {}, panel {}",
@@ -133,6 +156,7 @@ pub fn run(cli: &Cli, comm: &dyn Comm, threads: usize) -> Result<()> {
                 print_volume(&s.volume);
                 print!("{}", stage_table(&times));
                 print_throughput(s.volume.grid.node_count(), s.points_used, t("evaluate"));
+                println!("  peak memory per rank (max over ranks): {:.1} MB", peak / 1e6);
                 println!(
                     "  paper 000 Table 2 columns: matrix formation {:.3} s, solution of the SLAE {:.3} s, \
                      evaluation of {} grid nodes {:.3} s",
@@ -159,6 +183,19 @@ pub fn run(cli: &Cli, comm: &dyn Comm, threads: usize) -> Result<()> {
             };
             let (model, v) = pipeline::eval(comm, &opts, &mut stages)?;
             let times = stages.summarise(comm);
+            let peak = peak_rss_max(comm);
+            let mut rec = Record::default();
+            rec.put("command", "eval");
+            rec.put("model", opts.model.display());
+            rec.put("points", model.spline.len());
+            rec.put("ranks", comm.size());
+            rec.put("threads", threads);
+            rec.put("grid_nodes", v.grid.node_count());
+            rec.put("kernel_evals", v.grid.node_count() as f64 * model.spline.len() as f64);
+            rec.put("triangles", v.triangles);
+            rec.put("peak_rss_bytes_max", peak);
+            rec.stages(&times);
+            write_record(comm, a.grid.timings.as_deref(), &rec)?;
             if comm.rank() == 0 {
                 println!("volspline eval: {}", opts.model.display());
                 println!(
@@ -179,6 +216,18 @@ pub fn run(cli: &Cli, comm: &dyn Comm, threads: usize) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// Writes the `--timings` record from rank 0 (atomically) and agrees on the outcome.
+fn write_record(comm: &dyn Comm, path: Option<&std::path::Path>, rec: &Record) -> Result<()> {
+    let Some(path) = path else { return Ok(()) };
+    let local = if comm.rank() == 0 {
+        let tmp = crate::io::partial_path(path);
+        std::fs::write(&tmp, rec.to_csv()).map_err(|e| Error::io(&tmp, &e)).and_then(|_| crate::io::commit(path))
+    } else {
+        Ok(())
+    };
+    agree(comm, local)
 }
 
 fn check_margin(m: f64) -> Result<()> {

@@ -65,6 +65,48 @@ pub fn stage_table(times: &[StageTime]) -> String {
     s
 }
 
+/// This process's peak resident memory (VmHWM) in bytes, where the system reports it (Linux).
+pub fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// Largest peak resident memory over ranks, in bytes (0 where unknown). Collective.
+pub fn peak_rss_max(comm: &dyn Comm) -> f64 {
+    let mut v = [peak_rss_bytes().unwrap_or(0) as f64];
+    comm.max_f64(&mut v);
+    v[0]
+}
+
+/// A machine-readable record of a run: `key,value` lines (written by `--timings`).
+#[derive(Debug, Default, Clone)]
+pub struct Record {
+    pub entries: Vec<(String, String)>,
+}
+
+impl Record {
+    pub fn put(&mut self, key: &str, value: impl std::fmt::Display) {
+        self.entries.push((key.to_string(), value.to_string()));
+    }
+
+    pub fn stages(&mut self, times: &[StageTime]) {
+        for t in times {
+            self.put(&format!("stage_{}_min_s", t.name), format!("{:.6}", t.min));
+            self.put(&format!("stage_{}_max_s", t.name), format!("{:.6}", t.max));
+        }
+    }
+
+    pub fn to_csv(&self) -> String {
+        let mut s = String::from("key,value\n");
+        for (k, v) in &self.entries {
+            s.push_str(&format!("{k},{}\n", v.replace(',', ";")));
+        }
+        s
+    }
+}
+
 /// Progress of a long stage on rank 0, redrawn in place on a terminal, silent otherwise.
 pub struct Progress {
     label: &'static str,

@@ -1,0 +1,49 @@
+# Shared set-up of the benchmark jobs (sourced): machine set-up, release build, a dated result
+# folder with the exact command, git revision and machine description.
+set -euo pipefail
+ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
+cd "$ROOT"
+source jobs/setup.sh
+# peers measured side by side: ScaLAPACK over OpenBLAS (serial, one thread per rank), scipy
+need=()
+for pkg in libscalapack-openmpi-dev libopenblas0-serial; do
+    dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" || need+=("$pkg")
+done
+if [ ${#need[@]} -gt 0 ]; then
+    echo "bench: installing ${need[*]}"
+    SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
+fi
+python3 -c 'import scipy, matplotlib' 2>/dev/null || python3 -m pip install -q --disable-pip-version-check scipy matplotlib
+cargo build --release --quiet
+BIN="$ROOT/target/release/volspline"
+export OMPI_MCA_rmaps_base_oversubscribe=1
+
+# bench_dir NAME ARGS...: creates bench-results/DATE-NAME/ and records the command and machine
+bench_dir() {
+    local name=$1; shift
+    OUT="$ROOT/bench-results/$(date -u +%Y-%m-%d)-$name"
+    mkdir -p "$OUT"
+    printf '%s\n' "$*" > "$OUT/command.txt"
+    {
+        echo "date_utc: $(date -u +%Y-%m-%dT%H:%M:%SZ)"
+        echo "git_revision: $(git -C "$ROOT" rev-parse HEAD)$(git -C "$ROOT" diff --quiet || echo ' (with uncommitted changes)')"
+        echo "cpu: $(lscpu | sed -n 's/^Model name: *//p')"
+        echo "cores: $(nproc)"
+        echo "flags: $(grep -o -w -E 'avx2|avx512f|fma' /proc/cpuinfo | sort -u | tr '\n' ' ')"
+        echo "memory: $(free -g | awk '/Mem:/{print $2}') GiB"
+        echo "kernel: $(uname -r)"
+        echo "mpi: $(mpirun --version 2>&1 | head -1)"
+        echo "hdf5: $(dpkg-query -W -f='${Package} ${Version}' libhdf5-openmpi-dev 2>/dev/null)"
+        echo "scalapack: $(dpkg-query -W -f='${Package} ${Version}' libscalapack-openmpi-dev 2>/dev/null) over $(readlink -f /usr/lib/x86_64-linux-gnu/libblas.so.3)"
+        echo "python: $(python3 --version 2>&1), numpy $(python3 -c 'import numpy; print(numpy.__version__)'), scipy $(python3 -c 'import scipy; print(scipy.__version__)')"
+        echo "rustc: $(rustc --version)"
+        echo "load_average_at_start: $(cut -d' ' -f1-3 /proc/loadavg)"
+    } > "$OUT/machine.txt"
+    echo "bench: results in $OUT"
+}
+
+bench_done() {
+    echo "load_average_at_end: $(cut -d' ' -f1-3 /proc/loadavg)" >> "$OUT/machine.txt"
+}
