@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
 
-use crate::dist::{agree, Comm, SolverKind, DEFAULT_PANEL};
+use crate::dist::{agree, Comm, SolverKind};
 use crate::error::{Error, Result};
 use crate::grid::{parse_bounds, GridSize};
 use crate::kernel::Kernel;
@@ -69,8 +69,9 @@ pub struct FitArgs {
     /// (QR, the paper's method) or lu (partial pivoting).
     #[arg(long, default_value = "auto", value_name = "auto|cholesky|householder|lu")]
     pub solver: String,
-    /// Panel (block) width of the distributed solvers.
-    #[arg(long, default_value_t = DEFAULT_PANEL, value_name = "NB")]
+    /// Panel (block) width of the distributed solvers (0: automatic, 64 for householder, 256 for
+    /// lu and cholesky).
+    #[arg(long, default_value_t = 0, value_name = "NB")]
     pub panel: usize,
     /// Points closer than this fraction of the bounding-box diagonal are merged into one.
     #[arg(long, default_value_t = 1e-6, value_name = "F")]
@@ -99,9 +100,6 @@ pub fn run(cli: &Cli, comm: &dyn Comm, threads: usize) -> Result<()> {
     match &cli.command {
         Command::Fit(a) => {
             check_margin(a.grid.margin)?;
-            if a.panel == 0 {
-                return Err(Error::Usage("--panel must be at least 1".into()));
-            }
             if !(a.merge_tol >= 0.0 && a.merge_tol < 0.1) {
                 return Err(Error::Usage("--merge-tol must be in [0, 0.1)".into()));
             }
@@ -113,7 +111,7 @@ pub fn run(cli: &Cli, comm: &dyn Comm, threads: usize) -> Result<()> {
                 solver: SolverKind::parse(&a.solver)?,
                 grid: GridSize::parse(&a.grid.grid)?,
                 margin: a.grid.margin,
-                panel: a.panel,
+                panel: if a.panel > 0 { a.panel } else { SolverKind::parse(&a.solver)?.default_panel() },
                 merge_tol: a.merge_tol,
                 threads,
             };
@@ -223,7 +221,9 @@ fn write_record(comm: &dyn Comm, path: Option<&std::path::Path>, rec: &Record) -
     let Some(path) = path else { return Ok(()) };
     let local = if comm.rank() == 0 {
         let tmp = crate::io::partial_path(path);
-        std::fs::write(&tmp, rec.to_csv()).map_err(|e| Error::io(&tmp, &e)).and_then(|_| crate::io::commit(path))
+        std::fs::write(&tmp, rec.to_csv())
+            .map_err(|e| Error::io(&tmp, &e))
+            .and_then(|_| crate::io::commit(path))
     } else {
         Ok(())
     };

@@ -7,10 +7,10 @@
 use faer::linalg::matmul::matmul;
 use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
 use faer::reborrow::Reborrow;
-use faer::{Accum, Mat, MatRef, Par};
+use faer::{Accum, Mat, MatMut, MatRef, Par};
 
 use super::comm::Comm;
-use super::system::LocalRows;
+use super::system::{all_gather_rows, LocalRows};
 use crate::error::{Error, Result};
 use crate::report::Progress;
 
@@ -45,42 +45,7 @@ pub fn cholesky_solve(
     let pt = rows.gather_rows(comm, n, n + k, 0, n);
     let (vs, taus, r) = reflectors(&pt, n, k)?;
 
-    // A <- Q^T A (columns of A and the right-hand side): one all-reduce of a row per reflector
-    let mut w = vec![0.0; n + 1];
-    for (v, &tau) in vs.iter().zip(&taus) {
-        let vl: Vec<f64> = gl.iter().map(|&g| v[g]).collect();
-        for (c, wc) in (0..n).chain([rhs]).zip(w.iter_mut()) {
-            let col = &rows.data[c * ld..c * ld + la];
-            *wc = col.iter().zip(&vl).map(|(a, b)| a * b).sum();
-        }
-        comm.sum_f64(&mut w);
-        for (c, wc) in (0..n).chain([rhs]).zip(w.iter()) {
-            let t = tau * wc;
-            for (a, b) in rows.data[c * ld..c * ld + la].iter_mut().zip(&vl) {
-                *a -= t * b;
-            }
-        }
-    }
-    // A <- A Q: local, row by row through the columns
-    let mut s = vec![0.0; la];
-    for (v, &tau) in vs.iter().zip(&taus) {
-        s.iter_mut().for_each(|x| *x = 0.0);
-        for c in 0..n {
-            if v[c] != 0.0 {
-                for (sl, a) in s.iter_mut().zip(&rows.data[c * ld..c * ld + la]) {
-                    *sl += a * v[c];
-                }
-            }
-        }
-        for c in 0..n {
-            if v[c] != 0.0 {
-                let t = tau * v[c];
-                for (a, sl) in rows.data[c * ld..c * ld + la].iter_mut().zip(&s) {
-                    *a -= t * sl;
-                }
-            }
-        }
-    }
+    project(comm, rows, &vs, &taus, n, la);
 
     // B = rows/columns k..n: make it positive definite (sign of any diagonal entry)
     let mut d0 = [if lay.owner(k) == lay.rank { rows.get(lay.local(k), k) } else { 0.0 }];
@@ -200,6 +165,54 @@ pub fn cholesky_solve(
     }
     lambda.extend(c);
     Ok(lambda)
+}
+
+/// A <- Q^T A Q and y <- Q^T y with Q = H_1 ... H_k = I - V T V^T, in two passes over the local
+/// rows: X = A V (A is symmetric, so V^T A = X^T), then the symmetric rank-2k update
+/// A -= Y V^T + V Y^T with Y = X T - V T^T (V^T X) T / 2. One all-gather of X (N x k).
+fn project(comm: &dyn Comm, rows: &mut LocalRows, vs: &[Vec<f64>], taus: &[f64], n: usize, la: usize) {
+    let lay = rows.layout;
+    let k = vs.len();
+    let ld = rows.ld();
+    let rhs = rows.cols - 1;
+    let par = Par::rayon(0);
+    let gl: Vec<usize> = (0..la).map(|l| lay.global(l)).collect();
+    let v = Mat::<f64>::from_fn(n, k, |i, j| vs[j][i]);
+    // T (upper, k x k) of the compact WY form, from V^T V
+    let vtv = v.transpose() * &v;
+    let mut t = Mat::<f64>::zeros(k, k);
+    for i in 0..k {
+        t[(i, i)] = taus[i];
+        for r in 0..i {
+            let s: f64 = (r..i).map(|s| t[(r, s)] * vtv[(s, i)]).sum();
+            t[(r, i)] = -taus[i] * s;
+        }
+    }
+    // X = A V on this rank's rows, then all of X on every rank
+    let mut x_loc = Mat::<f64>::zeros(la, k);
+    let a = MatRef::from_column_major_slice_with_stride(&rows.data, la, n, ld);
+    matmul(x_loc.as_mut(), Accum::Replace, a, v.as_ref(), 1.0, par);
+    let send: Vec<f64> =
+        (0..la).flat_map(|l| (0..k).map(move |j| (l, j))).map(|(l, j)| x_loc[(l, j)]).collect();
+    let x_rows = all_gather_rows(comm, lay, &send, 0, n, k);
+    let x = Mat::<f64>::from_fn(n, k, |i, j| x_rows[i * k + j]);
+    let z = v.transpose() * &x;
+    let y = &x * &t - (&v * (t.transpose() * &z * &t)) * 0.5;
+    // A -= [Y_loc V_loc] [V^T; Y^T]
+    let left = Mat::<f64>::from_fn(la, 2 * k, |l, j| if j < k { y[(gl[l], j)] } else { v[(gl[l], j - k)] });
+    let right = Mat::<f64>::from_fn(2 * k, n, |j, c| if j < k { v[(c, j)] } else { y[(c, j - k)] });
+    let a = MatMut::from_column_major_slice_with_stride_mut(&mut rows.data, la, n, ld);
+    matmul(a, Accum::Add, left.as_ref(), right.as_ref(), -1.0, par);
+    // y <- Q^T y = y - V T^T V^T y on the right-hand side column
+    let mut ry = vec![0.0; la];
+    ry.copy_from_slice(&rows.data[rhs * ld..rhs * ld + la]);
+    let y_all = all_gather_rows(comm, lay, &ry, 0, n, 1);
+    let vty: Vec<f64> = (0..k).map(|j| (0..n).map(|i| v[(i, j)] * y_all[i]).sum()).collect();
+    let coef: Vec<f64> = (0..k).map(|j| (0..k).map(|i| t[(i, j)] * vty[i]).sum()).collect();
+    for l in 0..la {
+        let g = gl[l];
+        rows.data[rhs * ld + l] -= (0..k).map(|j| v[(g, j)] * coef[j]).sum::<f64>();
+    }
 }
 
 /// Reflectors v_j, their tau_j, and R (row-major k x k).

@@ -86,21 +86,7 @@ impl LocalRows {
                 send[t * w + (c - c0)] = *v;
             }
         }
-        let counts: Vec<usize> = (0..lay.ranks).map(|r| lay.count_in_on(r, g0, g1) * w).collect();
-        let mut recv = vec![0.0; (g1 - g0) * w];
-        comm.all_gather_f64(&send, &counts, &mut recv);
-        // recv holds rank 0's rows, then rank 1's, ...; put them in global order
-        let mut out = vec![0.0; (g1 - g0) * w];
-        let mut off = 0;
-        for r in 0..lay.ranks {
-            let first = g0 + (r + lay.ranks - g0 % lay.ranks) % lay.ranks;
-            for t in 0..counts[r] / w.max(1) {
-                let g = first + t * lay.ranks;
-                out[(g - g0) * w..(g - g0 + 1) * w].copy_from_slice(&recv[off..off + w]);
-                off += w;
-            }
-        }
-        out
+        all_gather_rows(comm, lay, &send, g0, g1, w)
     }
 
     /// Exchanges global rows a and b in columns c0..c1 between their owners. Only the two owners
@@ -166,7 +152,9 @@ impl LocalRows {
         };
         let local_moves = to(me);
         let local_buf = pack(&self.data, &local_moves);
-        let mut incoming: Vec<(Vec<(usize, usize)>, Vec<f64>)> = Vec::new();
+        // (moves received, their values column-major)
+        type Batch = (Vec<(usize, usize)>, Vec<f64>);
+        let mut incoming: Vec<Batch> = Vec::new();
         for step in 1..p {
             let (dest, source) = ((me + step) % p, (me + p - step) % p);
             let out = to(dest);
@@ -186,4 +174,32 @@ impl LocalRows {
             }
         }
     }
+}
+
+/// Every rank's rows g0..g1 of a row-cyclic block, `w` values per row: `send` holds this rank's
+/// rows of the range in local order, row-major; the result holds all of them in global order on
+/// every rank. Collective.
+pub fn all_gather_rows(
+    comm: &dyn Comm,
+    lay: RowCyclic,
+    send: &[f64],
+    g0: usize,
+    g1: usize,
+    w: usize,
+) -> Vec<f64> {
+    let counts: Vec<usize> = (0..lay.ranks).map(|r| lay.count_in_on(r, g0, g1) * w).collect();
+    let mut recv = vec![0.0; (g1 - g0) * w];
+    comm.all_gather_f64(send, &counts, &mut recv);
+    // recv holds rank 0's rows, then rank 1's, ...; put them in global order
+    let mut out = vec![0.0; (g1 - g0) * w];
+    let mut off = 0;
+    for r in 0..lay.ranks {
+        let first = g0 + (r + lay.ranks - g0 % lay.ranks) % lay.ranks;
+        for t in 0..counts[r] / w.max(1) {
+            let g = first + t * lay.ranks;
+            out[(g - g0) * w..(g - g0 + 1) * w].copy_from_slice(&recv[off..off + w]);
+            off += w;
+        }
+    }
+    out
 }
