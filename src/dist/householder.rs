@@ -109,16 +109,31 @@ fn factor_panel(comm: &dyn Comm, rows: &mut LocalRows, k: usize, kb: usize) -> V
     let ld = lc;
     let me = lay.rank;
     let mut taus = vec![0.0; kb];
-    let mut w = vec![0.0; kb];
+    // one all-reduce per column: [sum of squares below the diagonal, x0, x^T A (unscaled, below),
+    // row j of A], all over the panel columns right of j; w = A_j + x^T A / (x0 - alpha) follows
+    let mut s = vec![0.0; 2 + 2 * kb];
     for j in k..k + kb {
         let l0 = lay.first_local_from(j + 1);
         let owns_j = lay.owner(j) == me;
         let lj = lay.local(j);
-        let mut s = [
-            (l0..lc).map(|l| rows.data[l + j * ld].powi(2)).sum::<f64>(),
-            if owns_j { rows.data[lj + j * ld] } else { 0.0 },
-        ];
-        comm.sum_f64(&mut s);
+        let width = k + kb - j - 1;
+        let s = &mut s[..2 + 2 * width];
+        s.iter_mut().for_each(|v| *v = 0.0);
+        {
+            let (left, right) = rows.data.split_at((j + 1) * ld);
+            let x = &left[j * ld + l0..j * ld + lc];
+            s[0] = x.iter().map(|v| v * v).sum::<f64>();
+            if owns_j {
+                s[1] = left[lj + j * ld];
+            }
+            for (t, col) in right.chunks_exact(ld).take(width).enumerate() {
+                s[2 + t] = col[l0..lc].iter().zip(x).map(|(a, b)| a * b).sum::<f64>();
+                if owns_j {
+                    s[2 + width + t] = col[lj];
+                }
+            }
+        }
+        comm.sum_f64(s);
         let (below, x0) = (s[0], s[1]);
         if below == 0.0 {
             // already triangular in this column: H = I
@@ -128,34 +143,22 @@ fn factor_panel(comm: &dyn Comm, rows: &mut LocalRows, k: usize, kb: usize) -> V
         let alpha = if x0 >= 0.0 { -norm } else { norm };
         let tau = (alpha - x0) / alpha;
         let scale = 1.0 / (x0 - alpha);
-        for l in l0..lc {
-            rows.data[l + j * ld] *= scale;
-        }
-        if owns_j {
-            rows.data[lj + j * ld] = alpha;
-        }
         taus[j - k] = tau;
-        // apply H_j to the panel columns right of j
-        let width = k + kb - j - 1;
-        if width == 0 {
-            continue;
+        let (left, right) = rows.data.split_at_mut((j + 1) * ld);
+        let v = &mut left[j * ld + l0..j * ld + lc];
+        v.iter_mut().for_each(|x| *x *= scale);
+        if owns_j {
+            left[lj + j * ld] = alpha;
         }
-        let wv = &mut w[..width];
-        for (t, c) in (j + 1..k + kb).enumerate() {
-            let mut acc = if owns_j { rows.data[lj + c * ld] } else { 0.0 };
-            for l in l0..lc {
-                acc += rows.data[l + j * ld] * rows.data[l + c * ld];
-            }
-            wv[t] = acc;
-        }
-        comm.sum_f64(wv);
-        for (t, c) in (j + 1..k + kb).enumerate() {
-            let tw = tau * wv[t];
+        let v = &left[j * ld + l0..j * ld + lc];
+        // apply H_j = I - tau v v^T (v(j) = 1) to the panel columns right of j
+        for (t, col) in right.chunks_exact_mut(ld).take(width).enumerate() {
+            let tw = tau * (s[2 + width + t] + scale * s[2 + t]);
             if owns_j {
-                rows.data[lj + c * ld] -= tw;
+                col[lj] -= tw;
             }
-            for l in l0..lc {
-                rows.data[l + c * ld] -= rows.data[l + j * ld] * tw;
+            for (a, vl) in col[l0..lc].iter_mut().zip(v) {
+                *a -= vl * tw;
             }
         }
     }

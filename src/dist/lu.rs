@@ -113,23 +113,34 @@ fn factor_columns(
     let lay = rows.layout;
     let lc = rows.ld();
     let ranks = lay.ranks;
-    let mut cand = vec![0.0; 2 * ranks];
-    let counts = vec![2usize; ranks];
+    // each candidate travels with its row's leaf part (columns j..k+kb), so that the pivot row
+    // is known everywhere after one all-gather per column, without a broadcast
+    let stride = 2 + kb;
+    let mut mine = vec![0.0; stride];
+    let mut cand = vec![0.0; stride * ranks];
+    let counts = vec![stride; ranks];
     let mut pivot_row = vec![0.0; kb];
     for j in k..k + kb {
+        let width = k + kb - j;
         // this rank's candidate: largest |a| in column j at or below row j (lowest row on ties)
-        let mut best = (-1.0f64, f64::INFINITY);
+        let mut best = (-1.0f64, usize::MAX);
         for l in lay.first_local_from(j)..lc {
             let v = rows.get(l, j).abs();
             if v > best.0 {
-                best = (v, lay.global(l) as f64);
+                best = (v, l);
             }
         }
-        comm.all_gather_f64(&[best.0, best.1], &counts, &mut cand);
-        let mut piv = (-1.0f64, f64::INFINITY);
-        for c in cand.chunks(2) {
+        mine.iter_mut().for_each(|v| *v = 0.0);
+        mine[0] = best.0;
+        mine[1] = if best.1 == usize::MAX { f64::INFINITY } else { lay.global(best.1) as f64 };
+        if best.1 != usize::MAX {
+            rows.read_row(best.1, j, k + kb, &mut mine[2..2 + width]);
+        }
+        comm.all_gather_f64(&mine, &counts, &mut cand);
+        let mut piv = (-1.0f64, f64::INFINITY, 0usize);
+        for (r, c) in cand.chunks(stride).enumerate() {
             if c[0] > piv.0 || (c[0] == piv.0 && c[1] < piv.1) {
-                piv = (c[0], c[1]);
+                piv = (c[0], c[1], r);
             }
         }
         if !(piv.0 > tol) {
@@ -138,15 +149,10 @@ fn factor_columns(
                 lay.n
             )));
         }
+        let from = piv.2 * stride + 2;
+        pivot_row[..width].copy_from_slice(&cand[from..from + width]);
         rows.swap_rows(comm, j, piv.1 as usize, panel.0, panel.1);
         swaps.push((j, piv.1 as usize));
-        // pivot row's panel part (columns j..k+kb) to every rank
-        let width = k + kb - j;
-        let owner = lay.owner(j);
-        if owner == lay.rank {
-            rows.read_row(lay.local(j), j, k + kb, &mut pivot_row[..width]);
-        }
-        comm.broadcast_f64(owner, &mut pivot_row[..width]);
         let d = pivot_row[0];
         let l0 = lay.first_local_from(j + 1);
         let ld = lc;
