@@ -2,8 +2,8 @@
 //! processed in cache-sized blocks with independent accumulator lanes that the compiler keeps in
 //! vector registers, and a runtime switch to AVX2 code where the CPU has it. The sum for each point
 //! runs over the centres in one fixed order whatever the blocking, the thread or the rank, so
-//! values are reproducible bit for bit (no FMA contraction is allowed in Rust, so the AVX2 and the
-//! portable paths round identically).
+//! values are reproducible bit for bit (no FMA contraction is allowed in Rust, so the AVX-512,
+//! AVX2 and portable paths round identically).
 
 use crate::spline::Spline;
 
@@ -99,12 +99,34 @@ fn radial_sums(
 ) {
     #[cfg(target_arch = "x86_64")]
     {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU supports AVX-512F (checked just above).
+            unsafe { radial_sums_avx512(form, xn, y, z, cx, cy, cz, w, acc) };
+            return;
+        }
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2 (checked just above).
             unsafe { radial_sums_avx2(form, xn, y, z, cx, cy, cz, w, acc) };
             return;
         }
     }
+    radial_sums_portable(form, xn, y, z, cx, cy, cz, w, acc);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn radial_sums_avx512(
+    form: Form,
+    xn: &[f64],
+    y: f64,
+    z: f64,
+    cx: &[f64],
+    cy: &[f64],
+    cz: &[f64],
+    w: &[f64],
+    acc: &mut [[f64; LANES]],
+) {
     radial_sums_portable(form, xn, y, z, cx, cy, cz, w, acc);
 }
 

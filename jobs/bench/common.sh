@@ -5,16 +5,7 @@ ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 cd "$ROOT"
 source jobs/setup.sh
 # peers measured side by side: ScaLAPACK over OpenBLAS (serial, one thread per rank), scipy
-need=()
-for pkg in libscalapack-openmpi-dev libopenblas0-serial; do
-    dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" || need+=("$pkg")
-done
-if [ ${#need[@]} -gt 0 ]; then
-    echo "bench: installing ${need[*]}"
-    SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO="sudo"
-    $SUDO apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
-fi
+ensure_debs libscalapack-openmpi-dev libopenblas0-serial
 python3 -c 'import scipy, matplotlib' 2>/dev/null || python3 -m pip install -q --disable-pip-version-check scipy matplotlib
 cargo build --release --quiet
 BIN="$ROOT/target/release/volspline"
