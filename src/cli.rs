@@ -8,9 +8,9 @@ use clap::{Args, Parser, Subcommand};
 use crate::contour::pipeline::{self as contour_pipeline, ContoursOptions, PlaneFamily};
 use crate::contour::{Interp, Orient, SectionCarrier};
 use crate::dist::{Comm, SolverKind, DEFAULT_PANEL};
-use crate::io::contour_model_file;
 use crate::error::{Error, Result};
 use crate::grid::{parse_bounds, GridSize};
+use crate::io::contour_model_file;
 use crate::kernel::Kernel;
 use crate::pipeline::{self, EvalOptions, FitOptions, VolumeSummary};
 use crate::report::{stage_table, Stages};
@@ -210,7 +210,10 @@ pub fn run(cli: &Cli, comm: &dyn Comm, threads: usize) -> Result<()> {
                     s.planes, s.slices, s.contours, s.points
                 );
                 if s.joined > 0 {
-                    println!("  {} chains ended on holes of the mesh and were closed by joining their ends", s.joined);
+                    println!(
+                        "  {} chains ended on holes of the mesh and were closed by joining their ends",
+                        s.joined
+                    );
                 }
                 println!("  output:\n    {}", a.out.display());
             }
@@ -319,7 +322,11 @@ fn run_contours(a: &ContoursArgs, comm: &dyn Comm, threads: usize, stages: &mut 
             opts.carrier.name()
         );
         println!("  interp {}, orient {}", opts.interp.name(), opts.orient.name());
-        println!("  ranks = {}, threads per rank = {} (slice i solved on rank i mod ranks)", comm.size(), threads);
+        println!(
+            "  ranks = {}, threads per rank = {} (slice i solved on rank i mod ranks)",
+            comm.size(),
+            threads
+        );
         println!("  largest relative residual of the slice systems = {:.3e}", s.max_residual);
         println!("  max |F_i| at the slices' points              = {:.3e}", s.max_abs_at_points);
         print_volume(&s.volume);

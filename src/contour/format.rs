@@ -70,7 +70,8 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<Section>> {
         let line = i + 1;
         last_line = line;
         let body = raw.split('#').next().unwrap_or("");
-        let toks: Vec<&str> = body.split(|c: char| c.is_whitespace() || c == ',').filter(|t| !t.is_empty()).collect();
+        let toks: Vec<&str> =
+            body.split(|c: char| c.is_whitespace() || c == ',').filter(|t| !t.is_empty()).collect();
         if toks.is_empty() {
             continue;
         }
@@ -90,7 +91,10 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<Section>> {
                 let kind = toks.get(1).map(|k| k.to_ascii_lowercase()).unwrap_or_default();
                 let expect = |n: usize, form: &str| -> Result<Vec<f64>> {
                     if toks.len() != n + 2 {
-                        return Err(err(line, format!("expected '{form}' ({n} numbers), got {} numbers", toks.len() - 2)));
+                        return Err(err(
+                            line,
+                            format!("expected '{form}' ({n} numbers), got {} numbers", toks.len() - 2),
+                        ));
                     }
                     nums(&toks[2..], form)
                 };
@@ -101,8 +105,11 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<Section>> {
                     }
                     "plane" => {
                         let v = expect(9, "slice plane ox oy oz ux uy uz vx vy vz")?;
-                        let frame = frame_from_axes(DVec3::new(v[3], v[4], v[5]), DVec3::new(v[6], v[7], v[8]))
-                            .ok_or_else(|| err(line, "the in-plane axes u and v are zero or parallel".into()))?;
+                        let frame =
+                            frame_from_axes(DVec3::new(v[3], v[4], v[5]), DVec3::new(v[6], v[7], v[8]))
+                                .ok_or_else(|| {
+                                    err(line, "the in-plane axes u and v are zero or parallel".into())
+                                })?;
                         (DVec3::new(v[0], v[1], v[2]), frame, "plane")
                     }
                     "omega" => {
@@ -110,11 +117,15 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<Section>> {
                         let prev = sections.last().ok_or_else(|| {
                             err(line, "the first slice cannot be 'omega': angular velocities turn the previous frame".into())
                         })?;
-                        let frame = integrate_angular_velocity(&prev.frame, DVec3::new(v[0], v[1], v[2]), RK4_STEPS);
+                        let frame =
+                            integrate_angular_velocity(&prev.frame, DVec3::new(v[0], v[1], v[2]), RK4_STEPS);
                         (DVec3::new(v[3], v[4], v[5]), frame, "omega")
                     }
                     other => {
-                        return Err(err(line, format!("unknown slice kind '{other}' (expected z, plane or omega)")))
+                        return Err(err(
+                            line,
+                            format!("unknown slice kind '{other}' (expected z, plane or omega)"),
+                        ))
                     }
                 };
                 if let Some(prev) = sections.last() {
@@ -136,10 +147,15 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<Section>> {
                 if toks.len() != 1 {
                     return Err(err(line, "'contour' takes no arguments".into()));
                 }
-                let s = sections.last_mut().ok_or_else(|| err(line, "'contour' before any 'slice' line".into()))?;
+                let s = sections
+                    .last_mut()
+                    .ok_or_else(|| err(line, "'contour' before any 'slice' line".into()))?;
                 if let Some(c) = s.contours.last() {
                     if c.len() < 3 {
-                        return Err(err(line, format!("the previous contour has {} point(s); at least 3 are needed", c.len())));
+                        return Err(err(
+                            line,
+                            format!("the previous contour has {} point(s); at least 3 are needed", c.len()),
+                        ));
                     }
                 }
                 s.contours.push(Vec::new());
@@ -147,7 +163,10 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<Section>> {
             _ => {
                 let v = nums(&toks, "a point is 'a b'")?;
                 if v.len() != 2 {
-                    return Err(err(line, format!("a point has 2 coordinates in its plane, got {}", v.len())));
+                    return Err(err(
+                        line,
+                        format!("a point has 2 coordinates in its plane, got {}", v.len()),
+                    ));
                 }
                 let c = sections
                     .last_mut()
@@ -162,7 +181,11 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<Section>> {
         Some(s) => check_complete(path, s, last_line + 1)?,
     }
     if sections.len() < 2 {
-        return Err(Error::input(path, format!("line {}", sections[0].line), "only one slice: at least two are needed"));
+        return Err(Error::input(
+            path,
+            format!("line {}", sections[0].line),
+            "only one slice: at least two are needed",
+        ));
     }
     Ok(sections)
 }
@@ -174,7 +197,15 @@ fn check_complete(path: &Path, s: &Section, line: usize) -> Result<()> {
         return Err(Error::input(path, at, format!("the slice of line {} has no contour", s.line)));
     }
     if let Some(c) = s.contours.iter().find(|c| c.len() < 3) {
-        return Err(Error::input(path, at, format!("a contour of the slice of line {} has {} point(s); at least 3 are needed", s.line, c.len())));
+        return Err(Error::input(
+            path,
+            at,
+            format!(
+                "a contour of the slice of line {} has {} point(s); at least 3 are needed",
+                s.line,
+                c.len()
+            ),
+        ));
     }
     Ok(())
 }
@@ -182,7 +213,8 @@ fn check_complete(path: &Path, s: &Section, line: usize) -> Result<()> {
 /// Reads and parses a contour file.
 pub fn read(path: &Path) -> Result<Vec<Section>> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
-    let text = String::from_utf8(bytes).map_err(|e| Error::input(path, "", format!("not UTF-8 text: {e}")))?;
+    let text =
+        String::from_utf8(bytes).map_err(|e| Error::input(path, "", format!("not UTF-8 text: {e}")))?;
     parse(path, &text)
 }
 
@@ -247,7 +279,11 @@ mod tests {
             ("slice z 0\n0 0\n", "line 2", "before any"),
             ("slice q 0\n", "line 1", "unknown slice kind"),
             ("slice z 0\ncontour\n0 0\n1 0\ncontour\n", "line 5", "at least 3"),
-            ("slice z 0\ncontour\n0 0\n1 0\n1 1\nslice z -1\ncontour\n0 0\n1 0\n1 1\n", "line 6", "not in front"),
+            (
+                "slice z 0\ncontour\n0 0\n1 0\n1 1\nslice z -1\ncontour\n0 0\n1 0\n1 1\n",
+                "line 6",
+                "not in front",
+            ),
             ("slice plane 0 0 0 1 0 0 2 0 0\n", "line 1", "parallel"),
             ("slice omega 0 0 1 0 0 0\n", "line 1", "first slice"),
             ("slice z 0\ncontour\n0 0\n1 0\n1 1\n", "line 1", "only one slice"),

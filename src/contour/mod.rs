@@ -102,7 +102,15 @@ impl ContourModel {
         let blend = Blend::new(interp, knots_of(&planes));
         let pairs = sections.windows(2).map(|w| FramePair::new(w[0].frame, w[1].frame)).collect();
         let d = (0..3).map(|k| (provenance.box_hi[k] - provenance.box_lo[k]).powi(2)).sum::<f64>().sqrt();
-        ContourModel { sections, interp, orient, provenance, blend, pairs, cap_scale: d.max(f64::MIN_POSITIVE) }
+        ContourModel {
+            sections,
+            interp,
+            orient,
+            provenance,
+            blend,
+            pairs,
+            cap_scale: d.max(f64::MIN_POSITIVE),
+        }
     }
 
     /// The knots tau_i.

@@ -59,11 +59,8 @@ pub struct ContoursSummary {
 
 /// Reads the contour file on rank 0, gives its text to every rank and parses it everywhere.
 fn read_sections_everywhere(comm: &dyn Comm, path: &Path) -> Result<Vec<Section>> {
-    let local = if comm.rank() == 0 {
-        std::fs::read(path).map_err(|e| Error::io(path, &e))
-    } else {
-        Ok(Vec::new())
-    };
+    let local =
+        if comm.rank() == 0 { std::fs::read(path).map_err(|e| Error::io(path, &e)) } else { Ok(Vec::new()) };
     let mut bytes = agree(comm, local)?;
     comm.broadcast_bytes(0, &mut bytes);
     let text = String::from_utf8(bytes).map_err(|e| Error::input(path, "", format!("not UTF-8 text: {e}")));
@@ -93,7 +90,8 @@ fn fit_to_bytes(f: &SectionFit) -> Vec<u8> {
 
 fn fit_from_bytes(b: &[u8], kernel: Kernel) -> Result<SectionFit> {
     let corrupt = || Error::Numerical("a slice's solution arrived corrupted".into());
-    let count = u64::from_le_bytes(b.get(..8).ok_or_else(corrupt)?.try_into().map_err(|_| corrupt())?) as usize;
+    let count =
+        u64::from_le_bytes(b.get(..8).ok_or_else(corrupt)?.try_into().map_err(|_| corrupt())?) as usize;
     let end = 8 + 8 * count;
     let v: Vec<f64> = b
         .get(8..end)
@@ -128,14 +126,24 @@ fn fit_from_bytes(b: &[u8], kernel: Kernel) -> Result<SectionFit> {
 /// Solves every slice: slice i on rank i mod P, then broadcast from its owner. Collective.
 pub fn solve_sections(
     comm: &dyn Comm,
+    source: &Path,
     sections: &[Section],
     kernel: &Kernel,
     carrier: SectionCarrier,
     merge_tol: f64,
 ) -> Result<Vec<SectionFit>> {
     let (p, r) = (comm.size(), comm.rank());
-    let mine: Result<Vec<SectionFit>> =
-        sections.iter().skip(r).step_by(p).map(|s| fit_section(s, kernel, carrier, merge_tol)).collect();
+    let mine: Result<Vec<SectionFit>> = sections
+        .iter()
+        .skip(r)
+        .step_by(p)
+        .map(|s| {
+            fit_section(s, kernel, carrier, merge_tol).map_err(|e| match e {
+                Error::Numerical(m) => Error::Numerical(format!("{}: {m}", source.display())),
+                other => other,
+            })
+        })
+        .collect();
     let mine = agree(comm, mine)?;
     let mut fits = Vec::with_capacity(sections.len());
     for i in 0..sections.len() {
@@ -168,7 +176,9 @@ pub fn contours(comm: &dyn Comm, opts: &ContoursOptions, stages: &mut Stages) ->
             opts.carrier.name()
         );
     }
-    let fits = stages.time("solve", || solve_sections(comm, &sections, &opts.kernel, opts.carrier, opts.merge_tol))?;
+    let fits = stages.time("solve", || {
+        solve_sections(comm, &opts.input, &sections, &opts.kernel, opts.carrier, opts.merge_tol)
+    })?;
     let max_residual = fits.iter().map(|f| f.residual).fold(0.0, f64::max);
     let max_abs = fits.iter().map(|f| f.max_abs_at_points).fold(0.0, f64::max);
     let merged: usize = fits.iter().map(|f| f.merged).sum();
@@ -285,8 +295,9 @@ impl PlaneFamily {
                 let frame = DMat3::from_cols(u, v, u.cross(v));
                 (0..count)
                     .map(|k| {
-                        let h = lo[axis] + (k as f64 + 0.5) * (hi[axis] - lo[axis]) / count as f64;
-                        (e(axis) * h, frame)
+                        let mut origin = DVec3::ZERO;
+                        origin[axis] = lo[axis] + (k as f64 + 0.5) * (hi[axis] - lo[axis]) / count as f64;
+                        (origin, frame)
                     })
                     .collect()
             }
@@ -298,9 +309,10 @@ impl PlaneFamily {
                 hinge[h] = 0.5 * (lo[h] + hi[h]);
                 hinge[d] = lo[d] - ext_d;
                 let angle = |p: &[f64; 3]| (p[s] - hinge[s]).atan2(p[d] - hinge[d]);
-                let (amin, amax) = pts.iter().map(angle).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
-                    (a.min(x), b.max(x))
-                });
+                let (amin, amax) = pts
+                    .iter()
+                    .map(angle)
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(x), b.max(x)));
                 let radius = 1.5 * ext_d;
                 (0..count)
                     .map(|k| {
@@ -390,7 +402,8 @@ pub fn slice(comm: &dyn Comm, mesh_path: &Path, out: &Path, planes: PlaneFamily)
         summary = s;
         Ok(())
     })?;
-    let mut v = [summary.planes, summary.slices, summary.contours, summary.points, summary.joined].map(|x| x as f64);
+    let mut v =
+        [summary.planes, summary.slices, summary.contours, summary.points, summary.joined].map(|x| x as f64);
     comm.broadcast_f64(0, &mut v);
     Ok(SliceSummary {
         planes: v[0] as usize,

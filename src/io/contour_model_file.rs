@@ -39,7 +39,9 @@ pub fn format_of(path: &Path) -> Result<String> {
         return Err(Error::Io { path: path.into(), reason: "no such file".into() });
     }
     let f = hdf5::File::open(path).map_err(|e| Error::hdf5(path, e))?;
-    let a = f.attr("format").map_err(|_| Error::input(path, "", "not a volspline model: no 'format' attribute"))?;
+    let a = f
+        .attr("format")
+        .map_err(|_| Error::input(path, "", "not a volspline model: no 'format' attribute"))?;
     Ok(a.read_scalar::<VarLenUnicode>().map_err(|e| Error::hdf5(path, e))?.as_str().to_string())
 }
 
@@ -94,9 +96,14 @@ pub fn write_contour_model(path: &Path, model: &ContourModel) -> Result<()> {
         weights.extend_from_slice(&sec.spline.weights);
         offsets.push(weights.len() as i64);
         poly.extend_from_slice(&sec.spline.poly);
-        norm.extend_from_slice(&[sec.spline.norm.centre[0], sec.spline.norm.centre[1], sec.spline.norm.scale]);
+        norm.extend_from_slice(&[
+            sec.spline.norm.centre[0],
+            sec.spline.norm.centre[1],
+            sec.spline.norm.scale,
+        ]);
     }
-    let arr2 = |v: Vec<f64>, cols: usize| ndarray::Array2::from_shape_vec((v.len() / cols, cols), v).expect("shape");
+    let arr2 =
+        |v: Vec<f64>, cols: usize| ndarray::Array2::from_shape_vec((v.len() / cols, cols), v).expect("shape");
     f.new_dataset_builder().with_data(&arr2(origins, 3)).create("origins").map_err(h5)?;
     f.new_dataset_builder().with_data(&arr2(frames, 9)).create("frames").map_err(h5)?;
     f.new_dataset_builder().with_data(&offsets).create("offsets").map_err(h5)?;
@@ -127,11 +134,18 @@ pub fn read_contour_model(path: &Path) -> Result<ContourModel> {
         f.attr(name).map_err(|_| bad(format!("attribute '{name}' is missing")))?.read_raw::<f64>().map_err(h5)
     };
     let get_int = |name: &str| -> Result<i64> {
-        let v = f.attr(name).map_err(|_| bad(format!("attribute '{name}' is missing")))?.read_raw::<i64>().map_err(h5)?;
+        let v = f
+            .attr(name)
+            .map_err(|_| bad(format!("attribute '{name}' is missing")))?
+            .read_raw::<i64>()
+            .map_err(h5)?;
         v.first().copied().ok_or_else(|| bad(format!("attribute '{name}' is empty")))
     };
     let ds = |name: &str| -> Result<Vec<f64>> {
-        f.dataset(name).map_err(|_| bad(format!("dataset '{name}' is missing")))?.read_raw::<f64>().map_err(h5)
+        f.dataset(name)
+            .map_err(|_| bad(format!("dataset '{name}' is missing")))?
+            .read_raw::<f64>()
+            .map_err(h5)
     };
     let version = get_int("format_version")?;
     if version != 1 {
@@ -175,7 +189,8 @@ pub fn read_contour_model(path: &Path) -> Result<ContourModel> {
     if !consistent {
         return Err(bad("inconsistent sizes of the slice datasets".into()));
     }
-    if [&origins, &frames, &centres, &weights, &poly, &norm].iter().any(|v| v.iter().any(|x| !x.is_finite())) {
+    if [&origins, &frames, &centres, &weights, &poly, &norm].iter().any(|v| v.iter().any(|x| !x.is_finite()))
+    {
         return Err(bad("the model holds non-finite numbers".into()));
     }
     let mut sections = Vec::with_capacity(s);

@@ -21,11 +21,8 @@ pub struct PlaneCut {
 
 /// Cuts `mesh` by the plane through `origin` with normal `normal` (any length).
 pub fn cut_by_plane(mesh: &TriMesh, origin: [f64; 3], normal: [f64; 3]) -> PlaneCut {
-    let s: Vec<f64> = mesh
-        .vertices
-        .iter()
-        .map(|p| (0..3).map(|d| normal[d] * (p[d] - origin[d])).sum::<f64>())
-        .collect();
+    let s: Vec<f64> =
+        mesh.vertices.iter().map(|p| (0..3).map(|d| normal[d] * (p[d] - origin[d])).sum::<f64>()).collect();
     let ahead = |v: u32| s[v as usize] >= 0.0;
     let key = |a: u32, b: u32| (a.min(b), a.max(b));
     // each crossed triangle gives one segment between two crossed edges
