@@ -615,15 +615,19 @@ fn angular_velocities_generate_the_bent_block_frames() {
     let exact = model_of(&block_sections(count), Interp::Linear, Orient::Slerp, SectionCarrier::Disc);
     let generated = model_of(&sections, Interp::Linear, Orient::Slerp, SectionCarrier::Disc);
     let mut rng = Lcg(7);
-    let mut biggest = 0.0f64;
+    let (mut biggest, mut scale) = (0.0f64, 0.0f64);
     for _ in 0..2000 {
         let p = [rng.unit() * 6.0 - 1.0, rng.unit() * 3.0 - 1.5, rng.unit() * 6.0 - 1.0];
         biggest = biggest.max((exact.eval(p) - generated.eval(p)).abs());
+        scale = scale.max(exact.eval(p).abs());
     }
     println!(
-        "  F from generated and from exact frames differ by at most {biggest:.2e} at 2000 random points"
+        "  F from generated and from exact frames differ by at most {biggest:.2e} at 2000 random points \
+         ({:.2e} of max |F|)",
+        biggest / scale
     );
-    assert!(biggest < 1e-2, "{biggest}");
+    // measured: 2.2e-4 of max |F|
+    assert!(biggest / scale < 1e-3, "{biggest} {scale}");
 }
 
 // ---------------------------------------------------------------------------------------------

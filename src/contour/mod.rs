@@ -83,6 +83,16 @@ pub struct ContourModel {
     cap_scale: f64,
 }
 
+/// The R-intersection of f with a cap c >= 0 in a form without cancellation for large c (it tends
+/// to f as c grows, and is f for c = infinity).
+#[inline]
+fn fading_cap(f: f64, c: f64) -> f64 {
+    if f == 0.0 {
+        return 0.0;
+    }
+    f - f * f / (c + (f * f + c * c).sqrt())
+}
+
 /// The knots of the slice parameter: tau_0 = 0, tau_(i+1) - tau_i = the distance between planes
 /// i and i+1 measured along their mean normal (z_(i+1) - z_i for parallel slices).
 pub fn knots_of(planes: &[(DVec3, DMat3)]) -> Vec<f64> {
@@ -167,11 +177,13 @@ impl ContourModel {
                 let ab = local(o, &m);
                 self.blend.weights(i, t, weights);
                 let mut f: f64 = weights.iter().map(|&(j, w)| w * s[j].eval(ab)).sum();
+                // the end caps fade out across the end intervals (1 / (1 - t) and 1 / t), so that F
+                // is continuous where the next interval begins
                 if i == 0 {
-                    f = r_intersection(f, self.cap_scale * s[0].signed_distance(x));
+                    f = fading_cap(f, self.cap_scale * s[0].signed_distance(x) / (1.0 - t));
                 }
                 if i + 1 == last {
-                    f = r_intersection(f, -self.cap_scale * s[last].signed_distance(x));
+                    f = fading_cap(f, -self.cap_scale * s[last].signed_distance(x) / t);
                 }
                 f
             }
@@ -219,5 +231,87 @@ impl Field for ContourModel {
             // about fourteen neighbours on either side keep a weight above the cut-off
             Interp::Cubic => self.sections.len().min(29) * mean,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kernel::Kernel;
+
+    fn circle(r: f64, n: usize) -> Vec<[f64; 2]> {
+        (0..n)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / n as f64;
+                [r * a.cos(), r * a.sin()]
+            })
+            .collect()
+    }
+
+    fn stack(zs: &[f64], radii: &[f64], interp: Interp) -> ContourModel {
+        let k = Kernel::new(2, 2).unwrap();
+        let sections = zs
+            .iter()
+            .zip(radii)
+            .map(|(&z, &r)| {
+                let s = Section {
+                    line: 0,
+                    origin: DVec3::new(0.0, 0.0, z),
+                    frame: DMat3::IDENTITY,
+                    kind: "z",
+                    contours: vec![circle(r, 24)],
+                };
+                let f = fit_section(&s, &k, SectionCarrier::Disc, 1e-6).unwrap();
+                SectionModel { origin: s.origin, frame: s.frame, carrier: f.carrier, spline: f.spline }
+            })
+            .collect();
+        let prov = Provenance {
+            box_lo: [-1.0, -1.0, zs[0]],
+            box_hi: [1.0, 1.0, zs[zs.len() - 1]],
+            ..Default::default()
+        };
+        ContourModel::new(sections, interp, Orient::Slerp, prov)
+    }
+
+    #[test]
+    fn parallel_slices_follow_the_papers_linear_formula() {
+        let m = stack(&[0.0, 1.0, 3.0, 4.0], &[0.5, 0.8, 0.6, 0.4], Interp::Linear);
+        assert_eq!(m.knots(), &[0.0, 1.0, 3.0, 4.0]);
+        for (x, y, z) in [(0.1, 0.2, 1.5), (0.7, -0.3, 2.9), (-0.2, 0.0, 1.0 + 1e-12)] {
+            let g = (z - 1.0) / 2.0;
+            assert_eq!(m.place(DVec3::new(x, y, z)), Placement::Between { i: 1, t: g });
+            let paper = (1.0 - g) * m.sections[1].eval([x, y]) + g * m.sections[2].eval([x, y]);
+            assert!((m.eval([x, y, z]) - paper).abs() < 1e-14 * (1.0 + paper.abs()), "{z}");
+        }
+        // in a slice's plane F is F_i, reached from either side: the zero set is the contour
+        assert!(m.eval([0.8, 0.0, 1.0]).abs() < 1e-9);
+        for z in [1.0, 3.0] {
+            let i = if z == 1.0 { 1 } else { 2 };
+            for p in [[0.2, 0.1, z], [0.0, 0.0, z], [0.9, 0.0, z]] {
+                let exact = m.sections[i].eval([p[0], p[1]]);
+                assert!((m.eval(p) - exact).abs() < 1e-13 * (1.0 + exact.abs()), "{p:?}");
+                let below = m.eval([p[0], p[1], z - 1e-9]);
+                assert!((below - exact).abs() < 1e-6 * (1.0 + exact.abs()), "{p:?}: continuous");
+            }
+        }
+        // closed beyond the ends, open between them
+        assert_eq!(m.place(DVec3::new(0.0, 0.0, -0.1)), Placement::BeforeFirst);
+        assert_eq!(m.place(DVec3::new(0.0, 0.0, 4.1)), Placement::AfterLast);
+        assert!(m.eval([0.0, 0.0, -0.01]) < 0.0 && m.eval([0.0, 0.0, 0.01]) > 0.0);
+        assert!(m.eval([0.0, 0.0, 4.01]) < 0.0 && m.eval([0.0, 0.0, 3.99]) > 0.0);
+        // continuous through the cap: F = 0 on the first plane inside the contour
+        assert!(m.eval([0.0, 0.0, -1e-9]).abs() < 1e-7 && m.eval([0.0, 0.0, 1e-9]).abs() < 1e-7);
+    }
+
+    #[test]
+    fn cubic_blend_agrees_with_linear_at_the_slices() {
+        let lin = stack(&[0.0, 1.0, 2.0, 3.5, 4.0], &[0.5, 0.8, 0.6, 0.7, 0.4], Interp::Linear);
+        let cub = stack(&[0.0, 1.0, 2.0, 3.5, 4.0], &[0.5, 0.8, 0.6, 0.7, 0.4], Interp::Cubic);
+        for z in [1.0, 2.0, 3.5] {
+            let p = [0.3, -0.1, z];
+            assert!((lin.eval(p) - cub.eval(p)).abs() < 1e-12, "{z}");
+        }
+        let p = [0.3, -0.1, 2.7];
+        assert!((lin.eval(p) - cub.eval(p)).abs() > 1e-4);
     }
 }
