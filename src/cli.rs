@@ -62,7 +62,7 @@ pub struct ContoursArgs {
     #[arg(long, default_value = "r2log", value_name = "r2log|r4log")]
     pub kernel: String,
     /// Carrier of each section: disc (one disc round the slice) or union (R-union of one disc per
-    /// contour).
+    /// contour, bounded by the slice's disc: keeps neighbouring contours, such as legs, apart).
     #[arg(long, default_value = "disc", value_name = "disc|union")]
     pub carrier: String,
     /// Points of a slice closer than this fraction of the slice's diagonal are merged into one.

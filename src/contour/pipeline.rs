@@ -256,6 +256,16 @@ pub enum PlaneFamily {
     Fan { axis: usize, count: usize },
 }
 
+impl std::fmt::Display for PlaneFamily {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let name = |a: usize| ["x", "y", "z"][a];
+        match *self {
+            PlaneFamily::Parallel { axis, count } => write!(f, "{}:{count}", name(axis)),
+            PlaneFamily::Fan { axis, count } => write!(f, "fan-{}:{count}", name(axis)),
+        }
+    }
+}
+
 impl PlaneFamily {
     pub fn parse(spec: &str) -> Result<Self> {
         let bad = || {
@@ -387,7 +397,7 @@ pub fn slice(comm: &dyn Comm, mesh_path: &Path, out: &Path, planes: PlaneFamily)
             )));
         }
         let header = format!(
-            "volspline contours from {} cut by {:?}\n{} slices, {} contours, {} points",
+            "volspline contours from {} cut by planes {}\n{} slices, {} contours, {} points",
             mesh_path.display(),
             planes,
             s.slices,
@@ -412,4 +422,37 @@ pub fn slice(comm: &dyn Comm, mesh_path: &Path, out: &Path, planes: PlaneFamily)
         points: v[3] as usize,
         joined: v[4] as usize,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::contour::knots_of;
+
+    #[test]
+    fn plane_families_parse_and_are_ordered() {
+        for spec in ["z:40", "x:2", "fan-y:12", "fan-z:3"] {
+            assert_eq!(PlaneFamily::parse(spec).unwrap().to_string(), spec);
+        }
+        for bad in ["z", "z:1", "w:4", "fan-:4", "fan-q:4", "y:x"] {
+            assert!(PlaneFamily::parse(bad).is_err(), "{bad}");
+        }
+        let pts: Vec<[f64; 3]> = (0..200)
+            .map(|i| {
+                let a = i as f64 * 0.7;
+                [a.cos(), (1.3 * a).sin(), (0.37 * a).cos() * 2.0]
+            })
+            .collect();
+        for spec in ["z:10", "fan-z:10", "fan-x:7"] {
+            let planes = PlaneFamily::parse(spec).unwrap().planes(&pts);
+            let tau = knots_of(&planes);
+            assert!(tau.windows(2).all(|w| w[1] > w[0]), "{spec}: ordered along the normals");
+            for (_, m) in &planes {
+                assert!((m.determinant() - 1.0).abs() < 1e-14);
+            }
+        }
+        let fan = PlaneFamily::parse("fan-z:10").unwrap().planes(&pts);
+        let turn = fan[0].1.z_axis.angle_between(fan[9].1.z_axis);
+        assert!(turn > 0.3 && turn < 1.6, "{turn}");
+    }
 }
