@@ -5,12 +5,9 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
 
-use crate::contour::pipeline::{self as contour_pipeline, ContoursOptions, PlaneFamily};
-use crate::contour::{Interp, Orient, SectionCarrier};
 use crate::dist::{Comm, SolverKind, DEFAULT_PANEL};
 use crate::error::{Error, Result};
 use crate::grid::{parse_bounds, GridSize};
-use crate::io::contour_model_file;
 use crate::kernel::Kernel;
 use crate::pipeline::{self, EvalOptions, FitOptions, VolumeSummary};
 use crate::report::{stage_table, Stages};
@@ -200,51 +197,8 @@ pub fn run(cli: &Cli, comm: &dyn Comm, threads: usize) -> Result<()> {
             }
         }
         Command::Contours(a) => run_contours(a, comm, threads, &mut stages)?,
-        Command::Slice(a) => {
-            let planes = PlaneFamily::parse(&a.planes)?;
-            let s = stages.time("slice", || contour_pipeline::slice(comm, &a.mesh, &a.out, planes))?;
-            if comm.rank() == 0 {
-                println!("volspline slice: {} by {}", a.mesh.display(), a.planes);
-                println!(
-                    "  {} planes, {} slices meet the mesh: {} contours, {} points",
-                    s.planes, s.slices, s.contours, s.points
-                );
-                if s.joined > 0 {
-                    println!(
-                        "  {} chains ended on holes of the mesh and were closed by joining their ends",
-                        s.joined
-                    );
-                }
-                println!("  output:\n    {}", a.out.display());
-            }
-        }
-        Command::Eval(a) if is_contour_model(&a.model) => {
-            check_margin(a.grid.margin)?;
-            let opts = EvalOptions {
-                model: a.model.clone(),
-                prefix: a.out.clone(),
-                grid: GridSize::parse(&a.grid.grid)?,
-                bounds: a.bounds.as_deref().map(parse_bounds).transpose()?,
-                margin: a.grid.margin,
-                threads,
-            };
-            let (model, v) = contour_pipeline::eval_contour_model(comm, &opts, &mut stages)?;
-            let times = stages.summarise(comm);
-            if comm.rank() == 0 {
-                println!("volspline eval: {} (contour model)", opts.model.display());
-                println!(
-                    "  {} slices, N = {} centres, interp {}, orient {}",
-                    model.sections.len(),
-                    model.centres(),
-                    model.interp.name(),
-                    model.orient.name()
-                );
-                println!("  ranks = {}, threads per rank = {}", comm.size(), threads);
-                print_volume(&v);
-                print!("{}", stage_table(&times));
-                println!("  outputs:\n    {}\n    {}", v.hdf_path.display(), v.ply_path.display());
-            }
-        }
+        Command::Slice(a) => run_slice(a, comm, &mut stages)?,
+        Command::Eval(a) if is_contour_model(&a.model) => run_eval_contours(a, comm, threads, &mut stages)?,
         Command::Eval(a) => {
             check_margin(a.grid.margin)?;
             let opts = EvalOptions {
@@ -275,66 +229,6 @@ pub fn run(cli: &Cli, comm: &dyn Comm, threads: usize) -> Result<()> {
                 println!("    {}", v.ply_path.display());
             }
         }
-    }
-    Ok(())
-}
-
-/// Whether `path` holds a contour model (read by every rank; an unreadable file is left to the
-/// scattered-point reader to report).
-fn is_contour_model(path: &std::path::Path) -> bool {
-    contour_model_file::format_of(path).is_ok_and(|f| f == contour_model_file::FORMAT)
-}
-
-fn run_contours(a: &ContoursArgs, comm: &dyn Comm, threads: usize, stages: &mut Stages) -> Result<()> {
-    check_margin(a.grid.margin)?;
-    if !(a.merge_tol >= 0.0 && a.merge_tol < 0.1) {
-        return Err(Error::Usage("--merge-tol must be in [0, 0.1)".into()));
-    }
-    let kernel = match a.kernel.as_str() {
-        "r2log" => Kernel::new(2, 2)?,
-        "r4log" => Kernel::new(2, 3)?,
-        other => return Err(Error::Usage(format!("unknown --kernel '{other}' (expected r2log or r4log)"))),
-    };
-    let opts = ContoursOptions {
-        input: a.input.clone(),
-        prefix: a.out.clone(),
-        interp: Interp::parse(&a.interp)?,
-        orient: Orient::parse(&a.orient)?,
-        kernel,
-        carrier: SectionCarrier::parse(&a.carrier)?,
-        grid: GridSize::parse(&a.grid.grid)?,
-        margin: a.grid.margin,
-        merge_tol: a.merge_tol,
-        threads,
-    };
-    let s = contour_pipeline::contours(comm, &opts, stages)?;
-    let times = stages.summarise(comm);
-    if comm.rank() == 0 {
-        println!("volspline contours: {}", opts.input.display());
-        println!(
-            "  {} slices, {} contours, N = {} points ({} read, {} duplicates merged), kernel {}, carrier {}",
-            s.slices,
-            s.contours,
-            s.points_used,
-            s.points_read,
-            s.merged,
-            opts.kernel.name(),
-            opts.carrier.name()
-        );
-        println!("  interp {}, orient {}", opts.interp.name(), opts.orient.name());
-        println!(
-            "  ranks = {}, threads per rank = {} (slice i solved on rank i mod ranks)",
-            comm.size(),
-            threads
-        );
-        println!("  largest relative residual of the slice systems = {:.3e}", s.max_residual);
-        println!("  max |F_i| at the slices' points              = {:.3e}", s.max_abs_at_points);
-        print_volume(&s.volume);
-        print!("{}", stage_table(&times));
-        println!("  outputs:");
-        println!("    {}", s.model_path.display());
-        println!("    {}", s.volume.hdf_path.display());
-        println!("    {}", s.volume.ply_path.display());
     }
     Ok(())
 }
@@ -400,4 +294,123 @@ impl Cli {
             Command::Slice(_) => 1,
         }
     }
+}
+
+// The contour commands (paper 000, section 4); their stages are in `contour::pipeline`.
+
+/// Whether `path` holds a contour model (read by every rank; an unreadable file is left to the
+/// scattered-point reader to report).
+fn is_contour_model(path: &std::path::Path) -> bool {
+    use crate::io::contour_model_file::{format_of, FORMAT};
+    format_of(path).is_ok_and(|f| f == FORMAT)
+}
+
+/// `volspline contours`: options checked, the run, its report.
+fn run_contours(a: &ContoursArgs, comm: &dyn Comm, threads: usize, stages: &mut Stages) -> Result<()> {
+    use crate::contour::pipeline::{self as contour_pipeline, ContoursOptions};
+    use crate::contour::{Interp, Orient, SectionCarrier};
+    check_margin(a.grid.margin)?;
+    if !(a.merge_tol >= 0.0 && a.merge_tol < 0.1) {
+        return Err(Error::Usage("--merge-tol must be in [0, 0.1)".into()));
+    }
+    let kernel = match a.kernel.as_str() {
+        "r2log" => Kernel::new(2, 2)?,
+        "r4log" => Kernel::new(2, 3)?,
+        other => return Err(Error::Usage(format!("unknown --kernel '{other}' (expected r2log or r4log)"))),
+    };
+    let opts = ContoursOptions {
+        input: a.input.clone(),
+        prefix: a.out.clone(),
+        interp: Interp::parse(&a.interp)?,
+        orient: Orient::parse(&a.orient)?,
+        kernel,
+        carrier: SectionCarrier::parse(&a.carrier)?,
+        grid: GridSize::parse(&a.grid.grid)?,
+        margin: a.grid.margin,
+        merge_tol: a.merge_tol,
+        threads,
+    };
+    let s = contour_pipeline::contours(comm, &opts, stages)?;
+    let times = stages.summarise(comm);
+    if comm.rank() == 0 {
+        println!("volspline contours: {}", opts.input.display());
+        println!(
+            "  {} slices, {} contours, N = {} points ({} read, {} duplicates merged), kernel {}, carrier {}",
+            s.slices,
+            s.contours,
+            s.points_used,
+            s.points_read,
+            s.merged,
+            opts.kernel.name(),
+            opts.carrier.name()
+        );
+        println!("  interp {}, orient {}", opts.interp.name(), opts.orient.name());
+        println!(
+            "  ranks = {}, threads per rank = {} (slice i solved on rank i mod ranks)",
+            comm.size(),
+            threads
+        );
+        println!("  largest relative residual of the slice systems = {:.3e}", s.max_residual);
+        println!("  max |F_i| at the slices' points              = {:.3e}", s.max_abs_at_points);
+        print_volume(&s.volume);
+        print!("{}", stage_table(&times));
+        println!("  outputs:");
+        println!("    {}", s.model_path.display());
+        println!("    {}", s.volume.hdf_path.display());
+        println!("    {}", s.volume.ply_path.display());
+    }
+    Ok(())
+}
+
+/// `volspline slice`: cuts the mesh on rank 0 and reports.
+fn run_slice(a: &SliceArgs, comm: &dyn Comm, stages: &mut Stages) -> Result<()> {
+    use crate::contour::pipeline::{self as contour_pipeline, PlaneFamily};
+    let planes = PlaneFamily::parse(&a.planes)?;
+    let s = stages.time("slice", || contour_pipeline::slice(comm, &a.mesh, &a.out, planes))?;
+    if comm.rank() == 0 {
+        println!("volspline slice: {} by {}", a.mesh.display(), a.planes);
+        println!(
+            "  {} planes, {} slices meet the mesh: {} contours, {} points",
+            s.planes, s.slices, s.contours, s.points
+        );
+        if s.joined > 0 {
+            println!(
+                "  {} chains ended on holes of the mesh and were closed by joining their ends",
+                s.joined
+            );
+        }
+        println!("  output:\n    {}", a.out.display());
+    }
+    Ok(())
+}
+
+/// `volspline eval` of a contour model.
+fn run_eval_contours(a: &EvalArgs, comm: &dyn Comm, threads: usize, stages: &mut Stages) -> Result<()> {
+    use crate::contour::pipeline as contour_pipeline;
+    check_margin(a.grid.margin)?;
+    let opts = EvalOptions {
+        model: a.model.clone(),
+        prefix: a.out.clone(),
+        grid: GridSize::parse(&a.grid.grid)?,
+        bounds: a.bounds.as_deref().map(parse_bounds).transpose()?,
+        margin: a.grid.margin,
+        threads,
+    };
+    let (model, v) = contour_pipeline::eval_contour_model(comm, &opts, stages)?;
+    let times = stages.summarise(comm);
+    if comm.rank() == 0 {
+        println!("volspline eval: {} (contour model)", opts.model.display());
+        println!(
+            "  {} slices, N = {} centres, interp {}, orient {}",
+            model.sections.len(),
+            model.centres(),
+            model.interp.name(),
+            model.orient.name()
+        );
+        println!("  ranks = {}, threads per rank = {}", comm.size(), threads);
+        print_volume(&v);
+        print!("{}", stage_table(&times));
+        println!("  outputs:\n    {}\n    {}", v.hdf_path.display(), v.ply_path.display());
+    }
+    Ok(())
 }
