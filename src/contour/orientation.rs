@@ -6,6 +6,11 @@
 //!
 //! A frame is a rotation matrix M whose columns are the section's in-plane axes u, v and its
 //! normal w = u x v, in the fixed (world) coordinates.
+//!
+//! Angular velocities generate the slices' frames (constant over each interval of the slice
+//! parameter); between two slices the frame is then interpolated like any other pair. With a
+//! constant angular velocity the exact solution is M_i exp(t [omega]x), which is the geodesic, so
+//! slerp reproduces the integrated motion at every t, not only at the slices.
 
 use glam::{DMat3, DQuat, DVec3};
 

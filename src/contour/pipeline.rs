@@ -92,7 +92,7 @@ fn fit_from_bytes(b: &[u8], kernel: Kernel) -> Result<SectionFit> {
     let corrupt = || Error::Numerical("a slice's solution arrived corrupted".into());
     let count =
         u64::from_le_bytes(b.get(..8).ok_or_else(corrupt)?.try_into().map_err(|_| corrupt())?) as usize;
-    let end = 8 + 8 * count;
+    let end = count.checked_mul(8).and_then(|x| x.checked_add(8)).ok_or_else(corrupt)?;
     let v: Vec<f64> = b
         .get(8..end)
         .ok_or_else(corrupt)?
@@ -100,7 +100,7 @@ fn fit_from_bytes(b: &[u8], kernel: Kernel) -> Result<SectionFit> {
         .map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")))
         .collect();
     let k = kernel.poly_count();
-    let n = v[7] as usize;
+    let n = v.get(7).copied().ok_or_else(corrupt)? as usize;
     if v.len() != 8 + k + 3 * n {
         return Err(corrupt());
     }
