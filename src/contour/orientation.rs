@@ -242,6 +242,12 @@ mod tests {
             assert!((g.length() - 1.0).abs() < 1e-15);
         }
         assert!(drift > 1e-9, "RK4 alone should not conserve |gamma| exactly ({drift})");
+        // between two frames made by a constant omega, slerp is the integrated motion itself
+        let pair = FramePair::new(m0, m1);
+        for t in [0.25, 0.6] {
+            let d = max_diff(&pair.at(t, Orient::Slerp), &(m0 * rotation_exp(omega * t)));
+            assert!(d < 2e-9, "t = {t}: {d}");
+        }
         // the paper's third equation as corrected: gamma3' + w1 gamma2 - w2 gamma1 = 0
         let (gm, w) = (DVec3::new(0.2, 0.3, 0.9), DVec3::new(1.0, 2.0, 3.0));
         let r = direction_cosine_rate(gm, w);
