@@ -31,6 +31,55 @@ pub enum Command {
     Fit(FitArgs),
     /// Evaluate a saved model on a new grid without solving again; write PREFIX.hdf and PREFIX.ply.
     Eval(EvalArgs),
+    /// Reconstruct a solid from planar cross-sections (a contour file, see README.md): one 2D
+    /// spline per slice, interpolated between slices; write PREFIX.model.h5, PREFIX.hdf, PREFIX.ply.
+    Contours(ContoursArgs),
+    /// Cut a triangle mesh (.obj/.ply) by a family of planes and write the contour file.
+    Slice(SliceArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct ContoursArgs {
+    /// Contour file: `slice z Z` / `slice plane O U V` / `slice omega W O` lines, each followed by
+    /// `contour` blocks of in-plane points `a b` (format in README.md).
+    pub input: PathBuf,
+    /// Output prefix: writes PREFIX.model.h5, PREFIX.hdf, PREFIX.ply.
+    #[arg(long, value_name = "PREFIX")]
+    pub out: PathBuf,
+    /// Interpolation between slices: linear (the paper's) or cubic (cardinal natural cubic splines
+    /// in the slice parameter).
+    #[arg(long, default_value = "linear", value_name = "linear|cubic")]
+    pub interp: String,
+    /// Interpolation of the section frames of non-parallel slices: slerp (quaternion geodesic) or
+    /// log (the paper's exp((1-t) ln M_i + t ln M_i+1)).
+    #[arg(long, default_value = "slerp", value_name = "slerp|log")]
+    pub orient: String,
+    /// Green's function of the 2D section splines: r2log (m = 2, thin plate, polynomial 1, x, y)
+    /// or r4log (m = 3; needs --carrier union).
+    #[arg(long, default_value = "r2log", value_name = "r2log|r4log")]
+    pub kernel: String,
+    /// Carrier of each section: disc (one disc round the slice) or union (R-union of one disc per
+    /// contour, bounded by the slice's disc: keeps neighbouring contours, such as legs, apart).
+    #[arg(long, default_value = "disc", value_name = "disc|union")]
+    pub carrier: String,
+    /// Points of a slice closer than this fraction of the slice's diagonal are merged into one.
+    #[arg(long, default_value_t = 1e-6, value_name = "F")]
+    pub merge_tol: f64,
+    #[command(flatten)]
+    pub grid: GridArgs,
+}
+
+#[derive(Debug, Args)]
+pub struct SliceArgs {
+    /// Triangle mesh: .obj or .ply with faces.
+    pub mesh: PathBuf,
+    /// The contour file to write.
+    #[arg(long, value_name = "CONTOURS")]
+    pub out: PathBuf,
+    /// Planes: AXIS:N (N parallel planes across the mesh, AXIS x, y or z) or fan-AXIS:N (N planes
+    /// sweeping along AXIS while turning about a hinge line outside the mesh: non-parallel).
+    #[arg(long, default_value = "z:40", value_name = "SPEC")]
+    pub planes: String,
 }
 
 #[derive(Debug, Args)]
@@ -169,6 +218,9 @@ pub fn run(cli: &Cli, comm: &dyn Comm, threads: usize) -> Result<()> {
                 println!("    {}", s.volume.ply_path.display());
             }
         }
+        Command::Contours(a) => run_contours(a, comm, threads, &mut stages)?,
+        Command::Slice(a) => run_slice(a, comm, &mut stages)?,
+        Command::Eval(a) if is_contour_model(&a.model) => run_eval_contours(a, comm, threads, &mut stages)?,
         Command::Eval(a) => {
             check_margin(a.grid.margin)?;
             let opts = EvalOptions {
@@ -287,6 +339,127 @@ impl Cli {
         match &self.command {
             Command::Fit(a) => a.grid.threads,
             Command::Eval(a) => a.grid.threads,
+            Command::Contours(a) => a.grid.threads,
+            Command::Slice(_) => 1,
         }
     }
+}
+
+// The contour commands (paper 000, section 4); their stages are in `contour::pipeline`.
+
+/// Whether `path` holds a contour model (read by every rank; an unreadable file is left to the
+/// scattered-point reader to report).
+fn is_contour_model(path: &std::path::Path) -> bool {
+    use crate::io::contour_model_file::{format_of, FORMAT};
+    format_of(path).is_ok_and(|f| f == FORMAT)
+}
+
+/// `volspline contours`: options checked, the run, its report.
+fn run_contours(a: &ContoursArgs, comm: &dyn Comm, threads: usize, stages: &mut Stages) -> Result<()> {
+    use crate::contour::pipeline::{self as contour_pipeline, ContoursOptions};
+    use crate::contour::{Interp, Orient, SectionCarrier};
+    check_margin(a.grid.margin)?;
+    if !(a.merge_tol >= 0.0 && a.merge_tol < 0.1) {
+        return Err(Error::Usage("--merge-tol must be in [0, 0.1)".into()));
+    }
+    let kernel = match a.kernel.as_str() {
+        "r2log" => Kernel::new(2, 2)?,
+        "r4log" => Kernel::new(2, 3)?,
+        other => return Err(Error::Usage(format!("unknown --kernel '{other}' (expected r2log or r4log)"))),
+    };
+    let opts = ContoursOptions {
+        input: a.input.clone(),
+        prefix: a.out.clone(),
+        interp: Interp::parse(&a.interp)?,
+        orient: Orient::parse(&a.orient)?,
+        kernel,
+        carrier: SectionCarrier::parse(&a.carrier)?,
+        grid: GridSize::parse(&a.grid.grid)?,
+        margin: a.grid.margin,
+        merge_tol: a.merge_tol,
+        threads,
+    };
+    let s = contour_pipeline::contours(comm, &opts, stages)?;
+    let times = stages.summarise(comm);
+    if comm.rank() == 0 {
+        println!("volspline contours: {}", opts.input.display());
+        println!(
+            "  {} slices, {} contours, N = {} points ({} read, {} duplicates merged), kernel {}, carrier {}",
+            s.slices,
+            s.contours,
+            s.points_used,
+            s.points_read,
+            s.merged,
+            opts.kernel.name(),
+            opts.carrier.name()
+        );
+        println!("  interp {}, orient {}", opts.interp.name(), opts.orient.name());
+        println!(
+            "  ranks = {}, threads per rank = {} (slice i solved on rank i mod ranks)",
+            comm.size(),
+            threads
+        );
+        println!("  largest relative residual of the slice systems = {:.3e}", s.max_residual);
+        println!("  max |F_i| at the slices' points              = {:.3e}", s.max_abs_at_points);
+        print_volume(&s.volume);
+        print!("{}", stage_table(&times));
+        println!("  outputs:");
+        println!("    {}", s.model_path.display());
+        println!("    {}", s.volume.hdf_path.display());
+        println!("    {}", s.volume.ply_path.display());
+    }
+    Ok(())
+}
+
+/// `volspline slice`: cuts the mesh on rank 0 and reports.
+fn run_slice(a: &SliceArgs, comm: &dyn Comm, stages: &mut Stages) -> Result<()> {
+    use crate::contour::pipeline::{self as contour_pipeline, PlaneFamily};
+    let planes = PlaneFamily::parse(&a.planes)?;
+    let s = stages.time("slice", || contour_pipeline::slice(comm, &a.mesh, &a.out, planes))?;
+    if comm.rank() == 0 {
+        println!("volspline slice: {} by {}", a.mesh.display(), a.planes);
+        println!(
+            "  {} planes, {} slices meet the mesh: {} contours, {} points",
+            s.planes, s.slices, s.contours, s.points
+        );
+        if s.joined > 0 {
+            println!(
+                "  {} chains ended on holes of the mesh and were closed by joining their ends",
+                s.joined
+            );
+        }
+        println!("  output:\n    {}", a.out.display());
+    }
+    Ok(())
+}
+
+/// `volspline eval` of a contour model.
+fn run_eval_contours(a: &EvalArgs, comm: &dyn Comm, threads: usize, stages: &mut Stages) -> Result<()> {
+    use crate::contour::pipeline as contour_pipeline;
+    check_margin(a.grid.margin)?;
+    let opts = EvalOptions {
+        model: a.model.clone(),
+        prefix: a.out.clone(),
+        grid: GridSize::parse(&a.grid.grid)?,
+        bounds: a.bounds.as_deref().map(parse_bounds).transpose()?,
+        margin: a.grid.margin,
+        threads,
+    };
+    let (model, v) = contour_pipeline::eval_contour_model(comm, &opts, stages)?;
+    let times = stages.summarise(comm);
+    if comm.rank() == 0 {
+        println!("volspline eval: {} (contour model)", opts.model.display());
+        println!(
+            "  {} slices, N = {} centres, interp {}, orient {}",
+            model.sections.len(),
+            model.centres(),
+            model.interp.name(),
+            model.orient.name()
+        );
+        println!("  ranks = {}, threads per rank = {}", comm.size(), threads);
+        print_volume(&v);
+        print!("{}", stage_table(&times));
+        println!("  outputs:\n    {}\n    {}", v.hdf_path.display(), v.ply_path.display());
+    }
+    Ok(())
 }

@@ -4,6 +4,7 @@
 //!
 //! Layers, top to bottom (dependencies point downward only):
 //! - `cli`: argument definitions and the printed report; `pipeline`: the collective stages.
+//! - `contour`: solids from planar cross-sections (paper 000, section 4).
 //! - `model`, `spline`, `carrier`, `kernel`, `geometry`, `grid`: the mathematics, pure.
 //! - `dist`: communicator, row-cyclic layout, distributed solvers; `dense`: serial oracles.
 //! - `io`: point, mesh, model and VTKHDF files; `mesh`: marching cubes and mesh measures.
@@ -11,6 +12,7 @@
 
 pub mod carrier;
 pub mod cli;
+pub mod contour;
 pub mod dense;
 pub mod dist;
 pub mod error;

@@ -89,7 +89,7 @@ fn read_points_everywhere(comm: &dyn Comm, path: &Path) -> Result<Vec<f64>> {
 }
 
 /// Runs rank 0's `f` (a file write) and agrees on its outcome.
-fn on_root(comm: &dyn Comm, f: impl FnOnce() -> Result<()>) -> Result<()> {
+pub(crate) fn on_root(comm: &dyn Comm, f: impl FnOnce() -> Result<()>) -> Result<()> {
     let local = if comm.rank() == 0 { f() } else { Ok(()) };
     agree(comm, local)
 }

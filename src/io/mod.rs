@@ -1,6 +1,7 @@
 //! Files in and out: scattered points and meshes (`points`), the VTKHDF volume (`vtkhdf`, written
 //! in parallel by all ranks), the model file (`model_file`) and atomic replacement of outputs.
 
+pub mod contour_model_file;
 pub mod model_file;
 pub mod points;
 pub mod vtkhdf;

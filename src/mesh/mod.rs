@@ -5,7 +5,7 @@
 //! per-rank pieces into one deterministic mesh ([`weld`]), PLY output
 //! ([`write_ply`]), exact point-to-mesh distances ([`point_mesh_distances`]) and
 //! topological checks ([`connected_components`], [`is_closed_manifold_edges`],
-//! [`signed_volume`]).
+//! [`signed_volume`]) and plane cuts into polylines ([`cut_by_plane`]).
 //!
 //! Conventions shared by all submodules:
 //! - grid values are stored x fastest: `index = i + nx * (j + ny * k)`, node
@@ -17,12 +17,14 @@
 pub mod distance;
 pub mod marching_cubes;
 pub mod ply;
+pub mod slice;
 pub mod topology;
 pub mod weld;
 
 pub use distance::point_mesh_distances;
 pub use marching_cubes::{polygonise, MeshPiece, SlabGrid};
 pub use ply::{write_ply, write_ply_to};
+pub use slice::{cut_by_plane, PlaneCut};
 pub use topology::{connected_components, euler_characteristic, is_closed_manifold_edges, signed_volume};
 pub use weld::weld;
 

@@ -1,0 +1,306 @@
+//! The plain-text contour file: reading (with the line number of every fault) and writing.
+//!
+//! ```text
+//! # comment; blank lines are ignored; numbers are separated by spaces, tabs or commas
+//! slice z 0.5                                  # a plane z = 0.5; points are (x, y)
+//! contour                                      # a closed contour (last point joins the first)
+//! 1.0 0.0
+//! 0.0 1.0
+//! -1.0 0.0
+//! contour                                      # another contour in the same slice
+//! ...
+//! slice plane ox oy oz  ux uy uz  vx vy vz     # origin o and in-plane axes u, v: a point
+//!                                              # (a, b) is o + a u + b v (u is normalised and v
+//!                                              # made orthogonal to it; the normal is u x v)
+//! slice omega w1 w2 w3  ox oy oz               # the paper's angular velocities: this frame is
+//!                                              # the previous one turned for one unit of the slice
+//!                                              # parameter at angular velocity w (moving axes,
+//!                                              # radians), integrated by RK4; origin o
+//! ```
+//!
+//! Rules: at least two slices; every slice has at least one contour and every contour at least
+//! three points; a point line must follow a `contour` line; the slices are ordered along their
+//! normals (each plane in front of the previous one); the first slice cannot be `omega`.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use glam::{DMat3, DVec3};
+
+use super::orientation::{frame_from_axes, integrate_angular_velocity, RK4_STEPS};
+use crate::error::{Error, Result};
+
+/// One planar cross-section: its plane and its contours in the plane's coordinates.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Section {
+    /// The line of the file that opened the slice (1-based; 0 when not from a file).
+    pub line: usize,
+    pub origin: DVec3,
+    /// Columns u, v, w (in-plane axes and normal), a rotation.
+    pub frame: DMat3,
+    /// How the frame was given, for the report: "z", "plane" or "omega".
+    pub kind: &'static str,
+    /// Closed contours, points (a, b) meaning origin + a u + b v.
+    pub contours: Vec<Vec<[f64; 2]>>,
+}
+
+impl Section {
+    /// The world position of the in-plane point (a, b).
+    pub fn world(&self, p: [f64; 2]) -> DVec3 {
+        self.origin + self.frame.x_axis * p[0] + self.frame.y_axis * p[1]
+    }
+
+    pub fn point_count(&self) -> usize {
+        self.contours.iter().map(Vec::len).sum()
+    }
+
+    /// Signed distance of x from this plane (positive in front, along the normal).
+    #[inline]
+    pub fn signed_distance(&self, x: DVec3) -> f64 {
+        self.frame.z_axis.dot(x - self.origin)
+    }
+}
+
+/// Parses the text of a contour file; `path` is only used in error messages.
+pub fn parse(path: &Path, text: &str) -> Result<Vec<Section>> {
+    let err = |line: usize, why: String| Error::input(path, format!("line {line}"), why);
+    let mut sections: Vec<Section> = Vec::new();
+    let mut last_line = 0;
+    for (i, raw) in text.lines().enumerate() {
+        let line = i + 1;
+        last_line = line;
+        let body = raw.split('#').next().unwrap_or("");
+        let toks: Vec<&str> =
+            body.split(|c: char| c.is_whitespace() || c == ',').filter(|t| !t.is_empty()).collect();
+        if toks.is_empty() {
+            continue;
+        }
+        let nums = |t: &[&str], what: &str| -> Result<Vec<f64>> {
+            t.iter()
+                .map(|s| match s.parse::<f64>() {
+                    Ok(v) if v.is_finite() => Ok(v),
+                    _ => Err(err(line, format!("'{s}' is not a finite number ({what})"))),
+                })
+                .collect()
+        };
+        match toks[0].to_ascii_lowercase().as_str() {
+            "slice" => {
+                if let Some(prev) = sections.last() {
+                    check_complete(path, prev, line)?;
+                }
+                let kind = toks.get(1).map(|k| k.to_ascii_lowercase()).unwrap_or_default();
+                let expect = |n: usize, form: &str| -> Result<Vec<f64>> {
+                    if toks.len() != n + 2 {
+                        return Err(err(
+                            line,
+                            format!("expected '{form}' ({n} numbers), got {} numbers", toks.len() - 2),
+                        ));
+                    }
+                    nums(&toks[2..], form)
+                };
+                let (origin, frame, kind) = match kind.as_str() {
+                    "z" => {
+                        let v = expect(1, "slice z Z")?;
+                        (DVec3::new(0.0, 0.0, v[0]), DMat3::IDENTITY, "z")
+                    }
+                    "plane" => {
+                        let v = expect(9, "slice plane ox oy oz ux uy uz vx vy vz")?;
+                        let frame =
+                            frame_from_axes(DVec3::new(v[3], v[4], v[5]), DVec3::new(v[6], v[7], v[8]))
+                                .ok_or_else(|| {
+                                    err(line, "the in-plane axes u and v are zero or parallel".into())
+                                })?;
+                        (DVec3::new(v[0], v[1], v[2]), frame, "plane")
+                    }
+                    "omega" => {
+                        let v = expect(6, "slice omega w1 w2 w3 ox oy oz")?;
+                        let prev = sections.last().ok_or_else(|| {
+                            err(line, "the first slice cannot be 'omega': angular velocities turn the previous frame".into())
+                        })?;
+                        let frame =
+                            integrate_angular_velocity(&prev.frame, DVec3::new(v[0], v[1], v[2]), RK4_STEPS);
+                        (DVec3::new(v[3], v[4], v[5]), frame, "omega")
+                    }
+                    other => {
+                        return Err(err(
+                            line,
+                            format!("unknown slice kind '{other}' (expected z, plane or omega)"),
+                        ))
+                    }
+                };
+                if let Some(prev) = sections.last() {
+                    let gap = 0.5 * (prev.frame.z_axis + frame.z_axis).dot(origin - prev.origin);
+                    if !(gap > 0.0) {
+                        return Err(err(
+                            line,
+                            format!(
+                                "this slice is not in front of the previous one (line {}): slices must be ordered \
+                                 along their normals",
+                                prev.line
+                            ),
+                        ));
+                    }
+                }
+                sections.push(Section { line, origin, frame, kind, contours: Vec::new() });
+            }
+            "contour" => {
+                if toks.len() != 1 {
+                    return Err(err(line, "'contour' takes no arguments".into()));
+                }
+                let s = sections
+                    .last_mut()
+                    .ok_or_else(|| err(line, "'contour' before any 'slice' line".into()))?;
+                if let Some(c) = s.contours.last() {
+                    if c.len() < 3 {
+                        return Err(err(
+                            line,
+                            format!("the previous contour has {} point(s); at least 3 are needed", c.len()),
+                        ));
+                    }
+                }
+                s.contours.push(Vec::new());
+            }
+            _ => {
+                let v = nums(&toks, "a point is 'a b'")?;
+                if v.len() != 2 {
+                    return Err(err(
+                        line,
+                        format!("a point has 2 coordinates in its plane, got {}", v.len()),
+                    ));
+                }
+                let c = sections
+                    .last_mut()
+                    .and_then(|s| s.contours.last_mut())
+                    .ok_or_else(|| err(line, "a point before any 'slice' and 'contour' line".into()))?;
+                c.push([v[0], v[1]]);
+            }
+        }
+    }
+    match sections.last() {
+        None => return Err(Error::input(path, "", "no slices: the file has no 'slice' line")),
+        Some(s) => check_complete(path, s, last_line + 1)?,
+    }
+    if sections.len() < 2 {
+        return Err(Error::input(
+            path,
+            format!("line {}", sections[0].line),
+            "only one slice: at least two are needed",
+        ));
+    }
+    Ok(sections)
+}
+
+/// Checks the slice that ends before `line`.
+fn check_complete(path: &Path, s: &Section, line: usize) -> Result<()> {
+    let at = format!("line {line}");
+    if s.contours.is_empty() {
+        return Err(Error::input(path, at, format!("the slice of line {} has no contour", s.line)));
+    }
+    if let Some(c) = s.contours.iter().find(|c| c.len() < 3) {
+        return Err(Error::input(
+            path,
+            at,
+            format!(
+                "a contour of the slice of line {} has {} point(s); at least 3 are needed",
+                s.line,
+                c.len()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Reads and parses a contour file.
+pub fn read(path: &Path) -> Result<Vec<Section>> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
+    let text =
+        String::from_utf8(bytes).map_err(|e| Error::input(path, "", format!("not UTF-8 text: {e}")))?;
+    parse(path, &text)
+}
+
+/// The text of a contour file holding `sections`; every slice is written as `slice plane` (or
+/// `slice z` when its frame is the identity), with full precision.
+pub fn to_text(sections: &[Section], header: &str) -> String {
+    let mut s = String::new();
+    for l in header.lines() {
+        let _ = writeln!(s, "# {l}");
+    }
+    for sec in sections {
+        if sec.frame == DMat3::IDENTITY && sec.origin.x == 0.0 && sec.origin.y == 0.0 {
+            let _ = writeln!(s, "slice z {:?}", sec.origin.z);
+        } else {
+            let (o, u, v) = (sec.origin, sec.frame.x_axis, sec.frame.y_axis);
+            let _ = writeln!(
+                s,
+                "slice plane {:?} {:?} {:?}  {:?} {:?} {:?}  {:?} {:?} {:?}",
+                o.x, o.y, o.z, u.x, u.y, u.z, v.x, v.y, v.z
+            );
+        }
+        for c in &sec.contours {
+            s.push_str("contour\n");
+            for p in c {
+                let _ = writeln!(s, "{:?} {:?}", p[0], p[1]);
+            }
+        }
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = "# two squares\nslice z 0\ncontour\n0 0\n1 0\n1 1\n0 1\n\nslice z 1.5  # above\ncontour\n0,0\n1,0\n1,1\n\
+                        slice plane 0 0 2  1 0 0  0 1 0\ncontour\n0 0\n1 0\n1 1\nslice omega 0 0 0.1  0 0 3\ncontour\n0 0\n2 0\n0 2\n";
+
+    #[test]
+    fn a_good_file_parses_and_round_trips() {
+        let p = Path::new("a.txt");
+        let s = parse(p, GOOD).unwrap();
+        assert_eq!(s.len(), 4);
+        assert_eq!(s[0].contours[0].len(), 4);
+        assert_eq!(s[1].origin.z, 1.5);
+        assert_eq!(s[2].kind, "plane");
+        assert_eq!(s[3].line, 19);
+        // omega about the normal: the frame turned by 0.1 rad about z
+        assert!((s[3].frame.x_axis.y - 0.1f64.sin()).abs() < 1e-12);
+        let again = parse(p, &to_text(&s, "round trip")).unwrap();
+        for (a, b) in s.iter().zip(&again) {
+            assert_eq!(a.contours, b.contours);
+            assert!((a.frame.x_axis - b.frame.x_axis).length() < 1e-15 && a.origin == b.origin);
+        }
+    }
+
+    #[test]
+    fn faults_name_their_line() {
+        let p = Path::new("bad.txt");
+        let cases = [
+            ("slice z 0\ncontour\n0 0\n1 0\n0 x\n", "line 5", "not a finite number"),
+            ("slice z 0\n0 0\n", "line 2", "before any"),
+            ("slice q 0\n", "line 1", "unknown slice kind"),
+            ("slice z 0\ncontour\n0 0\n1 0\ncontour\n", "line 5", "at least 3"),
+            (
+                "slice z 0\ncontour\n0 0\n1 0\n1 1\nslice z -1\ncontour\n0 0\n1 0\n1 1\n",
+                "line 6",
+                "not in front",
+            ),
+            ("slice plane 0 0 0 1 0 0 2 0 0\n", "line 1", "parallel"),
+            ("slice omega 0 0 1 0 0 0\n", "line 1", "first slice"),
+            ("slice z 0\ncontour\n0 0\n1 0\n1 1\n", "line 1", "only one slice"),
+            ("slice z 0\ncontour\n0 0 1\n", "line 3", "2 coordinates"),
+            ("slice z 0 1\n", "line 1", "1 numbers"),
+            ("slice z 0\nslice z 1\n", "line 2", "no contour"),
+            ("# nothing\n", "", "no slices"),
+            ("slice z inf\n", "line 1", "finite"),
+        ];
+        for (text, at, why) in cases {
+            match parse(p, text) {
+                Err(Error::Input { location, reason, .. }) => {
+                    assert_eq!(location, at, "{text:?}: {reason}");
+                    assert!(reason.contains(why), "{text:?}: {reason}");
+                }
+                other => panic!("{text:?}: {other:?}"),
+            }
+        }
+    }
+}

@@ -1,0 +1,317 @@
+//! Reconstruction from planar cross-sections (paper 000, section 4; math.md section 3).
+//!
+//! This module owns the contour model: each slice i is a plane (origin o_i, frame M_i with columns
+//! u, v and normal w) holding a two-dimensional section function F_i(a, b) = f_c,i - U_i (a volume
+//! spline in the plane's coordinates, [`slice2d`]), and the solid between slices is
+//! F(x) = sum_j w_j(t) F_j(a, b), where the point x lies between planes i and i+1 at
+//! t = d1 / (d1 + d2) (its distances to them), (a, b, c) = M(t)^T (x - o(t)) with
+//! o(t) = (1 - t) o_i + t o_(i+1) and M(t) from [`orientation`] (log/exp or slerp), and the weights
+//! w_j are linear or cardinal cubic ([`interp`]) on knots spaced by the distance between planes.
+//! For parallel slices z = z_i this is exactly the paper's F = (1 - g) F_i + g F_(i+1).
+//!
+//! The solid is closed beyond the first and last slices by the R-intersection with the half-spaces
+//! in front of the first plane and behind the last. Every point is classified by the signs of its
+//! distances to the planes: it is between i and i+1 when it is in front of plane i and not in
+//! front of plane i+1; when several such pairs exist (planes of a bent family cross far from the
+//! data), the pair whose interpolated origin o(t) is nearest wins.
+//!
+//! The file format is in [`format`]; the collective command in [`pipeline`]. It must not touch
+//! MPI directly (only through `dist::Comm`).
+
+pub mod format;
+pub mod interp;
+pub mod orientation;
+pub mod pipeline;
+pub mod slice2d;
+
+use glam::{DMat3, DVec3};
+use rayon::prelude::*;
+
+use crate::carrier::{r_intersection, Carrier};
+use crate::grid::Grid;
+use crate::model::{Field, Provenance};
+use crate::spline::Spline;
+
+pub use format::Section;
+pub use interp::{Blend, Interp};
+pub use orientation::{FramePair, Orient};
+pub use slice2d::{fit_section, fit_values, SectionCarrier, SectionFit};
+
+/// One solved slice: its plane and F_i = f_c,i - U_i in the plane's coordinates.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SectionModel {
+    pub origin: DVec3,
+    pub frame: DMat3,
+    pub carrier: Carrier,
+    pub spline: Spline,
+}
+
+impl SectionModel {
+    /// F_i(a, b).
+    #[inline]
+    pub fn eval(&self, ab: [f64; 2]) -> f64 {
+        self.carrier.eval(&ab) - self.spline.eval(&ab)
+    }
+
+    #[inline]
+    fn signed_distance(&self, x: DVec3) -> f64 {
+        self.frame.z_axis.dot(x - self.origin)
+    }
+}
+
+/// Where a point is with respect to the slices.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Placement {
+    /// Between slices i and i+1, at fraction t.
+    Between { i: usize, t: f64 },
+    /// Behind the first plane.
+    BeforeFirst,
+    /// In front of the last plane.
+    AfterLast,
+}
+
+/// The reconstructed solid from contours, F >= 0 inside.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContourModel {
+    pub sections: Vec<SectionModel>,
+    pub interp: Interp,
+    pub orient: Orient,
+    pub provenance: Provenance,
+    blend: Blend,
+    pairs: Vec<FramePair>,
+    /// Turns plane distances (lengths) into the units of F (lengths squared) for the end caps.
+    cap_scale: f64,
+}
+
+/// The R-intersection of f with a cap c >= 0 in a form without cancellation for large c (it tends
+/// to f as c grows, and is f for c = infinity).
+#[inline]
+fn fading_cap(f: f64, c: f64) -> f64 {
+    if f == 0.0 {
+        return 0.0;
+    }
+    f - f * f / (c + (f * f + c * c).sqrt())
+}
+
+/// The knots of the slice parameter: tau_0 = 0, tau_(i+1) - tau_i = the distance between planes
+/// i and i+1 measured along their mean normal (z_(i+1) - z_i for parallel slices).
+pub fn knots_of(planes: &[(DVec3, DMat3)]) -> Vec<f64> {
+    let mut tau = vec![0.0];
+    for w in planes.windows(2) {
+        let gap = 0.5 * (w[0].1.z_axis + w[1].1.z_axis).dot(w[1].0 - w[0].0);
+        tau.push(tau.last().copied().unwrap_or(0.0) + gap);
+    }
+    tau
+}
+
+impl ContourModel {
+    /// Panics unless there are at least two sections ordered along their normals (the contour
+    /// file reader guarantees it).
+    pub fn new(sections: Vec<SectionModel>, interp: Interp, orient: Orient, provenance: Provenance) -> Self {
+        let planes: Vec<(DVec3, DMat3)> = sections.iter().map(|s| (s.origin, s.frame)).collect();
+        let blend = Blend::new(interp, knots_of(&planes));
+        let pairs = sections.windows(2).map(|w| FramePair::new(w[0].frame, w[1].frame)).collect();
+        let d = (0..3).map(|k| (provenance.box_hi[k] - provenance.box_lo[k]).powi(2)).sum::<f64>().sqrt();
+        ContourModel {
+            sections,
+            interp,
+            orient,
+            provenance,
+            blend,
+            pairs,
+            cap_scale: d.max(f64::MIN_POSITIVE),
+        }
+    }
+
+    /// The knots tau_i.
+    pub fn knots(&self) -> &[f64] {
+        &self.blend.knots
+    }
+
+    /// Classifies x (see the module documentation).
+    pub fn place(&self, x: DVec3) -> Placement {
+        let s = &self.sections;
+        let n = s.len();
+        let mut best: Option<(f64, Placement)> = None;
+        let mut consider = |d2: f64, p: Placement| {
+            if best.is_none_or(|(b, _)| d2 < b) {
+                best = Some((d2, p));
+            }
+        };
+        let mut prev = s[0].signed_distance(x);
+        if prev < 0.0 {
+            consider((x - s[0].origin).length_squared(), Placement::BeforeFirst);
+        }
+        for i in 0..n - 1 {
+            let next = s[i + 1].signed_distance(x);
+            if prev >= 0.0 && next <= 0.0 && prev - next > 0.0 {
+                let t = prev / (prev - next);
+                let o = s[i].origin * (1.0 - t) + s[i + 1].origin * t;
+                consider((x - o).length_squared(), Placement::Between { i, t });
+            }
+            prev = next;
+        }
+        if prev > 0.0 {
+            consider((x - s[n - 1].origin).length_squared(), Placement::AfterLast);
+        }
+        best.map_or(Placement::BeforeFirst, |b| b.1)
+    }
+
+    /// The interpolated section frame and origin at fraction t of interval i.
+    pub fn frame_at(&self, i: usize, t: f64) -> (DVec3, DMat3) {
+        let o = self.sections[i].origin * (1.0 - t) + self.sections[i + 1].origin * t;
+        (o, self.pairs[i].at(t, self.orient))
+    }
+
+    /// F(x), reusing `weights` as scratch.
+    pub fn eval_with(&self, x: DVec3, weights: &mut Vec<(usize, f64)>) -> f64 {
+        let s = &self.sections;
+        let last = s.len() - 1;
+        let local = |o: DVec3, m: &DMat3| {
+            let l = m.transpose() * (x - o);
+            [l.x, l.y]
+        };
+        match self.place(x) {
+            Placement::Between { i, t } => {
+                let (o, m) = self.frame_at(i, t);
+                let ab = local(o, &m);
+                self.blend.weights(i, t, weights);
+                let mut f: f64 = weights.iter().map(|&(j, w)| w * s[j].eval(ab)).sum();
+                // the end caps fade out across the end intervals (1 / (1 - t) and 1 / t), so that F
+                // is continuous where the next interval begins
+                if i == 0 {
+                    f = fading_cap(f, self.cap_scale * s[0].signed_distance(x) / (1.0 - t));
+                }
+                if i + 1 == last {
+                    f = fading_cap(f, -self.cap_scale * s[last].signed_distance(x) / t);
+                }
+                f
+            }
+            Placement::BeforeFirst => {
+                let f = s[0].eval(local(s[0].origin, &s[0].frame));
+                r_intersection(f, self.cap_scale * s[0].signed_distance(x))
+            }
+            Placement::AfterLast => {
+                let f = s[last].eval(local(s[last].origin, &s[last].frame));
+                r_intersection(f, -self.cap_scale * s[last].signed_distance(x))
+            }
+        }
+    }
+
+    /// F at a point.
+    pub fn eval(&self, x: [f64; 3]) -> f64 {
+        self.eval_with(DVec3::from_array(x), &mut Vec::new())
+    }
+
+    /// Total number of spline centres over all sections.
+    pub fn centres(&self) -> usize {
+        self.sections.iter().map(|s| s.spline.len()).sum()
+    }
+}
+
+impl Field for ContourModel {
+    /// Threaded over rows of nodes; a node's value depends on its position only.
+    fn eval_layers(&self, grid: &Grid, k0: usize, layers: usize) -> Vec<f64> {
+        let [nx, ny, _] = grid.dims;
+        let mut out = vec![0.0; nx * ny * layers];
+        out.par_chunks_mut(nx.max(1)).enumerate().for_each(|(row, vals)| {
+            let (j, k) = (row % ny, k0 + row / ny);
+            let mut scratch = Vec::new();
+            for (i, v) in vals.iter_mut().enumerate() {
+                *v = self.eval_with(DVec3::from_array(grid.node(i, j, k)), &mut scratch);
+            }
+        });
+        out
+    }
+
+    fn kernel_evals_per_node(&self) -> usize {
+        let mean = self.centres() / self.sections.len().max(1);
+        match self.interp {
+            Interp::Linear => 2 * mean,
+            // about fourteen neighbours on either side keep a weight above the cut-off
+            Interp::Cubic => self.sections.len().min(29) * mean,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kernel::Kernel;
+
+    fn circle(r: f64, n: usize) -> Vec<[f64; 2]> {
+        (0..n)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / n as f64;
+                [r * a.cos(), r * a.sin()]
+            })
+            .collect()
+    }
+
+    fn stack(zs: &[f64], radii: &[f64], interp: Interp) -> ContourModel {
+        let k = Kernel::new(2, 2).unwrap();
+        let sections = zs
+            .iter()
+            .zip(radii)
+            .map(|(&z, &r)| {
+                let s = Section {
+                    line: 0,
+                    origin: DVec3::new(0.0, 0.0, z),
+                    frame: DMat3::IDENTITY,
+                    kind: "z",
+                    contours: vec![circle(r, 24)],
+                };
+                let f = fit_section(&s, &k, SectionCarrier::Disc, 1e-6).unwrap();
+                SectionModel { origin: s.origin, frame: s.frame, carrier: f.carrier, spline: f.spline }
+            })
+            .collect();
+        let prov = Provenance {
+            box_lo: [-1.0, -1.0, zs[0]],
+            box_hi: [1.0, 1.0, zs[zs.len() - 1]],
+            ..Default::default()
+        };
+        ContourModel::new(sections, interp, Orient::Slerp, prov)
+    }
+
+    #[test]
+    fn parallel_slices_follow_the_papers_linear_formula() {
+        let m = stack(&[0.0, 1.0, 3.0, 4.0], &[0.5, 0.8, 0.6, 0.4], Interp::Linear);
+        assert_eq!(m.knots(), &[0.0, 1.0, 3.0, 4.0]);
+        for (x, y, z) in [(0.1, 0.2, 1.5), (0.7, -0.3, 2.9), (-0.2, 0.0, 1.0 + 1e-12)] {
+            let g = (z - 1.0) / 2.0;
+            assert_eq!(m.place(DVec3::new(x, y, z)), Placement::Between { i: 1, t: g });
+            let paper = (1.0 - g) * m.sections[1].eval([x, y]) + g * m.sections[2].eval([x, y]);
+            assert!((m.eval([x, y, z]) - paper).abs() < 1e-14 * (1.0 + paper.abs()), "{z}");
+        }
+        // in a slice's plane F is F_i, reached from either side: the zero set is the contour
+        assert!(m.eval([0.8, 0.0, 1.0]).abs() < 1e-9);
+        for z in [1.0, 3.0] {
+            let i = if z == 1.0 { 1 } else { 2 };
+            for p in [[0.2, 0.1, z], [0.0, 0.0, z], [0.9, 0.0, z]] {
+                let exact = m.sections[i].eval([p[0], p[1]]);
+                assert!((m.eval(p) - exact).abs() < 1e-13 * (1.0 + exact.abs()), "{p:?}");
+                let below = m.eval([p[0], p[1], z - 1e-9]);
+                assert!((below - exact).abs() < 1e-6 * (1.0 + exact.abs()), "{p:?}: continuous");
+            }
+        }
+        // closed beyond the ends, open between them
+        assert_eq!(m.place(DVec3::new(0.0, 0.0, -0.1)), Placement::BeforeFirst);
+        assert_eq!(m.place(DVec3::new(0.0, 0.0, 4.1)), Placement::AfterLast);
+        assert!(m.eval([0.0, 0.0, -0.01]) < 0.0 && m.eval([0.0, 0.0, 0.01]) > 0.0);
+        assert!(m.eval([0.0, 0.0, 4.01]) < 0.0 && m.eval([0.0, 0.0, 3.99]) > 0.0);
+        // continuous through the cap: F = 0 on the first plane inside the contour
+        assert!(m.eval([0.0, 0.0, -1e-9]).abs() < 1e-7 && m.eval([0.0, 0.0, 1e-9]).abs() < 1e-7);
+    }
+
+    #[test]
+    fn cubic_blend_agrees_with_linear_at_the_slices() {
+        let lin = stack(&[0.0, 1.0, 2.0, 3.5, 4.0], &[0.5, 0.8, 0.6, 0.7, 0.4], Interp::Linear);
+        let cub = stack(&[0.0, 1.0, 2.0, 3.5, 4.0], &[0.5, 0.8, 0.6, 0.7, 0.4], Interp::Cubic);
+        for z in [1.0, 2.0, 3.5] {
+            let p = [0.3, -0.1, z];
+            assert!((lin.eval(p) - cub.eval(p)).abs() < 1e-12, "{z}");
+        }
+        let p = [0.3, -0.1, 2.7];
+        assert!((lin.eval(p) - cub.eval(p)).abs() > 1e-4);
+    }
+}
