@@ -381,6 +381,24 @@ fn run_contours(a: &ContoursArgs, comm: &dyn Comm, threads: usize, stages: &mut 
     };
     let s = contour_pipeline::contours(comm, &opts, stages)?;
     let times = stages.summarise(comm);
+    let peak = peak_rss_max(comm);
+    let mut rec = Record::default();
+    rec.put("command", "contours");
+    rec.put("input", opts.input.display());
+    rec.put("slices", s.slices);
+    rec.put("contours", s.contours);
+    rec.put("points", s.points_used);
+    rec.put("kernel", opts.kernel.name());
+    rec.put("interp", opts.interp.name());
+    rec.put("orient", opts.orient.name());
+    rec.put("ranks", comm.size());
+    rec.put("threads", threads);
+    rec.put("residual", format!("{:e}", s.max_residual));
+    rec.put("grid_nodes", s.volume.grid.node_count());
+    rec.put("triangles", s.volume.triangles);
+    rec.put("peak_rss_bytes_max", peak);
+    rec.stages(&times);
+    write_record(comm, a.grid.timings.as_deref(), &rec)?;
     if comm.rank() == 0 {
         println!("volspline contours: {}", opts.input.display());
         println!(
@@ -403,6 +421,7 @@ fn run_contours(a: &ContoursArgs, comm: &dyn Comm, threads: usize, stages: &mut 
         println!("  max |F_i| at the slices' points              = {:.3e}", s.max_abs_at_points);
         print_volume(&s.volume);
         print!("{}", stage_table(&times));
+        println!("  peak memory per rank (max over ranks): {:.1} MB", peak / 1e6);
         println!("  outputs:");
         println!("    {}", s.model_path.display());
         println!("    {}", s.volume.hdf_path.display());
@@ -447,6 +466,19 @@ fn run_eval_contours(a: &EvalArgs, comm: &dyn Comm, threads: usize, stages: &mut
     };
     let (model, v) = contour_pipeline::eval_contour_model(comm, &opts, stages)?;
     let times = stages.summarise(comm);
+    let peak = peak_rss_max(comm);
+    let mut rec = Record::default();
+    rec.put("command", "eval");
+    rec.put("model", opts.model.display());
+    rec.put("slices", model.sections.len());
+    rec.put("points", model.centres());
+    rec.put("ranks", comm.size());
+    rec.put("threads", threads);
+    rec.put("grid_nodes", v.grid.node_count());
+    rec.put("triangles", v.triangles);
+    rec.put("peak_rss_bytes_max", peak);
+    rec.stages(&times);
+    write_record(comm, a.grid.timings.as_deref(), &rec)?;
     if comm.rank() == 0 {
         println!("volspline eval: {} (contour model)", opts.model.display());
         println!(

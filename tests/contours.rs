@@ -708,3 +708,21 @@ fn malformed_contour_files_fail_cleanly() {
     let out = common::run(0, &["slice", common::BUNNY, "--out", s(&dir.join("c.txt")), "--planes", "w:10"]);
     assert_eq!(out.status.code(), Some(2));
 }
+
+#[test]
+fn timings_record_describes_the_contour_run() {
+    let dir = common::temp_dir("contour-timings");
+    let input = dir.join("block.txt");
+    write_sections(&input, &block_sections(12));
+    let csv = dir.join("t.csv");
+    let mesh = reconstruct(2, &input, &dir.join("b"), &["--grid", "24", "--timings", s(&csv)]);
+    assert!(!mesh.triangles.is_empty());
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let get = |k: &str| text.lines().find_map(|l| l.strip_prefix(&format!("{k},"))).map(String::from);
+    assert_eq!(get("command").as_deref(), Some("contours"));
+    assert_eq!(get("slices").as_deref(), Some("12"));
+    assert_eq!(get("ranks").as_deref(), Some("2"));
+    assert_eq!(get("triangles"), Some(mesh.triangles.len().to_string()));
+    assert!(get("stage_evaluate_max_s").unwrap().parse::<f64>().unwrap() >= 0.0);
+    assert!(get("peak_rss_bytes_max").unwrap().parse::<f64>().unwrap() > 1e6);
+}

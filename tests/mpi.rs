@@ -77,8 +77,28 @@ fn eval_reproduces_the_fit_grid_and_mesh_exactly() {
     let input = dir.join("bunny.xyz");
     common::write_xyz(&input, &common::bunny_subset(10, 4));
     let fit = dir.join("fit");
-    let out =
-        common::run_ok(2, &["fit", input.to_str().unwrap(), "--out", fit.to_str().unwrap(), "--grid", "40"]);
+    let csv = dir.join("fit.csv");
+    let out = common::run_ok(
+        2,
+        &[
+            "fit",
+            input.to_str().unwrap(),
+            "--out",
+            fit.to_str().unwrap(),
+            "--grid",
+            "40",
+            "--timings",
+            csv.to_str().unwrap(),
+        ],
+    );
+    // the --timings record: key,value lines with the run's figures
+    let rec = std::fs::read_to_string(&csv).unwrap();
+    let get = |k: &str| rec.lines().find_map(|l| l.strip_prefix(&format!("{k},"))).map(String::from);
+    assert_eq!(get("ranks").as_deref(), Some("2"));
+    assert_eq!(get("system_size").as_deref(), Some("509"));
+    assert_eq!(get("solver").as_deref(), Some("cholesky"));
+    assert!(get("residual").unwrap().parse::<f64>().unwrap() < 1e-10);
+    assert!(get("stage_solve_max_s").unwrap().parse::<f64>().unwrap() > 0.0);
     assert!(out.contains("fit.model.h5") && out.contains("fit.hdf") && out.contains("fit.ply"), "{out}");
     for ranks in [1, 3] {
         let ev = dir.join(format!("eval{ranks}"));
