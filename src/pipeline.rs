@@ -53,6 +53,8 @@ pub struct FitSummary {
     pub residual: f64,
     /// The solver that produced the solution (cholesky may have fallen back to lu).
     pub solver_used: &'static str,
+    /// The panel width it used.
+    pub panel_used: usize,
     pub max_abs_f_at_points: f64,
     pub volume: VolumeSummary,
     pub model_path: PathBuf,
@@ -149,7 +151,7 @@ pub fn solve_serial(prep: &Prepared, kernel: &Kernel, solver: SolverKind) -> Res
     let x = match solver {
         SolverKind::Lu => dense::lu_solve(&m, b)?,
         // the oracle for the projected Cholesky is the backward-stable QR solution
-        SolverKind::Householder | SolverKind::Cholesky => dense::householder_solve(&m, b)?,
+        SolverKind::Householder | SolverKind::Cholesky | SolverKind::Auto => dense::householder_solve(&m, b)?,
     };
     Ok(Spline::from_solution(*kernel, prep.centres.clone(), &x, prep.norm))
 }
@@ -177,8 +179,8 @@ pub fn fit(comm: &dyn Comm, opts: &FitOptions, stages: &mut Stages) -> Result<Fi
     let assemble = || assemble_rows(&opts.kernel, &centres, &values, layout);
     let mut rows = stages.time("assemble", assemble);
     let progress = Progress::new("solve", comm);
-    let solution = stages.time("solve", || opts.solver.solve(comm, &mut rows, opts.panel, &progress));
-    let mut solver_used = opts.solver;
+    let mut solver_used = opts.solver.resolve(layout.n);
+    let solution = stages.time("solve", || solver_used.solve(comm, &mut rows, opts.panel, &progress));
     let solution = match agree(comm, solution) {
         Err(Error::NotDefinite(why)) => {
             // the factorisation destroyed the system: assemble it again for LU
@@ -245,6 +247,7 @@ pub fn fit(comm: &dyn Comm, opts: &FitOptions, stages: &mut Stages) -> Result<Fi
         merged,
         residual,
         solver_used: solver_used.name(),
+        panel_used: if opts.panel > 0 { opts.panel } else { solver_used.default_panel() },
         max_abs_f_at_points: max_abs,
         volume,
         model_path,

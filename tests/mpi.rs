@@ -96,7 +96,7 @@ fn eval_reproduces_the_fit_grid_and_mesh_exactly() {
     let get = |k: &str| rec.lines().find_map(|l| l.strip_prefix(&format!("{k},"))).map(String::from);
     assert_eq!(get("ranks").as_deref(), Some("2"));
     assert_eq!(get("system_size").as_deref(), Some("509"));
-    assert_eq!(get("solver").as_deref(), Some("cholesky"));
+    assert_eq!(get("solver").as_deref(), Some("householder")); // auto, below 1000 rows
     assert!(get("residual").unwrap().parse::<f64>().unwrap() < 1e-10);
     assert!(get("stage_solve_max_s").unwrap().parse::<f64>().unwrap() > 0.0);
     assert!(out.contains("fit.model.h5") && out.contains("fit.hdf") && out.contains("fit.ply"), "{out}");

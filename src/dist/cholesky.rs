@@ -79,9 +79,12 @@ pub fn cholesky_solve(
         let t0 = lay.first_local_from(p0 + pb);
         if p0 + pb < n {
             // L21 = B21 L11^-T, i.e. L11 L21^T = B21^T
+            // (solved on a column-major copy of B21^T: faer's blocked path wants unit row stride)
             {
-                let b21 = rows.view_mut().submatrix_mut(t0, p0, la - t0, pb);
-                solve_lower_triangular_in_place(l11.as_ref(), b21.transpose_mut(), Par::Seq);
+                let mut b21 = rows.view_mut().submatrix_mut(t0, p0, la - t0, pb);
+                let mut bt = b21.rb().transpose().to_owned();
+                solve_lower_triangular_in_place(l11.as_ref(), bt.as_mut(), par);
+                b21.copy_from(bt.transpose());
             }
             // every rank needs all of L21 for its rows of B22 -= L21 L21^T
             let rest = n - p0 - pb;
