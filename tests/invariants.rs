@@ -193,3 +193,40 @@ fn projected_cholesky_matches_the_oracle_for_every_kernel() {
         }
     }
 }
+
+#[test]
+fn projected_cholesky_reports_an_indefinite_block() {
+    // a symmetric matrix with a polynomial border whose projected block is indefinite (random
+    // entries, zero diagonal): the solver must say so, for the pipeline to fall back to LU
+    use volspline::error::Error;
+    let n = 40;
+    let mut s = 3u64;
+    let mut rnd = move || {
+        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let pts: Vec<[f64; 3]> = (0..n).map(|_| [rnd(), rnd(), rnd()]).collect();
+    let mut a = vec![vec![0.0; n]; n];
+    for i in 0..n {
+        for j in 0..i {
+            let v = rnd();
+            a[i][j] = v;
+            a[j][i] = v;
+        }
+    }
+    let size = n + 4;
+    let mut rows = LocalRows::zeros(RowCyclic::new(size, 1, 0), size + 1, 4);
+    for i in 0..n {
+        for j in 0..n {
+            rows.set(i, j, a[i][j]);
+        }
+        let p = [1.0, pts[i][0], pts[i][1], pts[i][2]];
+        for (t, v) in p.iter().enumerate() {
+            rows.set(i, n + t, *v);
+            rows.set(n + t, i, *v);
+        }
+        rows.set(i, size, rnd());
+    }
+    let err = SolverKind::Cholesky.solve(&Solo, &mut rows, 8, &Progress::silent()).unwrap_err();
+    assert!(matches!(err, Error::NotDefinite(_)), "{err}");
+}

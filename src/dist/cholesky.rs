@@ -259,21 +259,30 @@ fn reflectors(pt: &[f64], n: usize, k: usize) -> Result<Reflectors> {
     Ok((vs, taus, r))
 }
 
-/// Cholesky of a small symmetric matrix (row-major, lower triangle used); None unless every pivot
-/// is positive.
+/// Cholesky of a small symmetric matrix (row-major, lower triangle used) by faer's blocked kernel;
+/// None unless every pivot is positive.
 fn cholesky_small(d: &[f64], m: usize) -> Option<Mat<f64>> {
-    let mut l = Mat::<f64>::zeros(m, m);
+    use faer::dyn_stack::{MemBuffer, MemStack};
+    use faer::linalg::cholesky::llt::factor::{cholesky_in_place, cholesky_in_place_scratch};
+    let mut l = Mat::<f64>::from_fn(m, m, |i, j| if j <= i { d[i * m + j] } else { 0.0 });
+    let mut mem = MemBuffer::new(cholesky_in_place_scratch::<f64>(m, Par::Seq, Default::default()));
+    let ok = cholesky_in_place(
+        l.as_mut(),
+        Default::default(),
+        Par::Seq,
+        MemStack::new(&mut mem),
+        Default::default(),
+    );
+    if ok.is_err() {
+        return None;
+    }
+    // faer leaves the strict upper triangle as it was: zero it, and reject non-finite factors
     for j in 0..m {
-        let s: f64 = (0..j).map(|t| l[(j, t)] * l[(j, t)]).sum();
-        let piv = d[j * m + j] - s;
-        if !(piv > 0.0) {
-            return None;
+        for i in 0..j {
+            l[(i, j)] = 0.0;
         }
-        let djj = piv.sqrt();
-        l[(j, j)] = djj;
-        for i in j + 1..m {
-            let s: f64 = (0..j).map(|t| l[(i, t)] * l[(j, t)]).sum();
-            l[(i, j)] = (d[i * m + j] - s) / djj;
+        if !(l[(j, j)] > 0.0) || (j..m).any(|i| !l[(i, j)].is_finite()) {
+            return None;
         }
     }
     Some(l)
