@@ -119,8 +119,8 @@ pub struct FitArgs {
     /// (QR, the paper's method) or lu (partial pivoting).
     #[arg(long, default_value = "auto", value_name = "auto|cholesky|householder|lu")]
     pub solver: String,
-    /// Panel (block) width of the distributed solvers (0: automatic, 64 for householder, 256 for
-    /// lu and cholesky).
+    /// Panel (block) width of the distributed solvers (0: automatic, 64 for householder, 128 for
+    /// lu, 256 for cholesky).
     #[arg(long, default_value_t = 0, value_name = "NB")]
     pub panel: usize,
     /// Points closer than this fraction of the bounding-box diagonal are merged into one.

@@ -95,12 +95,14 @@ impl SolverKind {
 
 impl SolverKind {
     /// Panel width used when the user gives none, measured on a 2-core AVX-512 machine at
-    /// N = 8000 (jobs/bench-solve): LU and Cholesky gain from wide panels (their trailing GEMMs
-    /// get a longer inner dimension), Householder's per-column all-reduces favour narrow ones.
+    /// N = 4000 and 8000, 2 ranks: Cholesky gains from wide panels (its trailing GEMMs get a
+    /// longer inner dimension), LU is best at 128 (equal at 8000, 7 % faster at 4000, where the
+    /// panel's collectives weigh more), Householder's per-column all-reduces favour 64.
     pub fn default_panel(&self) -> usize {
         match self {
             SolverKind::Householder => 64,
-            SolverKind::Lu | SolverKind::Cholesky | SolverKind::Auto => 256,
+            SolverKind::Lu => 128,
+            SolverKind::Cholesky | SolverKind::Auto => 256,
         }
     }
 }
