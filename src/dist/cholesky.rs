@@ -10,7 +10,7 @@ use faer::reborrow::Reborrow;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 
 use super::comm::Comm;
-use super::system::{all_gather_rows, LocalRows};
+use super::system::{all_gather_rows, GatherBuffers, LocalRows};
 use crate::error::{Error, Result};
 use crate::report::Progress;
 
@@ -60,6 +60,7 @@ pub fn cholesky_solve(
 
     // blocked right-looking Cholesky of B, lower triangle, in place
     let par = Par::rayon(0);
+    let mut bufs = GatherBuffers::default();
     let mut p0 = k;
     while p0 < n {
         let pb = nb.min(n - p0);
@@ -88,8 +89,8 @@ pub fn cholesky_solve(
             }
             // every rank needs all of L21 for its rows of B22 -= L21 L21^T
             let rest = n - p0 - pb;
-            let l21_all = rows.gather_rows(comm, p0 + pb, n, p0, p0 + pb);
-            let lt = MatRef::from_column_major_slice(&l21_all, pb, rest);
+            rows.gather_rows_with(comm, p0 + pb, n, p0, p0 + pb, &mut bufs);
+            let lt = MatRef::from_column_major_slice(&bufs.out, pb, rest);
             let mut a = t0;
             while a < la {
                 let b = (a + ROW_CHUNK).min(la);

@@ -11,7 +11,7 @@ use faer::{Accum, MatMut, MatRef, Par};
 
 use super::backsub::back_substitute;
 use super::comm::Comm;
-use super::system::LocalRows;
+use super::system::{GatherBuffers, LocalRows};
 use crate::error::{Error, Result};
 use crate::report::Progress;
 
@@ -30,15 +30,16 @@ pub fn lu_solve(
     let nb = panel.max(1);
     let tol = rows.max_abs(comm) * f64::EPSILON * n as f64;
     let par = Par::rayon(0);
+    let mut bufs = GatherBuffers::default();
     let mut k = 0;
     while k < n {
         let kb = nb.min(n - k);
         // the panel's interchanges are applied to the panel at once and to the columns right of
         // it afterwards, in one pass; columns left of it hold L, which nothing reads again
         let mut swaps = Vec::with_capacity(kb);
-        factor_panel(comm, rows, k, k + kb, (k, k + kb), tol, &mut swaps)?;
+        factor_panel(comm, rows, k, k + kb, (k, k + kb), tol, &mut swaps, &mut bufs)?;
         rows.permute_rows(comm, &swaps, k + kb, cols);
-        eliminate_block(comm, rows, k, k + kb, cols, par);
+        eliminate_block(comm, rows, k, k + kb, cols, par, &mut bufs);
         k += kb;
         progress.update(k, n);
     }
@@ -50,6 +51,7 @@ const LEAF: usize = 8;
 
 /// LU of the panel columns a..b (rows a..n), recursively: the left half, its block elimination
 /// on the right half (a GEMM), then the right half. Swaps whole rows.
+#[allow(clippy::too_many_arguments)]
 fn factor_panel(
     comm: &dyn Comm,
     rows: &mut LocalRows,
@@ -58,26 +60,36 @@ fn factor_panel(
     panel: (usize, usize),
     tol: f64,
     swaps: &mut Vec<(usize, usize)>,
+    bufs: &mut GatherBuffers,
 ) -> Result<()> {
     if b - a <= LEAF {
         return factor_columns(comm, rows, a, b - a, panel, tol, swaps);
     }
     let m = a + (b - a) / 2;
-    factor_panel(comm, rows, a, m, panel, tol, swaps)?;
-    eliminate_block(comm, rows, a, m, b, Par::Seq);
-    factor_panel(comm, rows, m, b, panel, tol, swaps)
+    factor_panel(comm, rows, a, m, panel, tol, swaps, bufs)?;
+    eliminate_block(comm, rows, a, m, b, Par::Seq, bufs);
+    factor_panel(comm, rows, m, b, panel, tol, swaps, bufs)
 }
 
 /// Given the factored columns a..m (L11\U11 in rows a..m, L21 below), computes
 /// U12 = L11^-1 A12 for columns m..c1 from the gathered block row (redundantly on every rank),
 /// stores it in the owners' rows and updates this rank's rows below: A22 -= L21 U12.
-fn eliminate_block(comm: &dyn Comm, rows: &mut LocalRows, a: usize, m: usize, c1: usize, par: Par) {
+fn eliminate_block(
+    comm: &dyn Comm,
+    rows: &mut LocalRows,
+    a: usize,
+    m: usize,
+    c1: usize,
+    par: Par,
+    bufs: &mut GatherBuffers,
+) {
     let lay = rows.layout;
     let (w, rest) = (m - a, c1 - m);
     if rest == 0 {
         return;
     }
-    let brow = rows.gather_rows(comm, a, m, a, c1);
+    rows.gather_rows_with(comm, a, m, a, c1, bufs);
+    let brow = &bufs.out;
     let width = c1 - a;
     let l11 = faer::Mat::<f64>::from_fn(w, w, |i, j| brow[i * width + j]);
     let mut u12 = faer::Mat::<f64>::from_fn(w, rest, |i, j| brow[i * width + w + j]);

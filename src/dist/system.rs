@@ -75,18 +75,37 @@ impl LocalRows {
 
     /// The global rows g0..g1, columns c0..c1, on every rank, row-major. Collective.
     pub fn gather_rows(&self, comm: &dyn Comm, g0: usize, g1: usize, c0: usize, c1: usize) -> Vec<f64> {
+        let mut bufs = GatherBuffers::default();
+        self.gather_rows_with(comm, g0, g1, c0, c1, &mut bufs);
+        bufs.out
+    }
+
+    /// As [`LocalRows::gather_rows`], into reused buffers (`bufs.out` holds the result): the
+    /// factorisations gather megabytes per panel, and fresh allocations of that size cost a page
+    /// fault per page.
+    pub fn gather_rows_with(
+        &self,
+        comm: &dyn Comm,
+        g0: usize,
+        g1: usize,
+        c0: usize,
+        c1: usize,
+        bufs: &mut GatherBuffers,
+    ) {
         let lay = self.layout;
         let w = c1 - c0;
         let (l0, l1) = (lay.first_local_from(g0), lay.first_local_from(g1));
-        let mut send = vec![0.0; (l1 - l0) * w];
         let ld = self.ld();
+        let send = &mut bufs.send;
+        send.clear();
+        send.resize((l1 - l0) * w, 0.0);
         // column by column through the local matrix (contiguous), row-major into the buffer
         for c in c0..c1 {
             for (t, v) in self.data[l0 + c * ld..l1 + c * ld].iter().enumerate() {
                 send[t * w + (c - c0)] = *v;
             }
         }
-        all_gather_rows(comm, lay, &send, g0, g1, w)
+        all_gather_rows_into(comm, lay, &bufs.send, g0, g1, w, &mut bufs.recv, &mut bufs.out);
     }
 
     /// Exchanges global rows a and b in columns c0..c1 between their owners. Only the two owners
@@ -176,6 +195,15 @@ impl LocalRows {
     }
 }
 
+/// Buffers reused by [`LocalRows::gather_rows_with`].
+#[derive(Debug, Default)]
+pub struct GatherBuffers {
+    send: Vec<f64>,
+    recv: Vec<f64>,
+    /// The gathered rows, row-major in global order.
+    pub out: Vec<f64>,
+}
+
 /// Every rank's rows g0..g1 of a row-cyclic block, `w` values per row: `send` holds this rank's
 /// rows of the range in local order, row-major; the result holds all of them in global order on
 /// every rank. Collective.
@@ -187,11 +215,30 @@ pub fn all_gather_rows(
     g1: usize,
     w: usize,
 ) -> Vec<f64> {
+    let (mut recv, mut out) = (Vec::new(), Vec::new());
+    all_gather_rows_into(comm, lay, send, g0, g1, w, &mut recv, &mut out);
+    out
+}
+
+/// [`all_gather_rows`] into reused buffers.
+#[allow(clippy::too_many_arguments)]
+fn all_gather_rows_into(
+    comm: &dyn Comm,
+    lay: RowCyclic,
+    send: &[f64],
+    g0: usize,
+    g1: usize,
+    w: usize,
+    recv: &mut Vec<f64>,
+    out: &mut Vec<f64>,
+) {
     let counts: Vec<usize> = (0..lay.ranks).map(|r| lay.count_in_on(r, g0, g1) * w).collect();
-    let mut recv = vec![0.0; (g1 - g0) * w];
-    comm.all_gather_f64(send, &counts, &mut recv);
+    recv.clear();
+    recv.resize((g1 - g0) * w, 0.0);
+    comm.all_gather_f64(send, &counts, recv);
     // recv holds rank 0's rows, then rank 1's, ...; put them in global order
-    let mut out = vec![0.0; (g1 - g0) * w];
+    out.clear();
+    out.resize((g1 - g0) * w, 0.0);
     let mut off = 0;
     for r in 0..lay.ranks {
         let first = g0 + (r + lay.ranks - g0 % lay.ranks) % lay.ranks;
@@ -201,5 +248,4 @@ pub fn all_gather_rows(
             off += w;
         }
     }
-    out
 }
