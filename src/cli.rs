@@ -351,7 +351,7 @@ impl Cli {
 /// Whether `path` holds a contour model (read by every rank; an unreadable file is left to the
 /// scattered-point reader to report).
 fn is_contour_model(path: &std::path::Path) -> bool {
-    use crate::io::contour_model_file::{format_of, FORMAT};
+    use crate::io::{contour_model_file::FORMAT, h5::format_of};
     format_of(path).is_ok_and(|f| f == FORMAT)
 }
 

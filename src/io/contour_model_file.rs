@@ -1,7 +1,7 @@
 //! The contour model file `PREFIX.model.h5` written by `volspline contours`: everything needed to
 //! evaluate the solid from contours anywhere without solving again. Written and read serially by
 //! one rank. `volspline eval` tells it from a scattered-point model by the `format` attribute
-//! ([`format_of`]).
+//! ([`super::h5::format_of`]).
 //!
 //! Layout (all in the root group), S slices, N_i centres in slice i, N = sum N_i:
 //! - attributes `format` = "volspline-contour-model", `format_version` = 1, `kernel_dim` (2),
@@ -18,70 +18,32 @@
 use std::path::Path;
 
 use glam::{DMat3, DVec3};
-use hdf5::types::VarLenUnicode;
 
+use super::h5::{format_of, Attrs};
 use crate::carrier::Carrier;
 use crate::contour::{ContourModel, Interp, Orient, SectionModel};
 use crate::error::{Error, Result};
 use crate::kernel::Kernel;
-use crate::model::Provenance;
 use crate::spline::{Normalisation, Spline};
 
 pub const FORMAT: &str = "volspline-contour-model";
-
-fn text(s: &str) -> VarLenUnicode {
-    s.parse().unwrap_or_default()
-}
-
-/// The `format` attribute of an HDF5 model file.
-pub fn format_of(path: &Path) -> Result<String> {
-    if !path.exists() {
-        return Err(Error::Io { path: path.into(), reason: "no such file".into() });
-    }
-    let f = hdf5::File::open(path).map_err(|e| Error::hdf5(path, e))?;
-    let a = f
-        .attr("format")
-        .map_err(|_| Error::input(path, "", "not a volspline model: no 'format' attribute"))?;
-    Ok(a.read_scalar::<VarLenUnicode>().map_err(|e| Error::hdf5(path, e))?.as_str().to_string())
-}
 
 /// Writes `model` to `path` (created or truncated).
 pub fn write_contour_model(path: &Path, model: &ContourModel) -> Result<()> {
     let h5 = |e: hdf5::Error| Error::hdf5(path, e);
     let f = hdf5::File::create(path).map_err(h5)?;
-    let put_str = |name: &str, v: &str| -> Result<()> {
-        f.new_attr::<VarLenUnicode>().create(name).map_err(h5)?.write_scalar(&text(v)).map_err(h5)
-    };
-    let put_f64s = |name: &str, v: &[f64]| -> Result<()> {
-        f.new_attr_builder().with_data(v).create(name).map(|_| ()).map_err(h5)
-    };
-    let put_int = |name: &str, v: i64| -> Result<()> {
-        f.new_attr_builder().with_data(&[v]).create(name).map(|_| ()).map_err(h5)
-    };
+    let a = Attrs { file: &f, path };
     let kernel = model.sections[0].spline.kernel;
-    put_str("format", FORMAT)?;
-    put_int("format_version", 1)?;
-    put_int("kernel_dim", kernel.dim() as i64)?;
-    put_int("kernel_order", kernel.order() as i64)?;
-    put_str("kernel", &kernel.name())?;
-    put_str("interp", model.interp.name())?;
-    put_str("orient", model.orient.name())?;
+    a.put_str("format", FORMAT)?;
+    a.put_int("format_version", 1)?;
+    a.put_int("kernel_dim", kernel.dim() as i64)?;
+    a.put_int("kernel_order", kernel.order() as i64)?;
+    a.put_str("kernel", &kernel.name())?;
+    a.put_str("interp", model.interp.name())?;
+    a.put_str("orient", model.orient.name())?;
     let carriers: Vec<String> = model.sections.iter().map(|s| s.carrier.to_string()).collect();
-    put_str("section_carriers", &carriers.join(";"))?;
-    let p = &model.provenance;
-    put_str("input", &p.input)?;
-    put_str("solver", &p.solver)?;
-    put_str("volspline_version", &p.version)?;
-    put_int("points_read", p.points_read as i64)?;
-    put_int("duplicates_merged", p.duplicates_merged as i64)?;
-    put_int("ranks", p.ranks as i64)?;
-    put_int("threads", p.threads as i64)?;
-    put_f64s("residual", &[p.residual])?;
-    put_f64s("data_box_lo", &p.box_lo)?;
-    put_f64s("data_box_hi", &p.box_hi)?;
-    let stages: Vec<&str> = p.timings.iter().map(|(s, _)| s.as_str()).collect();
-    put_str("timing_stages", &stages.join(","))?;
-    put_f64s("timing_seconds", &p.timings.iter().map(|(_, t)| *t).collect::<Vec<f64>>())?;
+    a.put_str("section_carriers", &carriers.join(";"))?;
+    a.put_provenance(&model.provenance)?;
 
     let s = model.sections.len();
     let k = kernel.poly_count();
@@ -116,64 +78,36 @@ pub fn write_contour_model(path: &Path, model: &ContourModel) -> Result<()> {
 
 /// Reads a model written by [`write_contour_model`], checking its format and consistency.
 pub fn read_contour_model(path: &Path) -> Result<ContourModel> {
-    let h5 = |e: hdf5::Error| Error::hdf5(path, e);
-    let bad = |why: String| Error::input(path, "", why);
     if format_of(path)? != FORMAT {
-        return Err(bad(format!("not a contour model (format is not '{FORMAT}')")));
+        return Err(Error::input(path, "", format!("not a contour model (format is not '{FORMAT}')")));
     }
-    let f = hdf5::File::open(path).map_err(h5)?;
-    let get_str = |name: &str| -> Result<String> {
-        Ok(f.attr(name)
-            .map_err(|_| bad(format!("attribute '{name}' is missing")))?
-            .read_scalar::<VarLenUnicode>()
-            .map_err(h5)?
-            .as_str()
-            .to_string())
-    };
-    let get_f64s = |name: &str| -> Result<Vec<f64>> {
-        f.attr(name).map_err(|_| bad(format!("attribute '{name}' is missing")))?.read_raw::<f64>().map_err(h5)
-    };
-    let get_int = |name: &str| -> Result<i64> {
-        let v = f
-            .attr(name)
-            .map_err(|_| bad(format!("attribute '{name}' is missing")))?
-            .read_raw::<i64>()
-            .map_err(h5)?;
-        v.first().copied().ok_or_else(|| bad(format!("attribute '{name}' is empty")))
-    };
-    let ds = |name: &str| -> Result<Vec<f64>> {
-        f.dataset(name)
-            .map_err(|_| bad(format!("dataset '{name}' is missing")))?
-            .read_raw::<f64>()
-            .map_err(h5)
-    };
-    let version = get_int("format_version")?;
+    let f = hdf5::File::open(path).map_err(|e| Error::hdf5(path, e))?;
+    let a = Attrs { file: &f, path };
+    let bad = |why: String| a.bad(why);
+    let version = a.int("format_version")?;
     if version != 1 {
         return Err(bad(format!("contour model format version {version} is not supported (expected 1)")));
     }
-    let kernel = Kernel::new(get_int("kernel_dim")? as usize, get_int("kernel_order")? as usize)
+    let kernel = Kernel::new(a.int("kernel_dim")? as usize, a.int("kernel_order")? as usize)
         .map_err(|e| bad(e.to_string()))?;
     if kernel.dim() != 2 {
         return Err(bad(format!("section kernels are two-dimensional, this one has n = {}", kernel.dim())));
     }
-    let interp = Interp::parse(&get_str("interp")?).map_err(|e| bad(e.to_string()))?;
-    let orient = Orient::parse(&get_str("orient")?).map_err(|e| bad(e.to_string()))?;
-    let carriers: Vec<Carrier> = get_str("section_carriers")?
+    let interp = Interp::parse(&a.str("interp")?).map_err(|e| bad(e.to_string()))?;
+    let orient = Orient::parse(&a.str("orient")?).map_err(|e| bad(e.to_string()))?;
+    let carriers: Vec<Carrier> = a
+        .str("section_carriers")?
         .split(';')
         .map(|c| Carrier::parse(c, 2))
         .collect::<Result<_>>()
         .map_err(|e| bad(e.to_string()))?;
-    let origins = ds("origins")?;
-    let frames = ds("frames")?;
-    let offsets: Vec<i64> = f
-        .dataset("offsets")
-        .map_err(|_| bad("dataset 'offsets' is missing".into()))?
-        .read_raw::<i64>()
-        .map_err(h5)?;
-    let centres = ds("centres_normalised")?;
-    let weights = ds("weights")?;
-    let poly = ds("poly_coefficients")?;
-    let norm = ds("normalisation")?;
+    let origins = a.dataset_f64("origins")?;
+    let frames = a.dataset_f64("frames")?;
+    let offsets = a.dataset_i64("offsets")?;
+    let centres = a.dataset_f64("centres_normalised")?;
+    let weights = a.dataset_f64("weights")?;
+    let poly = a.dataset_f64("poly_coefficients")?;
+    let norm = a.dataset_f64("normalisation")?;
     let s = carriers.len();
     let k = kernel.poly_count();
     let consistent = s >= 2
@@ -220,27 +154,6 @@ pub fn read_contour_model(path: &Path) -> Result<ContourModel> {
     if !crate::contour::knots_of(&planes).windows(2).all(|w| w[1] > w[0]) {
         return Err(bad("the slices are not ordered along their normals".into()));
     }
-    let box3 = |name: &str| -> Result<[f64; 3]> {
-        let v = get_f64s(name)?;
-        if v.len() != 3 || v.iter().any(|x| !x.is_finite()) {
-            return Err(bad(format!("attribute '{name}' must hold 3 finite numbers")));
-        }
-        Ok([v[0], v[1], v[2]])
-    };
-    let stages = get_str("timing_stages").unwrap_or_default();
-    let secs = get_f64s("timing_seconds").unwrap_or_default();
-    let provenance = Provenance {
-        input: get_str("input").unwrap_or_default(),
-        box_lo: box3("data_box_lo")?,
-        box_hi: box3("data_box_hi")?,
-        points_read: get_int("points_read").unwrap_or(0) as usize,
-        duplicates_merged: get_int("duplicates_merged").unwrap_or(0) as usize,
-        solver: get_str("solver").unwrap_or_default(),
-        residual: get_f64s("residual").ok().and_then(|v| v.first().copied()).unwrap_or(f64::NAN),
-        ranks: get_int("ranks").unwrap_or(0) as usize,
-        threads: get_int("threads").unwrap_or(0) as usize,
-        timings: stages.split(',').filter(|s| !s.is_empty()).map(String::from).zip(secs).collect(),
-        version: get_str("volspline_version").unwrap_or_default(),
-    };
+    let provenance = a.provenance()?;
     Ok(ContourModel::new(sections, interp, orient, provenance))
 }

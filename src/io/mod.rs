@@ -2,6 +2,7 @@
 //! in parallel by all ranks), the model file (`model_file`) and atomic replacement of outputs.
 
 pub mod contour_model_file;
+pub mod h5;
 pub mod model_file;
 pub mod points;
 pub mod vtkhdf;

@@ -1,0 +1,130 @@
+//! Typed access to the attributes and datasets of the model files over hdf5-metno, with errors
+//! that name the file, and the provenance block that both model formats (scattered points and
+//! contours) carry. Serial HDF5 only; the parallel volume output is in `vtkhdf`.
+
+use std::path::Path;
+
+use hdf5::types::VarLenUnicode;
+
+use crate::error::{Error, Result};
+use crate::model::Provenance;
+
+/// The root group of one open model file.
+pub struct Attrs<'a> {
+    pub file: &'a hdf5::File,
+    pub path: &'a Path,
+}
+
+impl Attrs<'_> {
+    fn h5(&self, e: hdf5::Error) -> Error {
+        Error::hdf5(self.path, e)
+    }
+
+    /// A malformed-file error naming the file.
+    pub fn bad(&self, why: impl Into<String>) -> Error {
+        Error::input(self.path, "", why)
+    }
+
+    pub fn put_str(&self, name: &str, v: &str) -> Result<()> {
+        let text: VarLenUnicode = v.parse().unwrap_or_default();
+        self.file
+            .new_attr::<VarLenUnicode>()
+            .create(name)
+            .map_err(|e| self.h5(e))?
+            .write_scalar(&text)
+            .map_err(|e| self.h5(e))
+    }
+
+    pub fn put_f64s(&self, name: &str, v: &[f64]) -> Result<()> {
+        self.file.new_attr_builder().with_data(v).create(name).map(|_| ()).map_err(|e| self.h5(e))
+    }
+
+    pub fn put_int(&self, name: &str, v: i64) -> Result<()> {
+        self.file.new_attr_builder().with_data(&[v]).create(name).map(|_| ()).map_err(|e| self.h5(e))
+    }
+
+    fn attr(&self, name: &str) -> Result<hdf5::Attribute> {
+        self.file.attr(name).map_err(|_| self.bad(format!("attribute '{name}' is missing")))
+    }
+
+    pub fn str(&self, name: &str) -> Result<String> {
+        let v = self.attr(name)?.read_scalar::<VarLenUnicode>().map_err(|e| self.h5(e))?;
+        Ok(v.as_str().to_string())
+    }
+
+    pub fn f64s(&self, name: &str) -> Result<Vec<f64>> {
+        self.attr(name)?.read_raw::<f64>().map_err(|e| self.h5(e))
+    }
+
+    pub fn int(&self, name: &str) -> Result<i64> {
+        let v = self.attr(name)?.read_raw::<i64>().map_err(|e| self.h5(e))?;
+        v.first().copied().ok_or_else(|| self.bad(format!("attribute '{name}' is empty")))
+    }
+
+    /// Three finite numbers (a point).
+    pub fn point(&self, name: &str) -> Result<[f64; 3]> {
+        let v = self.f64s(name)?;
+        if v.len() != 3 || v.iter().any(|x| !x.is_finite()) {
+            return Err(self.bad(format!("attribute '{name}' must hold 3 finite numbers")));
+        }
+        Ok([v[0], v[1], v[2]])
+    }
+
+    pub fn dataset_f64(&self, name: &str) -> Result<Vec<f64>> {
+        let ds = self.file.dataset(name).map_err(|_| self.bad(format!("dataset '{name}' is missing")))?;
+        ds.read_raw::<f64>().map_err(|e| self.h5(e))
+    }
+
+    pub fn dataset_i64(&self, name: &str) -> Result<Vec<i64>> {
+        let ds = self.file.dataset(name).map_err(|_| self.bad(format!("dataset '{name}' is missing")))?;
+        ds.read_raw::<i64>().map_err(|e| self.h5(e))
+    }
+
+    /// Writes the provenance attributes: `input`, `data_box_lo`, `data_box_hi`, `points_read`,
+    /// `duplicates_merged`, `solver`, `residual`, `ranks`, `threads`, `volspline_version`,
+    /// `timing_stages` (comma-separated) and `timing_seconds`.
+    pub fn put_provenance(&self, p: &Provenance) -> Result<()> {
+        self.put_str("input", &p.input)?;
+        self.put_str("solver", &p.solver)?;
+        self.put_str("volspline_version", &p.version)?;
+        self.put_int("points_read", p.points_read as i64)?;
+        self.put_int("duplicates_merged", p.duplicates_merged as i64)?;
+        self.put_int("ranks", p.ranks as i64)?;
+        self.put_int("threads", p.threads as i64)?;
+        self.put_f64s("residual", &[p.residual])?;
+        self.put_f64s("data_box_lo", &p.box_lo)?;
+        self.put_f64s("data_box_hi", &p.box_hi)?;
+        let stages: Vec<&str> = p.timings.iter().map(|(s, _)| s.as_str()).collect();
+        self.put_str("timing_stages", &stages.join(","))?;
+        self.put_f64s("timing_seconds", &p.timings.iter().map(|(_, t)| *t).collect::<Vec<f64>>())
+    }
+
+    /// Reads what [`Attrs::put_provenance`] wrote; only the data box is required.
+    pub fn provenance(&self) -> Result<Provenance> {
+        let stages = self.str("timing_stages").unwrap_or_default();
+        let secs = self.f64s("timing_seconds").unwrap_or_default();
+        Ok(Provenance {
+            input: self.str("input").unwrap_or_default(),
+            box_lo: self.point("data_box_lo")?,
+            box_hi: self.point("data_box_hi")?,
+            points_read: self.int("points_read").unwrap_or(0) as usize,
+            duplicates_merged: self.int("duplicates_merged").unwrap_or(0) as usize,
+            solver: self.str("solver").unwrap_or_default(),
+            residual: self.f64s("residual").ok().and_then(|v| v.first().copied()).unwrap_or(f64::NAN),
+            ranks: self.int("ranks").unwrap_or(0) as usize,
+            threads: self.int("threads").unwrap_or(0) as usize,
+            timings: stages.split(',').filter(|s| !s.is_empty()).map(String::from).zip(secs).collect(),
+            version: self.str("volspline_version").unwrap_or_default(),
+        })
+    }
+}
+
+/// The `format` attribute of an HDF5 model file (which of the model formats it holds).
+pub fn format_of(path: &Path) -> Result<String> {
+    if !path.exists() {
+        return Err(Error::Io { path: path.into(), reason: "no such file".into() });
+    }
+    let f = hdf5::File::open(path).map_err(|e| Error::hdf5(path, e))?;
+    let a = Attrs { file: &f, path };
+    a.str("format").map_err(|_| a.bad("not a volspline model: no 'format' attribute"))
+}
