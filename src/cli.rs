@@ -273,10 +273,9 @@ pub fn run(cli: &Cli, comm: &dyn Comm, threads: usize) -> Result<()> {
 fn write_record(comm: &dyn Comm, path: Option<&std::path::Path>, rec: &Record) -> Result<()> {
     let Some(path) = path else { return Ok(()) };
     let local = if comm.rank() == 0 {
-        let tmp = crate::io::partial_path(path);
-        std::fs::write(&tmp, rec.to_csv())
-            .map_err(|e| Error::io(&tmp, &e))
-            .and_then(|_| crate::io::commit(path))
+        crate::io::write_atomically(path, |tmp| {
+            std::fs::write(tmp, rec.to_csv()).map_err(|e| Error::io(tmp, &e))
+        })
     } else {
         Ok(())
     };

@@ -230,12 +230,7 @@ pub fn fit(comm: &dyn Comm, opts: &FitOptions, stages: &mut Stages) -> Result<Fi
     };
     let model_path = output_path(&opts.prefix, ".model.h5");
     stages.time("write", || {
-        on_root(comm, || {
-            let tmp = io::partial_path(&model_path);
-            model_file::write_model(&tmp, &model)
-                .and_then(|_| io::commit(&model_path))
-                .inspect_err(|_| io::discard(&model_path))
-        })
+        on_root(comm, || io::write_atomically(&model_path, |tmp| model_file::write_model(tmp, &model)))
     })?;
 
     let (plo, phi) = padded_box(&lo, &hi, opts.margin);
@@ -326,11 +321,7 @@ pub fn volume_outputs(
                 gathered.unwrap_or_default().iter().map(|b| piece_from_bytes(b)).collect();
             let mesh: TriMesh = mesh::weld(&pieces);
             counts = [mesh.triangles.len() as f64, mesh.vertices.len() as f64];
-            let tmp = io::partial_path(&ply_path);
-            mesh::write_ply(&tmp, &mesh)
-                .map_err(|e| Error::io(&tmp, &e))
-                .and_then(|_| io::commit(&ply_path))
-                .inspect_err(|_| io::discard(&ply_path))
+            io::write_atomically(&ply_path, |tmp| mesh::write_ply(tmp, &mesh).map_err(|e| Error::io(tmp, &e)))
         })
     })?;
     comm.broadcast_f64(0, &mut counts);

@@ -205,10 +205,7 @@ pub fn contours(comm: &dyn Comm, opts: &ContoursOptions, stages: &mut Stages) ->
     let model_path = output_path(&opts.prefix, ".model.h5");
     stages.time("write", || {
         on_root(comm, || {
-            let tmp = io::partial_path(&model_path);
-            contour_model_file::write_contour_model(&tmp, &model)
-                .and_then(|_| io::commit(&model_path))
-                .inspect_err(|_| io::discard(&model_path))
+            io::write_atomically(&model_path, |tmp| contour_model_file::write_contour_model(tmp, &model))
         })
     })?;
     let (plo, phi) = padded_box(&lo, &hi, opts.margin);
@@ -404,11 +401,9 @@ pub fn slice(comm: &dyn Comm, mesh_path: &Path, out: &Path, planes: PlaneFamily)
             s.contours,
             s.points
         );
-        let tmp = io::partial_path(out);
-        std::fs::write(&tmp, format::to_text(&sections, &header))
-            .map_err(|e| Error::io(out, &e))
-            .and_then(|_| io::commit(out))
-            .inspect_err(|_| io::discard(out))?;
+        io::write_atomically(out, |tmp| {
+            std::fs::write(tmp, format::to_text(&sections, &header)).map_err(|e| Error::io(out, &e))
+        })?;
         summary = s;
         Ok(())
     })?;

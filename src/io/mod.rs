@@ -19,6 +19,13 @@ pub fn partial_path(path: &Path) -> PathBuf {
     PathBuf::from(s)
 }
 
+/// Writes `path` atomically: `write` fills the temporary file it is given, which is then renamed to
+/// `path`; on any failure the temporary file is removed and `path` is untouched.
+pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    let tmp = partial_path(path);
+    write(&tmp).and_then(|_| commit(path)).inspect_err(|_| discard(path))
+}
+
 /// Renames the finished temporary file to its final name.
 pub fn commit(path: &Path) -> Result<()> {
     let tmp = partial_path(path);
