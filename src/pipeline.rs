@@ -256,16 +256,21 @@ pub fn fit(comm: &dyn Comm, opts: &FitOptions, stages: &mut Stages) -> Result<Fi
     })
 }
 
+/// The grid of `eval`: `--bounds`, or by default the fit's data box, so that the same `--grid` and
+/// `--margin` give the fit's grid exactly.
+pub(crate) fn eval_grid(opts: &EvalOptions, provenance: &Provenance) -> Result<Grid> {
+    let (lo, hi) = match opts.bounds {
+        Some(b) => b,
+        None => padded_box(&provenance.box_lo, &provenance.box_hi, opts.margin),
+    };
+    Grid::covering(lo, hi, opts.grid)
+}
+
 /// `volspline eval`: evaluates a saved model on a new grid. Collective.
 pub fn eval(comm: &dyn Comm, opts: &EvalOptions, stages: &mut Stages) -> Result<(Model, VolumeSummary)> {
     // every rank reads the (small, read-only) model file itself and all agree on the outcome
     let model = stages.time("read", || agree(comm, model_file::read_model(&opts.model)))?;
-    let (lo, hi) = match opts.bounds {
-        Some(b) => b,
-        // the fit's data box, so that the same --grid and --margin give the fit's grid exactly
-        None => padded_box(&model.provenance.box_lo, &model.provenance.box_hi, opts.margin),
-    };
-    let grid = Grid::covering(lo, hi, opts.grid)?;
+    let grid = eval_grid(opts, &model.provenance)?;
     let volume = volume_outputs(comm, &model, &grid, &opts.prefix, stages)?;
     Ok((model, volume))
 }

@@ -231,11 +231,7 @@ pub fn eval_contour_model(
     stages: &mut Stages,
 ) -> Result<(ContourModel, VolumeSummary)> {
     let model = stages.time("read", || agree(comm, contour_model_file::read_contour_model(&opts.model)))?;
-    let (lo, hi) = match opts.bounds {
-        Some(b) => b,
-        None => padded_box(&model.provenance.box_lo, &model.provenance.box_hi, opts.margin),
-    };
-    let grid = Grid::covering(lo, hi, opts.grid)?;
+    let grid = crate::pipeline::eval_grid(opts, &model.provenance)?;
     let volume = volume_outputs(comm, &model, &grid, &opts.prefix, stages)?;
     Ok((model, volume))
 }
