@@ -17,7 +17,6 @@ use volspline::contour::pipeline::solve_sections;
 use volspline::contour::{fit_values, Blend, ContourModel, Interp, Orient, SectionCarrier, SectionModel};
 use volspline::dist::{LocalRows, RowCyclic, Solo, SolverKind};
 use volspline::io::contour_model_file::read_contour_model;
-use volspline::io::points::read_mesh;
 use volspline::io::vtkhdf::read_image;
 use volspline::kernel::Kernel;
 use volspline::mesh::{
@@ -25,22 +24,6 @@ use volspline::mesh::{
 };
 use volspline::report::Progress;
 use volspline::spline::{assemble_rows, Normalisation, Spline};
-
-fn load(path: &Path) -> TriMesh {
-    let set = read_mesh(path).unwrap();
-    TriMesh {
-        vertices: set.points.clone(),
-        triangles: set.triangles.iter().map(|t| [t[0] as u32, t[1] as u32, t[2] as u32]).collect(),
-    }
-}
-
-/// (mean, 95th percentile, max) of distances divided by `diag`.
-fn stats(mut d: Vec<f64>, diag: f64) -> (f64, f64, f64) {
-    d.iter_mut().for_each(|v| *v /= diag);
-    d.sort_by(f64::total_cmp);
-    let mean = d.iter().sum::<f64>() / d.len() as f64;
-    (mean, d[(d.len() * 95) / 100], d[d.len() - 1])
-}
 
 fn diagonal_of(pts: &[[f64; 3]]) -> f64 {
     let flat: Vec<f64> = pts.iter().flatten().copied().collect();
@@ -118,7 +101,7 @@ fn reconstruct(ranks: usize, input: &Path, prefix: &Path, extra: &[&str]) -> Tri
     let mut args = vec!["contours", s(input), "--out", s(prefix)];
     args.extend_from_slice(extra);
     common::run_ok(ranks, &args);
-    load(&PathBuf::from(format!("{}.ply", s(prefix))))
+    common::load_mesh(&PathBuf::from(format!("{}.ply", s(prefix))))
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -233,9 +216,9 @@ fn slice_and_reconstruct(
     let sections = format::read(&contours).unwrap();
     let prefix = dir.join("r");
     let rec = reconstruct(2, &contours, &prefix, &["--grid", grid, "--carrier", carrier]);
-    let truth = load(Path::new(mesh));
+    let truth = common::load_mesh(Path::new(mesh));
     let diag = diagonal_of(&truth.vertices);
-    let st = stats(point_mesh_distances(&rec, &truth.vertices), diag);
+    let st = common::distance_stats(point_mesh_distances(&rec, &truth.vertices), diag);
     println!(
         "{name}, carrier {carrier}: {} slices ({}) -> {} triangles, {} components (the largest has {:.4} of the vertices); original \
          vertices -> reconstruction: mean {:.5} p95 {:.5} max {:.5} of the diagonal; slice said: {}",
@@ -530,8 +513,8 @@ fn figure_4_bent_and_twisted_block_from_50_sections() {
     let mut results = Vec::new();
     for orient in ["slerp", "log"] {
         let rec = reconstruct(0, &input, &dir.join(orient), &["--grid", "80", "--orient", orient]);
-        let complete = stats(point_mesh_distances(&rec, &truth.vertices), diag);
-        let spurious = stats(point_mesh_distances(&truth, &rec.vertices), diag);
+        let complete = common::distance_stats(point_mesh_distances(&rec, &truth.vertices), diag);
+        let spurious = common::distance_stats(point_mesh_distances(&truth, &rec.vertices), diag);
         println!(
             "figure 4 ({orient}): {} triangles, {} components; true surface -> reconstruction mean {:.5} p95 {:.5} \
              max {:.5}; reconstruction -> true surface mean {:.5} p95 {:.5} max {:.5} (of the diagonal {diag:.3})",

@@ -8,23 +8,7 @@ mod common;
 
 use std::path::Path;
 
-use volspline::io::points::read_mesh;
-use volspline::mesh::{connected_components, is_closed_manifold_edges, point_mesh_distances, TriMesh};
-
-fn load(path: &Path) -> TriMesh {
-    let set = read_mesh(path).unwrap();
-    TriMesh {
-        vertices: set.points.clone(),
-        triangles: set.triangles.iter().map(|t| [t[0] as u32, t[1] as u32, t[2] as u32]).collect(),
-    }
-}
-
-fn stats(mut d: Vec<f64>, diag: f64) -> (f64, f64, f64) {
-    d.iter_mut().for_each(|v| *v /= diag);
-    d.sort_by(f64::total_cmp);
-    let mean = d.iter().sum::<f64>() / d.len() as f64;
-    (mean, d[(d.len() * 95) / 100], d[d.len() - 1])
-}
+use volspline::mesh::{connected_components, is_closed_manifold_edges, point_mesh_distances};
 
 #[test]
 fn held_out_bunny_vertices_lie_on_the_reconstruction() {
@@ -41,13 +25,13 @@ fn held_out_bunny_vertices_lie_on_the_reconstruction() {
     common::write_xyz(&input, &fit);
     let prefix = dir.join("q");
     common::run_ok(2, &["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--grid", "96"]);
-    let mesh = load(&dir.join("q.ply"));
-    let truth = load(Path::new(common::BUNNY));
+    let mesh = common::load_mesh(&dir.join("q.ply"));
+    let truth = common::load_mesh(Path::new(common::BUNNY));
     let (lo, hi) = volspline::geometry::bounding_box(&all, 3);
     let diag = volspline::geometry::diagonal(&lo, &hi);
 
-    let (c_mean, c_p95, c_max) = stats(point_mesh_distances(&mesh, &held), diag);
-    let (s_mean, s_p95, s_max) = stats(point_mesh_distances(&truth, &mesh.vertices), diag);
+    let (c_mean, c_p95, c_max) = common::distance_stats(point_mesh_distances(&mesh, &held), diag);
+    let (s_mean, s_p95, s_max) = common::distance_stats(point_mesh_distances(&truth, &mesh.vertices), diag);
     println!(
         "bunny, {} of {} vertices fitted, grid 96: held-out -> mesh mean {c_mean:.5} p95 {c_p95:.5} max {c_max:.5}; \
          mesh -> bunny mean {s_mean:.5} p95 {s_p95:.5} max {s_max:.5} (fractions of the diagonal {diag:.3}); \

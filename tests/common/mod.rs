@@ -68,3 +68,20 @@ pub fn rel_diff(a: &[f64], b: &[f64]) -> f64 {
     let scale = b.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(f64::MIN_POSITIVE);
     a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max) / scale
 }
+
+/// A triangle mesh file (OBJ or PLY) as a `TriMesh`.
+pub fn load_mesh(path: &Path) -> volspline::mesh::TriMesh {
+    let set = volspline::io::points::read_mesh(path).unwrap();
+    volspline::mesh::TriMesh {
+        vertices: set.points.clone(),
+        triangles: set.triangles.iter().map(|t| [t[0] as u32, t[1] as u32, t[2] as u32]).collect(),
+    }
+}
+
+/// (mean, 95th percentile, max) of distances divided by `diag`.
+pub fn distance_stats(mut d: Vec<f64>, diag: f64) -> (f64, f64, f64) {
+    d.iter_mut().for_each(|v| *v /= diag);
+    d.sort_by(f64::total_cmp);
+    let mean = d.iter().sum::<f64>() / d.len() as f64;
+    (mean, d[(d.len() * 95) / 100], d[d.len() - 1])
+}
