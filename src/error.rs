@@ -22,8 +22,9 @@ pub enum Error {
     NotDefinite(String),
     /// HDF5 failed on a file.
     Hdf5 { path: PathBuf, reason: String },
-    /// Another rank failed; its message is carried here so every rank reports the same thing.
-    Rank { rank: usize, message: String },
+    /// Another rank failed with `source`; carried whole (kind included) so that every rank reports
+    /// the same failure and takes the same branch on its kind.
+    Remote { rank: usize, source: Box<Error> },
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;
@@ -40,6 +41,35 @@ impl Error {
     pub fn hdf5(path: impl Into<PathBuf>, err: impl fmt::Display) -> Self {
         Error::Hdf5 { path: path.into(), reason: err.to_string() }
     }
+
+    /// The failure itself, wherever it happened: the error inside any [`Error::Remote`].
+    pub fn root(&self) -> &Error {
+        match self {
+            Error::Remote { source, .. } => source.root(),
+            other => other,
+        }
+    }
+
+    /// The rank the failure happened on, when it was another one.
+    pub fn remote_rank(&self) -> Option<usize> {
+        match self {
+            Error::Remote { rank, .. } => Some(*rank),
+            _ => None,
+        }
+    }
+
+    /// Whether this is the signal of a Cholesky factorisation that met a non-positive pivot.
+    pub fn is_not_definite(&self) -> bool {
+        matches!(self.root(), Error::NotDefinite(_))
+    }
+
+    /// The process exit status for this error: 2 for usage errors, 1 otherwise.
+    pub fn exit_code(&self) -> i32 {
+        match self.root() {
+            Error::Usage(_) => 2,
+            _ => 1,
+        }
+    }
 }
 
 impl fmt::Display for Error {
@@ -54,7 +84,7 @@ impl fmt::Display for Error {
             Error::Numerical(msg) => write!(f, "numerical failure: {msg}"),
             Error::NotDefinite(msg) => write!(f, "not definite: {msg}"),
             Error::Hdf5 { path, reason } => write!(f, "{}: HDF5 error: {reason}", path.display()),
-            Error::Rank { rank, message } => write!(f, "rank {rank}: {message}"),
+            Error::Remote { source, .. } => write!(f, "{source}"),
         }
     }
 }

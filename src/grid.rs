@@ -1,7 +1,6 @@
 //! The regular evaluation grid: its geometry (origin, spacing, node counts, x fastest) and the
 //! z-slab each rank evaluates and writes.
 
-use crate::dist::Slabs;
 use crate::error::{Error, Result};
 
 /// Node counts requested on the command line: `N` (nodes along the longest side, cubic cells) or
@@ -121,6 +120,25 @@ pub fn padded_box(lo: &[f64], hi: &[f64], margin: f64) -> ([f64; 3], [f64; 3]) {
     (l, h)
 }
 
+/// Contiguous block distribution of `n` grid layers over `ranks`: rank r gets layers
+/// start(r)..start(r)+count(r), the first n mod ranks ranks one more.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Slabs {
+    pub n: usize,
+    pub ranks: usize,
+}
+
+impl Slabs {
+    pub fn start(&self, r: usize) -> usize {
+        let (base, rem) = (self.n / self.ranks, self.n % self.ranks);
+        r * base + r.min(rem)
+    }
+
+    pub fn count(&self, r: usize) -> usize {
+        self.n / self.ranks + usize::from(r < self.n % self.ranks)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -146,5 +164,18 @@ mod tests {
         assert!(parse_bounds("0,0,0,1,1").is_err());
         assert!(parse_bounds("0,0,0,1,1,0").is_err());
         assert_eq!(parse_bounds("0,0,0,1,1,1").unwrap().1, [1.0; 3]);
+    }
+
+    #[test]
+    fn slabs_cover_the_grid() {
+        for ranks in 1..6 {
+            let s = Slabs { n: 11, ranks };
+            let mut next = 0;
+            for r in 0..ranks {
+                assert_eq!(s.start(r), next);
+                next += s.count(r);
+            }
+            assert_eq!(next, 11);
+        }
     }
 }

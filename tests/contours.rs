@@ -12,23 +12,23 @@ use std::f64::consts::{FRAC_PI_2, PI, TAU};
 use std::path::{Path, PathBuf};
 
 use glam::{DMat3, DVec3};
+use volspline::app::contours::solve_sections;
 use volspline::contour::format::{self, Section};
-use volspline::contour::pipeline::solve_sections;
 use volspline::contour::{fit_values, Blend, ContourModel, Interp, Orient, SectionCarrier, SectionModel};
-use volspline::dist::{LocalRows, RowCyclic, Solo, SolverKind};
 use volspline::io::contour_model_file::read_contour_model;
 use volspline::io::vtkhdf::read_image;
-use volspline::kernel::Kernel;
+use volspline::linalg::dist::{LocalRows, SolverKind};
 use volspline::mesh::{
     connected_components, cut_by_plane, is_closed_manifold_edges, point_mesh_distances, TriMesh,
 };
-use volspline::report::Progress;
-use volspline::spline::{assemble_rows, Normalisation, Spline};
+use volspline::par::Solo;
+use volspline::spline::Kernel;
+use volspline::spline::{Normalisation, Spline};
 
 fn diagonal_of(pts: &[[f64; 3]]) -> f64 {
     let flat: Vec<f64> = pts.iter().flatten().copied().collect();
-    let (lo, hi) = volspline::geometry::bounding_box(&flat, 3);
-    volspline::geometry::diagonal(&lo, &hi)
+    let (lo, hi) = volspline::spline::hygiene::bounding_box(&flat, 3);
+    volspline::spline::hygiene::diagonal(&lo, &hi)
 }
 
 fn circle(cx: f64, cy: f64, r: f64, n: usize) -> Vec<[f64; 2]> {
@@ -167,9 +167,8 @@ fn section_5_5_accuracy_of_slices_against_one_2d_spline() {
     let norm = Normalisation::of_box(&[0.0, 0.0], &[10.0, 10.0]);
     let centres: Vec<f64> =
         nodes.chunks_exact(2).flat_map(|p| [(p[0] - 5.0) / norm.scale, (p[1] - 5.0) / norm.scale]).collect();
-    let n = values.len() + k2.poly_count();
-    let mut rows: LocalRows = assemble_rows(&k2, &centres, &values, RowCyclic::new(n, 1, 0));
-    let x = SolverKind::Cholesky.solve(&Solo, &mut rows, 64, &Progress::silent()).unwrap();
+    let mut rows: LocalRows = common::assemble_one(&centres, &values, &k2);
+    let x = SolverKind::Cholesky.run(&Solo, &mut rows, 64, &|_, _| ()).unwrap();
     let whole = Spline::from_solution(k2, centres, &x, norm);
     let rms_2d = rms(&|x, y| whole.eval(&[x, y]));
 
@@ -385,8 +384,8 @@ fn model_of(sections: &[Section], interp: Interp, orient: Orient, carrier: Secti
         .iter()
         .flat_map(|s| s.contours.iter().flatten().flat_map(move |p| s.world(*p).to_array()))
         .collect();
-    let (lo, hi) = volspline::geometry::bounding_box(&world, 3);
-    let prov = volspline::model::Provenance {
+    let (lo, hi) = volspline::spline::hygiene::bounding_box(&world, 3);
+    let prov = volspline::spline::Provenance {
         box_lo: [lo[0], lo[1], lo[2]],
         box_hi: [hi[0], hi[1], hi[2]],
         ..Default::default()

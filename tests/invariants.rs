@@ -4,18 +4,15 @@
 
 mod common;
 
-use volspline::carrier::Carrier;
-use volspline::dist::{LocalRows, RowCyclic, Solo, SolverKind};
-use volspline::kernel::Kernel;
-use volspline::model::{Model, Provenance};
-use volspline::pipeline::{prepare, solve_serial, Prepared};
-use volspline::report::Progress;
-use volspline::spline::{assemble_rows, system_size, Spline};
+use common::{assemble_one, solve_serial};
+use volspline::linalg::dist::{LocalRows, RowCyclic, SolverKind};
+use volspline::par::Solo;
+use volspline::spline::hygiene::{prepare, Prepared};
+use volspline::spline::{Carrier, Kernel, Model, Provenance, Spline};
 
 fn solve_dist(prep: &Prepared, kernel: &Kernel, solver: SolverKind, panel: usize) -> Spline {
-    let n = system_size(kernel, prep.values.len());
-    let mut rows: LocalRows = assemble_rows(kernel, &prep.centres, &prep.values, RowCyclic::new(n, 1, 0));
-    let x = solver.solve(&Solo, &mut rows, panel, &Progress::silent()).unwrap();
+    let mut rows: LocalRows = assemble_one(&prep.centres, &prep.values, kernel);
+    let x = solver.run(&Solo, &mut rows, panel, &|_, _| ()).unwrap();
     Spline::from_solution(*kernel, prep.centres.clone(), &x, prep.norm)
 }
 
@@ -143,8 +140,8 @@ fn distributed_solvers_on_one_rank_match_the_serial_oracles() {
     let raw = common::bunny_subset(15, 2);
     let k = Kernel::new(3, 2).unwrap();
     let prep = prepare(&raw, &k, &Carrier::AutoBall, 1e-6).unwrap();
-    let oracle = solve_serial(&prep, &k, SolverKind::Householder).unwrap();
-    let oracle_lu = solve_serial(&prep, &k, SolverKind::Lu).unwrap();
+    let oracle = solve_serial(&prep, &k, SolverKind::Householder);
+    let oracle_lu = solve_serial(&prep, &k, SolverKind::Lu);
     assert!(common::rel_diff(&oracle_lu.weights, &oracle.weights) < 1e-9);
     for solver in [SolverKind::Householder, SolverKind::Lu] {
         for panel in [1, 7, 64, 1000] {
@@ -183,7 +180,7 @@ fn projected_cholesky_matches_the_oracle_for_every_kernel() {
         let raw = common::bunny_subset(step, 1);
         let k = Kernel::from_name_3d(kname).unwrap();
         let prep = prepare(&raw, &k, &carrier_for(&k), 1e-6).unwrap();
-        let oracle = solve_serial(&prep, &k, SolverKind::Householder).unwrap();
+        let oracle = solve_serial(&prep, &k, SolverKind::Householder);
         for panel in [1, 5, 64, 1000] {
             let sp = solve_dist(&prep, &k, SolverKind::Cholesky, panel);
             let dw = common::rel_diff(&sp.weights, &oracle.weights);
@@ -227,6 +224,6 @@ fn projected_cholesky_reports_an_indefinite_block() {
         }
         rows.set(i, size, rnd());
     }
-    let err = SolverKind::Cholesky.solve(&Solo, &mut rows, 8, &Progress::silent()).unwrap_err();
+    let err = SolverKind::Cholesky.run(&Solo, &mut rows, 8, &|_, _| ()).unwrap_err();
     assert!(matches!(err, Error::NotDefinite(_)), "{err}");
 }

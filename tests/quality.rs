@@ -27,8 +27,8 @@ fn held_out_bunny_vertices_lie_on_the_reconstruction() {
     common::run_ok(2, &["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--grid", "96"]);
     let mesh = common::load_mesh(&dir.join("q.ply"));
     let truth = common::load_mesh(Path::new(common::BUNNY));
-    let (lo, hi) = volspline::geometry::bounding_box(&all, 3);
-    let diag = volspline::geometry::diagonal(&lo, &hi);
+    let (lo, hi) = volspline::spline::hygiene::bounding_box(&all, 3);
+    let diag = volspline::spline::hygiene::diagonal(&lo, &hi);
 
     let (c_mean, c_p95, c_max) = common::distance_stats(point_mesh_distances(&mesh, &held), diag);
     let (s_mean, s_p95, s_max) = common::distance_stats(point_mesh_distances(&truth, &mesh.vertices), diag);

@@ -15,21 +15,21 @@
 //! front of plane i+1; when several such pairs exist (planes of a bent family cross far from the
 //! data), the pair whose interpolated origin o(t) is nearest wins.
 //!
-//! The file format is in [`format`]; the collective command in [`pipeline`]. It must not touch
-//! MPI directly (only through `dist::Comm`).
+//! The file format is in [`format`], the plane families and mesh cutting of `volspline slice` in
+//! [`planes`]. Nothing here communicates: the commands that distribute the work are in `app`.
 
 pub mod format;
 pub mod interp;
 pub mod orientation;
-pub mod pipeline;
+pub mod planes;
 pub mod slice2d;
 
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 
-use crate::carrier::{r_intersection, Carrier};
 use crate::grid::Grid;
-use crate::model::{Field, Provenance};
+use crate::spline::carrier::{r_intersection, Carrier};
+use crate::spline::model::{Field, Provenance};
 use crate::spline::Spline;
 
 pub use format::Section;
@@ -237,7 +237,7 @@ impl Field for ContourModel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kernel::Kernel;
+    use crate::spline::kernel::Kernel;
 
     fn circle(r: f64, n: usize) -> Vec<[f64; 2]> {
         (0..n)

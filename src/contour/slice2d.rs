@@ -4,13 +4,12 @@
 //! contour (bounded by the slice's disc). F_i = f_c,i - U_i >= 0 inside the section. Also serves any dimension through
 //! [`fit_values`] (the 1D slice splines of the paper's accuracy test).
 
-use crate::carrier::Carrier;
-use crate::dense::{self, Matrix};
-use crate::dist::RowCyclic;
 use crate::error::{Error, Result};
-use crate::geometry::{bounding_box, check_unisolvent, diagonal, merge_duplicates};
-use crate::kernel::Kernel;
-use crate::spline::{assemble_rows, Normalisation, Spline};
+use crate::linalg::dense::{self, Matrix};
+use crate::spline::carrier::Carrier;
+use crate::spline::hygiene::{bounding_box, check_unisolvent, diagonal, merge_duplicates};
+use crate::spline::kernel::Kernel;
+use crate::spline::{full_system, Normalisation, Spline};
 
 use super::format::Section;
 
@@ -70,11 +69,10 @@ pub fn fit_values(kernel: &Kernel, points: &[f64], values: &[f64]) -> Result<(Sp
     }
     check_unisolvent(kernel, &centres)?;
     let n = values.len() + kernel.poly_count();
-    let rows = assemble_rows(kernel, &centres, values, RowCyclic::new(n, 1, 0));
-    let m = Matrix { rows: n, cols: n, data: rows.data[..n * n].to_vec() };
-    let b = &rows.data[n * n..];
-    let x = dense::lu_solve(&m, b)?;
-    let residual = dense::relative_residual(&m, &x, b);
+    let (data, b) = full_system(kernel, &centres, values);
+    let m = Matrix { rows: n, cols: n, data };
+    let x = dense::lu_solve(&m, &b)?;
+    let residual = dense::relative_residual(&m, &x, &b);
     Ok((Spline::from_solution(*kernel, centres, &x, norm), residual))
 }
 

@@ -20,10 +20,10 @@ use std::path::Path;
 use glam::{DMat3, DVec3};
 
 use super::h5::{format_of, Attrs};
-use crate::carrier::Carrier;
 use crate::contour::{ContourModel, Interp, Orient, SectionModel};
 use crate::error::{Error, Result};
-use crate::kernel::Kernel;
+use crate::spline::carrier::Carrier;
+use crate::spline::kernel::Kernel;
 use crate::spline::{Normalisation, Spline};
 
 pub const FORMAT: &str = "volspline-contour-model";

@@ -7,7 +7,7 @@ use std::path::Path;
 use hdf5::types::VarLenUnicode;
 
 use crate::error::{Error, Result};
-use crate::model::Provenance;
+use crate::spline::model::Provenance;
 
 /// The root group of one open model file.
 pub struct Attrs<'a> {

@@ -14,10 +14,10 @@
 use std::path::Path;
 
 use super::h5::{format_of, Attrs};
-use crate::carrier::Carrier;
 use crate::error::{Error, Result};
-use crate::kernel::Kernel;
-use crate::model::Model;
+use crate::spline::carrier::Carrier;
+use crate::spline::kernel::Kernel;
+use crate::spline::model::Model;
 use crate::spline::{Normalisation, Spline};
 
 pub const FORMAT: &str = "volspline-model";

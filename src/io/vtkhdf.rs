@@ -5,12 +5,11 @@
 use std::path::Path;
 
 use hdf5::types::FixedAscii;
-use mpi::raw::AsRaw;
 use ndarray::{s, ArrayView3};
 
-use crate::dist::Comm;
 use crate::error::{Error, Result};
 use crate::grid::Grid;
+use crate::par::Comm;
 
 /// Writes `values` (this rank's layers k0..k0+layers of `grid`, x fastest) as the point array
 /// `name` of a VTKHDF ImageData file at `path`. Collective.
@@ -26,8 +25,8 @@ pub fn write_image(
     let h5 = |e: hdf5::Error| Error::hdf5(path, e);
     let [nx, ny, nz] = grid.dims;
     assert_eq!(values.len(), nx * ny * layers);
-    let file = match comm.mpi() {
-        Some(world) => hdf5::File::with_options().with_fapl(|p| p.mpio(world.as_raw(), None)).create(path),
+    let file = match comm.raw() {
+        Some(world) => hdf5::File::with_options().with_fapl(|p| p.mpio(world, None)).create(path),
         None => hdf5::File::create(path),
     }
     .map_err(h5)?;

@@ -85,3 +85,37 @@ pub fn distance_stats(mut d: Vec<f64>, diag: f64) -> (f64, f64, f64) {
     let mean = d.iter().sum::<f64>() / d.len() as f64;
     (mean, d[(d.len() * 95) / 100], d[d.len() - 1])
 }
+
+/// The serial reference: the whole bordered system assembled on one process and solved by the
+/// dense oracle (Householder for Householder and the projected Cholesky, LU for LU).
+pub fn solve_serial(
+    prep: &volspline::spline::hygiene::Prepared,
+    kernel: &volspline::spline::Kernel,
+    solver: volspline::linalg::dist::SolverKind,
+) -> volspline::spline::Spline {
+    use volspline::linalg::dense::{householder_solve, lu_solve, Matrix};
+    use volspline::linalg::dist::SolverKind;
+    let n = volspline::spline::system_size(kernel, prep.values.len());
+    let (data, b) = volspline::spline::full_system(kernel, &prep.centres, &prep.values);
+    let m = Matrix { rows: n, cols: n, data };
+    let x = match solver {
+        SolverKind::Lu => lu_solve(&m, &b).unwrap(),
+        _ => householder_solve(&m, &b).unwrap(),
+    };
+    volspline::spline::Spline::from_solution(*kernel, prep.centres.clone(), &x, prep.norm)
+}
+
+/// This rank's rows (all rows on one process) of the bordered system of `prep`.
+pub fn assemble_one(
+    prep_centres: &[f64],
+    values: &[f64],
+    kernel: &volspline::spline::Kernel,
+) -> volspline::linalg::dist::LocalRows {
+    let n = volspline::spline::system_size(kernel, values.len());
+    volspline::app::fit::assemble(
+        kernel,
+        prep_centres,
+        values,
+        volspline::linalg::dist::RowCyclic::new(n, 1, 0),
+    )
+}

@@ -9,10 +9,9 @@ use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
 use faer::reborrow::Reborrow;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 
-use super::comm::Comm;
 use super::system::{all_gather_rows, GatherBuffers, LocalRows};
 use crate::error::{Error, Result};
-use crate::report::Progress;
+use crate::par::Comm;
 
 /// Local rows updated per GEMM of the trailing update: small enough that the triangle is followed
 /// closely, large enough for BLAS-3 speed.
@@ -26,7 +25,7 @@ pub fn cholesky_solve(
     comm: &dyn Comm,
     rows: &mut LocalRows,
     panel: usize,
-    progress: &Progress,
+    progress: &dyn Fn(usize, usize),
 ) -> Result<Vec<f64>> {
     let lay = rows.layout;
     let k = rows.border;
@@ -102,7 +101,7 @@ pub fn cholesky_solve(
             }
         }
         p0 += pb;
-        progress.update(p0, n);
+        progress(p0, n);
     }
 
     // forward substitution L z = y (y: the right-hand side rows k..n)

@@ -10,10 +10,9 @@ use faer::reborrow::Reborrow;
 use faer::{Accum, MatMut, MatRef, Par};
 
 use super::backsub::back_substitute;
-use super::comm::Comm;
 use super::system::{GatherBuffers, LocalRows};
 use crate::error::{Error, Result};
-use crate::report::Progress;
+use crate::par::Comm;
 
 /// Solves the distributed system in `rows` (right-hand side in the last column) and returns the
 /// solution on every rank. Collective. `rows` is overwritten by U (and the multipliers of L, not
@@ -22,7 +21,7 @@ pub fn lu_solve(
     comm: &dyn Comm,
     rows: &mut LocalRows,
     panel: usize,
-    progress: &Progress,
+    progress: &dyn Fn(usize, usize),
 ) -> Result<Vec<f64>> {
     let lay = rows.layout;
     let n = lay.n;
@@ -41,7 +40,7 @@ pub fn lu_solve(
         rows.permute_rows(comm, &swaps, k + kb, cols);
         eliminate_block(comm, rows, k, k + kb, cols, par, &mut bufs);
         k += kb;
-        progress.update(k, n);
+        progress(k, n);
     }
     back_substitute(comm, rows, nb, tol)
 }

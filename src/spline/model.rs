@@ -4,9 +4,9 @@
 
 use rayon::prelude::*;
 
-use crate::carrier::Carrier;
-use crate::eval::Evaluator;
 use crate::grid::Grid;
+use crate::spline::carrier::Carrier;
+use crate::spline::eval::Evaluator;
 use crate::spline::Spline;
 
 /// How a model was made; stored with it.

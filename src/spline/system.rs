@@ -4,8 +4,7 @@
 
 use rayon::prelude::*;
 
-use crate::dist::{LocalRows, RowCyclic};
-use crate::kernel::Kernel;
+use crate::spline::kernel::Kernel;
 
 /// The affine map to the internal coordinates x' = (x - centre) / scale (math.md, section 1:
 /// centre of the bounding box, half its diagonal), kept for conditioning.
@@ -54,26 +53,26 @@ pub fn system_size(kernel: &Kernel, n_centres: usize) -> usize {
     n_centres + kernel.poly_count()
 }
 
-/// Assembles this rank's rows of [A P; P^T 0 | r 0] for centres (normalised, `dim` per centre)
-/// and values r (one per centre). Rows are independent: each costs N kernel evaluations.
-pub fn assemble_rows(kernel: &Kernel, centres: &[f64], values: &[f64], layout: RowCyclic) -> LocalRows {
+/// Fills the rows `rows` (global indices) of [A P; P^T 0 | r 0] for centres (normalised, `dim`
+/// per centre) and values r (one per centre) into `out`, column-major with leading dimension
+/// `rows.len()` and N + k + 1 columns (the right-hand side last). Rows are independent: each costs
+/// N kernel evaluations, so any distribution of the rows over ranks can be assembled in place.
+pub fn fill_rows(kernel: &Kernel, centres: &[f64], values: &[f64], rows: &[usize], out: &mut [f64]) {
     let dim = kernel.dim();
     let n = values.len();
     let k = kernel.poly_count();
+    let lc = rows.len();
     assert_eq!(centres.len(), n * dim);
-    assert_eq!(layout.n, n + k);
-    let mut rows = LocalRows::zeros(layout, n + k + 1, k);
-    let lc = rows.ld();
-    let globals: Vec<usize> = (0..lc).map(|l| layout.global(l)).collect();
+    assert_eq!(out.len(), lc * (n + k + 1));
+    if lc == 0 {
+        return;
+    }
     let monomials = kernel.monomials();
-    // column j is filled for all local rows at once: one parallel task per column
-    rows.data.par_chunks_mut(lc.max(1)).enumerate().for_each(|(j, col)| {
-        if lc == 0 {
-            return;
-        }
+    // column j is filled for all the rows at once: one parallel task per column
+    out.par_chunks_mut(lc).enumerate().for_each(|(j, col)| {
         if j < n {
             let pj = &centres[j * dim..(j + 1) * dim];
-            for (v, &g) in col.iter_mut().zip(&globals) {
+            for (v, &g) in col.iter_mut().zip(rows) {
                 *v = if g < n {
                     let pg = &centres[g * dim..(g + 1) * dim];
                     let r2: f64 = pg.iter().zip(pj).map(|(a, b)| (a - b) * (a - b)).sum();
@@ -83,16 +82,32 @@ pub fn assemble_rows(kernel: &Kernel, centres: &[f64], values: &[f64], layout: R
                 };
             }
         } else if j < n + k {
-            for (v, &g) in col.iter_mut().zip(&globals) {
+            for (v, &g) in col.iter_mut().zip(rows) {
                 *v = if g < n { monomial(&monomials[j - n], &centres[g * dim..(g + 1) * dim]) } else { 0.0 };
             }
         } else {
-            for (v, &g) in col.iter_mut().zip(&globals) {
+            for (v, &g) in col.iter_mut().zip(rows) {
                 *v = if g < n { values[g] } else { 0.0 };
             }
         }
     });
-    rows
+}
+
+/// The whole system [A P; P^T 0] (row-major, (N+k)^2) and its right-hand side [r; 0], on one
+/// process: for small systems (slices) and serial oracles.
+pub fn full_system(kernel: &Kernel, centres: &[f64], values: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let n = system_size(kernel, values.len());
+    let rows: Vec<usize> = (0..n).collect();
+    let mut cm = vec![0.0; n * (n + 1)];
+    fill_rows(kernel, centres, values, &rows, &mut cm);
+    // column-major with ld n -> row-major
+    let mut m = vec![0.0; n * n];
+    for c in 0..n {
+        for r in 0..n {
+            m[r * n + c] = cm[r + c * n];
+        }
+    }
+    (m, cm[n * n..].to_vec())
 }
 
 #[inline]
@@ -100,22 +115,20 @@ fn monomial(e: &[u8; 3], x: &[f64]) -> f64 {
     x.iter().zip(e).map(|(v, &p)| v.powi(p as i32)).product()
 }
 
-/// Sum over this rank's rows of (row . x - b)^2 and of b^2, re-assembling each row on the fly so
+/// Sum over the rows `rows` (global indices) of (row . x - b)^2 and of b^2, re-assembling each row on the fly so
 /// that no copy of the matrix is kept. The caller sums over ranks.
 pub fn residual_parts(
     kernel: &Kernel,
     centres: &[f64],
     values: &[f64],
-    layout: RowCyclic,
+    rows: &[usize],
     x: &[f64],
 ) -> [f64; 2] {
     let dim = kernel.dim();
     let n = values.len();
     let monomials = kernel.monomials();
-    (0..layout.local_count())
-        .into_par_iter()
-        .map(|l| {
-            let g = layout.global(l);
+    rows.par_iter()
+        .map(|&g| {
             let (dot, b) = if g < n {
                 let pg = &centres[g * dim..(g + 1) * dim];
                 let mut s = 0.0;

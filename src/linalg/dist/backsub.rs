@@ -1,9 +1,9 @@
 //! Block back-substitution on a row-cyclic upper-triangular factor (R of QR, U of LU) whose
 //! right-hand side column already holds the transformed right-hand side.
 
-use super::comm::Comm;
 use super::system::LocalRows;
 use crate::error::{Error, Result};
+use crate::par::Comm;
 
 /// Solves U x = y where U is the upper triangle of the first n columns and y the last column.
 /// Returns x on every rank. A diagonal entry at most `tol` in magnitude is a singular matrix.

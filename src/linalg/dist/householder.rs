@@ -9,10 +9,9 @@ use faer::reborrow::Reborrow;
 use faer::{Accum, MatMut, MatRef, Par};
 
 use super::backsub::back_substitute;
-use super::comm::Comm;
 use super::system::LocalRows;
 use crate::error::Result;
-use crate::report::Progress;
+use crate::par::Comm;
 
 /// Solves the distributed system in `rows` (right-hand side in the last column) and returns the
 /// solution on every rank. Collective. `rows` is overwritten by R, the reflectors and Q^T b.
@@ -20,7 +19,7 @@ pub fn householder_solve(
     comm: &dyn Comm,
     rows: &mut LocalRows,
     panel: usize,
-    progress: &Progress,
+    progress: &dyn Fn(usize, usize),
 ) -> Result<Vec<f64>> {
     let lay = rows.layout;
     let n = lay.n;
@@ -96,7 +95,7 @@ pub fn householder_solve(
             matmul(a_trail, Accum::Add, vref.rb(), MatRef::from_column_major_slice(&tw, kb, rest), -1.0, par);
         }
         k += kb;
-        progress.update(k, n);
+        progress(k, n);
     }
     back_substitute(comm, rows, nb, tol)
 }

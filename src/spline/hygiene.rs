@@ -4,9 +4,11 @@
 
 use std::collections::HashMap;
 
-use crate::dense::{qr_r_diagonal, Matrix};
 use crate::error::{Error, Result};
-use crate::kernel::Kernel;
+use crate::linalg::dense::{qr_r_diagonal, Matrix};
+use crate::spline::carrier::Carrier;
+use crate::spline::kernel::Kernel;
+use crate::spline::system::Normalisation;
 
 /// Axis-aligned bounding box of `dim`-dimensional points stored `dim` values per point.
 pub fn bounding_box(points: &[f64], dim: usize) -> (Vec<f64>, Vec<f64>) {
@@ -117,6 +119,51 @@ fn degenerate_set(kernel: &Kernel) -> &'static str {
         (2, _) => "conic",
         _ => "low-degree algebraic set",
     }
+}
+
+/// Points made ready for the spline: duplicates merged, normalised, checked for unisolvency, and
+/// the carrier resolved and evaluated at them.
+#[derive(Debug, Clone)]
+pub struct Prepared {
+    /// Distinct points in the caller's coordinates, 3 values per point.
+    pub points: Vec<f64>,
+    /// The same points normalised (the spline's centres).
+    pub centres: Vec<f64>,
+    /// r_i = f_c(P_i).
+    pub values: Vec<f64>,
+    pub carrier: Carrier,
+    pub norm: Normalisation,
+    pub merged: usize,
+    pub box_lo: Vec<f64>,
+    pub box_hi: Vec<f64>,
+}
+
+/// Data hygiene, deterministic so that every rank gets the same result:
+/// merge points closer than `merge_tol` times the bounding-box diagonal, normalise, check that the
+/// polynomial part is determined, resolve the carrier and take its values at the points.
+pub fn prepare(raw: &[f64], kernel: &Kernel, carrier: &Carrier, merge_tol: f64) -> Result<Prepared> {
+    if let Some(deg) = carrier.polynomial_degree() {
+        if deg < kernel.order() {
+            return Err(Error::Usage(format!(
+                "carrier '{carrier}' is a polynomial of degree {deg}, which kernel {} (polynomial part of \
+                 degree {}) reproduces exactly: f = f_c - U would vanish everywhere. Use an R-function \
+                 carrier such as union(ball:...,ball:...) or the kernel r",
+                kernel.name(),
+                kernel.order() - 1
+            )));
+        }
+    }
+    let (lo, hi) = bounding_box(raw, 3);
+    let (points, merged) = merge_duplicates(raw, 3, merge_tol * diagonal(&lo, &hi));
+    let norm = Normalisation::of_box(&lo, &hi);
+    let mut centres = vec![0.0; points.len()];
+    for (c, p) in centres.chunks_exact_mut(3).zip(points.chunks_exact(3)) {
+        norm.apply(p, c);
+    }
+    check_unisolvent(kernel, &centres)?;
+    let carrier = carrier.resolve(&lo, &hi);
+    let values: Vec<f64> = points.chunks_exact(3).map(|p| carrier.eval(p)).collect();
+    Ok(Prepared { points, centres, values, carrier, norm, merged, box_lo: lo, box_hi: hi })
 }
 
 #[cfg(test)]

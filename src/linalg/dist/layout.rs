@@ -1,5 +1,5 @@
-//! The two distributions of the program: the row-cyclic rows of the dense system and the z-slabs
-//! of the evaluation grid. All global/local index arithmetic lives here.
+//! The row-cyclic distribution of the rows of the dense system over the ranks (global row g lives
+//! on rank g mod P, as local row g div P). All global/local row index arithmetic lives here.
 
 /// Row-cyclic distribution of `n` global rows over `p` ranks: global row g lives on rank g mod p
 /// at local index g div p (the paper's transputer layout, ScaLAPACK with block size 1).
@@ -62,25 +62,6 @@ impl RowCyclic {
     }
 }
 
-/// Contiguous block distribution of `n` grid layers over `ranks`: rank r gets layers
-/// start(r)..start(r)+count(r), the first n mod ranks ranks one more.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Slabs {
-    pub n: usize,
-    pub ranks: usize,
-}
-
-impl Slabs {
-    pub fn start(&self, r: usize) -> usize {
-        let (base, rem) = (self.n / self.ranks, self.n % self.ranks);
-        r * base + r.min(rem)
-    }
-
-    pub fn count(&self, r: usize) -> usize {
-        self.n / self.ranks + usize::from(r < self.n % self.ranks)
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -108,19 +89,6 @@ mod tests {
                 }
                 assert!(seen.iter().all(|&c| c == 1));
             }
-        }
-    }
-
-    #[test]
-    fn slabs_cover_the_grid() {
-        for ranks in 1..6 {
-            let s = Slabs { n: 11, ranks };
-            let mut next = 0;
-            for r in 0..ranks {
-                assert_eq!(s.start(r), next);
-                next += s.count(r);
-            }
-            assert_eq!(next, 11);
         }
     }
 }

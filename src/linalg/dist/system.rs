@@ -3,8 +3,8 @@
 
 use faer::{MatMut, MatRef};
 
-use super::comm::Comm;
 use super::layout::RowCyclic;
+use crate::par::Comm;
 
 /// This rank's rows of the global (n x cols) matrix, column-major with leading dimension equal to
 /// the local row count. Column `cols - 1` is the right-hand side.

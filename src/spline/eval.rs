@@ -208,7 +208,7 @@ fn block(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kernel::Kernel;
+    use crate::spline::kernel::Kernel;
     use crate::spline::Normalisation;
 
     fn spline(order: usize, n: usize) -> Spline {

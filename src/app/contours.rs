@@ -1,0 +1,149 @@
+//! `volspline contours`: planar cross-sections -> the solid. Rank 0 reads the contour file and
+//! every rank parses its text; the slices' systems are independent, so slice i is solved serially
+//! by rank i mod P and broadcast by its owner (every rank then holds every section bit for bit the
+//! same whatever P is); rank 0 writes the model; the volume outputs follow.
+
+use std::path::Path;
+
+use super::report::{Report, Stage, Stages};
+use super::volume::{output_path, write_volume};
+use crate::cli::ContoursArgs;
+use crate::contour::format::{self, Section};
+use crate::contour::{fit_section, ContourModel, SectionCarrier, SectionFit, SectionModel};
+use crate::error::{Error, Result};
+use crate::grid::{padded_box, Grid};
+use crate::io::{self, contour_model_file};
+use crate::par::{agree, on_root, Comm};
+use crate::spline::hygiene::bounding_box;
+use crate::spline::{Kernel, Provenance};
+
+/// Reads the contour file on rank 0, gives its text to every rank and parses it everywhere.
+fn read_sections_everywhere(comm: &dyn Comm, path: &Path) -> Result<Vec<Section>> {
+    let local = if comm.rank() == 0 {
+        std::fs::read_to_string(path).map(Some).map_err(|e| match e.kind() {
+            std::io::ErrorKind::InvalidData => Error::input(path, "", format!("not UTF-8 text: {e}")),
+            _ => Error::io(path, &e),
+        })
+    } else {
+        Ok(None)
+    };
+    let mine = agree(comm, local)?;
+    let text: String = comm.broadcast_value(0, mine);
+    agree(comm, format::parse(path, &text))
+}
+
+/// Solves every slice: slice i on rank i mod P, then broadcast from its owner. Collective.
+pub fn solve_sections(
+    comm: &dyn Comm,
+    source: &Path,
+    sections: &[Section],
+    kernel: &Kernel,
+    carrier: SectionCarrier,
+    merge_tol: f64,
+) -> Result<Vec<SectionFit>> {
+    let (p, r) = (comm.size(), comm.rank());
+    let mine: Result<Vec<SectionFit>> = sections
+        .iter()
+        .skip(r)
+        .step_by(p)
+        .map(|s| {
+            fit_section(s, kernel, carrier, merge_tol).map_err(|e| match e {
+                Error::Numerical(m) => Error::Numerical(format!("{}: {m}", source.display())),
+                other => other,
+            })
+        })
+        .collect();
+    let mut mine = agree(comm, mine)?.into_iter();
+    Ok((0..sections.len())
+        .map(|i| {
+            let owner = i % p;
+            comm.broadcast_value(owner, if owner == r { mine.next() } else { None })
+        })
+        .collect())
+}
+
+/// Runs `volspline contours`. Collective.
+pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
+    let mut stages = Stages::default();
+    let sections = stages.time(Stage::Read, || read_sections_everywhere(comm, &a.input))?;
+    let points_read: usize = sections.iter().map(Section::point_count).sum();
+    let contours: usize = sections.iter().map(|s| s.contours.len()).sum();
+    let world: Vec<f64> = sections
+        .iter()
+        .flat_map(|s| s.contours.iter().flatten().flat_map(move |p| s.world(*p).to_array()))
+        .collect();
+    let (lo, hi) = bounding_box(&world, 3);
+    if comm.rank() == 0 {
+        eprintln!(
+            "volspline contours: {} slices, {contours} contours, {points_read} points from {}; kernel {}, carrier {}",
+            sections.len(),
+            a.input.display(),
+            a.kernel.name(),
+            a.carrier.name()
+        );
+    }
+    let fits = stages.time(Stage::Solve, || {
+        solve_sections(comm, &a.input, &sections, &a.kernel, a.carrier, a.merge_tol)
+    })?;
+    let max_residual = fits.iter().map(|f| f.residual).fold(0.0, f64::max);
+    let max_abs = fits.iter().map(|f| f.max_abs_at_points).fold(0.0, f64::max);
+    let merged: usize = fits.iter().map(|f| f.merged).sum();
+    let points_used: usize = fits.iter().map(|f| f.points).sum();
+    let models: Vec<SectionModel> = sections
+        .iter()
+        .zip(fits)
+        .map(|(s, f)| SectionModel { origin: s.origin, frame: s.frame, carrier: f.carrier, spline: f.spline })
+        .collect();
+    let provenance = Provenance {
+        input: a.input.display().to_string(),
+        box_lo: [lo[0], lo[1], lo[2]],
+        box_hi: [hi[0], hi[1], hi[2]],
+        points_read,
+        duplicates_merged: merged,
+        solver: "lu (serial, per slice)".into(),
+        residual: max_residual,
+        ranks: comm.size(),
+        threads,
+        timings: stages.summarise(comm).named_max(),
+        version: env!("CARGO_PKG_VERSION").to_string(),
+    };
+    let model = ContourModel::new(models, a.interp, a.orient, provenance);
+    let model_path = output_path(&a.out, ".model.h5");
+    stages.time(Stage::Write, || {
+        on_root(comm, || {
+            io::write_atomically(&model_path, |tmp| contour_model_file::write_contour_model(tmp, &model))
+        })
+    })?;
+    let (plo, phi) = padded_box(&lo, &hi, a.grid.margin);
+    let grid = Grid::covering(plo, phi, a.grid.grid)?;
+    let volume = write_volume(comm, &model, &grid, &a.out, &mut stages)?;
+
+    let mut r = Report::new("contours", &a.input);
+    r.line(format!(
+        "{} slices, {contours} contours, N = {points_used} points ({points_read} read, {merged} duplicates merged), kernel {}, carrier {}",
+        sections.len(),
+        a.kernel.name(),
+        a.carrier.name()
+    ));
+    r.line(format!("interp {}, orient {}", a.interp.name(), a.orient.name()));
+    r.line(format!(
+        "ranks = {}, threads per rank = {threads} (slice i solved on rank i mod ranks)",
+        comm.size()
+    ));
+    r.line(format!("largest relative residual of the slice systems = {max_residual:.3e}"));
+    r.line(format!("max |F_i| at the slices' points              = {max_abs:.3e}"));
+    r.figure("input", a.input.display());
+    r.figure("slices", sections.len());
+    r.figure("contours", contours);
+    r.figure("points", points_used);
+    r.figure("kernel", a.kernel.name());
+    r.figure("interp", a.interp.name());
+    r.figure("orient", a.orient.name());
+    r.figure("ranks", comm.size());
+    r.figure("threads", threads);
+    r.figure("residual", format!("{max_residual:e}"));
+    r.output(&model_path);
+    volume.report(&mut r);
+    r.finish(comm, &stages, &|_| Vec::new(), a.grid.timings.as_deref())?;
+    Ok(())
+}

@@ -1,0 +1,59 @@
+//! `volspline eval`: a saved model (scattered-point or contour) evaluated on a new grid, without
+//! solving again. Every rank reads the small model file itself and all agree on the outcome.
+
+use super::report::{Report, Stage, Stages};
+use super::volume::{model_grid, throughput_line, write_volume};
+use crate::cli::EvalArgs;
+use crate::error::Result;
+use crate::io::contour_model_file::{self, read_contour_model};
+use crate::io::h5::format_of;
+use crate::io::model_file::read_model;
+use crate::par::{agree, Comm};
+
+/// Runs `volspline eval`. Collective.
+pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
+    let mut stages = Stages::default();
+    // an unreadable file is left to the scattered-point reader to report
+    let is_contour = format_of(&a.model).is_ok_and(|f| f == contour_model_file::FORMAT);
+    let mut r = Report::new("eval", &a.model);
+    r.figure("model", a.model.display());
+    let per_node;
+    let volume = if is_contour {
+        let model = stages.time(Stage::Read, || agree(comm, read_contour_model(&a.model)))?;
+        let grid = model_grid(a.grid.grid, a.bounds, a.grid.margin, &model.provenance)?;
+        let volume = write_volume(comm, &model, &grid, &a.out, &mut stages)?;
+        r.line(format!(
+            "contour model: {} slices, N = {} centres, interp {}, orient {}",
+            model.sections.len(),
+            model.centres(),
+            model.interp.name(),
+            model.orient.name()
+        ));
+        r.figure("slices", model.sections.len());
+        r.figure("points", model.centres());
+        per_node = 0;
+        volume
+    } else {
+        let model = stages.time(Stage::Read, || agree(comm, read_model(&a.model)))?;
+        let grid = model_grid(a.grid.grid, a.bounds, a.grid.margin, &model.provenance)?;
+        let volume = write_volume(comm, &model, &grid, &a.out, &mut stages)?;
+        let n = model.spline.len();
+        r.line(format!("N = {n} centres, kernel {}, carrier {}", model.spline.kernel.name(), model.carrier));
+        r.figure("points", n);
+        r.figure("kernel_evals", grid.node_count() as f64 * n as f64);
+        per_node = n;
+        volume
+    };
+    r.line(format!("ranks = {}, threads per rank = {threads}", comm.size()));
+    r.figure("ranks", comm.size());
+    r.figure("threads", threads);
+    volume.report(&mut r);
+    let nodes = volume.grid.node_count();
+    r.finish(
+        comm,
+        &stages,
+        &|t| throughput_line(nodes, per_node, t.max(Stage::Evaluate)),
+        a.grid.timings.as_deref(),
+    )?;
+    Ok(())
+}

@@ -1,0 +1,66 @@
+//! `volspline slice`: rank 0 cuts a triangle mesh by a family of planes and writes the contour
+//! file that `volspline contours` reads.
+
+use super::report::{Report, Stage, Stages};
+use crate::cli::SliceArgs;
+use crate::contour::format;
+use crate::contour::planes::{slice_mesh, SliceSummary};
+use crate::error::{Error, Result};
+use crate::io::{self, points};
+use crate::mesh::TriMesh;
+use crate::par::{on_root, Comm};
+
+/// Runs `volspline slice`. Collective (the work is rank 0's).
+pub fn run(a: &SliceArgs, comm: &dyn Comm) -> Result<()> {
+    let mut stages = Stages::default();
+    let mut summary = None;
+    stages.time(Stage::Slice, || {
+        on_root(comm, || {
+            let set = points::read_mesh(&a.mesh)?;
+            let mesh = TriMesh {
+                vertices: set.points.clone(),
+                triangles: set.triangles.iter().map(|t| [t[0] as u32, t[1] as u32, t[2] as u32]).collect(),
+            };
+            let (sections, s) = slice_mesh(&mesh, &a.planes.planes(&mesh.vertices));
+            if sections.len() < 2 {
+                return Err(Error::Usage(format!(
+                    "only {} of the {} planes meet the mesh; at least two slices are needed",
+                    sections.len(),
+                    s.planes
+                )));
+            }
+            let header = format!(
+                "volspline contours from {} cut by planes {}\n{} slices, {} contours, {} points",
+                a.mesh.display(),
+                a.planes,
+                s.slices,
+                s.contours,
+                s.points
+            );
+            io::write_atomically(&a.out, |tmp| {
+                std::fs::write(tmp, format::to_text(&sections, &header)).map_err(|e| Error::io(&a.out, &e))
+            })?;
+            summary = Some(s);
+            Ok(())
+        })
+    })?;
+    let s: SliceSummary = comm.broadcast_value(0, summary);
+    let mut r = Report::new("slice", &a.mesh);
+    r.line(format!(
+        "planes {}: {} planes, {} slices meet the mesh: {} contours, {} points",
+        a.planes, s.planes, s.slices, s.contours, s.points
+    ));
+    if s.joined > 0 {
+        r.line(format!(
+            "{} chains ended on holes of the mesh and were closed by joining their ends",
+            s.joined
+        ));
+    }
+    r.figure("planes", s.planes);
+    r.figure("slices", s.slices);
+    r.figure("contours", s.contours);
+    r.figure("points", s.points);
+    r.output(&a.out);
+    r.finish(comm, &stages, &|_| Vec::new(), None)?;
+    Ok(())
+}

@@ -1,0 +1,147 @@
+//! The volume outputs every command ends with: the field evaluated on the grid in z-slabs (one slab
+//! per rank, rayon threads within), written in parallel as one VTKHDF file, polygonised per slab,
+//! gathered and welded on rank 0 and written as PLY.
+
+use std::path::{Path, PathBuf};
+
+use super::report::{Report, Stage, Stages};
+use crate::error::{Error, Result};
+use crate::grid::{padded_box, Grid, GridSize};
+use crate::io::{self, vtkhdf};
+use crate::mesh::{self, MeshPiece, SlabGrid, TriMesh};
+use crate::par::{agree, on_root, Comm};
+use crate::spline::{Field, Provenance};
+
+/// What writing the volume and the mesh produced.
+#[derive(Debug, Clone)]
+pub struct VolumeSummary {
+    pub grid: Grid,
+    pub triangles: usize,
+    pub vertices: usize,
+    pub hdf_path: PathBuf,
+    pub ply_path: PathBuf,
+}
+
+impl VolumeSummary {
+    /// Adds the grid, the surface and the two outputs to `report`.
+    pub fn report(&self, report: &mut Report) {
+        let g = &self.grid;
+        report.line(format!(
+            "grid {} x {} x {} nodes, origin ({:.6}, {:.6}, {:.6}), spacing ({:.6}, {:.6}, {:.6})",
+            g.dims[0],
+            g.dims[1],
+            g.dims[2],
+            g.origin[0],
+            g.origin[1],
+            g.origin[2],
+            g.spacing[0],
+            g.spacing[1],
+            g.spacing[2]
+        ));
+        report.line(format!("surface f = 0: {} triangles, {} vertices", self.triangles, self.vertices));
+        report.figure("grid_nodes", g.node_count());
+        report.figure("triangles", self.triangles);
+        report.output(&self.hdf_path);
+        report.output(&self.ply_path);
+    }
+}
+
+/// `PREFIX` + suffix.
+pub fn output_path(prefix: &Path, suffix: &str) -> PathBuf {
+    let mut s = prefix.as_os_str().to_owned();
+    s.push(suffix);
+    PathBuf::from(s)
+}
+
+/// The grid of a fitted model: `bounds`, or by default the fit's data box plus `margin`, so that
+/// the same `--grid` and `--margin` give the fit's grid exactly.
+pub fn model_grid(
+    size: GridSize,
+    bounds: Option<([f64; 3], [f64; 3])>,
+    margin: f64,
+    provenance: &Provenance,
+) -> Result<Grid> {
+    let (lo, hi) = match bounds {
+        Some(b) => b,
+        None => padded_box(&provenance.box_lo, &provenance.box_hi, margin),
+    };
+    Grid::covering(lo, hi, size)
+}
+
+/// Evaluates `field` on `grid` in z-slabs, writes `PREFIX.hdf` in parallel and `PREFIX.ply` from
+/// rank 0. Collective.
+pub fn write_volume(
+    comm: &dyn Comm,
+    field: &dyn Field,
+    grid: &Grid,
+    prefix: &Path,
+    stages: &mut Stages,
+) -> Result<VolumeSummary> {
+    let slabs = grid.slabs(comm.size());
+    let (k0, layers) = (slabs.start(comm.rank()), slabs.count(comm.rank()));
+    let [nx, ny, nz] = grid.dims;
+    // one ghost layer above the slab lets this rank polygonise the cells between its last layer and
+    // the next rank's first
+    let ghost = usize::from(layers > 0 && k0 + layers < nz);
+    if comm.rank() == 0 {
+        eprintln!(
+            "volspline: grid {}x{}x{} = {} nodes, {} kernel evaluations per node",
+            nx,
+            ny,
+            nz,
+            grid.node_count(),
+            field.kernel_evals_per_node()
+        );
+    }
+    let values = stages.time(Stage::Evaluate, || field.eval_layers(grid, k0, layers + ghost));
+
+    let hdf_path = output_path(prefix, ".hdf");
+    stages.time(Stage::Write, || {
+        let tmp = io::partial_path(&hdf_path);
+        let local = vtkhdf::write_image(comm, &tmp, grid, k0, layers, "f", &values[..nx * ny * layers]);
+        let all = agree(comm, local);
+        comm.barrier();
+        match all {
+            Ok(()) => on_root(comm, || io::commit(&hdf_path)),
+            Err(e) => {
+                if comm.rank() == 0 {
+                    io::discard(&hdf_path);
+                }
+                Err(e)
+            }
+        }
+    })?;
+
+    let ply_path = output_path(prefix, ".ply");
+    let mut counts = [0u64; 2];
+    stages.time(Stage::Mesh, || -> Result<()> {
+        let piece = mesh::polygonise(
+            &SlabGrid { values: &values, nx, ny, nz, k0, layers, origin: grid.origin, spacing: grid.spacing },
+            0.0,
+        );
+        let gathered: Option<Vec<MeshPiece>> = comm.gather_values(0, &piece);
+        on_root(comm, || {
+            let mesh: TriMesh = mesh::weld(&gathered.unwrap_or_default());
+            counts = [mesh.triangles.len() as u64, mesh.vertices.len() as u64];
+            io::write_atomically(&ply_path, |tmp| mesh::write_ply(tmp, &mesh).map_err(|e| Error::io(tmp, &e)))
+        })
+    })?;
+    comm.sum_u64(&mut counts);
+    Ok(VolumeSummary {
+        grid: *grid,
+        triangles: counts[0] as usize,
+        vertices: counts[1] as usize,
+        hdf_path,
+        ply_path,
+    })
+}
+
+/// Evaluations per second of the evaluate stage, as a report line.
+pub fn throughput_line(nodes: usize, per_node: usize, seconds: f64) -> Vec<String> {
+    let evals = nodes as f64 * per_node as f64;
+    if seconds > 0.0 {
+        vec![format!("evaluation: {evals:.3e} kernel evaluations, {:.3e} per second", evals / seconds)]
+    } else {
+        Vec::new()
+    }
+}

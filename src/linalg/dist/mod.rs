@@ -1,0 +1,19 @@
+//! Distributed dense solvers of the bordered spline system on the row-cyclic layout: global row g
+//! lives on rank g mod P, every rank holds its rows with the right-hand side as the last column,
+//! and no solver ever gathers the matrix. Blocked Householder QR, LU with partial pivoting and the
+//! projected Cholesky; [`solve`] chooses among them and falls back from Cholesky to LU.
+
+mod backsub;
+mod cholesky;
+mod householder;
+mod layout;
+mod lu;
+mod solver;
+mod system;
+
+pub use cholesky::cholesky_solve;
+pub use householder::householder_solve;
+pub use layout::RowCyclic;
+pub use lu::lu_solve;
+pub use solver::{solve, Solved, SolverKind, AUTO_CHOLESKY_FROM};
+pub use system::{all_gather_rows, GatherBuffers, LocalRows};

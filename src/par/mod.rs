@@ -1,0 +1,111 @@
+//! Communication between ranks: the [`Comm`] interface every collective stage is written against,
+//! typed collectives over it ([`Wire`] values), and the agreement on failures that keeps a job from
+//! hanging when one rank fails.
+//!
+//! [`Comm`] has two implementations: [`Solo`] (one process, no MPI) and [`mpi::MpiComm`] (any MPI
+//! communicator). `mpi.rs` is the only file of the crate that imports the MPI bindings; everything
+//! else sees ranks through this trait, so the solvers and commands are the same code in unit tests,
+//! on one process and under `mpirun`.
+//!
+//! The failure protocol: a stage whose local step can fail on some ranks calls [`agree`] before the
+//! next collective. Every rank then returns the same outcome: `Ok` everywhere, or the error of the
+//! lowest failing rank, carried to the others as [`Error::Remote`] with the original error (its kind
+//! included) inside. Callers that branch on the kind of an error (the Cholesky solver's fallback to
+//! LU) look through `Remote` with [`Error::root`], so every rank takes the same branch.
+
+pub mod mpi;
+mod solo;
+mod wire;
+
+pub use solo::Solo;
+pub use wire::{Reader, Wire};
+
+use crate::error::{Error, Result};
+
+/// The handle a parallel file library needs to open a file on all ranks (MPI-IO).
+pub type RawComm = mpi::RawComm;
+
+/// A group of ranks. Every method is collective over all ranks unless it says otherwise, and every
+/// rank must pass buffers of the same length.
+pub trait Comm {
+    fn rank(&self) -> usize;
+    fn size(&self) -> usize;
+    fn barrier(&self);
+    /// Element-wise sum over ranks, in place.
+    fn sum_f64(&self, buf: &mut [f64]);
+    /// Element-wise maximum over ranks, in place.
+    fn max_f64(&self, buf: &mut [f64]);
+    /// Element-wise minimum over ranks, in place.
+    fn min_f64(&self, buf: &mut [f64]);
+    /// Element-wise sum over ranks of counts, in place.
+    fn sum_u64(&self, buf: &mut [u64]);
+    /// Copies `buf` from `root` to every rank (lengths must agree).
+    fn broadcast_f64(&self, root: usize, buf: &mut [f64]);
+    /// Copies `buf` from `root` to every rank; other ranks' buffers are resized.
+    fn broadcast_bytes(&self, root: usize, buf: &mut Vec<u8>);
+    /// Concatenation of every rank's `send` in rank order; `counts[r]` is rank r's length.
+    fn all_gather_f64(&self, send: &[f64], counts: &[usize], recv: &mut [f64]);
+    /// Every rank's bytes on `root` (None on the others).
+    fn gather_bytes(&self, root: usize, send: &[u8]) -> Option<Vec<Vec<u8>>>;
+    /// Sends `send` to rank `dest` and receives the message of rank `source` into `recv` (whose
+    /// length the caller knows). Point-to-point; `dest` must at the same time receive from this
+    /// rank and `source` send to it (a shift or a pairwise exchange), so nothing deadlocks.
+    fn shift_f64(&self, dest: usize, source: usize, send: &[f64], recv: &mut [f64]);
+    /// The communicator handle for collective file access (MPI-IO), where there is one.
+    fn raw(&self) -> Option<RawComm> {
+        None
+    }
+}
+
+impl dyn Comm + '_ {
+    /// `root`'s value on every rank. `root` passes `Some`, the others `None`. Collective.
+    pub fn broadcast_value<T: Wire>(&self, root: usize, value: Option<T>) -> T {
+        let mut bytes = Vec::new();
+        if self.rank() == root {
+            value.as_ref().expect("the root of a broadcast passes its value").put(&mut bytes);
+        }
+        self.broadcast_bytes(root, &mut bytes);
+        match value {
+            Some(v) if self.rank() == root => v,
+            _ => T::decode(&bytes),
+        }
+    }
+
+    /// Every rank's value on `root`, in rank order (None on the other ranks). Collective.
+    pub fn gather_values<T: Wire>(&self, root: usize, value: &T) -> Option<Vec<T>> {
+        let mut bytes = Vec::new();
+        value.put(&mut bytes);
+        self.gather_bytes(root, &bytes).map(|all| all.iter().map(|b| T::decode(b)).collect())
+    }
+}
+
+/// Makes every rank return the same result: Ok on all ranks if all succeeded, otherwise the error
+/// of the lowest failing rank, as [`Error::Remote`] (kind kept) on the others. Collective; call it
+/// before any collective that a failed rank would not reach.
+pub fn agree<T>(comm: &dyn Comm, local: Result<T>) -> Result<T> {
+    let mut who = [if local.is_err() { comm.rank() as f64 } else { f64::INFINITY }];
+    comm.min_f64(&mut who);
+    if who[0].is_infinite() {
+        return local;
+    }
+    let root = who[0] as usize;
+    let mine = if root == comm.rank() { local.as_ref().err().cloned() } else { None };
+    let error: Error = comm.broadcast_value(root, mine);
+    match local {
+        Err(e) if root == comm.rank() => Err(e),
+        _ => Err(Error::Remote { rank: root, source: Box::new(error) }),
+    }
+}
+
+/// Runs `f` on rank 0 only (a file write, say) and agrees on its outcome. Collective.
+pub fn on_root(comm: &dyn Comm, f: impl FnOnce() -> Result<()>) -> Result<()> {
+    let local = if comm.rank() == 0 { f() } else { Ok(()) };
+    agree(comm, local)
+}
+
+/// Largest value of `x` over ranks. Collective.
+pub fn max_over_ranks(comm: &dyn Comm, x: f64) -> f64 {
+    let mut v = [x];
+    comm.max_f64(&mut v);
+    v[0]
+}

@@ -1,0 +1,166 @@
+//! [`Comm`] over MPI (rsmpi), and the process-wide MPI life cycle: start, abort on a panic, finish.
+//! The only file of the crate that imports the MPI bindings. MPI is called from the calling thread
+//! only (the rayon workers never communicate).
+
+use mpi::collective::SystemOperation;
+use mpi::datatype::PartitionMut;
+use mpi::environment::Universe;
+use mpi::raw::AsRaw;
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
+use mpi::Count;
+
+use super::Comm;
+
+/// The raw communicator handle, for MPI-IO through the HDF5 library.
+pub type RawComm = mpi::ffi::MPI_Comm;
+
+/// MPI, started for the life of the process. Dropping it finalises MPI.
+pub struct World {
+    universe: Universe,
+}
+
+impl World {
+    /// Starts MPI (None when it cannot be started) and installs a panic hook that aborts every
+    /// rank, so that a panic on one rank never leaves the others waiting in a collective.
+    pub fn start() -> Option<World> {
+        let universe = mpi::initialize()?;
+        let default_hook = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            default_hook(info);
+            eprintln!("volspline: internal error (panic); aborting all ranks");
+            abort_all(70);
+        }));
+        Some(World { universe })
+    }
+
+    /// MPI_COMM_WORLD as a [`Comm`].
+    pub fn comm(&self) -> MpiComm {
+        MpiComm::new(self.universe.world())
+    }
+}
+
+/// Ends every rank of the job with `code` (MPI_Abort on the world communicator).
+pub fn abort_all(code: i32) -> ! {
+    unsafe {
+        mpi::ffi::MPI_Abort(mpi::ffi::RSMPI_COMM_WORLD, code);
+    }
+    std::process::exit(code)
+}
+
+/// A communicator through rsmpi.
+pub struct MpiComm {
+    comm: SimpleCommunicator,
+    rank: usize,
+    size: usize,
+}
+
+impl MpiComm {
+    pub fn new(comm: SimpleCommunicator) -> Self {
+        let (rank, size) = (comm.rank() as usize, comm.size() as usize);
+        MpiComm { comm, rank, size }
+    }
+
+    fn all_reduce<T: Equivalence + Clone>(&self, buf: &mut [T], op: SystemOperation) {
+        if self.size > 1 {
+            let send = buf.to_vec();
+            self.comm.all_reduce_into(&send[..], buf, op);
+        }
+    }
+}
+
+fn displacements(counts: &[usize]) -> (Vec<Count>, Vec<Count>) {
+    let c: Vec<Count> = counts.iter().map(|&x| x as Count).collect();
+    let mut d = Vec::with_capacity(c.len());
+    let mut acc: Count = 0;
+    for &x in &c {
+        d.push(acc);
+        acc += x;
+    }
+    (c, d)
+}
+
+impl Comm for MpiComm {
+    fn rank(&self) -> usize {
+        self.rank
+    }
+    fn size(&self) -> usize {
+        self.size
+    }
+    fn barrier(&self) {
+        self.comm.barrier();
+    }
+    fn sum_f64(&self, buf: &mut [f64]) {
+        self.all_reduce(buf, SystemOperation::sum());
+    }
+    fn max_f64(&self, buf: &mut [f64]) {
+        self.all_reduce(buf, SystemOperation::max());
+    }
+    fn min_f64(&self, buf: &mut [f64]) {
+        self.all_reduce(buf, SystemOperation::min());
+    }
+    fn sum_u64(&self, buf: &mut [u64]) {
+        self.all_reduce(buf, SystemOperation::sum());
+    }
+    fn broadcast_f64(&self, root: usize, buf: &mut [f64]) {
+        if self.size > 1 {
+            self.comm.process_at_rank(root as i32).broadcast_into(buf);
+        }
+    }
+    fn broadcast_bytes(&self, root: usize, buf: &mut Vec<u8>) {
+        if self.size > 1 {
+            let p = self.comm.process_at_rank(root as i32);
+            let mut len = [buf.len() as u64];
+            p.broadcast_into(&mut len[..]);
+            buf.resize(len[0] as usize, 0);
+            p.broadcast_into(&mut buf[..]);
+        }
+    }
+    fn all_gather_f64(&self, send: &[f64], counts: &[usize], recv: &mut [f64]) {
+        if self.size == 1 {
+            recv.copy_from_slice(send);
+            return;
+        }
+        let (c, d) = displacements(counts);
+        let mut part = PartitionMut::new(recv, c, d);
+        self.comm.all_gather_varcount_into(send, &mut part);
+    }
+    fn gather_bytes(&self, root: usize, send: &[u8]) -> Option<Vec<Vec<u8>>> {
+        if self.size == 1 {
+            return Some(vec![send.to_vec()]);
+        }
+        let p = self.comm.process_at_rank(root as i32);
+        if self.rank == root {
+            let mut counts = vec![0u64; self.size];
+            p.gather_into_root(&(send.len() as u64), &mut counts[..]);
+            let counts: Vec<usize> = counts.into_iter().map(|c| c as usize).collect();
+            let (c, d) = displacements(&counts);
+            let mut all = vec![0u8; counts.iter().sum()];
+            let mut part = PartitionMut::new(&mut all[..], c, d.clone());
+            p.gather_varcount_into_root(send, &mut part);
+            Some(
+                counts
+                    .iter()
+                    .zip(&d)
+                    .map(|(&n, &off)| all[off as usize..off as usize + n].to_vec())
+                    .collect(),
+            )
+        } else {
+            p.gather_into(&(send.len() as u64));
+            p.gather_varcount_into(send);
+            None
+        }
+    }
+    fn shift_f64(&self, dest: usize, source: usize, send: &[f64], recv: &mut [f64]) {
+        if dest == self.rank && source == self.rank {
+            recv.copy_from_slice(send);
+            return;
+        }
+        let d = self.comm.process_at_rank(dest as i32);
+        let s = self.comm.process_at_rank(source as i32);
+        mpi::point_to_point::send_receive_into(send, &d, recv, &s);
+    }
+    fn raw(&self) -> Option<RawComm> {
+        Some(self.comm.as_raw())
+    }
+}
