@@ -239,26 +239,22 @@ fn bounds(s: &str) -> Parsed<([f64; 3], [f64; 3])> {
     reason(parse_bounds(s))
 }
 
-fn number(s: &str) -> Parsed<f64> {
-    s.trim().parse::<f64>().map_err(|_| format!("'{s}' is not a number"))
+/// A number in `range`, described as `what` when it is not.
+fn number_in(s: &str, range: impl std::ops::RangeBounds<f64>, what: &str) -> Parsed<f64> {
+    let v: f64 = s.trim().parse().map_err(|_| format!("'{s}' is not a number"))?;
+    if range.contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{v}: expected a number in {what}"))
+    }
 }
 
 fn margin(s: &str) -> Parsed<f64> {
-    let m = number(s)?;
-    if (0.0..=10.0).contains(&m) {
-        Ok(m)
-    } else {
-        Err(format!("{m}: expected a number in [0, 10]"))
-    }
+    number_in(s, 0.0..=10.0, "[0, 10]")
 }
 
 fn merge_tol(s: &str) -> Parsed<f64> {
-    let t = number(s)?;
-    if (0.0..0.1).contains(&t) {
-        Ok(t)
-    } else {
-        Err(format!("{t}: expected a number in [0, 0.1)"))
-    }
+    number_in(s, 0.0..0.1, "[0, 0.1)")
 }
 
 #[cfg(test)]

@@ -73,7 +73,8 @@ impl<'a> Evaluator<'a> {
         let zn = (z - norm.centre[2]) / norm.scale;
         let xn: Vec<f64> = xs.iter().map(|x| (x - norm.centre[0]) / norm.scale).collect();
         let mut acc = vec![[0.0f64; LANES]; xs.len()];
-        radial_sums(form, &xn, yn, zn, &self.cx, &self.cy, &self.cz, &self.w, &mut acc);
+        let row = Row { form, xn: &xn, y: yn, z: zn, cx: &self.cx, cy: &self.cy, cz: &self.cz, w: &self.w };
+        radial_sums(&row, &mut acc);
         let k = sp.poly.len();
         let mut pv = [0.0; 10];
         for ((o, a), &x) in out.iter_mut().zip(&acc).zip(&xn) {
@@ -85,81 +86,51 @@ impl<'a> Evaluator<'a> {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
-fn radial_sums(
+/// One row of evaluation points against all centres: the row's normalised x values at (y, z),
+/// and the centres and weights in structure-of-arrays form.
+struct Row<'a> {
     form: Form,
-    xn: &[f64],
+    xn: &'a [f64],
     y: f64,
     z: f64,
-    cx: &[f64],
-    cy: &[f64],
-    cz: &[f64],
-    w: &[f64],
-    acc: &mut [[f64; LANES]],
-) {
+    cx: &'a [f64],
+    cy: &'a [f64],
+    cz: &'a [f64],
+    w: &'a [f64],
+}
+
+/// The radial sums of `row` into `acc`, compiled for the widest vector unit the CPU has (the same
+/// portable code, so every path gives the same bits).
+fn radial_sums(row: &Row<'_>, acc: &mut [[f64; LANES]]) {
     #[cfg(target_arch = "x86_64")]
     {
         if std::arch::is_x86_feature_detected!("avx512f") {
             // SAFETY: the CPU supports AVX-512F (checked just above).
-            unsafe { radial_sums_avx512(form, xn, y, z, cx, cy, cz, w, acc) };
-            return;
+            return unsafe { radial_sums_avx512(row, acc) };
         }
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2 (checked just above).
-            unsafe { radial_sums_avx2(form, xn, y, z, cx, cy, cz, w, acc) };
-            return;
+            return unsafe { radial_sums_avx2(row, acc) };
         }
     }
-    radial_sums_portable(form, xn, y, z, cx, cy, cz, w, acc);
+    radial_sums_portable(row, acc);
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-#[allow(clippy::too_many_arguments)]
-unsafe fn radial_sums_avx512(
-    form: Form,
-    xn: &[f64],
-    y: f64,
-    z: f64,
-    cx: &[f64],
-    cy: &[f64],
-    cz: &[f64],
-    w: &[f64],
-    acc: &mut [[f64; LANES]],
-) {
-    radial_sums_portable(form, xn, y, z, cx, cy, cz, w, acc);
+unsafe fn radial_sums_avx512(row: &Row<'_>, acc: &mut [[f64; LANES]]) {
+    radial_sums_portable(row, acc);
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-#[allow(clippy::too_many_arguments)]
-unsafe fn radial_sums_avx2(
-    form: Form,
-    xn: &[f64],
-    y: f64,
-    z: f64,
-    cx: &[f64],
-    cy: &[f64],
-    cz: &[f64],
-    w: &[f64],
-    acc: &mut [[f64; LANES]],
-) {
-    radial_sums_portable(form, xn, y, z, cx, cy, cz, w, acc);
+unsafe fn radial_sums_avx2(row: &Row<'_>, acc: &mut [[f64; LANES]]) {
+    radial_sums_portable(row, acc);
 }
 
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn radial_sums_portable(
-    form: Form,
-    xn: &[f64],
-    y: f64,
-    z: f64,
-    cx: &[f64],
-    cy: &[f64],
-    cz: &[f64],
-    w: &[f64],
-    acc: &mut [[f64; LANES]],
-) {
+fn radial_sums_portable(row: &Row<'_>, acc: &mut [[f64; LANES]]) {
+    let Row { form, xn, y, z, cx, cy, cz, w } = *row;
     let n = w.len();
     let mut b0 = 0;
     while b0 < n {
