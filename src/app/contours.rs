@@ -5,7 +5,8 @@
 
 use std::path::Path;
 
-use super::report::{Report, Stage, Stages};
+use super::report::{run_provenance, Report};
+use super::stages::{Stage, Stages};
 use super::volume::{output_path, write_volume};
 use crate::cli::ContoursArgs;
 use crate::contour::format::{self, Section};
@@ -102,10 +103,7 @@ pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         duplicates_merged: merged,
         solver: "lu (serial, per slice)".into(),
         residual: max_residual,
-        ranks: comm.size(),
-        threads,
-        timings: stages.summarise(comm).named_max(),
-        version: env!("CARGO_PKG_VERSION").to_string(),
+        ..run_provenance(comm, threads, &stages)
     };
     let model = ContourModel::new(models, a.interp, a.orient, provenance);
     let model_path = output_path(&a.out, ".model.h5");

@@ -1,7 +1,8 @@
 //! `volspline eval`: a saved model (scattered-point or contour) evaluated on a new grid, without
 //! solving again. Every rank reads the small model file itself and all agree on the outcome.
 
-use super::report::{Report, Stage, Stages};
+use super::report::Report;
+use super::stages::{Stage, Stages};
 use super::volume::{model_grid, throughput_line, write_volume};
 use crate::cli::EvalArgs;
 use crate::error::Result;

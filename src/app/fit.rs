@@ -7,7 +7,9 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
-use super::report::{Progress, Report, Stage, Stages};
+use super::progress::Progress;
+use super::report::{run_provenance, Report};
+use super::stages::{Stage, Stages};
 use super::volume::{output_path, throughput_line, write_volume};
 use crate::cli::FitArgs;
 use crate::error::Result;
@@ -97,10 +99,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             duplicates_merged: merged,
             solver: solved.used.name().to_string(),
             residual,
-            ranks: comm.size(),
-            threads,
-            timings: stages.summarise(comm).named_max(),
-            version: env!("CARGO_PKG_VERSION").to_string(),
+            ..run_provenance(comm, threads, &stages)
         },
     };
     let model_path = output_path(&a.out, ".model.h5");

@@ -1,13 +1,15 @@
 //! The commands: one file each ([`fit`], [`eval`], [`contours`], [`slice`]), the volume outputs
-//! they share ([`volume`]), their report ([`report`]) and the encodings of what they send between
+//! they share ([`volume`]), their report ([`report`], [`stages`], [`progress`]) and the encodings of what they send between
 //! ranks ([`wire`]). A command takes its typed arguments from `cli` and a communicator; everything
 //! it computes comes from the library rooms below it.
 
 pub mod contours;
 pub mod eval;
 pub mod fit;
+pub mod progress;
 pub mod report;
 pub mod slice;
+pub mod stages;
 pub mod volume;
 mod wire;
 

@@ -1,7 +1,8 @@
 //! `volspline slice`: rank 0 cuts a triangle mesh by a family of planes and writes the contour
 //! file that `volspline contours` reads.
 
-use super::report::{Report, Stage, Stages};
+use super::report::Report;
+use super::stages::{Stage, Stages};
 use crate::cli::SliceArgs;
 use crate::contour::format;
 use crate::contour::planes::{slice_mesh, SliceSummary};

@@ -4,7 +4,8 @@
 
 use std::path::{Path, PathBuf};
 
-use super::report::{Report, Stage, Stages};
+use super::report::Report;
+use super::stages::{Stage, Stages};
 use crate::error::{Error, Result};
 use crate::grid::{padded_box, Grid, GridSize};
 use crate::io::{self, vtkhdf};
