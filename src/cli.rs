@@ -136,7 +136,7 @@ pub struct GridArgs {
     #[arg(long, default_value = "0.05", value_name = "F", value_parser = margin)]
     pub margin: f64,
     /// Threads per rank (0: the cores of this node divided by the ranks on it).
-    #[arg(long, default_value_t = 0, value_name = "T")]
+    #[arg(long, default_value = "0", value_name = "T", value_parser = threads)]
     pub threads: usize,
     /// Also write the run's figures (sizes, stage min/max seconds, residual, peak memory) as
     /// `key,value` CSV to this file, for scaling studies.
@@ -249,6 +249,17 @@ fn number_in(s: &str, range: impl std::ops::RangeBounds<f64>, what: &str) -> Par
     }
 }
 
+/// Most threads a rank may start: far beyond any node's cores, short of exhausting the process.
+pub const MAX_THREADS: usize = 1024;
+
+fn threads(s: &str) -> Parsed<usize> {
+    match s.trim().parse::<usize>() {
+        Ok(t) if t <= MAX_THREADS => Ok(t),
+        Ok(t) => Err(format!("{t} threads per rank: at most {MAX_THREADS} (use about the cores per rank)")),
+        Err(_) => Err(format!("'{s}' is not a thread count")),
+    }
+}
+
 fn margin(s: &str) -> Parsed<f64> {
     number_in(s, 0.0..=10.0, "[0, 10]")
 }
@@ -288,6 +299,7 @@ mod tests {
             &["eval", "m.h5", "--out", "o", "--bounds", "0,0,0,1,1"],
             &["contours", "c.txt", "--out", "o", "--interp", "quintic"],
             &["slice", "m.obj", "--out", "c.txt", "--planes", "w:3"],
+            &["fit", "a.xyz", "--out", "o", "--threads", "20000"],
         ] {
             let e = parse(bad).unwrap_err();
             assert_eq!(e.exit_code(), 2, "{bad:?}");

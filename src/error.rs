@@ -20,6 +20,9 @@ pub enum Error {
     /// The projected block of the spline system is not definite to working precision (the
     /// Cholesky solver's signal to fall back to LU).
     NotDefinite(String),
+    /// A rank would need more memory than it can have (the figures and what to do are in the
+    /// message).
+    Memory(String),
     /// HDF5 failed on a file.
     Hdf5 { path: PathBuf, reason: String },
     /// Another rank failed with `source`; carried whole (kind included) so that every rank reports
@@ -83,6 +86,7 @@ impl fmt::Display for Error {
             Error::Usage(msg) => write!(f, "invalid argument: {msg}"),
             Error::Numerical(msg) => write!(f, "numerical failure: {msg}"),
             Error::NotDefinite(msg) => write!(f, "not definite: {msg}"),
+            Error::Memory(msg) => write!(f, "not enough memory: {msg}"),
             Error::Hdf5 { path, reason } => write!(f, "{}: HDF5 error: {reason}", path.display()),
             Error::Remote { source, .. } => write!(f, "{source}"),
         }

@@ -5,9 +5,10 @@
 
 use std::path::Path;
 
+use super::preflight::check_prefix;
 use super::report::{run_provenance, Report};
 use super::stages::{Stage, Stages};
-use super::volume::{output_path, write_volume};
+use super::volume::{check_grid, output_path, write_volume};
 use crate::cli::ContoursArgs;
 use crate::contour::format::{self, Section};
 use crate::contour::{fit_section, ContourModel, SectionCarrier, SectionFit, SectionModel};
@@ -66,6 +67,7 @@ pub fn solve_sections(
 /// Runs `volspline contours`. Collective.
 pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
+    check_prefix(comm, &a.out)?;
     let sections = stages.time(Stage::Read, || read_sections_everywhere(comm, &a.input))?;
     let points_read: usize = sections.iter().map(Section::point_count).sum();
     let contours: usize = sections.iter().map(|s| s.contours.len()).sum();
@@ -74,6 +76,9 @@ pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         .flat_map(|s| s.contours.iter().flatten().flat_map(move |p| s.world(*p).to_array()))
         .collect();
     let (lo, hi) = bounding_box(&world, 3);
+    let (plo, phi) = padded_box(&lo, &hi, a.grid.margin);
+    let grid = Grid::covering(plo, phi, a.grid.grid)?;
+    check_grid(comm, &grid)?;
     if comm.rank() == 0 {
         eprintln!(
             "volspline contours: {} slices, {contours} contours, {points_read} points from {}; kernel {}, carrier {}",
@@ -112,8 +117,6 @@ pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             io::write_atomically(&model_path, |tmp| contour_model_file::write_contour_model(tmp, &model))
         })
     })?;
-    let (plo, phi) = padded_box(&lo, &hi, a.grid.margin);
-    let grid = Grid::covering(plo, phi, a.grid.grid)?;
     let volume = write_volume(comm, &model, &grid, &a.out, &mut stages)?;
 
     let mut r = Report::new("contours", &a.input);

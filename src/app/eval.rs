@@ -1,9 +1,10 @@
 //! `volspline eval`: a saved model (scattered-point or contour) evaluated on a new grid, without
 //! solving again. Every rank reads the small model file itself and all agree on the outcome.
 
+use super::preflight::check_prefix;
 use super::report::Report;
 use super::stages::{Stage, Stages};
-use super::volume::{model_grid, throughput_line, write_volume};
+use super::volume::{check_grid, model_grid, throughput_line, write_volume};
 use crate::cli::EvalArgs;
 use crate::error::Result;
 use crate::io::contour_model_file::{self, read_contour_model};
@@ -14,6 +15,7 @@ use crate::par::{agree, Comm};
 /// Runs `volspline eval`. Collective.
 pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
+    check_prefix(comm, &a.out)?;
     // an unreadable file is left to the scattered-point reader to report
     let is_contour = format_of(&a.model).is_ok_and(|f| f == contour_model_file::FORMAT);
     let mut r = Report::new("eval", &a.model);
@@ -22,6 +24,7 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let volume = if is_contour {
         let model = stages.time(Stage::Read, || agree(comm, read_contour_model(&a.model)))?;
         let grid = model_grid(a.grid.grid, a.bounds, a.grid.margin, &model.provenance)?;
+        check_grid(comm, &grid)?;
         let volume = write_volume(comm, &model, &grid, &a.out, &mut stages)?;
         r.line(format!(
             "contour model: {} slices, N = {} centres, interp {}, orient {}",
@@ -37,6 +40,7 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     } else {
         let model = stages.time(Stage::Read, || agree(comm, read_model(&a.model)))?;
         let grid = model_grid(a.grid.grid, a.bounds, a.grid.margin, &model.provenance)?;
+        check_grid(comm, &grid)?;
         let volume = write_volume(comm, &model, &grid, &a.out, &mut stages)?;
         let n = model.spline.len();
         r.line(format!("N = {n} centres, kernel {}, carrier {}", model.spline.kernel.name(), model.carrier));

@@ -7,10 +7,11 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
+use super::preflight::{check_memory, check_prefix, dense_fit_bytes};
 use super::progress::Progress;
 use super::report::{run_provenance, Report};
 use super::stages::{Stage, Stages};
-use super::volume::{output_path, throughput_line, write_volume};
+use super::volume::{check_grid, output_path, throughput_line, write_volume};
 use crate::cli::FitArgs;
 use crate::error::Result;
 use crate::grid::{padded_box, Grid};
@@ -43,6 +44,7 @@ pub fn assemble(kernel: &Kernel, centres: &[f64], values: &[f64], layout: RowCyc
 /// Runs `volspline fit`. Collective.
 pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
+    check_prefix(comm, &a.out)?;
     let raw = stages.time(Stage::Read, || read_points_everywhere(comm, &a.input))?;
     let points_read = raw.len() / 3;
     let Prepared { points: pts, centres, values, carrier, norm, merged, box_lo: lo, box_hi: hi } =
@@ -56,7 +58,18 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         );
     }
 
-    let layout = RowCyclic::new(n + a.kernel.poly_count(), comm.size(), comm.rank());
+    let system = n + a.kernel.poly_count();
+    let (plo, phi) = padded_box(&lo, &hi, a.grid.margin);
+    let grid = Grid::covering(plo, phi, a.grid.grid)?;
+    check_memory(
+        comm,
+        dense_fit_bytes(system, comm.size()),
+        &format!("the dense system of {system} rows ({n} points)"),
+        "use more ranks or nodes (the rows are split over all ranks) or fewer points",
+    )?;
+    check_grid(comm, &grid)?;
+
+    let layout = RowCyclic::new(system, comm.size(), comm.rank());
     let rows = stages.time(Stage::Assemble, || assemble(&a.kernel, &centres, &values, layout));
     let progress = Progress::new("solve", comm);
     let solved = stages.time(Stage::Solve, || {
@@ -107,12 +120,9 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         on_root(comm, || io::write_atomically(&model_path, |tmp| model_file::write_model(tmp, &model)))
     })?;
 
-    let (plo, phi) = padded_box(&lo, &hi, a.grid.margin);
-    let grid = Grid::covering(plo, phi, a.grid.grid)?;
     let volume = write_volume(comm, &model, &grid, &a.out, &mut stages)?;
 
     let mut r = Report::new("fit", &a.input);
-    let system = n + a.kernel.poly_count();
     r.line(format!(
         "N = {n} points ({points_read} read, {merged} duplicates merged), kernel {}, solver {}, panel {}",
         a.kernel.name(),

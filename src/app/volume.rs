@@ -4,6 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
+use super::preflight::{check_memory, grid_bytes};
 use super::report::Report;
 use super::stages::{Stage, Stages};
 use crate::error::{Error, Result};
@@ -67,6 +68,17 @@ pub fn model_grid(
         None => padded_box(&provenance.box_lo, &provenance.box_hi, margin),
     };
     Grid::covering(lo, hi, size)
+}
+
+/// Refuses a grid whose slab would not fit in a rank's memory. Collective.
+pub fn check_grid(comm: &dyn Comm, grid: &Grid) -> Result<()> {
+    let [nx, ny, nz] = grid.dims;
+    check_memory(
+        comm,
+        grid_bytes(grid, comm.size()),
+        &format!("the grid of {nx} x {ny} x {nz} nodes"),
+        "use a coarser --grid or more ranks (the grid is split in z-slabs over them)",
+    )
 }
 
 /// Evaluates `field` on `grid` in z-slabs, writes `PREFIX.hdf` in parallel and `PREFIX.ply` from

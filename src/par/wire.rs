@@ -170,6 +170,7 @@ impl Wire for Error {
                 5u8.put(out);
                 (path.clone(), reason.clone()).put(out);
             }
+            Error::Memory(m) => (7u8, m.clone()).put(out),
             Error::Remote { rank, source } => {
                 6u8.put(out);
                 rank.put(out);
@@ -198,6 +199,7 @@ impl Wire for Error {
                 let rank = usize::take(r);
                 Error::Remote { rank, source: Box::new(Error::take(r)) }
             }
+            7 => Error::Memory(String::take(r)),
             tag => panic!("message between ranks: unknown error tag {tag}"),
         }
     }
@@ -239,6 +241,7 @@ mod tests {
             Error::Numerical("singular".into()),
             Error::NotDefinite("pivot 3".into()),
             Error::hdf5("v.hdf", "closed"),
+            Error::Memory("1 TB".into()),
             Error::Remote { rank: 2, source: Box::new(Error::NotDefinite("x".into())) },
         ] {
             let back = Error::decode(&e.encode());
