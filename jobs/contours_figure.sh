@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The README's picture of reconstruction from contours: the cow cut by `volspline slice` into 30
 # parallel slices and rebuilt by `volspline contours` (four legs branching into one body, no
-# correspondence given), and the paper's Figure 4 case, a bent and twisted block from 50
-# non-parallel sections. Writes bench-results/contours-figure/{contours.png,command.txt}.
+# correspondence given), and a bent and twisted block from 50 non-parallel sections (the case of
+# Figure 4 of Savchenko et al. 1995). Writes bench-results/contours-figure/{contours.png,command.txt}.
 # Needs matplotlib and numpy (pip install matplotlib). Set VOLSPLINE to use another binary.
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Helpers of jobs/contours_figure.sh.
 
-block-sections OUT.txt   writes the contour file of the bent and twisted block (paper 000, Figure 4):
+block-sections OUT.txt   writes the contour file of the bent and twisted block (the case of
+                         Figure 4 of Savchenko et al. 1995):
                          50 sections of a 2 x 1 rectangle along a quarter circle of radius 4, the
                          section turning by 90 degrees about the path (the same case as
                          tests/contours.rs).
@@ -35,7 +36,7 @@ def rectangle(per_side=10, a=1.0, b=0.5):
 
 def block_sections(path, count=50):
     with open(path, "w") as f:
-        f.write("# bent and twisted block, paper 000 Figure 4\n")
+        f.write("# bent and twisted block: 50 non-parallel sections of a 2 x 1 rectangle\n")
         for i in range(count):
             o, m = block_frame(i / (count - 1))
             u, v = m[:, 0], m[:, 1]

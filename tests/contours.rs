@@ -1,10 +1,19 @@
-//! Reconstruction from contours (paper 000, section 4 and examples 5.2 to 5.5; math.md section 3)
-//! on real and synthetic sections: the paper's accuracy test, the bunny and the cow cut by
-//! `volspline slice` into parallel and non-parallel families, the bent and twisted block from 50
-//! non-parallel sections (Figure 4), concave, two-contour and branching stacks (Figures 2 and 3)
-//! counted by connected components, linear against cubic interpolation, angular velocities, the
-//! real binary under `mpirun -n 1, 2, 3`, and malformed files. The bounds are the measured figures
-//! with a small allowance; README.md reports them.
+//! Reconstruction from contours on real and synthetic sections, with the cases of the examples of
+//! Savchenko, Pasko, Okunev and Kunii (1995) (their Figures 2, 3 and 4 and their numerical error
+//! estimate):
+//! - the sliced accuracy test: a wavy test function on [0, 10]^2 sampled on 50 slices x = const of
+//!   50 nodes each, one natural cubic spline per slice, linear interpolation between the slices,
+//!   RMS error at 469 random points, against one 2D r^2 ln r spline through the same 2500 nodes;
+//! - the bunny and the cow cut by `volspline slice` into parallel and non-parallel (fan) families
+//!   and rebuilt, measured by the distance from the original vertices to the reconstruction;
+//! - a concave contour, two contours in one slice, and one contour branching into three, counted
+//!   by the loops of the reconstruction's sections and its connected components;
+//! - linear against cubic interpolation between slices on a sphere;
+//! - a bent and twisted block from 50 non-parallel sections, by slerp and by log/exp frames, and
+//!   the same block given by angular velocities;
+//! - the real binary under `mpirun -n 1, 2, 3`, and malformed files.
+//!
+//! The bounds are the measured figures with a small allowance; README.md reports them.
 
 mod common;
 
@@ -105,10 +114,17 @@ fn reconstruct(ranks: usize, input: &Path, prefix: &Path, extra: &[&str]) -> Tri
 }
 
 // ---------------------------------------------------------------------------------------------
-// Paper 000, section 5.5
+// The sliced accuracy test: how well slices combined by linear interpolation reproduce a smooth
+// function of two variables (the numerical error estimate of Savchenko et al. 1995, with their
+// test function and sampling; they report RMS 0.02 on a range they call "normalised [0, 8.4]",
+// and 0.017 for triangular Gregory patches).
 
-/// The paper's test function (math.md section 3).
-fn paper_f(x: f64, y: f64) -> f64 {
+/// The test function: a paraboloid cap with a wavy perturbation, on [0, 10]^2,
+/// F(x, y) = radius^2 - (x - x0)^2 - (y - y0)^2 + s(x, y) s(y, x), where
+/// s(p, q) = amplitude (sin(a p) + amplitude / 1.17 sin(a p / 1.35 + phase sin(a q))),
+/// a = frequency, radius = 8, (x0, y0) = (5, 5), amplitude = 2, frequency = 0.8, phase = 1.
+/// It ranges over about [14.0, 69.0] on the domain.
+fn test_function(x: f64, y: f64) -> f64 {
     let (radius, x0, y0, amplitude, frequency, phase) = (8.0, 5.0, 5.0, 2.0, 0.8, 1.0);
     let a = |p: f64| frequency * p;
     let s1 = |p: f64| a(p).sin();
@@ -125,8 +141,12 @@ impl Lcg {
     }
 }
 
+/// 50 slices x = x_i (evenly spaced over [0, 10]) of 50 nodes y_j each: one natural cubic spline in
+/// y per slice, linear interpolation in x between slices, and the RMS of the error at 469
+/// pseudo-random points of the square, absolute and relative to the range of F; then the same
+/// 2500 nodes in one 2D thin-plate spline, for comparison.
 #[test]
-fn section_5_5_accuracy_of_slices_against_one_2d_spline() {
+fn sliced_accuracy_test_against_one_2d_spline() {
     let (slices, per) = (50, 50);
     let xs: Vec<f64> = (0..slices).map(|i| 10.0 * i as f64 / (slices - 1) as f64).collect();
     let ys: Vec<f64> = (0..per).map(|j| 10.0 * j as f64 / (per - 1) as f64).collect();
@@ -135,7 +155,7 @@ fn section_5_5_accuracy_of_slices_against_one_2d_spline() {
     let lines: Vec<Spline> = xs
         .iter()
         .map(|&x| {
-            let v: Vec<f64> = ys.iter().map(|&y| paper_f(x, y)).collect();
+            let v: Vec<f64> = ys.iter().map(|&y| test_function(x, y)).collect();
             let (sp, res) = fit_values(&k1, &ys, &v).unwrap();
             assert!(res < 1e-12, "slice residual {res}");
             sp
@@ -152,18 +172,18 @@ fn section_5_5_accuracy_of_slices_against_one_2d_spline() {
         w.iter().map(|&(j, g)| g * lines[j].eval(&[y])).sum::<f64>()
     };
     let rms = |f: &dyn Fn(f64, f64) -> f64| {
-        (tests.iter().map(|p| (f(p[0], p[1]) - paper_f(p[0], p[1])).powi(2)).sum::<f64>()
+        (tests.iter().map(|p| (f(p[0], p[1]) - test_function(p[0], p[1])).powi(2)).sum::<f64>()
             / tests.len() as f64)
             .sqrt()
     };
     let rms_slices = rms(&|x, y| sliced(x, y, &mut Vec::new()));
     let node = sliced(xs[7], ys[3], &mut w);
-    assert!((node - paper_f(xs[7], ys[3])).abs() < 1e-11 * node.abs(), "nodes are interpolated");
+    assert!((node - test_function(xs[7], ys[3])).abs() < 1e-11 * node.abs(), "nodes are interpolated");
 
     // the same 2500 nodes in one 2D thin-plate spline, solved by the distributed solver on one rank
     let k2 = Kernel::new(2, 2).unwrap();
     let nodes: Vec<f64> = xs.iter().flat_map(|&x| ys.iter().flat_map(move |&y| [x, y])).collect();
-    let values: Vec<f64> = nodes.chunks_exact(2).map(|p| paper_f(p[0], p[1])).collect();
+    let values: Vec<f64> = nodes.chunks_exact(2).map(|p| test_function(p[0], p[1])).collect();
     let norm = Normalisation::of_box(&[0.0, 0.0], &[10.0, 10.0]);
     let centres: Vec<f64> =
         nodes.chunks_exact(2).flat_map(|p| [(p[0] - 5.0) / norm.scale, (p[1] - 5.0) / norm.scale]).collect();
@@ -176,16 +196,16 @@ fn section_5_5_accuracy_of_slices_against_one_2d_spline() {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for i in 0..=400 {
         for j in 0..=400 {
-            let v = paper_f(i as f64 / 40.0, j as f64 / 40.0);
+            let v = test_function(i as f64 / 40.0, j as f64 / 40.0);
             lo = lo.min(v);
             hi = hi.max(v);
         }
     }
     let range = hi - lo;
     println!(
-        "section 5.5: F in [{lo:.3}, {hi:.3}] (range {range:.3}); 50 slices x 50 nodes, 1D cubic splines, linear \
-         between slices: RMS {rms_slices:.5} absolute, {:.3e} of the range, {:.4} on the paper's [0, 8.4] scale \
-         (paper: 0.02; Gregory patches 0.017); one 2D r^2 ln r spline through the same 2500 nodes: RMS \
+        "sliced accuracy test: F in [{lo:.3}, {hi:.3}] (range {range:.3}); 50 slices x 50 nodes, 1D cubic splines, \
+         linear between slices: RMS {rms_slices:.5} absolute, {:.3e} of the range, {:.4} on a [0, 8.4] scale \
+         (published: 0.02; Gregory patches 0.017); one 2D r^2 ln r spline through the same 2500 nodes: RMS \
          {rms_2d:.5} absolute, {:.3e} of the range, {:.4} on the [0, 8.4] scale",
         rms_slices / range,
         8.4 * rms_slices / range,
@@ -236,7 +256,7 @@ fn slice_and_reconstruct(
 }
 
 // A few tiny blobs (a few dozen vertices) appear where a small contour (an ear tip, the cow's udder)
-// has no partner in the next slice: the paper's linear interpolation keeps a sliver of it. The
+// has no partner in the next slice: linear interpolation keeps a sliver of it. The
 // largest component holds more than 97 % of the vertices.
 
 #[test]
@@ -272,7 +292,8 @@ fn cow_from_30_parallel_slices_branches_from_legs_to_body() {
     assert!(sections[..7].iter().all(|s| s.contours.len() == 4));
     let legs = sections_match(&rec, &sections, &[1, 2, 3, 4, 5, 6]);
     assert!(legs.iter().all(|&(want, got)| want == got), "{legs:?}");
-    // with one disc per slice F_i is positive between the legs: they merge (math.md's weakness)
+    // with one disc per slice F_i is positive between the legs: they merge (the carrier decides
+    // inside and outside away from the contours, and one disc covers the gaps between the legs)
     let disc = sections_match(
         &slice_and_reconstruct("cow-y30-disc", common::COW, "y:30", "72", "disc").1,
         &sections,
@@ -285,9 +306,10 @@ fn cow_from_30_parallel_slices_branches_from_legs_to_body() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Figures 2 and 3: concave contour, two contours in one slice, branching
+// Concave contour, two contours in one slice, branching (the cases of Figures 2 and 3 of
+// Savchenko et al. 1995)
 
-/// A star-like concave contour of 59 points (paper Figure 2a has 59 points).
+/// A star-like concave contour of 59 points (as many as the concave contour of their Figure 2a).
 fn concave(n: usize) -> Vec<[f64; 2]> {
     (0..n)
         .map(|k| {
@@ -436,7 +458,8 @@ fn cubic_interpolation_follows_a_sphere_better_than_linear() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Figure 4: a bent and twisted block from 50 non-parallel sections
+// A bent and twisted block from 50 non-parallel sections (the case of Figure 4 of Savchenko et
+// al. 1995)
 
 const BEND_RADIUS: f64 = 4.0;
 const HALF: [f64; 2] = [1.0, 0.5];

@@ -1,6 +1,10 @@
-//! The invariants of math.md section 1 on real data (bunny vertex subsets), through the library:
-//! interpolation, polynomial reproduction, independence of the ball carrier, moment conditions,
-//! and the distributed solvers on one rank against the serial oracles.
+//! The invariants of the volume spline on real data (bunny vertex subsets), through the library:
+//! f = f_c - U vanishes at every data point and is negative far away; data taken from a
+//! polynomial of degree <= m - 1 are reproduced exactly (lambda = 0, U = q); every ball carrier
+//! gives the same f for m = 2 while an ellipsoid does not; the moment conditions
+//! sum_i lambda_i p_j(P_i) = 0 hold; coplanar and duplicate points are diagnosed; and the
+//! distributed solvers on one rank (Householder, LU, projected Cholesky) agree with the serial
+//! oracles. The reasons for each invariant are in the module docs of `volspline::spline`.
 
 mod common;
 
@@ -57,7 +61,7 @@ fn f_vanishes_at_every_data_point() {
         let worst = prep.points.chunks_exact(3).map(|p| m.eval(p).abs()).fold(0.0, f64::max);
         assert!(worst < 1e-9 * scale, "kernel {kname}: max |f(P_i)| = {worst:e}");
         if kname == "r" {
-            // f = f_c - U with U growing linearly: f -> -inf far away (math.md, section 1)
+            // f = f_c - U with U growing linearly and f_c falling quadratically: f -> -inf far away
             let far = [prep.box_hi[0] + 100.0 * (prep.box_hi[0] - prep.box_lo[0]), 0.0, 0.0];
             assert!(m.eval(&far) < 0.0, "f should be negative far away");
         }

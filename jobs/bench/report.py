@@ -72,8 +72,8 @@ if mode == "table1":
     ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(f"{out}/time_vs_n.png", dpi=110)
-    lines.append("\nPaper: INMOS T800 transputers, 400 x 400 system, Householder. Processor use here is "
-                 "T1 / (P TP) as in the paper; use of the cores is T1 / (min(P, cores) TP), the figure that "
+    lines.append("\nPaper: Savchenko et al. (1995), Table 1: INMOS T800 transputers, 400 x 400 system, "
+                 "Householder. Processor use here is T1 / (P TP) as there; use of the cores is T1 / (min(P, cores) TP), the figure that "
                  "matters when ranks share cores. Plots: speedup.png, time_vs_n.png.")
 
 elif mode == "table2":
@@ -96,7 +96,7 @@ elif mode == "table2":
     ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(f"{out}/table2.png", dpi=110)
-    lines.append("\nPaper: Fobos, 6 transputers T800. Plot: table2.png.")
+    lines.append("\nPaper: Savchenko et al. (1995), Table 2: Fobos, 6 transputers T800. Plot: table2.png.")
 
 elif mode == "solve":
     lines.append("| implementation | operation | n | ranks | threads/rank | time (s) | GFLOP/s | peak memory/rank (MB) | memory bound (MB) |")

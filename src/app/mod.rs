@@ -1,7 +1,8 @@
-//! The commands: one file each ([`fit`], [`eval`], [`contours`], [`slice`]), the volume outputs
-//! they share ([`volume`]), their report ([`report`], [`stages`], [`progress`]) and the encodings of what they send between
-//! ranks ([`wire`]). A command takes its typed arguments from `cli` and a communicator; everything
-//! it computes comes from the library rooms below it.
+//! The commands: one file each ([`fit`], [`eval`], [`contours`], [`slice`](mod@slice)), the checks
+//! made before heavy work ([`preflight`]), the volume outputs they share ([`volume`]), their report
+//! ([`report`], [`stages`], [`progress`]) and the encodings of what they send between ranks
+//! (`wire`). A command takes its typed arguments from `cli` and a communicator; everything it
+//! computes comes from the library rooms below it.
 
 pub mod contours;
 pub mod eval;

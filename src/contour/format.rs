@@ -12,7 +12,7 @@
 //! slice plane ox oy oz  ux uy uz  vx vy vz     # origin o and in-plane axes u, v: a point
 //!                                              # (a, b) is o + a u + b v (u is normalised and v
 //!                                              # made orthogonal to it; the normal is u x v)
-//! slice omega w1 w2 w3  ox oy oz               # the paper's angular velocities: this frame is
+//! slice omega w1 w2 w3  ox oy oz               # by angular velocities: this frame is
 //!                                              # the previous one turned for one unit of the slice
 //!                                              # parameter at angular velocity w (moving axes,
 //!                                              # radians), integrated by RK4; origin o

@@ -1,21 +1,78 @@
-//! Reconstruction from planar cross-sections (paper 000, section 4; math.md section 3).
+//! Reconstruction from planar cross-sections, after section 4 of Savchenko, Pasko, Okunev and Kunii
+//! (1995): every slice gets its own two-dimensional solid, and the solid between slices is
+//! interpolated from theirs.
 //!
-//! This module owns the contour model: each slice i is a plane (origin o_i, frame M_i with columns
-//! u, v and normal w) holding a two-dimensional section function F_i(a, b) = f_c,i - U_i (a volume
-//! spline in the plane's coordinates, [`slice2d`]), and the solid between slices is
-//! F(x) = sum_j w_j(t) F_j(a, b), where the point x lies between planes i and i+1 at
-//! t = d1 / (d1 + d2) (its distances to them), (a, b, c) = M(t)^T (x - o(t)) with
-//! o(t) = (1 - t) o_i + t o_(i+1) and M(t) from [`orientation`] (log/exp or slerp), and the weights
-//! w_j are linear or cardinal cubic ([`interp`]) on knots spaced by the distance between planes.
-//! For parallel slices z = z_i this is exactly the paper's F = (1 - g) F_i + g F_(i+1).
+//! # Sections
 //!
-//! The solid is closed beyond the first and last slices by the R-intersection with the half-spaces
-//! in front of the first plane and behind the last. Every point is classified by the signs of its
-//! distances to the planes: it is between i and i+1 when it is in front of plane i and not in
-//! front of plane i+1; when several such pairs exist (planes of a bent family cross far from the
-//! data), the pair whose interpolated origin o(t) is nearest wins.
+//! Slice i is a plane with origin o_i and frame M_i, a rotation whose columns are the in-plane
+//! axes u, v and the normal w = u x v; a point of the plane is o_i + a u + b v. Its contours give
+//! points (a, b), and [`slice2d`] fits a 2D volume spline U_i through all of them (kernel
+//! r^2 ln r, polynomials 1, a, b by default) to the values of a 2D carrier f_c,i (a disc, or a
+//! union of discs), exactly as in 3D:
 //!
-//! The file format is in [`format`], the plane families and mesh cutting of `volspline slice` in
+//! ```text
+//! F_i(a, b) = f_c,i(a, b) - U_i(a, b)       F_i >= 0 inside the section's contours, = 0 on them.
+//! ```
+//!
+//! Several contours in one slice are simply more points of the same system, so branching needs no
+//! correspondence between the contours of neighbouring slices.
+//!
+//! # Between parallel slices
+//!
+//! For parallel slices z = z_i the solid is the homotopy between neighbouring sections,
+//!
+//! ```text
+//! F(x, y, z) = (1 - t) F_i(x, y) + t F_(i+1)(x, y),      t = (z - z_i) / (z_(i+1) - z_i).
+//! ```
+//!
+//! On plane i, F = F_i, so the zero set passes through the given contours. Where the insides of
+//! two neighbouring sections overlap (F_i >= 0 and F_(i+1) >= 0 at the same (x, y)), the whole
+//! segment between the planes is inside (a convex combination of non-negative values): the two
+//! sections are joined. A contour with no overlapping partner shrinks to nothing between the
+//! planes. The smoother alternative replaces the two linear weights by cardinal cubic splines in
+//! the slice parameter ([`interp`]): F = sum_j w_j(tau) F_j.
+//!
+//! # Non-parallel slices
+//!
+//! A point x between planes i and i+1 at distances d1 and d2 from them gets
+//!
+//! ```text
+//! t = d1 / (d1 + d2)                                  (0 on plane i, 1 on plane i+1)
+//! o(t) = (1 - t) o_i + t o_(i+1),    M(t) interpolated between M_i and M_(i+1)
+//! (a, b, c) = M(t)^T (x - o(t))                        (c, the offset along the normal, is dropped)
+//! F(x) = sum_j w_j F_j(a, b)                           (weights w_j of interval i at t)
+//! ```
+//!
+//! with M(t) by log/exp or slerp ([`orientation`]) and the weights linear or cubic ([`interp`]),
+//! on knots spaced by the distances between the planes ([`knots_of`]). On plane i, t = 0,
+//! o(0) = o_i and M(0) = M_i, so F = F_i again (on the inner planes; the end planes are capped,
+//! below); for parallel slices M(t) = M_i and t is the fraction of the way in z, which is the
+//! formula above. Every point is classified by the
+//! signs of its distances to the planes: it is between i and i+1 when it is in front of plane i
+//! and not in front of plane i+1; when several such pairs exist (the planes of a bent family cross
+//! far from the data), the pair whose interpolated origin o(t) is nearest wins.
+//!
+//! # Closing the ends
+//!
+//! Beyond the first plane F_0 alone would continue the first section as an infinite prism. The
+//! solid is closed by the R-intersection (see [`crate::spline::carrier`]) with the half-space in
+//! front of the first plane, and likewise behind the last:
+//!
+//! ```text
+//! F(x) = F_0(a, b) & (kappa s_0(x))        behind the first plane (s_0 < 0, so F < 0)
+//! ```
+//!
+//! where s_0 is the signed distance to the first plane (positive in front) and kappa the diagonal
+//! of the data's box, which turns a length into the units of F (a length squared). So that F stays
+//! continuous where the end intervals meet the next ones, the cap also acts inside the end
+//! intervals with the half-space value divided by 1 - t (first interval) or t (last interval): it
+//! grows without bound towards the inner plane, where f & c tends to f. On the end planes
+//! themselves the cap value is 0 and f & 0 = f - |f|: F = 0 over the inside of the end contours
+//! (the solid's flat end faces) and 2 F_0 < 0 outside them. (Inside the end intervals the
+//! R-intersection is computed as f - f^2 / (c + sqrt(f^2 + c^2)), the same value without the
+//! cancellation of f + c - sqrt(f^2 + c^2) for large c.)
+//!
+//! The file format is in [`format`](mod@format), the plane families and mesh cutting of `volspline slice` in
 //! [`planes`]. Nothing here communicates: the commands that distribute the work are in `app`.
 
 pub mod format;
@@ -274,14 +331,14 @@ mod tests {
     }
 
     #[test]
-    fn parallel_slices_follow_the_papers_linear_formula() {
+    fn parallel_slices_follow_the_linear_formula() {
         let m = stack(&[0.0, 1.0, 3.0, 4.0], &[0.5, 0.8, 0.6, 0.4], Interp::Linear);
         assert_eq!(m.knots(), &[0.0, 1.0, 3.0, 4.0]);
         for (x, y, z) in [(0.1, 0.2, 1.5), (0.7, -0.3, 2.9), (-0.2, 0.0, 1.0 + 1e-12)] {
             let g = (z - 1.0) / 2.0;
             assert_eq!(m.place(DVec3::new(x, y, z)), Placement::Between { i: 1, t: g });
-            let paper = (1.0 - g) * m.sections[1].eval([x, y]) + g * m.sections[2].eval([x, y]);
-            assert!((m.eval([x, y, z]) - paper).abs() < 1e-14 * (1.0 + paper.abs()), "{z}");
+            let linear = (1.0 - g) * m.sections[1].eval([x, y]) + g * m.sections[2].eval([x, y]);
+            assert!((m.eval([x, y, z]) - linear).abs() < 1e-14 * (1.0 + linear.abs()), "{z}");
         }
         // in a slice's plane F is F_i, reached from either side: the zero set is the contour
         assert!(m.eval([0.8, 0.0, 1.0]).abs() < 1e-9);

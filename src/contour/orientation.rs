@@ -1,15 +1,88 @@
-//! Orientation matrices of the section planes (paper 000, section 4; math.md section 3): the
-//! rotation logarithm and exponential (Rodrigues), interpolation between two section frames by
-//! the paper's log/exp formula (with its weights the right way round) or by quaternion slerp (the
-//! geodesic), and the paper's second method, direction cosines integrated from angular velocities
-//! with RK4 and renormalised. Pure functions of frames; no knowledge of splines or files.
+//! Orientation matrices of the section planes: the rotation logarithm and exponential, the
+//! interpolation of the frame between two sections (log/exp or quaternion slerp), and frames
+//! generated from angular velocities (direction cosines integrated with RK4 and renormalised). Pure
+//! functions of frames; no knowledge of splines or files.
 //!
 //! A frame is a rotation matrix M whose columns are the section's in-plane axes u, v and its
-//! normal w = u x v, in the fixed (world) coordinates.
+//! normal w = u x v, in the fixed (world) coordinates: a point with section coordinates (a, b, c)
+//! is x = o + M (a, b, c), and (a, b, c) = M^T (x - o).
 //!
-//! Angular velocities generate the slices' frames (constant over each interval of the slice
+//! # Logarithm and exponential
+//!
+//! Every rotation is `exp([r]x)` for a rotation vector r = theta k (unit axis k, angle theta in
+//! `[0, pi]`), where `[r]x` is the skew matrix with `[r]x y = r x y`. By Rodrigues' formula
+//!
+//! ```text
+//! exp([r]x) = I + sin(theta) [k]x + (1 - cos(theta)) [k]x^2,
+//! ```
+//!
+//! and `ln M = [r]x` is its inverse on angles below pi (the principal logarithm). Both are computed
+//! through the unit quaternion q = (cos(theta/2), sin(theta/2) k), which stays accurate for tiny
+//! angles ([`rotation_log`], [`rotation_exp`]).
+//!
+//! # Interpolating the frame between two sections
+//!
+//! A point between planes i and i+1 at distances d1 and d2 from them has t = d1 / (d1 + d2), which
+//! is 0 on plane i and 1 on plane i+1. Its frame must therefore be M(0) = M_i and M(1) = M_(i+1).
+//!
+//! **Log/exp** ([`Orient::Log`]): interpolate linearly in the logarithms,
+//!
+//! ```text
+//! M(t) = exp((1 - t) ln M_i + t ln M_(i+1)).
+//! ```
+//!
+//! The weight of ln M_i is 1 - t, because t = 0 on plane i. The form printed for this method by
+//! Savchenko et al. (1995), M(t) = exp(t ln M_i + (1 - t) ln M_(i+1)), has the weights swapped:
+//! with the same t it gives M(0) = M_(i+1) and M(1) = M_i, so each section would be read in its
+//! neighbour's frame.
+//!
+//! **Slerp** ([`Orient::Slerp`], the default): the geodesic from M_i to M_(i+1), the rotation at
+//! constant angular velocity about one fixed body axis,
+//!
+//! ```text
+//! M(t) = M_i exp(t ln(M_i^T M_(i+1)))
+//!      = the matrix of  slerp(q_i, q_(i+1); t) = (sin((1 - t) W) q_i + sin(t W) q_(i+1)) / sin(W),
+//! cos(W) = q_i . q_(i+1)     (the quaternions taken in the same hemisphere: the shorter arc).
+//! ```
+//!
+//! **Why they agree about a fixed axis.** If `M_i = exp(alpha [k]x)` and `M_(i+1) = exp(beta [k]x)`
+//! turn about the same axis k (angles in (-pi, pi)), then `ln M_i = alpha [k]x`,
+//! `ln M_(i+1) = beta [k]x`, and the two matrices commute, so
+//! `M_i^T M_(i+1) = exp((beta - alpha) [k]x)` and
+//!
+//! ```text
+//! log/exp:  exp(((1 - t) alpha + t beta) [k]x)
+//! slerp:    exp(alpha [k]x) exp(t (beta - alpha) [k]x) = exp((alpha + t (beta - alpha)) [k]x),
+//! ```
+//!
+//! the same rotation. About different axes the rotations do not commute (exp(A + B) is not
+//! exp(A) exp(B)), and the two differ: the log/exp average depends on the world axes (turning both
+//! frames by a rotation R does not turn M(t) by R) and its principal logarithm jumps near angles
+//! of pi, while slerp turns with them (R M_i and R M_(i+1) give R M(t)). Between close frames the
+//! difference is small.
+//!
+//! # Frames from angular velocities
+//!
+//! The second way to give the sections is by the motion of the frame: body angular velocities
+//! omega = (w1, w2, w3) (components in the moving frame), under which `M' = M [omega]x`. Let
+//! gamma be the direction cosines of a fixed world axis in the moving frame, a column of M^T (a row of M).
+//! Then `gamma' = (M^T)' e = -[omega]x M^T e`, that is
+//!
+//! ```text
+//! gamma' = gamma x omega:    gamma1' + w2 gamma3 - w3 gamma2 = 0
+//!                            gamma2' + w3 gamma1 - w1 gamma3 = 0
+//!                            gamma3' + w1 gamma2 - w2 gamma1 = 0
+//! ```
+//!
+//! (Savchenko et al. (1995) print the third line as gamma3' + w1 gamma3 - w3 gamma1 = 0, which is
+//! not the third component of gamma x omega.) |gamma|^2 = 1 is a first integral, since
+//! d|gamma|^2/dt = 2 gamma . (gamma x omega) = 0; RK4 does not keep it exactly, so each step is
+//! renormalised. The direction cosines of the world x and y axes are integrated, made orthogonal,
+//! and the third row follows as their cross product ([`integrate_angular_velocity`]).
+//!
+//! The angular velocities generate the slices' frames (constant over each interval of the slice
 //! parameter); between two slices the frame is then interpolated like any other pair. With a
-//! constant angular velocity the exact solution is M_i exp(t [omega]x), which is the geodesic, so
+//! constant angular velocity the exact solution is `M_i exp(t [omega]x)`, which is the geodesic, so
 //! slerp reproduces the integrated motion at every t, not only at the slices.
 
 use glam::{DMat3, DQuat, DVec3};
@@ -17,7 +90,7 @@ use glam::{DMat3, DQuat, DVec3};
 /// How the orientation matrix M(t) between two section frames is made.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Orient {
-    /// M(t) = exp((1 - t) ln M_i + t ln M_(i+1)): the paper's formula, weights corrected.
+    /// M(t) = exp((1 - t) ln M_i + t ln M_(i+1)): linear in the rotation logarithms.
     Log,
     /// Quaternion slerp, the geodesic M_i exp(t ln(M_i^T M_(i+1))).
     Slerp,
@@ -52,7 +125,7 @@ pub fn quat_of(m: &DMat3) -> DQuat {
     }
 }
 
-/// ln M as a rotation vector (axis times angle, angle in [0, pi]): the skew matrix [r]x is the
+/// ln M as a rotation vector (axis times angle, angle in `[0, pi]`): the skew matrix `[r]x` is the
 /// principal matrix logarithm of M.
 pub fn rotation_log(m: &DMat3) -> DVec3 {
     let q = quat_of(m);
@@ -65,7 +138,7 @@ pub fn rotation_log(m: &DMat3) -> DVec3 {
     v * (2.0 * s.atan2(q.w) / s)
 }
 
-/// exp([r]x) by Rodrigues' formula, through the quaternion (cos |r|/2, sin(|r|/2) r / |r|).
+/// `exp([r]x)` by Rodrigues' formula, through the quaternion (cos |r|/2, sin(|r|/2) r / |r|).
 pub fn rotation_exp(r: DVec3) -> DMat3 {
     let a = r.length();
     let half = 0.5 * a;
@@ -106,9 +179,9 @@ impl FramePair {
     }
 }
 
-/// The right-hand side of the Poisson equations gamma' = gamma x omega (math.md section 3, the
-/// paper's system with its third line corrected): gamma is a fixed axis seen from the moving
-/// frame, omega the angular velocity in the moving frame.
+/// The right-hand side of the Poisson equations gamma' = gamma x omega (see "Frames from angular
+/// velocities" in the module doc): gamma is a fixed axis seen from the moving frame, omega the
+/// angular velocity in the moving frame.
 #[inline]
 pub fn direction_cosine_rate(gamma: DVec3, omega: DVec3) -> DVec3 {
     gamma.cross(omega)
@@ -130,8 +203,8 @@ pub const RK4_STEPS: usize = 64;
 /// The frame reached from `m0` after a unit of the slice parameter with constant angular velocity
 /// `omega` (moving-frame components, radians per unit). The direction cosines of the fixed x and y
 /// axes (the first two columns of M^T) are integrated with RK4 and renormalised; the third column
-/// follows as their cross product after re-orthogonalisation (the paper: "after computation of the
-/// entries in the first column we can compute the other six entries").
+/// follows as their cross product after re-orthogonalisation (two orthonormal rows of a rotation
+/// determine the third).
 pub fn integrate_angular_velocity(m0: &DMat3, omega: DVec3, steps: usize) -> DMat3 {
     let mt = m0.transpose();
     let (mut g1, mut g2) = (mt.x_axis, mt.y_axis);
@@ -248,7 +321,7 @@ mod tests {
             let d = max_diff(&pair.at(t, Orient::Slerp), &(m0 * rotation_exp(omega * t)));
             assert!(d < 2e-9, "t = {t}: {d}");
         }
-        // the paper's third equation as corrected: gamma3' + w1 gamma2 - w2 gamma1 = 0
+        // the third component of gamma x omega: gamma3' + w1 gamma2 - w2 gamma1 = 0
         let (gm, w) = (DVec3::new(0.2, 0.3, 0.9), DVec3::new(1.0, 2.0, 3.0));
         let r = direction_cosine_rate(gm, w);
         assert!((r.z + w.x * gm.y - w.y * gm.x).abs() < 1e-15);

@@ -1,8 +1,8 @@
-//! The spline of one section (paper 000, section 4): U_i through the section's points in the
-//! plane's own coordinates, solved serially on one rank (the systems are small and every slice is
-//! independent), and the 2D carrier: a disc round the slice, or the R-union of one disc per
-//! contour (bounded by the slice's disc). F_i = f_c,i - U_i >= 0 inside the section. Also serves any dimension through
-//! [`fit_values`] (the 1D slice splines of the paper's accuracy test).
+//! The spline of one section: U_i through the section's points in the plane's own coordinates,
+//! solved serially on one rank (the systems are small and every slice is independent), and the 2D
+//! carrier: a disc round the slice, or the R-union of one disc per contour (bounded by the slice's
+//! disc). F_i = f_c,i - U_i >= 0 inside the section. Also serves any dimension through
+//! [`fit_values`] (the 1D line splines of the sliced accuracy test in `tests/contours.rs`).
 
 use crate::error::{Error, Result};
 use crate::linalg::dense::{self, Matrix};
@@ -16,12 +16,15 @@ use super::format::Section;
 /// The carrier of a section.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SectionCarrier {
-    /// One disc round the slice's bounding box (any disc gives the same F_i, math.md section 1).
+    /// One disc round the slice's bounding box (with r^2 ln r any disc gives the same F_i: two discs
+    /// differ by a linear function, which the spline reproduces; see `spline::carrier`).
     Disc,
-    /// The R-union of one disc per contour (paper 001, end of section 3.3), R-intersected with the
-    /// slice's disc. The union alone decays far away only as -(2 - sqrt 2) d^2 and left spurious
-    /// lobes beyond the data (the cow's head, by half a body length); the intersection restores the
-    /// disc's far field without moving anything near the contours.
+    /// The R-union of one disc per contour (one carrier per contour, united, as suggested by
+    /// Savchenko and Pasko, *Reconstruction from contour data and sculpting 3D objects*, 1995),
+    /// R-intersected with the slice's disc. The union alone decays far away only as
+    /// -(2 - sqrt 2) d^2 and left spurious lobes beyond the data (the cow's head, by half a body
+    /// length); the intersection restores the disc's far field without moving anything near the
+    /// contours.
     Union,
 }
 

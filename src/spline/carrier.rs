@@ -1,6 +1,45 @@
-//! Carrier solids f_c (paper 000, section 3): simple solids whose defining function the volume
-//! spline interpolates at the data points. f_c >= 0 inside. The reconstructed solid is
-//! f = f_c - U (math.md, section 1: the paper's U - f_c is inside-out).
+//! Carrier solids f_c: simple solids whose defining function the volume spline interpolates at the
+//! data points, r_i = f_c(P_i). f_c >= 0 inside. The reconstructed solid is f = f_c - U, with the
+//! carrier first (why U - f_c would be inside-out: [`crate::spline::model`]). The carrier is the
+//! solid's first approximation: near the data U pulls the surface onto the points, far from them
+//! f follows f_c minus a polynomial.
+//!
+//! # Which carriers change the solid
+//!
+//! The interpolation operator r -> U is linear, and it reproduces every polynomial q of degree
+//! <= m - 1: if r_i = q(P_i) then lambda = 0 with c the coefficients of q solves the bordered
+//! system, and the solution is unique, so U = q. Two carriers whose difference is such a
+//! polynomial therefore give the same solid: U_1 - U_2 = f_c1 - f_c2, so f_c1 - U_1 = f_c2 - U_2.
+//! Two balls differ by exactly that for m = 2:
+//!
+//! ```text
+//! (R1^2 - |x - c1|^2) - (R2^2 - |x - c2|^2) = (R1^2 - R2^2 - |c1|^2 + |c2|^2) + 2 x . (c1 - c2),
+//! ```
+//!
+//! a constant plus a linear function (the |x|^2 terms cancel). So with the kernel r (3D) or
+//! r^2 ln r (2D) any ball or disc gives the same f, whatever its centre and radius; the automatic
+//! ball only has to be one. An ellipsoid with unequal semi-axes differs from a ball by a quadratic
+//! and does change the solid, as do R-function carriers. For m = 3 (polynomials of degree <= 2) a
+//! ball or ellipsoid is itself reproduced, U = f_c and f = 0 everywhere: `hygiene::prepare`
+//! refuses that combination ([`Carrier::polynomial_degree`]).
+//!
+//! # R-functions
+//!
+//! Unions, intersections and differences of carriers are made with Rvachev's R-functions (the
+//! R_0 system, as in HyperFun):
+//!
+//! ```text
+//! intersection:  f1 & f2 = f1 + f2 - sqrt(f1^2 + f2^2)     >= 0  iff  f1 >= 0 and f2 >= 0
+//! union:         f1 | f2 = f1 + f2 + sqrt(f1^2 + f2^2)     >= 0  iff  f1 >= 0 or  f2 >= 0
+//! difference:    f1 \ f2 = f1 & (-f2)
+//! ```
+//!
+//! The sign rule of the intersection: if f1, f2 >= 0 then (f1 + f2)^2 = f1^2 + f2^2 + 2 f1 f2 >=
+//! f1^2 + f2^2 and f1 + f2 >= 0, so the result is >= 0. If, say, f1 < 0, either f1 + f2 <= 0 and the
+//! result is negative, or f1 + f2 > 0, so f2 > 0, f1 f2 < 0 and (f1 + f2)^2 < f1^2 + f2^2: negative
+//! again. The union is -((-f1) & (-f2)). The zero set of the result is the boundary of the set
+//! operation, and the functions are continuous (smooth away from f1 = f2 = 0) and homogeneous of
+//! degree one, so a union of balls still falls off like -|x|^2 far away, only by a smaller factor.
 //!
 //! Specs (also the canonical text stored in model files, see `Display`):
 //! `ball` (automatic: fitted to the data's bounding box), `ball:cx,cy,cz,r` (f = r^2 - |x - c|^2,
@@ -43,7 +82,8 @@ impl Carrier {
     }
 
     /// Replaces `AutoBall` by the ball centred on the bounding box with radius half its diagonal,
-    /// so every data point is inside. Any ball gives the same solid (math.md, section 1).
+    /// so every data point is inside. For m = 2 any ball gives the same solid (see "Which carriers
+    /// change the solid" in the module doc).
     pub fn resolve(&self, lo: &[f64], hi: &[f64]) -> Carrier {
         match self {
             Carrier::AutoBall => {
@@ -296,7 +336,7 @@ mod tests {
 
     #[test]
     fn r_functions_are_set_operations() {
-        // two unit balls at x = -1 and x = +1 (paper Figure 5 uses such an R-union)
+        // two unit balls at x = -1 and x = +1
         let u = Carrier::parse("union(ball:-1,0,0,1,ball:1,0,0,1)", 3).unwrap();
         let i = Carrier::parse("intersection(ball:-0.5,0,0,1,ball:0.5,0,0,1)", 3).unwrap();
         let d = Carrier::parse("difference(ball:0,0,0,2,ball:0,0,0,1)", 3).unwrap();

@@ -59,7 +59,7 @@ impl<'a> Evaluator<'a> {
         self.spline.len()
     }
 
-    /// U at the points (xs[i], y, z), caller's coordinates, into `out`.
+    /// U at the points `(xs[i], y, z)`, caller's coordinates, into `out`.
     pub fn eval_row(&self, xs: &[f64], y: f64, z: f64, out: &mut [f64]) {
         let sp = self.spline;
         let Some(form) = self.form else {

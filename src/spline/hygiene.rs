@@ -1,6 +1,8 @@
 //! Data hygiene for scattered points before they become spline centres: bounding boxes, merging of
 //! duplicate and near-duplicate points (two equal rows make the system singular) and the
-//! unisolvency check of the polynomial part (math.md, section 1).
+//! unisolvency check of the polynomial part: the N x k matrix P of the basis polynomials at the
+//! points must have full column rank, or the bordered system is singular (see "Unisolvency" in
+//! [`crate::spline::system`]).
 
 use std::collections::HashMap;
 

@@ -1,6 +1,12 @@
-//! The Green's function G_{m,n} of the polyharmonic operator and the matching polynomial space
-//! (paper 000, section 3; math.md section 1). Pure functions of distances and coordinates: no
-//! knowledge of points, carriers or distribution.
+//! The Green's function G_{m,n} of the polyharmonic operator and the matching polynomial space.
+//! Pure functions of distances and coordinates: no knowledge of points, carriers or distribution.
+//!
+//! G_{m,n} is, up to a constant factor, the fundamental solution of the iterated Laplacian
+//! Delta^m in R^n: r^(2m-n) ln r for even n, r^(2m-n) for odd n, with G(0) = 0 (2m > n). The
+//! polynomials of degree <= m - 1 in n variables (k = C(n + m - 1, n) of them) are the functions
+//! the spline's energy cannot see; they complete the kernel terms to the unique interpolant. Why
+//! these pieces, the bordered system they make and the sign under which G is conditionally
+//! positive definite are derived in the documentation of [`crate::spline::system`].
 
 use crate::error::{Error, Result};
 
@@ -131,7 +137,9 @@ impl Kernel {
     }
 
     /// The sign s such that s * G is conditionally positive definite of order m on distinct
-    /// points: (-1)^(ceil(p/2)) for odd powers, (-1)^(p/2 + 1) for r^p ln r (math.md, section 1).
+    /// points (s lambda^T A lambda > 0 whenever P^T lambda = 0, lambda != 0): (-1)^(ceil(p/2)) for
+    /// odd powers r^p, (-1)^(p/2 + 1) for r^p ln r; so -1 for r and r^4 ln r, +1 for r^3 and
+    /// r^2 ln r (see "Conditional definiteness" in [`crate::spline::system`]).
     pub fn definiteness_sign(&self) -> f64 {
         let p = self.power();
         let e = if self.has_log() { p / 2 + 1 } else { (p + 1) / 2 };
@@ -148,7 +156,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn green_functions_match_the_paper() {
+    fn green_functions_match_their_closed_forms() {
         let r = 1.7f64;
         assert!((Kernel::new(3, 2).unwrap().eval_r2(r * r) - r).abs() < 1e-12);
         assert!((Kernel::new(3, 3).unwrap().eval_r2(r * r) - r.powi(3)).abs() < 1e-12);

@@ -1,6 +1,35 @@
-//! The reconstructed solid as a function model f = f_c - U (f >= 0 inside, math.md section 1):
-//! the carrier, the solved spline and the record of how it was made. Evaluation of f at points and
-//! on grid slabs, threaded with rayon.
+//! The reconstructed solid as a function model f = f_c - U: the carrier, the solved spline and the
+//! record of how it was made. Evaluation of f at points and on grid slabs, threaded with rayon.
+//!
+//! # The sign of the solid
+//!
+//! The carrier f_c is the defining function of a simple solid (f_c >= 0 inside, see
+//! [`crate::spline::carrier`]), the spline U interpolates its values r_i = f_c(P_i) at the data
+//! points ([`crate::spline::system`]), and the solid is
+//!
+//! ```text
+//! f(x) = f_c(x) - U(x) >= 0        (inside; f = 0 on the surface, f < 0 outside)
+//! ```
+//!
+//! so f(P_i) = f_c(P_i) - r_i = 0 at every data point: the surface passes through the data.
+//!
+//! Savchenko et al. (1995) print the difference the other way round, f = U - f_c, with the same
+//! claim that f >= 0 inside. That solid is inside-out. U is the interpolant of least bending
+//! energy, so where the data do not force it to bend it stays as flat as the polynomial part
+//! allows, while f_c keeps the carrier's curvature. The smallest case shows it: one dimension,
+//! m = 2 (natural cubic spline, polynomials 1 and x), the carrier f_c(x) = R^2 - x^2 (the ball
+//! [-R, R]) and two data points x = -a and x = a with a < R. Both values are R^2 - a^2; the
+//! constant U(x) = R^2 - a^2 takes them with zero energy, so it is the interpolant, and
+//!
+//! ```text
+//! f_c - U = a^2 - x^2   >= 0 exactly on [-a, a], the segment the points bound,
+//! U - f_c = x^2 - a^2   >= 0 outside it.
+//! ```
+//!
+//! The same holds far from any data set: for m = 2 the kernel part of U dies away (the moment
+//! conditions cancel its growth), so U tends to its linear part, while a ball carrier falls off
+//! like -|x|^2. Hence f = f_c - U -> -infinity far away: the far field is outside, as it must be
+//! for a bounded solid (with U - f_c it would be inside).
 
 use rayon::prelude::*;
 

@@ -1,13 +1,130 @@
-//! The volume spline U(x) = sum_i lambda_i G(|x - P_i|) + sum_j c_j p_j(x) (paper 000, section 3):
-//! the rows of its bordered (N+k) x (N+k) system and its evaluation. Pure: the rows a rank owns are
-//! given to it; no MPI here.
+//! The volume spline U(x) = sum_i lambda_i G(|x - P_i|) + sum_j c_j p_j(x): the rows of its bordered
+//! (N+k) x (N+k) system and its evaluation. Pure: the rows a rank owns are given to it; no MPI here.
+//!
+//! # The interpolation problem
+//!
+//! Given distinct points P_1..P_N in R^n (n = 3 for scattered surface points, n = 2 inside a
+//! contour slice, n = 1 for the line splines of the contour tests) and values r_i (the carrier's
+//! values r_i = f_c(P_i), see [`crate::spline::carrier`]), U is the function that takes the values,
+//! U(P_i) = r_i, and among all such functions has the least bending energy
+//!
+//! ```text
+//! E(U) = integral over R^n of  sum_{|alpha| = m} (m! / alpha!) (D^alpha U)^2 dx
+//! ```
+//!
+//! (the thin-plate energy for m = 2: the sum of the squared second derivatives). The energy
+//! vanishes exactly on the polynomials of degree <= m - 1, and point values are only defined on
+//! the space of finite energy when 2m > n, which [`Kernel::new`] enforces.
+//!
+//! The minimiser (Duchon's polyharmonic spline) is a sum of shifted copies of the fundamental
+//! solution G of the iterated Laplacian Delta^m, plus a polynomial of degree <= m - 1:
+//!
+//! ```text
+//! U(x) = sum_{i=1..N} lambda_i G(|x - P_i|) + sum_{j=1..k} c_j p_j(x)
+//!
+//! G(r) = r^(2m-n) ln r   for even n,      G(r) = r^(2m-n)   for odd n,      G(0) = 0
+//! ```
+//!
+//! Constant factors of G are left out: they are absorbed by the lambda_i. The kernels in use:
+//!
+//! | n | m | G(r)       | p_1..p_k                         | k  |
+//! |---|---|------------|----------------------------------|----|
+//! | 3 | 2 | r          | 1, x, y, z                       | 4  |
+//! | 3 | 3 | r^3        | the monomials of degree <= 2     | 10 |
+//! | 2 | 2 | r^2 ln r   | 1, a, b (thin-plate spline)      | 3  |
+//! | 2 | 3 | r^4 ln r   | the monomials of degree <= 2     | 6  |
+//! | 1 | 2 | r^3        | 1, x (the natural cubic spline)  | 2  |
+//!
+//! In general k = C(n + m - 1, n), the dimension of the polynomials of degree <= m - 1 in n
+//! variables ([`Kernel::poly_count`]; the basis order is [`Kernel::monomials`]).
+//!
+//! # The bordered system
+//!
+//! The N interpolation conditions and the k moment conditions
+//!
+//! ```text
+//! sum_j lambda_j G(|P_i - P_j|) + sum_l c_l p_l(P_i) = r_i      (i = 1..N)
+//! sum_i lambda_i p_l(P_i) = 0                                    (l = 1..k), i.e. P^T lambda = 0
+//! ```
+//!
+//! form the symmetric (N+k) x (N+k) system
+//!
+//! ```text
+//! [ A    P ] [ lambda ]   [ r ]        A_ij = G(|P_i - P_j|)   (zero diagonal, since G(0) = 0)
+//! [ P^T  0 ] [   c    ] = [ 0 ]        P_il = p_l(P_i)
+//! ```
+//!
+//! The moment conditions are what minimising E adds to plain interpolation: they make the kernel
+//! part of U orthogonal to the polynomials the energy cannot see, so that it has finite energy and
+//! does not grow faster than the polynomial part. For G = r in 3D, for instance, expanding
+//! |x - P| = |x| - (x / |x|) . P + O(1 / |x|) shows that sum_i lambda_i |x - P_i| is O(1 / |x|)
+//! when sum_i lambda_i = 0 and sum_i lambda_i P_i = 0: far from the data U is its linear part.
+//!
+//! The matrix has a zero diagonal and a zero k x k block: it is indefinite (a saddle-point
+//! matrix with at least k negative eigenvalues), so plain Cholesky does not apply to it.
+//!
+//! # Conditional definiteness
+//!
+//! A kernel is conditionally positive definite of order l when lambda^T A lambda > 0 for every
+//! set of distinct points and every lambda != 0 with sum_i lambda_i q(P_i) = 0 for all polynomials
+//! q of degree < l. The polyharmonic kernels are, up to a sign s (see Wendland, *Scattered Data
+//! Approximation*, 2005, chapter 8): (-1)^ceil(p/2) r^p for odd p is conditionally positive
+//! definite of order ceil(p/2), and (-1)^(q+1) r^(2q) ln r of order q + 1. Both orders are at most m
+//! for every admissible (n, m), and a kernel conditionally definite of some order is so of every
+//! higher order, so s G is conditionally positive definite of order m: on the null space of P^T
+//! (exactly the lambda that satisfy the moment conditions),
+//!
+//! ```text
+//! s lambda^T A lambda > 0   for lambda != 0 with P^T lambda = 0,
+//! s = -1 for r and r^4 ln r,   s = +1 for r^3 and r^2 ln r        (Kernel::definiteness_sign)
+//! ```
+//!
+//! What it implies:
+//! - **Uniqueness.** If the points are unisolvent (below), the system is nonsingular. Suppose
+//!   A lambda + P c = 0 and P^T lambda = 0. Multiplying the first equation by lambda^T gives
+//!   lambda^T A lambda + (P^T lambda)^T c = lambda^T A lambda = 0, so lambda = 0; then P c = 0, and
+//!   c = 0 because P has full column rank.
+//! - **A definite solver.** Write P = Q [R; 0] (Householder QR of the N x k block, Q = [Q1 Q2],
+//!   Q2 an orthonormal basis of the null space of P^T). Every lambda satisfying the moment
+//!   conditions is lambda = Q2 mu, and multiplying the first block row by Q2^T removes c:
+//!   (Q2^T A Q2) mu = Q2^T r. The (N-k) x (N-k) matrix s Q2^T A Q2 is symmetric positive definite,
+//!   so Cholesky applies (N^3 / 3 flops against 2 N^3 / 3 for LU and 4 N^3 / 3 for Householder
+//!   QR); then R c = Q1^T (r - A lambda). This is the projected Cholesky of
+//!   `linalg::dist::cholesky`; a pivot that is not positive (round-off on a nearly degenerate
+//!   point set) sends the solve to LU.
+//! - **Energy.** The energy E(U) of the solution is a positive multiple of s lambda^T A lambda
+//!   (the polynomial part has none): conditional definiteness is the statement that this energy
+//!   is positive for every non-polynomial spline of this form.
+//!
+//! # Unisolvency
+//!
+//! P has full column rank k when the only polynomial of degree <= m - 1 vanishing at every P_i is
+//! zero. For m = 2 this means that the points are not all on one plane (3D), on one line (2D) or
+//! at one abscissa (1D); for m = 3 in 3D, not all on one quadric. `hygiene::check_unisolvent`
+//! checks the rank and says which case failed. Equal points give two equal rows: `hygiene`
+//! merges points closer than a small fraction of the bounding-box diagonal before the fit.
+//!
+//! # Normalisation
+//!
+//! The interpolant does not change under a translation or a uniform scaling of the data. A
+//! translation moves the kernel terms with the points and maps polynomials of degree <= m - 1 to
+//! polynomials of the same degree. A scaling x -> a x multiplies G by a^(2m-n) for odd n; for even
+//! n it adds a^(2m-n) ln(a) |x - P_i|^(2m-n), and sum_i lambda_i |x - P_i|^(2m-n) (an even power,
+//! so a polynomial in x) is, by the moment conditions, a polynomial of degree <= m - 1 (expand
+//! |x - P_i|^(2m-n) into monomials x^alpha P_i^beta with |alpha| + |beta| = 2m - n: the moment
+//! conditions cancel every term with |beta| <= m - 1, leaving |alpha| <= m - n), absorbed by the c_j.
+//! The matrix is far from invariant, though: in raw coordinates of size 1000 the entries of A are
+//! of size 1000^(2m-n) while the monomials range from 1 to 1000^(m-1). So the centres are mapped to
+//! x' = (x - centre) / scale ([`Normalisation`]: centre of the bounding box, half its diagonal),
+//! which puts every point in the unit ball and balances the blocks; the map is kept with the
+//! spline, U is evaluated at x', and the carrier stays in the caller's coordinates.
 
 use rayon::prelude::*;
 
 use crate::spline::kernel::Kernel;
 
-/// The affine map to the internal coordinates x' = (x - centre) / scale (math.md, section 1:
-/// centre of the bounding box, half its diagonal), kept for conditioning.
+/// The affine map to the internal coordinates x' = (x - centre) / scale (centre of the bounding
+/// box, half its diagonal), kept for conditioning; see "Normalisation" in the module doc.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Normalisation {
     pub centre: [f64; 3],
