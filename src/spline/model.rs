@@ -35,7 +35,7 @@ use rayon::prelude::*;
 
 use crate::grid::Grid;
 use crate::spline::carrier::Carrier;
-use crate::spline::eval::Evaluator;
+use crate::spline::evaluator::Evaluator;
 use crate::spline::Spline;
 
 /// How a model was made; stored with it.
