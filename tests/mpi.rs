@@ -1,6 +1,6 @@
 //! The real binary under `mpirun -n 1`, `-n 2` and `-n 3 --oversubscribe` on bunny points: the
 //! model coefficients and the grid values agree with the serial oracle; `eval` reproduces `fit`;
-//! bad input fails cleanly on every rank count.
+//! bad input fails cleanly on every rank count; the Cholesky solver falls back to LU on every rank.
 
 mod common;
 
@@ -124,6 +124,45 @@ fn eval_reproduces_the_fit_grid_and_mesh_exactly() {
     let m = read_model(Path::new(&model)).unwrap();
     assert!((v[0] - m.eval(&[-5.0, 4.0, -3.0])).abs() < 1e-12 * v[0].abs().max(1.0));
     assert!((v[v.len() - 1] - m.eval(&[3.0, 15.0, 4.0])).abs() < 1e-12 * v[v.len() - 1].abs().max(1.0));
+}
+
+#[test]
+fn cholesky_falls_back_to_lu_on_every_rank_count() {
+    // 4 points give N = 4 = k polynomial terms: the projected block is empty, never definite. Every
+    // rank must take the fallback (were the agreed error to lose its kind on ranks other than the
+    // first, rank 0 alone would fall back and the job would hang or fail).
+    let dir = common::temp_dir("fallback");
+    let input = dir.join("four.xyz");
+    let raw = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+    common::write_xyz(&input, &raw);
+    let k = Kernel::new(3, 2).unwrap();
+    let prep = prepare(&raw, &k, &Carrier::AutoBall, 1e-6).unwrap();
+    let oracle = solve_serial(&prep, &k, SolverKind::Lu);
+    let mut first: Option<Model> = None;
+    for ranks in [1, 2, 3] {
+        let prefix = dir.join(format!("four-{ranks}"));
+        let p = prefix.to_str().unwrap();
+        let args = ["fit", input.to_str().unwrap(), "--out", p, "--solver", "cholesky", "--grid", "12"];
+        let out = common::run(ranks, &args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{ranks} ranks: {}\n{stderr}", out.status);
+        assert!(stderr.contains("fell back to LU"), "{ranks} ranks: no fallback message:\n{stderr}");
+        let model = read_model(&dir.join(format!("{p}.model.h5"))).unwrap();
+        assert_eq!(model.provenance.solver, "lu", "{ranks} ranks");
+        assert_eq!(model.provenance.ranks, ranks);
+        // the weights vanish (N = k: the moment conditions force lambda = 0), so compare the whole
+        // coefficient vector against its largest entry
+        let coef = |s: &volspline::spline::Spline| [s.weights.clone(), s.poly.clone()].concat();
+        let d = common::rel_diff(&coef(&model.spline), &coef(&oracle));
+        assert!(d < 1e-9, "{ranks} ranks vs the dense LU: coefficients differ by {d:e}");
+        match &first {
+            None => first = Some(model),
+            Some(one) => {
+                let d = common::rel_diff(&coef(&model.spline), &coef(&one.spline));
+                assert!(d < 1e-12, "{ranks} ranks vs 1 rank: coefficients differ by {d:e}");
+            }
+        }
+    }
 }
 
 fn assert_fails(ranks: usize, args: &[&str], code: i32, needles: &[&str]) {

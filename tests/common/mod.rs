@@ -1,8 +1,11 @@
 //! Shared helpers of the integration tests: real data, temporary folders, running the binary.
 #![allow(dead_code)]
 
+use std::io::Read;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
 
 use volspline::io::points::read_points;
 
@@ -37,7 +40,63 @@ pub fn write_xyz(path: &Path, pts: &[f64]) {
     std::fs::write(path, s).unwrap();
 }
 
-/// Runs the binary under `mpirun -n ranks` (or directly for ranks == 0).
+/// How long one run of the binary may take before it counts as hung: 300 s, or
+/// `VOLSPLINE_TEST_TIMEOUT_S`. Generous, for a loaded machine; a hang still fails instead of
+/// stalling the suite.
+pub fn run_limit() -> Duration {
+    let s = std::env::var("VOLSPLINE_TEST_TIMEOUT_S").ok().and_then(|v| v.parse().ok()).unwrap_or(300);
+    Duration::from_secs(s)
+}
+
+/// What a command printed and how it ended; `timed_out` when it was killed for running past its
+/// limit (then `output.status` is the status of the killed process).
+pub struct Finished {
+    pub output: Output,
+    pub timed_out: bool,
+}
+
+/// Runs `cmd` with stdout and stderr captured; past `limit` it is sent SIGTERM (mpirun passes it
+/// on to its ranks), 10 s later SIGKILL.
+pub fn output_within(mut cmd: Command, limit: Duration) -> Finished {
+    let mut child =
+        cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap_or_else(|e| {
+            panic!("failed to start {cmd:?} (is mpirun installed? run jobs/setup.sh): {e}")
+        });
+    // read both pipes on their own threads, so that a full pipe never blocks the child
+    let pipe = |mut r: Box<dyn Read + Send>| {
+        let (tx, rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            let mut buf = Vec::new();
+            let _ = r.read_to_end(&mut buf);
+            let _ = tx.send(buf);
+        });
+        rx
+    };
+    let out = pipe(Box::new(child.stdout.take().expect("piped stdout")));
+    let err = pipe(Box::new(child.stderr.take().expect("piped stderr")));
+    let start = Instant::now();
+    let mut timed_out = false;
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("waiting for a child process") {
+            break status;
+        }
+        if start.elapsed() > limit && !timed_out {
+            timed_out = true;
+            let _ = Command::new("kill").args(["-TERM", &child.id().to_string()]).status();
+        }
+        if start.elapsed() > limit + Duration::from_secs(10) {
+            let _ = child.kill();
+            break child.wait().expect("waiting for a killed child process");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    // a grandchild that outlived the child may hold a pipe open: do not wait for it for long
+    let collect = |rx: mpsc::Receiver<Vec<u8>>| rx.recv_timeout(Duration::from_secs(10)).unwrap_or_default();
+    Finished { output: Output { status, stdout: collect(out), stderr: collect(err) }, timed_out }
+}
+
+/// Runs the binary under `mpirun -n ranks` (or directly for ranks == 0); panics, with what it
+/// printed, when it runs past [`run_limit`].
 pub fn run(ranks: usize, args: &[&str]) -> Output {
     let mut cmd = if ranks == 0 {
         Command::new(BIN)
@@ -51,7 +110,17 @@ pub fn run(ranks: usize, args: &[&str]) -> Output {
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
         .env("OMPI_MCA_rmaps_base_oversubscribe", "1")
         .env("RAYON_NUM_THREADS", "1");
-    cmd.output().expect("failed to start the volspline binary (is mpirun installed? run jobs/setup.sh)")
+    let limit = run_limit();
+    let done = output_within(cmd, limit);
+    if done.timed_out {
+        panic!(
+            "volspline {args:?} on {ranks} ranks did not finish within {} s and was killed (a hang?):\n{}{}",
+            limit.as_secs(),
+            String::from_utf8_lossy(&done.output.stdout),
+            String::from_utf8_lossy(&done.output.stderr)
+        );
+    }
+    done.output
 }
 
 /// Runs and asserts success, printing the output on failure.

@@ -1,0 +1,551 @@
+//! Library code that communicates, run on 2 and 3 MPI ranks against serial oracles: the typed
+//! collectives, the agreement on errors, the distributed solvers and the Cholesky -> LU fallback,
+//! the parallel VTKHDF writer, and the per-slice fits of `contours`.
+//!
+//! A target without the libtest harness. As the parent (what `cargo test` starts) it runs this same
+//! executable under `mpirun -n 2` and `mpirun -n 3 --oversubscribe` and fails unless every job exits
+//! 0 within its time limit, so a collective that hangs fails the suite instead of stalling it. As a
+//! child (`VOLSPLINE_COLLECTIVE_CHILD` set) it starts MPI, runs every check on `world.comm()`, prints
+//! one line per check on rank 0 and exits non-zero if a check failed on any rank. Every check is
+//! collective: each rank records its own mismatches, and the lines are gathered to rank 0 after each
+//! check. An unexpected library error panics, and the panic aborts the whole job.
+//!
+//! Two more jobs check the harness itself: with `VOLSPLINE_COLLECTIVE_BREAK` set, one check compares
+//! against a wrong value and the job must fail; with `VOLSPLINE_COLLECTIVE_HANG` set, rank 0 never
+//! joins a barrier and the job must be killed at its (short) limit.
+//!
+//! Arguments as libtest takes them: `--list`, name filters (substrings, or whole names with
+//! `--exact`), `--skip NAME`; other options are accepted and ignored.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+use volspline::app::contours::solve_sections;
+use volspline::app::fit::assemble;
+use volspline::contour::planes::{slice_mesh, PlaneFamily};
+use volspline::contour::SectionCarrier;
+use volspline::error::{Error, Result};
+use volspline::grid::Grid;
+use volspline::io::vtkhdf::{read_image, write_image};
+use volspline::linalg::dense::{householder_solve, lu_solve, Matrix};
+use volspline::linalg::dist::{self, LocalRows, RowCyclic, SolverKind};
+use volspline::par::mpi::World;
+use volspline::par::{self, Comm, Solo};
+use volspline::spline::hygiene::{prepare, Prepared};
+use volspline::spline::{full_system, system_size, Carrier, Kernel};
+
+const CHILD: &str = "VOLSPLINE_COLLECTIVE_CHILD";
+const BREAK: &str = "VOLSPLINE_COLLECTIVE_BREAK";
+const HANG: &str = "VOLSPLINE_COLLECTIVE_HANG";
+
+fn main() {
+    if std::env::var_os(CHILD).is_some() {
+        child();
+    } else {
+        parent();
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The parent: one mpirun job per case, each with a time limit
+
+/// What a job must do to pass.
+#[derive(Clone, Copy)]
+enum Expect {
+    /// Exit 0 with every check passed.
+    Pass,
+    /// Exit non-zero through the agreed failure flag (a check compared against a wrong value).
+    Fail,
+    /// Run past its limit and be killed.
+    Hang,
+}
+
+struct Case {
+    name: &'static str,
+    ranks: usize,
+    expect: Expect,
+    limit: Duration,
+}
+
+fn cases() -> Vec<Case> {
+    let limit = Duration::from_secs(120);
+    vec![
+        Case { name: "collective_checks_on_2_ranks", ranks: 2, expect: Expect::Pass, limit },
+        Case { name: "collective_checks_on_3_ranks", ranks: 3, expect: Expect::Pass, limit },
+        Case { name: "harness_a_wrong_value_fails_the_job", ranks: 2, expect: Expect::Fail, limit },
+        Case {
+            name: "harness_a_hung_job_is_killed",
+            ranks: 2,
+            expect: Expect::Hang,
+            limit: Duration::from_secs(5),
+        },
+    ]
+}
+
+/// The cases selected by libtest-style arguments.
+fn selected(args: &[String]) -> Vec<Case> {
+    let (mut filters, mut skips, mut exact) = (Vec::new(), Vec::new(), false);
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--exact" => exact = true,
+            "--skip" => skips.extend(it.next().cloned()),
+            // options of libtest that take a value
+            "--test-threads" | "--format" | "--color" | "--logfile" | "-Z" | "--shuffle-seed" => {
+                it.next();
+            }
+            s if s.starts_with('-') => {}
+            s => filters.push(s.to_string()),
+        }
+    }
+    let hit = |name: &str, f: &String| if exact { name == f } else { name.contains(f.as_str()) };
+    cases()
+        .into_iter()
+        .filter(|c| filters.is_empty() || filters.iter().any(|f| hit(c.name, f)))
+        .filter(|c| !skips.iter().any(|f| hit(c.name, f)))
+        .collect()
+}
+
+fn parent() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let cases = selected(&args);
+    if args.iter().any(|a| a == "--list") {
+        for c in &cases {
+            println!("{}: test", c.name);
+        }
+        return;
+    }
+    if args.iter().any(|a| a == "--ignored") {
+        return; // no ignored cases
+    }
+    println!("\nrunning {} tests", cases.len());
+    let exe = std::env::current_exe().expect("the path of this test executable");
+    let mut failed = Vec::new();
+    for case in &cases {
+        let t = Instant::now();
+        match run_case(&exe, case) {
+            Ok(()) => println!("test {} ... ok ({:.1} s)", case.name, t.elapsed().as_secs_f64()),
+            Err(why) => {
+                println!("test {} ... FAILED\n{why}", case.name);
+                failed.push(case.name);
+            }
+        }
+    }
+    if !failed.is_empty() {
+        println!("\nfailures: {}", failed.join(", "));
+        std::process::exit(101);
+    }
+    println!("\ntest result: ok. {} passed\n", cases.len());
+}
+
+/// Runs one case's mpirun job and judges how it ended.
+fn run_case(exe: &Path, case: &Case) -> std::result::Result<(), String> {
+    let mut cmd = Command::new("mpirun");
+    cmd.args(["-n", &case.ranks.to_string(), "--oversubscribe"])
+        .arg(exe)
+        .env(CHILD, "1")
+        .env_remove(BREAK)
+        .env_remove(HANG)
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .env("OMPI_MCA_rmaps_base_oversubscribe", "1")
+        .env("RAYON_NUM_THREADS", "1");
+    match case.expect {
+        Expect::Fail => {
+            cmd.env(BREAK, "1");
+        }
+        Expect::Hang => {
+            cmd.env(HANG, "1");
+        }
+        Expect::Pass => {}
+    }
+    let done = common::output_within(cmd, case.limit);
+    let (stdout, stderr) =
+        (String::from_utf8_lossy(&done.output.stdout), String::from_utf8_lossy(&done.output.stderr));
+    let text = format!("--- stdout\n{stdout}--- stderr\n{stderr}");
+    let summary = stdout.lines().rev().find_map(|l| l.strip_prefix("summary: ")).unwrap_or("");
+    let field = |key: &str| -> Option<usize> {
+        summary.split(' ').find_map(|kv| kv.strip_prefix(key)?.strip_prefix('=')?.parse().ok())
+    };
+    let limit = case.limit.as_secs();
+    let (ok, checks) = (done.output.status.success(), field("checks").unwrap_or(0));
+    match case.expect {
+        _ if done.timed_out && !matches!(case.expect, Expect::Hang) => {
+            Err(format!("the job did not finish within {limit} s and was killed (a hang?)\n{text}"))
+        }
+        Expect::Pass
+            if ok
+                && field("ranks") == Some(case.ranks)
+                && checks > 0
+                && field("failed") == Some(0)
+                && !stdout.contains("FAIL") =>
+        {
+            print!("{stdout}");
+            Ok(())
+        }
+        Expect::Pass => Err(format!("the job failed ({}) or ran no checks\n{text}", done.output.status)),
+        // exactly the broken comparison fails, the job exits non-zero through the agreed flag
+        Expect::Fail if !ok && field("failed") == Some(1) && stdout.contains("FAIL  typed collectives") => {
+            Ok(())
+        }
+        Expect::Fail => Err(format!("a check against a wrong value did not fail the job\n{text}")),
+        Expect::Hang if done.timed_out => Ok(()),
+        Expect::Hang => Err(format!("the hung job was not killed at its limit of {limit} s\n{text}")),
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The child: every check on the MPI world
+
+/// One rank's mismatches in one check.
+#[derive(Default)]
+struct Log {
+    fails: Vec<String>,
+}
+
+impl Log {
+    fn check(&mut self, ok: bool, what: impl FnOnce() -> String) {
+        if !ok {
+            self.fails.push(what());
+        }
+    }
+
+    /// `got` within `tol` of `want`, relative to the largest |want|.
+    fn close(&mut self, got: &[f64], want: &[f64], tol: f64, what: impl FnOnce() -> String) {
+        if got.len() != want.len() {
+            self.fails.push(format!("{}: {} values, expected {}", what(), got.len(), want.len()));
+        } else {
+            let d = common::rel_diff(got, want);
+            self.check(d <= tol, || format!("{}: relative difference {d:e} > {tol:e}", what()));
+        }
+    }
+}
+
+type Check = fn(&dyn Comm, &mut Log);
+
+fn child() {
+    let world = World::start().expect("MPI could not be started");
+    let mpi = world.comm();
+    let comm: &dyn Comm = &mpi;
+    if std::env::var_os(HANG).is_some() {
+        // rank 0 never reaches the barrier the others wait in
+        if comm.rank() == 0 {
+            loop {
+                std::thread::sleep(Duration::from_secs(1));
+            }
+        }
+        comm.barrier();
+    }
+    let checks: [(&str, Check); 8] = [
+        ("typed collectives", typed_collectives),
+        ("agree: one failing rank", agree_one_failing_rank),
+        ("agree: two failing ranks, the lowest wins", agree_lowest_rank_wins),
+        ("distributed solvers vs dense oracles", solvers_match_the_oracles),
+        ("Cholesky -> LU fallback, 4 points", fallback_on_four_points),
+        ("Cholesky -> LU fallback, indefinite block", fallback_on_an_indefinite_block),
+        ("parallel VTKHDF write vs serial values", vtkhdf_slabs_read_back),
+        ("contour slices vs one process", sections_match_solo),
+    ];
+    let mut failed = 0;
+    for (name, check) in checks {
+        let start = Instant::now();
+        let mut log = Log::default();
+        check(comm, &mut log);
+        let mut count = [log.fails.len() as u64];
+        comm.sum_u64(&mut count);
+        let lines = comm.gather_values(0, &log.fails);
+        if let Some(lines) = lines {
+            let secs = start.elapsed().as_secs_f64();
+            if count[0] == 0 {
+                println!("  ok    {name} ({secs:.2} s)");
+            } else {
+                println!("  FAIL  {name}");
+                for (r, fails) in lines.iter().enumerate() {
+                    for f in fails {
+                        println!("          rank {r}: {f}");
+                    }
+                }
+            }
+        }
+        failed += usize::from(count[0] > 0);
+    }
+    if comm.rank() == 0 {
+        println!("summary: ranks={} checks={} failed={failed}", comm.size(), checks.len());
+    }
+    drop(world);
+    if failed > 0 {
+        std::process::exit(1);
+    }
+}
+
+/// An unexpected library error: abort the job with it (the panic hook of `World` aborts all ranks).
+fn must<T>(r: Result<T>, what: &str) -> T {
+    r.unwrap_or_else(|e| panic!("{what}: unexpected error: {e}"))
+}
+
+/// 1 in the self-test of a failing check (`VOLSPLINE_COLLECTIVE_BREAK`), else 0.
+fn broken() -> u64 {
+    u64::from(std::env::var_os(BREAK).is_some())
+}
+
+// ---------------------------------------------------------------------------------------------
+// Typed collectives and the agreement on errors: exact values
+
+fn typed_collectives(comm: &dyn Comm, log: &mut Log) {
+    let (p, r) = (comm.size(), comm.rank());
+    for root in 0..p {
+        let v = (format!("from rank {root}"), vec![root as f64 + 0.5; root + 1]);
+        let got: (String, Vec<f64>) = comm.broadcast_value(root, (r == root).then(|| v.clone()));
+        log.check(got == v, || format!("broadcast_value from {root}: {got:?}, expected {v:?}"));
+        let mut buf = if r == root { [1.25, -3.0, root as f64] } else { [f64::NAN; 3] };
+        comm.broadcast_f64(root, &mut buf);
+        log.check(buf == [1.25, -3.0, root as f64], || format!("broadcast_f64 from {root}: {buf:?}"));
+    }
+    // rank q sends q strings (rank 0 an empty list) to the last rank
+    let mine = (r, vec![format!("rank {r}"); r]);
+    let got = comm.gather_values(p - 1, &mine);
+    let want: Vec<(usize, Vec<String>)> = (0..p).map(|q| (q, vec![format!("rank {q}"); q])).collect();
+    match got {
+        Some(g) => log.check(r == p - 1 && g == want, || format!("gather_values: {g:?}, expected {want:?}")),
+        None => log.check(r != p - 1, || "gather_values: nothing on the root".into()),
+    }
+    let mut s = [r as u64 + 1, (r as u64) << 40];
+    comm.sum_u64(&mut s);
+    let pp = p as u64;
+    let want = [pp * (pp + 1) / 2 + broken(), (pp * (pp - 1) / 2) << 40];
+    log.check(s == want, || format!("sum_u64: {s:?}, expected {want:?}"));
+    let (mut sum, mut max, mut min) = ([r as f64 + 0.25], [r as f64], [r as f64 - 7.0]);
+    comm.sum_f64(&mut sum);
+    comm.max_f64(&mut max);
+    comm.min_f64(&mut min);
+    let want_sum = (p * (p - 1) / 2) as f64 + 0.25 * p as f64;
+    log.check(sum[0] == want_sum, || format!("sum_f64: {}, expected {want_sum}", sum[0]));
+    log.check(max[0] == (p - 1) as f64 && min[0] == -7.0, || format!("max_f64 {max:?}, min_f64 {min:?}"));
+    // uneven counts: rank q sends 2q values (rank 0 none)
+    let counts: Vec<usize> = (0..p).map(|q| 2 * q).collect();
+    let send: Vec<f64> = (0..2 * r).map(|i| (100 * r + i) as f64).collect();
+    let want: Vec<f64> = (0..p).flat_map(|q| (0..2 * q).map(move |i| (100 * q + i) as f64)).collect();
+    let mut recv = vec![f64::NAN; want.len()];
+    comm.all_gather_f64(&send, &counts, &mut recv);
+    log.check(recv == want, || format!("all_gather_f64: {recv:?}, expected {want:?}"));
+    // the ring, both ways
+    for step in [1, p - 1] {
+        let (dest, source) = ((r + step) % p, (r + p - step) % p);
+        let values = |q: usize| [q as f64, 10.0 * q as f64 + 1.0, -(q as f64)];
+        let mut recv = [f64::NAN; 3];
+        comm.shift_f64(dest, source, &values(r), &mut recv);
+        log.check(recv == values(source), || format!("shift_f64 by {step}: {recv:?} from rank {source}"));
+    }
+}
+
+/// Checks that `got` is the error `want` of rank `failing`, as every rank must see it.
+fn check_agreed<T: std::fmt::Debug>(log: &mut Log, r: usize, got: Result<T>, want: &Error, failing: usize) {
+    match got {
+        Ok(v) => log.check(false, || format!("Ok({v:?}), expected the error of rank {failing}")),
+        Err(e) => {
+            // the failing rank keeps its own error; the others get it as Remote with its rank
+            let rank = e.remote_rank().unwrap_or(r);
+            let own = r == failing && e.remote_rank().is_none();
+            log.check(e.root() == want && rank == failing && (own || r != failing), || {
+                format!("{e:?}, expected {want:?} from rank {failing}")
+            });
+            log.check(e.to_string() == want.to_string() && e.exit_code() == want.exit_code(), || {
+                format!("'{e}' (exit code {}), expected '{want}'", e.exit_code())
+            });
+            log.check(e.is_not_definite() == matches!(want, Error::NotDefinite(_)), || {
+                format!("is_not_definite of {e:?}")
+            });
+        }
+    }
+}
+
+fn agree_one_failing_rank(comm: &dyn Comm, log: &mut Log) {
+    let (p, r) = (comm.size(), comm.rank());
+    let last = p - 1;
+    let want = Error::NotDefinite(format!("pivot -1 on rank {last}"));
+    let local = if r == last { Err(want.clone()) } else { Ok(r) };
+    check_agreed(log, r, par::agree(comm, local), &want, last);
+    // no error anywhere: each rank keeps its own value
+    let got = par::agree(comm, Ok::<usize, Error>(10 * r));
+    log.check(matches!(got, Ok(v) if v == 10 * r), || format!("agree without errors: {got:?}"));
+    // a failure on rank 0 alone (a file write)
+    let want = Error::Io { path: PathBuf::from("/root-only"), reason: "disk full".into() };
+    let got = par::on_root(comm, || Err(want.clone()));
+    check_agreed(log, r, got, &want, 0);
+}
+
+fn agree_lowest_rank_wins(comm: &dyn Comm, log: &mut Log) {
+    let (p, r) = (comm.size(), comm.rank());
+    let (low, high) = (p - 2, p - 1);
+    let want = Error::Usage(format!("bad option on rank {low}"));
+    let local: Result<()> = match r {
+        _ if r == low => Err(want.clone()),
+        _ if r == high => Err(Error::NotDefinite("the higher rank's error".into())),
+        _ => Ok(()),
+    };
+    check_agreed(log, r, par::agree(comm, local), &want, low);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The distributed solvers against the dense serial oracles
+
+/// Every 20th bunny vertex, prepared as `fit` prepares them: 253 centres, 257 rows.
+fn bunny_system(k: &Kernel) -> Prepared {
+    must(prepare(&common::bunny_subset(20, 0), k, &Carrier::AutoBall, 1e-6), "prepare the bunny points")
+}
+
+/// The dense serial solution of the whole system of `prep` by `solve`.
+fn oracle(prep: &Prepared, k: &Kernel, solve: fn(&Matrix, &[f64]) -> Result<Vec<f64>>) -> Vec<f64> {
+    let n = system_size(k, prep.values.len());
+    let (data, b) = full_system(k, &prep.centres, &prep.values);
+    must(solve(&Matrix { rows: n, cols: n, data }, &b), "the dense oracle")
+}
+
+/// Checks that every rank holds the same solution, bit for bit.
+fn same_on_every_rank(comm: &dyn Comm, log: &mut Log, x: &[f64], what: &str) {
+    let x0: Vec<f64> = comm.broadcast_value(0, (comm.rank() == 0).then(|| x.to_vec()));
+    log.check(x0 == x, || format!("{what}: the solution differs from rank 0's"));
+}
+
+fn solvers_match_the_oracles(comm: &dyn Comm, log: &mut Log) {
+    let k = Kernel::new(3, 2).unwrap();
+    let prep = bunny_system(&k);
+    let n = system_size(&k, prep.values.len());
+    let (x_qr, x_lu) = (oracle(&prep, &k, householder_solve), oracle(&prep, &k, lu_solve));
+    for kind in [SolverKind::Householder, SolverKind::Lu, SolverKind::Cholesky] {
+        // 7 and 16 put the rows of every panel on every rank; 64 panels end inside a rank's rows
+        for panel in [7, 16, 64] {
+            let layout = RowCyclic::new(n, comm.size(), comm.rank());
+            let mut rows = assemble(&k, &prep.centres, &prep.values, layout);
+            let x = must(kind.run(comm, &mut rows, panel, &|_, _| ()), kind.name());
+            let want = if kind == SolverKind::Lu { &x_lu } else { &x_qr };
+            let what = format!("{} panel {panel}", kind.name());
+            log.close(&x, want, 1e-9, || what.clone());
+            same_on_every_rank(comm, log, &x, &what);
+        }
+    }
+}
+
+/// Solves with `dist::solve` and the Cholesky solver, and checks that every rank fell back to LU
+/// (because of a block that is not definite) and matches the dense LU solution `want`.
+fn check_fallback(
+    comm: &dyn Comm,
+    log: &mut Log,
+    rows_of: &dyn Fn(RowCyclic) -> LocalRows,
+    n: usize,
+    want: &[f64],
+    what: &str,
+) {
+    for panel in [0, 3, 8] {
+        let layout = RowCyclic::new(n, comm.size(), comm.rank());
+        let solved =
+            dist::solve(comm, SolverKind::Cholesky, rows_of(layout), panel, &|_, _| (), || rows_of(layout));
+        let s = must(solved, what);
+        log.check(s.used == SolverKind::Lu, || format!("{what} panel {panel}: used {:?}", s.used));
+        let why = s.fallback.as_ref();
+        log.check(why.is_some_and(Error::is_not_definite), || {
+            format!("{what} panel {panel}: fallback {why:?}")
+        });
+        log.close(&s.x, want, 1e-9, || format!("{what} panel {panel}"));
+        same_on_every_rank(comm, log, &s.x, what);
+    }
+}
+
+fn fallback_on_four_points(comm: &dyn Comm, log: &mut Log) {
+    // N = 4 = k: the projected block is empty, nothing is definite
+    let k = Kernel::new(3, 2).unwrap();
+    let raw = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+    let prep = must(prepare(&raw, &k, &Carrier::AutoBall, 1e-6), "prepare 4 points");
+    let n = system_size(&k, 4);
+    let want = oracle(&prep, &k, lu_solve);
+    let rows_of = |layout| assemble(&k, &prep.centres, &prep.values, layout);
+    check_fallback(comm, log, &rows_of, n, &want, "4 points");
+}
+
+fn fallback_on_an_indefinite_block(comm: &dyn Comm, log: &mut Log) {
+    // symmetric random entries with a zero diagonal, bordered by [1 x y z] of random points: the
+    // projected block is indefinite. The same global matrix on every rank; each keeps its rows.
+    let (m, k) = (40, 4);
+    let n = m + k;
+    let mut s = 3u64;
+    let mut rnd = move || {
+        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let mut a = Matrix::zeros(n, n + 1);
+    for i in 0..m {
+        for j in 0..i {
+            let v = rnd();
+            a.set(i, j, v);
+            a.set(j, i, v);
+        }
+        let p = [1.0, rnd(), rnd(), rnd()];
+        for (t, v) in p.iter().enumerate() {
+            a.set(i, m + t, *v);
+            a.set(m + t, i, *v);
+        }
+        a.set(i, n, rnd());
+    }
+    let rows_of = |layout: RowCyclic| {
+        let mut rows = LocalRows::zeros(layout, n + 1, k);
+        for l in 0..layout.local_count() {
+            for c in 0..=n {
+                rows.set(l, c, a.get(layout.global(l), c));
+            }
+        }
+        rows
+    };
+    let b: Vec<f64> = (0..n).map(|i| a.get(i, n)).collect();
+    let square = Matrix { rows: n, cols: n, data: a.data[..n * n].to_vec() };
+    let want = must(lu_solve(&square, &b), "the dense LU oracle");
+    check_fallback(comm, log, &rows_of, n, &want, "indefinite block");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Parallel output and the per-slice fits: bit for bit what one process gives
+
+fn vtkhdf_slabs_read_back(comm: &dyn Comm, log: &mut Log) {
+    let (p, r) = (comm.size(), comm.rank());
+    // one folder, named by rank 0, for all ranks
+    let dir: PathBuf = comm.broadcast_value(0, (r == 0).then(|| common::temp_dir("collective-vtkhdf")));
+    // 7 layers over 2 or 3 ranks (uneven slabs); 2 layers leave the third rank without any
+    for dims in [[5, 4, 7], [3, 2, 2]] {
+        let grid = Grid { dims, origin: [-1.0, 0.5, 2.0], spacing: [0.25, 0.5, 0.125] };
+        let value = |g: usize| (g as f64 * 0.37).sin() * 1e3;
+        let layer = dims[0] * dims[1];
+        let slabs = grid.slabs(p);
+        let (k0, layers) = (slabs.start(r), slabs.count(r));
+        let mine: Vec<f64> = (k0 * layer..(k0 + layers) * layer).map(value).collect();
+        let path = dir.join(format!("{}x{}x{}.hdf", dims[0], dims[1], dims[2]));
+        must(write_image(comm, &path, &grid, k0, layers, "f", &mine), "write_image");
+        if r == 0 {
+            let (g, v) = must(read_image(&path, "f"), "read_image");
+            let want: Vec<f64> = (0..grid.node_count()).map(value).collect();
+            log.check(g == grid, || format!("{dims:?}: grid read back {g:?}"));
+            log.check(v == want, || format!("{dims:?}: values read back differ from the serial ones"));
+        }
+    }
+    comm.barrier();
+    if r == 0 {
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
+
+fn sections_match_solo(comm: &dyn Comm, log: &mut Log) {
+    // 5 slices of the cow across z: 2 or 3 per rank, uneven
+    let mesh = common::load_mesh(Path::new(common::COW));
+    let planes = PlaneFamily::Parallel { axis: 2, count: 5 }.planes(&mesh.vertices);
+    let (sections, _) = slice_mesh(&mesh, &planes);
+    log.check(sections.len() == 5, || format!("{} slices of the cow, expected 5", sections.len()));
+    let k = Kernel::new(2, 2).unwrap();
+    let source = Path::new("cow slices");
+    let serial = must(solve_sections(&Solo, source, &sections, &k, SectionCarrier::Disc, 1e-6), "Solo");
+    let fits = must(solve_sections(comm, source, &sections, &k, SectionCarrier::Disc, 1e-6), "MPI");
+    log.check(fits.len() == serial.len(), || format!("{} fits, expected {}", fits.len(), serial.len()));
+    for (i, (a, b)) in fits.iter().zip(&serial).enumerate() {
+        log.check(a == b, || format!("slice {i}: the fit differs from the one-process fit"));
+    }
+}
