@@ -188,7 +188,7 @@ fn sliced_accuracy_test_against_one_2d_spline() {
     let centres: Vec<f64> =
         nodes.chunks_exact(2).flat_map(|p| [(p[0] - 5.0) / norm.scale, (p[1] - 5.0) / norm.scale]).collect();
     let mut rows: LocalRows = common::assemble_one(&centres, &values, &k2);
-    let x = SolverKind::Cholesky.run(&Solo, &mut rows, 64, &|_, _| ()).unwrap();
+    let x = SolverKind::Cholesky.run(&Solo, &mut rows, 64, faer::Par::Seq, &|_, _| ()).unwrap();
     let whole = Spline::from_solution(k2, centres, &x, norm);
     let rms_2d = rms(&|x, y| whole.eval(&[x, y]));
 

@@ -5,6 +5,7 @@
 
 use std::path::Path;
 
+use faer::Par;
 use rayon::prelude::*;
 
 use super::preflight::{check_memory, check_prefix, dense_fit_bytes};
@@ -73,7 +74,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let rows = stages.time(Stage::Assemble, || assemble(&a.kernel, &centres, &values, layout));
     let progress = Progress::new("solve", comm);
     let solved = stages.time(Stage::Solve, || {
-        dist::solve(comm, a.solver, rows, a.panel, &|d, t| progress.update(d, t), || {
+        dist::solve(comm, a.solver, rows, a.panel, Par::rayon(threads), &|d, t| progress.update(d, t), || {
             assemble(&a.kernel, &centres, &values, layout)
         })
     })?;

@@ -4,8 +4,10 @@
 //! disc). F_i = f_c,i - U_i >= 0 inside the section. Also serves any dimension through
 //! [`fit_values`] (the 1D line splines of the sliced accuracy test in `tests/contours.rs`).
 
+use faer::MatRef;
+
 use crate::error::{Error, Result};
-use crate::linalg::dense::{self, Matrix};
+use crate::linalg::dense;
 use crate::spline::carrier::Carrier;
 use crate::spline::hygiene::{bounding_box, check_unisolvent, diagonal, merge_duplicates};
 use crate::spline::kernel::Kernel;
@@ -73,9 +75,9 @@ pub fn fit_values(kernel: &Kernel, points: &[f64], values: &[f64]) -> Result<(Sp
     check_unisolvent(kernel, &centres)?;
     let n = values.len() + kernel.poly_count();
     let (data, b) = full_system(kernel, &centres, values);
-    let m = Matrix { rows: n, cols: n, data };
-    let x = dense::lu_solve(&m, &b)?;
-    let residual = dense::relative_residual(&m, &x, &b);
+    let m = MatRef::from_column_major_slice(&data, n, n);
+    let x = dense::lu_solve(m, &b)?;
+    let residual = dense::relative_residual(m, &x, &b);
     Ok((Spline::from_solution(*kernel, centres, &x, norm), residual))
 }
 

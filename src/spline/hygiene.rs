@@ -6,8 +6,10 @@
 
 use std::collections::HashMap;
 
+use faer::Mat;
+
 use crate::error::{Error, Result};
-use crate::linalg::dense::{qr_r_diagonal, Matrix};
+use crate::linalg::dense::qr_r_diagonal;
 use crate::spline::carrier::Carrier;
 use crate::spline::kernel::Kernel;
 use crate::spline::system::Normalisation;
@@ -91,14 +93,14 @@ pub fn check_unisolvent(kernel: &Kernel, points: &[f64]) -> Result<()> {
         )));
     }
     let mut vals = vec![0.0; k];
-    let mut p = Matrix::zeros(n, k);
+    let mut p = Mat::<f64>::zeros(n, k);
     for (i, x) in points.chunks_exact(dim).enumerate() {
         kernel.poly_eval(x, &mut vals);
         for (j, v) in vals.iter().enumerate() {
-            p.set(i, j, *v);
+            p[(i, j)] = *v;
         }
     }
-    let diag = qr_r_diagonal(&p);
+    let diag = qr_r_diagonal(p.as_ref());
     let biggest = diag.iter().fold(0.0f64, |a, b| a.max(*b));
     if diag.iter().any(|&d| d <= 1e-10 * biggest) {
         return Err(Error::Numerical(format!(

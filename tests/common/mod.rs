@@ -162,14 +162,14 @@ pub fn solve_serial(
     kernel: &volspline::spline::Kernel,
     solver: volspline::linalg::dist::SolverKind,
 ) -> volspline::spline::Spline {
-    use volspline::linalg::dense::{householder_solve, lu_solve, Matrix};
+    use volspline::linalg::dense::{householder_solve, lu_solve};
     use volspline::linalg::dist::SolverKind;
     let n = volspline::spline::system_size(kernel, prep.values.len());
     let (data, b) = volspline::spline::full_system(kernel, &prep.centres, &prep.values);
-    let m = Matrix { rows: n, cols: n, data };
+    let m = faer::MatRef::from_column_major_slice(&data, n, n);
     let x = match solver {
-        SolverKind::Lu => lu_solve(&m, &b).unwrap(),
-        _ => householder_solve(&m, &b).unwrap(),
+        SolverKind::Lu => lu_solve(m, &b).unwrap(),
+        _ => householder_solve(m, &b).unwrap(),
     };
     volspline::spline::Spline::from_solution(*kernel, prep.centres.clone(), &x, prep.norm)
 }

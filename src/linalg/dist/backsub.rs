@@ -1,7 +1,7 @@
 //! Block back-substitution on a row-cyclic upper-triangular factor (R of QR, U of LU) whose
 //! right-hand side column already holds the transformed right-hand side.
 
-use super::system::LocalRows;
+use super::system::{all_gather_rows, LocalRows};
 use crate::error::{Error, Result};
 use crate::par::Comm;
 
@@ -19,7 +19,6 @@ pub fn back_substitute(comm: &dyn Comm, rows: &mut LocalRows, panel: usize, tol:
         let b0 = b1.saturating_sub(panel.max(1));
         let bs = b1 - b0;
         // diagonal block and its right-hand side, replicated: bs rows of (bs + 1) values
-        let mut block = vec![0.0; bs * (bs + 1)];
         let (l0, l1) = (lay.first_local_from(b0), lay.first_local_from(b1));
         let mut send = Vec::with_capacity((l1 - l0) * (bs + 1));
         for l in l0..l1 {
@@ -28,18 +27,7 @@ pub fn back_substitute(comm: &dyn Comm, rows: &mut LocalRows, panel: usize, tol:
             }
             send.push(rows.data[l + rhs * ld]);
         }
-        let counts: Vec<usize> = (0..lay.ranks).map(|r| lay.count_in_on(r, b0, b1) * (bs + 1)).collect();
-        let mut recv = vec![0.0; bs * (bs + 1)];
-        comm.all_gather_f64(&send, &counts, &mut recv);
-        let mut off = 0;
-        for r in 0..lay.ranks {
-            let first = b0 + (r + lay.ranks - b0 % lay.ranks) % lay.ranks;
-            for t in 0..counts[r] / (bs + 1) {
-                let i = first + t * lay.ranks - b0;
-                block[i * (bs + 1)..(i + 1) * (bs + 1)].copy_from_slice(&recv[off..off + bs + 1]);
-                off += bs + 1;
-            }
-        }
+        let block = all_gather_rows(comm, lay, &send, b0, b1, bs + 1);
         for i in (0..bs).rev() {
             let row = &block[i * (bs + 1)..(i + 1) * (bs + 1)];
             let d = row[i];

@@ -1,8 +1,46 @@
-//! Projected Cholesky for the bordered spline system (math.md, section 1): the Householder
-//! reflectors that triangularise the polynomial block P are applied to both sides of A, which
-//! leaves a definite (N-k) x (N-k) block B = Q2^T A Q2; B (or -B) is factored by a blocked,
-//! right-looking, row-cyclic Cholesky (a third of LU's flops, counting only the lower triangle),
-//! and lambda = Q2 mu, R c = Q1^T (r - A lambda) recover the spline. Collective throughout.
+//! Projected Cholesky for the bordered spline system: half of LU's flops (1/3 n^3), for the
+//! systems whose kernel makes the projected block definite (all the polyharmonic ones).
+//!
+//! # Reduction to a definite system
+//!
+//! The system is [A P; P^T 0] [lambda; c] = [r; 0] with A = (G(|x_i - x_j|)) (N x N, symmetric)
+//! and P = (p_j(x_i)) (N x k) of full column rank k. Let P = Q [R; 0] be its Householder QR,
+//! Q = H_1 ... H_k = [Q1 Q2] with Q1 of k columns and Q2 of N - k, R upper triangular k x k and
+//! invertible. The columns of Q2 are an orthonormal basis of the null space of P^T
+//! (P^T = R^T Q1^T, and Q1^T Q2 = 0), so the second block row, P^T lambda = 0, says exactly
+//! lambda = Q2 mu for one mu in R^(N-k). Put into the first block row, A Q2 mu + Q1 R c = r;
+//! multiplied by Q2^T and by Q1^T it splits into
+//!
+//! ```text
+//!     B mu = Q2^T r,   B = Q2^T A Q2 ((N-k) x (N-k)),      R c = Q1^T (r - A lambda).
+//! ```
+//!
+//! B is definite. The kernel is conditionally definite of order m: there is a sign s = +-1 with
+//! s lambda^T A lambda > 0 for every lambda != 0 that annihilates the polynomials of degree < m
+//! (P^T lambda = 0), at distinct points. Since Q2 has orthonormal columns, lambda = Q2 mu is such
+//! a vector for every mu != 0, and mu^T B mu = lambda^T A lambda, so s B is positive definite.
+//! The sign is the kernel's: G = r (3D, m = 2) and r^4 ln r (2D, m = 3) give s = -1, G = r^3
+//! (3D, m = 3) and r^2 ln r (2D, m = 2) give s = +1; in general (-1)^ceil(b/2) r^b for odd b and
+//! (-1)^(j+1) r^(2j) ln r are conditionally positive definite of order q = ceil(b/2) resp. j + 1,
+//! with q <= m here; a form definite on the vectors that annihilate the polynomials of degree < q
+//! stays definite on those that annihilate the larger space of degree < m. Since every
+//! diagonal entry of s B is positive, the solver reads s off the first diagonal entry of B and
+//! factors s B = L L^T. If a pivot is not positive after all (rounding, near-duplicate points),
+//! it returns `Error::NotDefinite` and the caller falls back to LU.
+//!
+//! # Work on the ranks
+//!
+//! Q is never formed. Every rank gathers P^T (k rows), factors it serially and applies
+//! Q = I - V T V^T (compact WY) to both sides of its own rows of A and to r, in two passes:
+//! X = A V, then the symmetric rank-2k update Q^T A Q = A - Y V^T - V Y^T with
+//! Y = X T - V T^T (V^T X) T / 2 (expand (I - V T^T V^T) A (I - V T V^T) to check); the
+//! right-hand side becomes Q^T r = [Q1^T r; Q2^T r]. Rows and columns k..N of the result are B;
+//! rows 0..k, columns k..N are Q1^T A Q2, so Q1^T A lambda = (Q1^T A Q2) mu is read off the
+//! owners of those rows and R c = Q1^T r - (Q1^T A Q2) mu is a k x k triangular solve. B is
+//! factored by a blocked, right-looking, row-cyclic Cholesky that only updates the lower
+//! triangle (L11 L11^T = B11, L21 = B21 L11^-T, B22 <- B22 - L21 L21^T, one GEMM per chunk of
+//! local rows); forward and back substitution give mu, and lambda = Q [0; mu] applies the k
+//! reflectors to a vector, last one first.
 
 use faer::linalg::matmul::matmul;
 use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
@@ -11,6 +49,7 @@ use faer::{Accum, Mat, MatMut, MatRef, Par};
 
 use super::system::{all_gather_rows, GatherBuffers, LocalRows};
 use crate::error::{Error, Result};
+use crate::linalg::reflector::{apply, explicit_v, qr_in_place, wy_t};
 use crate::par::Comm;
 
 /// Local rows updated per GEMM of the trailing update: small enough that the triangle is followed
@@ -20,11 +59,13 @@ const ROW_CHUNK: usize = 96;
 /// Solves the bordered system in `rows` (its polynomial border of width `rows.border` >= 1 and
 /// its right-hand side as the last column). Returns the solution on every rank, or
 /// `Error::NotDefinite` (on every rank) when a pivot of B is not positive, in which case the
-/// caller should fall back to LU on a freshly assembled system: `rows` is overwritten.
+/// caller should fall back to LU on a freshly assembled system: `rows` is overwritten. `par` is
+/// the parallelism of the local GEMMs and triangular solves.
 pub fn cholesky_solve(
     comm: &dyn Comm,
     rows: &mut LocalRows,
     panel: usize,
+    par: Par,
     progress: &dyn Fn(usize, usize),
 ) -> Result<Vec<f64>> {
     let lay = rows.layout;
@@ -40,11 +81,15 @@ pub fn cholesky_solve(
     let la = lay.first_local_from(n); // this rank's rows of A are local 0..la
     let gl: Vec<usize> = (0..la).map(|l| lay.global(l)).collect();
 
-    // P^T (the border rows) on every rank, and its reflectors
-    let pt = rows.gather_rows(comm, n, n + k, 0, n);
-    let (vs, taus, r) = reflectors(&pt, n, k)?;
-
-    project(comm, rows, &vs, &taus, n, la);
+    // P^T (the border rows, row-major) is P column-major: its QR on every rank, R above the
+    // diagonal, the reflectors below
+    let mut qr = rows.gather_rows(comm, n, n + k, 0, n);
+    let taus = qr_in_place(&mut qr, n, k);
+    let r = MatRef::from_column_major_slice(&qr, n, k);
+    if (0..k).any(|j| !(r[(j, j)].abs() > 0.0)) {
+        return Err(Error::Numerical(format!("the polynomial block has rank < {k}: points not unisolvent")));
+    }
+    project(comm, rows, explicit_v(r, k).as_ref(), &taus, n, la, par);
 
     // B = rows/columns k..n: make it positive definite (sign of any diagonal entry)
     let mut d0 = [if lay.owner(k) == lay.rank { rows.get(lay.local(k), k) } else { 0.0 }];
@@ -58,7 +103,6 @@ pub fn cholesky_solve(
     }
 
     // blocked right-looking Cholesky of B, lower triangle, in place
-    let par = Par::rayon(0);
     let mut bufs = GatherBuffers::default();
     let mut p0 = k;
     while p0 < n {
@@ -148,9 +192,8 @@ pub fn cholesky_solve(
     // lambda = Q [0; mu]
     let mut lambda = mu.clone();
     lambda[..k].iter_mut().for_each(|x| *x = 0.0);
-    for (v, &tau) in vs.iter().zip(&taus).rev() {
-        let t = tau * v.iter().zip(&lambda).map(|(a, b)| a * b).sum::<f64>();
-        lambda.iter_mut().zip(v).for_each(|(x, vi)| *x -= t * vi);
+    for j in (0..k).rev() {
+        apply(taus[j], &qr[j * n + j + 1..(j + 1) * n], &mut lambda[j..]);
     }
     // R c = (Q^T r)_1 - (Q^T A Q)[0..k, k..n] mu, from the owners of rows 0..k
     let mut t = vec![0.0; k];
@@ -163,8 +206,8 @@ pub fn cholesky_solve(
     comm.sum_f64(&mut t);
     let mut c = vec![0.0; k];
     for i in (0..k).rev() {
-        let s: f64 = (i + 1..k).map(|j| r[i * k + j] * c[j]).sum();
-        c[i] = (t[i] - s) / r[i * k + i];
+        let s: f64 = (i + 1..k).map(|j| r[(i, j)] * c[j]).sum();
+        c[i] = (t[i] - s) / r[(i, i)];
     }
     lambda.extend(c);
     Ok(lambda)
@@ -173,34 +216,31 @@ pub fn cholesky_solve(
 /// A <- Q^T A Q and y <- Q^T y with Q = H_1 ... H_k = I - V T V^T, in two passes over the local
 /// rows: X = A V (A is symmetric, so V^T A = X^T), then the symmetric rank-2k update
 /// A -= Y V^T + V Y^T with Y = X T - V T^T (V^T X) T / 2. One all-gather of X (N x k).
-fn project(comm: &dyn Comm, rows: &mut LocalRows, vs: &[Vec<f64>], taus: &[f64], n: usize, la: usize) {
+fn project(
+    comm: &dyn Comm,
+    rows: &mut LocalRows,
+    v: MatRef<'_, f64>,
+    taus: &[f64],
+    n: usize,
+    la: usize,
+    par: Par,
+) {
     let lay = rows.layout;
-    let k = vs.len();
+    let k = v.ncols();
     let ld = rows.ld();
     let rhs = rows.cols - 1;
-    let par = Par::rayon(0);
     let gl: Vec<usize> = (0..la).map(|l| lay.global(l)).collect();
-    let v = Mat::<f64>::from_fn(n, k, |i, j| vs[j][i]);
-    // T (upper, k x k) of the compact WY form, from V^T V
-    let vtv = v.transpose() * &v;
-    let mut t = Mat::<f64>::zeros(k, k);
-    for i in 0..k {
-        t[(i, i)] = taus[i];
-        for r in 0..i {
-            let s: f64 = (r..i).map(|s| t[(r, s)] * vtv[(s, i)]).sum();
-            t[(r, i)] = -taus[i] * s;
-        }
-    }
+    let t = wy_t(taus, (v.transpose() * v).as_ref());
     // X = A V on this rank's rows, then all of X on every rank
     let mut x_loc = Mat::<f64>::zeros(la, k);
     let a = MatRef::from_column_major_slice_with_stride(&rows.data, la, n, ld);
-    matmul(x_loc.as_mut(), Accum::Replace, a, v.as_ref(), 1.0, par);
+    matmul(x_loc.as_mut(), Accum::Replace, a, v, 1.0, par);
     let send: Vec<f64> =
         (0..la).flat_map(|l| (0..k).map(move |j| (l, j))).map(|(l, j)| x_loc[(l, j)]).collect();
     let x_rows = all_gather_rows(comm, lay, &send, 0, n, k);
     let x = Mat::<f64>::from_fn(n, k, |i, j| x_rows[i * k + j]);
     let z = v.transpose() * &x;
-    let y = &x * &t - (&v * (t.transpose() * &z * &t)) * 0.5;
+    let y = &x * &t - (v * (t.transpose() * &z * &t)) * 0.5;
     // A -= [Y_loc V_loc] [V^T; Y^T]
     let left = Mat::<f64>::from_fn(la, 2 * k, |l, j| if j < k { y[(gl[l], j)] } else { v[(gl[l], j - k)] });
     let right = Mat::<f64>::from_fn(2 * k, n, |j, c| if j < k { v[(c, j)] } else { y[(c, j - k)] });
@@ -216,47 +256,6 @@ fn project(comm: &dyn Comm, rows: &mut LocalRows, vs: &[Vec<f64>], taus: &[f64],
         let g = gl[l];
         rows.data[rhs * ld + l] -= (0..k).map(|j| v[(g, j)] * coef[j]).sum::<f64>();
     }
-}
-
-/// Reflectors v_j, their tau_j, and R (row-major k x k).
-type Reflectors = (Vec<Vec<f64>>, Vec<f64>, Vec<f64>);
-
-/// Householder QR of the N x k matrix P given as P^T (row-major k x N): the reflectors v_j
-/// (length N, zero before j, one at j), their tau_j (H_j = I - tau_j v_j v_j^T), and R (row-major
-/// k x k) with Q^T P = [R; 0], Q = H_1 ... H_k.
-fn reflectors(pt: &[f64], n: usize, k: usize) -> Result<Reflectors> {
-    let mut p: Vec<Vec<f64>> = (0..k).map(|j| pt[j * n..(j + 1) * n].to_vec()).collect(); // columns
-    let mut vs = Vec::with_capacity(k);
-    let mut taus = Vec::with_capacity(k);
-    let mut r = vec![0.0; k * k];
-    for j in 0..k {
-        let x0 = p[j][j];
-        let norm = p[j][j..].iter().map(|v| v * v).sum::<f64>().sqrt();
-        if !(norm > 0.0) {
-            return Err(Error::Numerical(format!(
-                "the polynomial block has rank < {k}: points not unisolvent"
-            )));
-        }
-        let alpha = if x0 >= 0.0 { -norm } else { norm };
-        let mut v = vec![0.0; n];
-        v[j] = 1.0;
-        let scale = 1.0 / (x0 - alpha);
-        for i in j + 1..n {
-            v[i] = p[j][i] * scale;
-        }
-        let tau = (alpha - x0) / alpha;
-        r[j * k + j] = alpha;
-        for c in j + 1..k {
-            let wv: f64 = (j..n).map(|i| v[i] * p[c][i]).sum();
-            for i in j..n {
-                p[c][i] -= tau * v[i] * wv;
-            }
-            r[j * k + c] = p[c][j];
-        }
-        vs.push(v);
-        taus.push(tau);
-    }
-    Ok((vs, taus, r))
 }
 
 /// Cholesky of a small symmetric matrix (row-major, lower triangle used) by faer's blocked kernel;

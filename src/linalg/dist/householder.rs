@@ -1,8 +1,20 @@
-//! Distributed Householder QR on the row-cyclic layout, blocked in compact-WY form (as ScaLAPACK's
-//! PDGEQRF; math.md, section 2): per panel column one all-reduce for the norm and one for v^T A
-//! of the panel; per panel an all-reduce of V^T V to form T and one of W = V^T A_trail for the
-//! trailing update A_trail -= V T^T W, a local GEMM. The right-hand side is a trailing column, so
-//! it receives Q^T b without a separate pass. The matrix is never gathered.
+//! Distributed Householder QR on the row-cyclic layout, blocked in compact-WY form as ScaLAPACK's
+//! PDGEQRF. The reflectors and T are those of [`crate::linalg::reflector`]; this file only
+//! decides which rank computes what.
+//!
+//! A panel of nb columns k..k+nb is factored column by column. For column j the reflector needs
+//! x0 = a_jj (on its owner) and ||x'||^2, the sum of squares below the diagonal (a sum over the
+//! ranks); applying it to a panel column c needs w_c = a_jc + v'^T a'_c. Since v' = x' / (x0 - beta)
+//! and beta depends only on the two scalars, the sums x'^T a'_c and the row a_j* can travel in the
+//! same all-reduce as ||x'||^2: one all-reduce per column, after which every rank updates its
+//! own rows of the panel.
+//!
+//! The trailing columns (the right-hand side among them, so that it receives Q^T b without a pass
+//! of its own) are then updated at once with Q_panel^T = I - V T^T V^T: each rank forms its part
+//! of V^T V and of W = V^T A_trail, one all-reduce each sums them, every rank builds the same T
+//! and applies A_trail <- A_trail - V (T^T W) to its own rows with one local GEMM. That GEMM
+//! carries almost all the flops (4/3 n^3 in total, twice LU's). The matrix is never gathered;
+//! back substitution on R finishes the solve.
 
 use faer::linalg::matmul::matmul;
 use faer::reborrow::Reborrow;
@@ -11,14 +23,17 @@ use faer::{Accum, MatMut, MatRef, Par};
 use super::backsub::back_substitute;
 use super::system::LocalRows;
 use crate::error::Result;
+use crate::linalg::reflector::{wy_t, Reflector};
 use crate::par::Comm;
 
 /// Solves the distributed system in `rows` (right-hand side in the last column) and returns the
 /// solution on every rank. Collective. `rows` is overwritten by R, the reflectors and Q^T b.
+/// `par` is the parallelism of the local trailing-update GEMMs.
 pub fn householder_solve(
     comm: &dyn Comm,
     rows: &mut LocalRows,
     panel: usize,
+    par: Par,
     progress: &dyn Fn(usize, usize),
 ) -> Result<Vec<f64>> {
     let lay = rows.layout;
@@ -26,7 +41,6 @@ pub fn householder_solve(
     let cols = rows.cols;
     let nb = panel.max(1);
     let tol = rows.max_abs(comm) * f64::EPSILON * n as f64;
-    let par = Par::rayon(0);
     let lc = rows.ld();
     let mut k = 0;
     while k < n {
@@ -60,14 +74,7 @@ pub fn householder_solve(
                 Par::Seq,
             );
             comm.sum_f64(&mut vtv);
-            let mut t = vec![0.0; kb * kb];
-            for i in 0..kb {
-                t[i + i * kb] = taus[i];
-                for r in 0..i {
-                    let s: f64 = (r..i).map(|s| t[r + s * kb] * vtv[s + i * kb]).sum();
-                    t[r + i * kb] = -taus[i] * s;
-                }
-            }
+            let t = wy_t(&taus, MatRef::from_column_major_slice(&vtv, kb, kb));
             // W = V^T A_trail, summed over ranks; then W <- T^T W and A_trail -= V W
             let mut wbuf = vec![0.0; kb * rest];
             {
@@ -86,7 +93,7 @@ pub fn householder_solve(
             matmul(
                 MatMut::from_column_major_slice_mut(&mut tw, kb, rest),
                 Accum::Replace,
-                MatRef::from_column_major_slice(&t, kb, kb).transpose(),
+                t.as_ref().transpose(),
                 MatRef::from_column_major_slice(&wbuf, kb, rest),
                 1.0,
                 par,
@@ -101,7 +108,7 @@ pub fn householder_solve(
 }
 
 /// Unblocked Householder QR of the panel columns k..k+kb (rows k..n); returns the tau of each
-/// reflector H = I - tau v v^T (v(0) = 1, stored below the diagonal; R on and above it).
+/// reflector H = I - tau v v^T (v(0) = 1, its tail stored below the diagonal; R on and above it).
 fn factor_panel(comm: &dyn Comm, rows: &mut LocalRows, k: usize, kb: usize) -> Vec<f64> {
     let lay = rows.layout;
     let lc = rows.ld();
@@ -133,21 +140,17 @@ fn factor_panel(comm: &dyn Comm, rows: &mut LocalRows, k: usize, kb: usize) -> V
             }
         }
         comm.sum_f64(s);
-        let (below, x0) = (s[0], s[1]);
-        if below == 0.0 {
+        let Reflector { tau, beta, scale } = Reflector::new(s[1], s[0]);
+        if tau == 0.0 {
             // already triangular in this column: H = I
             continue;
         }
-        let norm = (x0 * x0 + below).sqrt();
-        let alpha = if x0 >= 0.0 { -norm } else { norm };
-        let tau = (alpha - x0) / alpha;
-        let scale = 1.0 / (x0 - alpha);
         taus[j - k] = tau;
         let (left, right) = rows.data.split_at_mut((j + 1) * ld);
         let v = &mut left[j * ld + l0..j * ld + lc];
         v.iter_mut().for_each(|x| *x *= scale);
         if owns_j {
-            left[lj + j * ld] = alpha;
+            left[lj + j * ld] = beta;
         }
         let v = &left[j * ld + l0..j * ld + lc];
         // apply H_j = I - tau v v^T (v(j) = 1) to the panel columns right of j

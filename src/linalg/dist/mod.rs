@@ -1,7 +1,11 @@
 //! Distributed dense solvers of the bordered spline system on the row-cyclic layout: global row g
-//! lives on rank g mod P, every rank holds its rows with the right-hand side as the last column,
+//! lives on rank g mod p, every rank holds its rows with the right-hand side as the last column,
 //! and no solver ever gathers the matrix. Blocked Householder QR, LU with partial pivoting and the
 //! projected Cholesky; [`solve`] chooses among them and falls back from Cholesky to LU.
+//!
+//! Every solver takes the panel width nb and a `faer::Par`. The panel kernels and the
+//! collectives are serial; the `Par` goes to the local GEMMs and triangular solves of the
+//! trailing updates, where the flops are: `Par::rayon(t)` gives each rank t threads.
 
 mod backsub;
 mod cholesky;

@@ -2,6 +2,8 @@
 //! the fallback from the projected Cholesky to LU when the projected block turns out not definite
 //! to working precision. One entry point, [`solve`], for every command.
 
+use faer::Par;
+
 use super::{cholesky_solve, householder_solve, lu_solve, LocalRows};
 use crate::error::{Error, Result};
 use crate::par::{agree, Comm};
@@ -68,20 +70,23 @@ impl SolverKind {
     }
 
     /// Runs this one solver (resolved for the size) on `rows` without any fallback; `panel` 0 is
-    /// the solver's default. Collective. The local outcome is not agreed on: see [`solve`].
+    /// the solver's default, `par` the parallelism of each rank's local BLAS-3 kernels
+    /// (`Par::Seq`, or `Par::rayon(t)` for t threads per rank). Collective. The local outcome is
+    /// not agreed on: see [`solve`].
     pub fn run(
         &self,
         comm: &dyn Comm,
         rows: &mut LocalRows,
         panel: usize,
+        par: Par,
         progress: &dyn Fn(usize, usize),
     ) -> Result<Vec<f64>> {
         let kind = self.resolve(rows.layout.n);
         let panel = if panel > 0 { panel } else { kind.default_panel() };
         match kind {
-            SolverKind::Householder => householder_solve(comm, rows, panel, progress),
-            SolverKind::Lu => lu_solve(comm, rows, panel, progress),
-            SolverKind::Cholesky | SolverKind::Auto => cholesky_solve(comm, rows, panel, progress),
+            SolverKind::Householder => householder_solve(comm, rows, panel, par, progress),
+            SolverKind::Lu => lu_solve(comm, rows, panel, par, progress),
+            SolverKind::Cholesky | SolverKind::Auto => cholesky_solve(comm, rows, panel, par, progress),
         }
     }
 }
@@ -100,7 +105,8 @@ pub struct Solved {
 }
 
 /// Solves the distributed system `rows` (right-hand side in the last column) with `kind`, and
-/// returns the solution on every rank. Collective; every rank returns the same outcome.
+/// returns the solution on every rank. Collective; every rank returns the same outcome. `panel`
+/// and `par` as in [`SolverKind::run`].
 ///
 /// When the projected Cholesky meets a pivot that is not positive on any rank, every rank learns
 /// it (the agreed error keeps its kind), the system is assembled again by `reassemble` (the
@@ -110,17 +116,18 @@ pub fn solve(
     kind: SolverKind,
     mut rows: LocalRows,
     panel: usize,
+    par: Par,
     progress: &dyn Fn(usize, usize),
     reassemble: impl FnOnce() -> LocalRows,
 ) -> Result<Solved> {
     let used = kind.resolve(rows.layout.n);
     let panel_of = |k: SolverKind| if panel > 0 { panel } else { k.default_panel() };
-    match agree(comm, used.run(comm, &mut rows, panel, progress)) {
+    match agree(comm, used.run(comm, &mut rows, panel, par, progress)) {
         Ok(x) => Ok(Solved { x, used, panel: panel_of(used), fallback: None }),
         Err(e) if e.is_not_definite() => {
             drop(rows);
             let mut rows = reassemble();
-            let x = agree(comm, SolverKind::Lu.run(comm, &mut rows, panel, progress))?;
+            let x = agree(comm, SolverKind::Lu.run(comm, &mut rows, panel, par, progress))?;
             Ok(Solved { x, used: SolverKind::Lu, panel: panel_of(SolverKind::Lu), fallback: Some(e) })
         }
         Err(e) => Err(e),

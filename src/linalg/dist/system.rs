@@ -236,16 +236,7 @@ fn all_gather_rows_into(
     recv.clear();
     recv.resize((g1 - g0) * w, 0.0);
     comm.all_gather_f64(send, &counts, recv);
-    // recv holds rank 0's rows, then rank 1's, ...; put them in global order
     out.clear();
     out.resize((g1 - g0) * w, 0.0);
-    let mut off = 0;
-    for r in 0..lay.ranks {
-        let first = g0 + (r + lay.ranks - g0 % lay.ranks) % lay.ranks;
-        for t in 0..counts[r] / w.max(1) {
-            let g = first + t * lay.ranks;
-            out[(g - g0) * w..(g - g0 + 1) * w].copy_from_slice(&recv[off..off + w]);
-            off += w;
-        }
-    }
+    lay.to_global_order(recv, g0, g1, w, out);
 }
