@@ -23,6 +23,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
+use faer::{Mat, MatRef, Par};
 use volspline::app::contours::solve_sections;
 use volspline::app::fit::assemble;
 use volspline::contour::planes::{slice_mesh, PlaneFamily};
@@ -30,7 +31,7 @@ use volspline::contour::SectionCarrier;
 use volspline::error::{Error, Result};
 use volspline::grid::Grid;
 use volspline::io::vtkhdf::{read_image, write_image};
-use volspline::linalg::dense::{householder_solve, lu_solve, Matrix};
+use volspline::linalg::dense::{householder_solve, lu_solve};
 use volspline::linalg::dist::{self, LocalRows, RowCyclic, SolverKind};
 use volspline::par::mpi::World;
 use volspline::par::{self, Comm, Solo};
@@ -398,10 +399,10 @@ fn bunny_system(k: &Kernel) -> Prepared {
 }
 
 /// The dense serial solution of the whole system of `prep` by `solve`.
-fn oracle(prep: &Prepared, k: &Kernel, solve: fn(&Matrix, &[f64]) -> Result<Vec<f64>>) -> Vec<f64> {
+fn oracle(prep: &Prepared, k: &Kernel, solve: fn(MatRef<'_, f64>, &[f64]) -> Result<Vec<f64>>) -> Vec<f64> {
     let n = system_size(k, prep.values.len());
     let (data, b) = full_system(k, &prep.centres, &prep.values);
-    must(solve(&Matrix { rows: n, cols: n, data }, &b), "the dense oracle")
+    must(solve(MatRef::from_column_major_slice(&data, n, n), &b), "the dense oracle")
 }
 
 /// Checks that every rank holds the same solution, bit for bit.
@@ -420,7 +421,7 @@ fn solvers_match_the_oracles(comm: &dyn Comm, log: &mut Log) {
         for panel in [7, 16, 64] {
             let layout = RowCyclic::new(n, comm.size(), comm.rank());
             let mut rows = assemble(&k, &prep.centres, &prep.values, layout);
-            let x = must(kind.run(comm, &mut rows, panel, &|_, _| ()), kind.name());
+            let x = must(kind.run(comm, &mut rows, panel, Par::Seq, &|_, _| ()), kind.name());
             let want = if kind == SolverKind::Lu { &x_lu } else { &x_qr };
             let what = format!("{} panel {panel}", kind.name());
             log.close(&x, want, 1e-9, || what.clone());
@@ -442,7 +443,9 @@ fn check_fallback(
     for panel in [0, 3, 8] {
         let layout = RowCyclic::new(n, comm.size(), comm.rank());
         let solved =
-            dist::solve(comm, SolverKind::Cholesky, rows_of(layout), panel, &|_, _| (), || rows_of(layout));
+            dist::solve(comm, SolverKind::Cholesky, rows_of(layout), panel, Par::Seq, &|_, _| (), || {
+                rows_of(layout)
+            });
         let s = must(solved, what);
         log.check(s.used == SolverKind::Lu, || format!("{what} panel {panel}: used {:?}", s.used));
         let why = s.fallback.as_ref();
@@ -475,32 +478,31 @@ fn fallback_on_an_indefinite_block(comm: &dyn Comm, log: &mut Log) {
         s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
     };
-    let mut a = Matrix::zeros(n, n + 1);
+    let mut a = Mat::<f64>::zeros(n, n + 1);
     for i in 0..m {
         for j in 0..i {
             let v = rnd();
-            a.set(i, j, v);
-            a.set(j, i, v);
+            a[(i, j)] = v;
+            a[(j, i)] = v;
         }
         let p = [1.0, rnd(), rnd(), rnd()];
         for (t, v) in p.iter().enumerate() {
-            a.set(i, m + t, *v);
-            a.set(m + t, i, *v);
+            a[(i, m + t)] = *v;
+            a[(m + t, i)] = *v;
         }
-        a.set(i, n, rnd());
+        a[(i, n)] = rnd();
     }
     let rows_of = |layout: RowCyclic| {
         let mut rows = LocalRows::zeros(layout, n + 1, k);
         for l in 0..layout.local_count() {
             for c in 0..=n {
-                rows.set(l, c, a.get(layout.global(l), c));
+                rows.set(l, c, a[(layout.global(l), c)]);
             }
         }
         rows
     };
-    let b: Vec<f64> = (0..n).map(|i| a.get(i, n)).collect();
-    let square = Matrix { rows: n, cols: n, data: a.data[..n * n].to_vec() };
-    let want = must(lu_solve(&square, &b), "the dense LU oracle");
+    let b: Vec<f64> = (0..n).map(|i| a[(i, n)]).collect();
+    let want = must(lu_solve(a.as_ref().subcols(0, n), &b), "the dense LU oracle");
     check_fallback(comm, log, &rows_of, n, &want, "indefinite block");
 }
 

@@ -210,21 +210,15 @@ pub fn fill_rows(kernel: &Kernel, centres: &[f64], values: &[f64], rows: &[usize
     });
 }
 
-/// The whole system [A P; P^T 0] (row-major, (N+k)^2) and its right-hand side [r; 0], on one
-/// process: for small systems (slices) and serial oracles.
+/// The whole system [A P; P^T 0] (column-major, (N+k)^2) and its right-hand side [r; 0], on
+/// one process: for small systems (slices) and serial oracles.
 pub fn full_system(kernel: &Kernel, centres: &[f64], values: &[f64]) -> (Vec<f64>, Vec<f64>) {
     let n = system_size(kernel, values.len());
     let rows: Vec<usize> = (0..n).collect();
-    let mut cm = vec![0.0; n * (n + 1)];
-    fill_rows(kernel, centres, values, &rows, &mut cm);
-    // column-major with ld n -> row-major
-    let mut m = vec![0.0; n * n];
-    for c in 0..n {
-        for r in 0..n {
-            m[r * n + c] = cm[r + c * n];
-        }
-    }
-    (m, cm[n * n..].to_vec())
+    let mut m = vec![0.0; n * (n + 1)];
+    fill_rows(kernel, centres, values, &rows, &mut m);
+    let b = m.split_off(n * n);
+    (m, b)
 }
 
 #[inline]
