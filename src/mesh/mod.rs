@@ -2,7 +2,7 @@
 //!
 //! This module owns everything that happens after the implicit function has been
 //! sampled on the grid: per-slab marching cubes ([`polygonise`]), welding of the
-//! per-rank pieces into one deterministic mesh ([`weld`]), PLY output
+//! per-rank pieces into one deterministic mesh ([`weld()`]), PLY output
 //! ([`write_ply`]), exact point-to-mesh distances ([`point_mesh_distances`]) and
 //! topological checks ([`connected_components`], [`is_closed_manifold_edges`],
 //! [`signed_volume`]) and plane cuts into polylines ([`cut_by_plane`]).
