@@ -14,6 +14,7 @@
 //! - triangles are oriented so that `(b - a) x (c - a)` points out of the solid
 //!   (towards decreasing values), which makes [`signed_volume`] positive.
 
+mod cases;
 pub mod distance;
 pub mod marching_cubes;
 pub mod ply;
