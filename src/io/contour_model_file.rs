@@ -11,7 +11,7 @@
 //!   `points_read`, `duplicates_merged`, `solver`, `residual`, `ranks`, `threads`,
 //!   `volspline_version`, `timing_stages`, `timing_seconds`);
 //! - datasets `origins` (S x 3), `frames` (S x 9: the columns u, v, w of each frame), `offsets`
-//!   (S + 1: slice i's centres are rows offsets[i]..offsets[i+1]), `centres_normalised` (N x 2),
+//!   (S + 1: slice i's centres are rows `offsets[i]..offsets[i+1]`), `centres_normalised` (N x 2),
 //!   `weights` (N), `poly_coefficients` (S x k), `normalisation` (S x 3: centre a, centre b,
 //!   scale).
 
@@ -19,7 +19,7 @@ use std::path::Path;
 
 use glam::{DMat3, DVec3};
 
-use super::h5::{format_of, Attrs};
+use super::h5::{open_model, Attrs};
 use crate::contour::{ContourModel, Interp, Orient, SectionModel};
 use crate::error::{Error, Result};
 use crate::spline::carrier::Carrier;
@@ -78,16 +78,9 @@ pub fn write_contour_model(path: &Path, model: &ContourModel) -> Result<()> {
 
 /// Reads a model written by [`write_contour_model`], checking its format and consistency.
 pub fn read_contour_model(path: &Path) -> Result<ContourModel> {
-    if format_of(path)? != FORMAT {
-        return Err(Error::input(path, "", format!("not a contour model (format is not '{FORMAT}')")));
-    }
-    let f = hdf5::File::open(path).map_err(|e| Error::hdf5(path, e))?;
+    let f = open_model(path, FORMAT, "contour model")?;
     let a = Attrs { file: &f, path };
     let bad = |why: String| a.bad(why);
-    let version = a.int("format_version")?;
-    if version != 1 {
-        return Err(bad(format!("contour model format version {version} is not supported (expected 1)")));
-    }
     let kernel = Kernel::new(a.int("kernel_dim")? as usize, a.int("kernel_order")? as usize)
         .map_err(|e| bad(e.to_string()))?;
     if kernel.dim() != 2 {

@@ -128,3 +128,18 @@ pub fn format_of(path: &Path) -> Result<String> {
     let a = Attrs { file: &f, path };
     a.str("format").map_err(|_| a.bad("not a volspline model: no 'format' attribute"))
 }
+
+/// Opens a model file for reading after checking that its `format` attribute is `format` (else
+/// the file is "not a `what`") and that its `format_version` is 1, the only version written.
+pub fn open_model(path: &Path, format: &str, what: &str) -> Result<hdf5::File> {
+    if format_of(path)? != format {
+        return Err(Error::input(path, "", format!("not a {what} (format is not '{format}')")));
+    }
+    let file = hdf5::File::open(path).map_err(|e| Error::hdf5(path, e))?;
+    let version = Attrs { file: &file, path }.int("format_version")?;
+    if version != 1 {
+        let why = format!("{what} format version {version} is not supported (expected 1)");
+        return Err(Error::input(path, "", why));
+    }
+    Ok(file)
+}

@@ -13,7 +13,7 @@
 
 use std::path::Path;
 
-use super::h5::{format_of, Attrs};
+use super::h5::{open_model, Attrs};
 use crate::error::{Error, Result};
 use crate::spline::carrier::Carrier;
 use crate::spline::kernel::Kernel;
@@ -63,15 +63,8 @@ pub fn write_model(path: &Path, model: &Model) -> Result<()> {
 
 /// Reads a model written by [`write_model`], checking its format and consistency.
 pub fn read_model(path: &Path) -> Result<Model> {
-    if format_of(path)? != FORMAT {
-        return Err(Error::input(path, "", format!("not a volspline model (format is not '{FORMAT}')")));
-    }
-    let f = hdf5::File::open(path).map_err(|e| Error::hdf5(path, e))?;
+    let f = open_model(path, FORMAT, "volspline model")?;
     let a = Attrs { file: &f, path };
-    let version = a.int("format_version")?;
-    if version != 1 {
-        return Err(a.bad(format!("model format version {version} is not supported (expected 1)")));
-    }
     let kernel = Kernel::new(a.int("kernel_dim")? as usize, a.int("kernel_order")? as usize)
         .map_err(|e| a.bad(e.to_string()))?;
     let dim = kernel.dim();

@@ -1,6 +1,20 @@
-//! VTKHDF ImageData output (layout in stack.md: root group `/VTKHDF`, point data only, dataset
-//! shape [nz, ny, nx]), written by every rank into one file through MPI-IO, each rank its own
+//! VTKHDF ImageData output, written by every rank into one file through MPI-IO, each rank its own
 //! z-slab. All metadata calls are collective: every rank makes them with the same values.
+//!
+//! VTKHDF is VTK's HDF5-based format; VTK and ParaView read an image (a uniform grid) from this
+//! layout:
+//! - a root group `/VTKHDF` with the attributes `Version` (two integers, major and minor: 1, 0),
+//!   `Type` (the fixed-length ASCII string `ImageData`), `WholeExtent` (six integers: the first
+//!   and last node index along x, y and z, here 0..nx-1, 0..ny-1, 0..nz-1), `Origin` and
+//!   `Spacing` (three doubles each: the position of node (0, 0, 0) and the node distance along
+//!   each axis) and `Direction` (nine doubles, the axes as a row-major 3 x 3 matrix; the
+//!   identity here);
+//! - a group `/VTKHDF/PointData` holding one dataset per array of node values. HDF5 lists
+//!   dimensions slowest first, so a scalar array over the grid has shape [nz, ny, nx]: x varies
+//!   fastest, the node order of [`Grid`]. Each rank writes the hyperslab of its layers
+//!   k0..k0+layers. The dataset also carries the string attribute `Attribute` = `Scalars`.
+//!
+//! Only point data is written; there is no cell or field data.
 
 use std::path::Path;
 

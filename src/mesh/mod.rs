@@ -2,7 +2,7 @@
 //!
 //! This module owns everything that happens after the implicit function has been
 //! sampled on the grid: per-slab marching cubes ([`polygonise`]), welding of the
-//! per-rank pieces into one deterministic mesh ([`weld`]), PLY output
+//! per-rank pieces into one deterministic mesh ([`weld()`]), PLY output
 //! ([`write_ply`]), exact point-to-mesh distances ([`point_mesh_distances`]) and
 //! topological checks ([`connected_components`], [`is_closed_manifold_edges`],
 //! [`signed_volume`]) and plane cuts into polylines ([`cut_by_plane`]).
@@ -14,6 +14,7 @@
 //! - triangles are oriented so that `(b - a) x (c - a)` points out of the solid
 //!   (towards decreasing values), which makes [`signed_volume`] positive.
 
+mod cases;
 pub mod distance;
 pub mod marching_cubes;
 pub mod ply;

@@ -1,0 +1,91 @@
+//! Reading speed of the point readers on large inputs: the same synthetic points as a text list
+//! (.xyz), an ascii PLY and a binary little-endian PLY, and the bunny OBJ shipped with the tests.
+//!
+//! Usage: `bench_io WORKDIR POINTS REPEAT`. Writes the files into WORKDIR (which must exist),
+//! reads each REPEAT times through `volspline::io::points::read_points` and prints one CSV row
+//! per read on stdout: `format,points,file_bytes,rep,seconds`. Run by `jobs/bench-io`.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use volspline::io::points::read_points;
+
+const BUNNY: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/bunny10k.obj");
+
+/// Point `i` of the synthetic cloud: varied magnitudes and digit counts, as real scans have.
+fn point(i: usize) -> [f64; 3] {
+    [i as f64 * 1e-3, (i % 977) as f64 * 0.125, -(i as f64).sqrt()]
+}
+
+/// Writes the three encodings of `n` points into `dir`; returns (format, path) pairs.
+fn write_inputs(dir: &Path, n: usize) -> std::io::Result<Vec<(&'static str, PathBuf)>> {
+    let mut text = String::with_capacity(n * 40);
+    let header = |format: &str| {
+        format!(
+            "ply\nformat {format} 1.0\nelement vertex {n}\nproperty float x\nproperty float y\n\
+             property float z\nend_header\n"
+        )
+    };
+    let mut ascii = header("ascii");
+    let mut binary = header("binary_little_endian").into_bytes();
+    for i in 0..n {
+        let p = point(i);
+        let _ = writeln!(text, "{} {} {}", p[0], p[1], p[2]);
+        let f = p.map(|c| c as f32);
+        let _ = writeln!(ascii, "{} {} {}", f[0], f[1], f[2]);
+        f.iter().for_each(|c| binary.extend_from_slice(&c.to_le_bytes()));
+    }
+    let files = [
+        ("xyz", "points.xyz", text.into_bytes()),
+        ("ply_ascii", "ascii.ply", ascii.into_bytes()),
+        ("ply_binary", "binary.ply", binary),
+    ];
+    let mut out = Vec::new();
+    for (format, name, bytes) in files {
+        let path = dir.join(name);
+        std::fs::write(&path, bytes)?;
+        out.push((format, path));
+    }
+    out.push(("obj_bunny", PathBuf::from(BUNNY)));
+    Ok(out)
+}
+
+fn run(dir: &Path, n: usize, repeat: usize) -> Result<(), String> {
+    let inputs = write_inputs(dir, n).map_err(|e| format!("writing inputs into {}: {e}", dir.display()))?;
+    println!("format,points,file_bytes,rep,seconds");
+    for (format, path) in &inputs {
+        let bytes = std::fs::metadata(path).map_err(|e| format!("{}: {e}", path.display()))?.len();
+        for rep in 1..=repeat {
+            let start = Instant::now();
+            let set = read_points(path).map_err(|e| e.to_string())?;
+            let seconds = start.elapsed().as_secs_f64();
+            let expected = if *format == "obj_bunny" { 5051 } else { n };
+            if set.points.len() != expected {
+                return Err(format!("{format}: read {} points, expected {expected}", set.points.len()));
+            }
+            println!("{format},{},{bytes},{rep},{seconds:.6}", set.points.len());
+        }
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().collect();
+    let parsed = match args.as_slice() {
+        [_, dir, n, repeat] => n.parse::<usize>().ok().zip(repeat.parse::<usize>().ok()).map(|nr| (dir, nr)),
+        _ => None,
+    };
+    let Some((dir, (n, repeat))) = parsed.filter(|(_, (n, r))| *n >= 4 && *r >= 1) else {
+        eprintln!("usage: bench_io WORKDIR POINTS REPEAT (POINTS >= 4, REPEAT >= 1)");
+        return ExitCode::from(2);
+    };
+    match run(Path::new(dir), n, repeat) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("bench_io: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,247 @@
+//! Reading scattered surface points, and the triangles of ground-truth meshes, from files.
+//!
+//! This module owns the input file formats: plain-text point lists (.xyz/.txt/.csv, `text`),
+//! Wavefront OBJ (`obj`) and PLY, ascii and both binary byte orders (`ply`). It picks the
+//! parser by extension and holds what they share. Everything is returned in the file's own
+//! coordinates; normalisation belongs to the caller. The files come from users, so every parser
+//! validates as it goes and reports the line, vertex or byte offset at fault instead of
+//! panicking or guessing.
+
+mod obj;
+mod ply;
+mod text;
+
+use std::path::Path;
+
+use crate::error::{Error, Result};
+
+/// Fewer points than this cannot define a volume.
+const MIN_POINTS: usize = 4;
+
+const SUPPORTED: &str = ".obj, .ply, .xyz, .txt, .csv";
+
+/// Points and (optional) triangles read from a file, in the file's coordinates.
+#[derive(Debug, Clone, Default)]
+pub struct PointSet {
+    pub points: Vec<[f64; 3]>,
+    pub triangles: Vec<[usize; 3]>,
+}
+
+/// Read scattered points by extension: .obj, .ply, .xyz/.txt/.csv (case-insensitive). Triangles
+/// are filled for .obj/.ply when faces exist (polygons fan-triangulated), empty for text.
+///
+/// Text files hold three numbers (x y z) per line, separated by whitespace and/or commas; `#`
+/// starts a comment and blank lines are ignored. The first non-blank, non-comment line may be a
+/// column header such as `x,y,z`, and is skipped, but only if none of its tokens is a number;
+/// anywhere else a non-numeric token is an error.
+///
+/// Every coordinate must be finite and the file must hold at least 4 points.
+pub fn read_points(path: &Path) -> Result<PointSet> {
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    let parse: fn(&Path, &[u8]) -> Result<PointSet> = match ext.as_str() {
+        "obj" => obj::parse,
+        "ply" => ply::parse,
+        "xyz" | "txt" | "csv" => text::parse,
+        _ => {
+            let shown = if ext.is_empty() { "none".to_string() } else { format!("'.{ext}'") };
+            return Err(Error::input(
+                path,
+                "",
+                format!("unsupported file extension {shown}; supported: {SUPPORTED}"),
+            ));
+        }
+    };
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
+    let set = parse(path, &bytes)?;
+    if set.points.len() < MIN_POINTS {
+        return Err(Error::input(
+            path,
+            "",
+            format!("only {} point(s); at least {MIN_POINTS} are needed", set.points.len()),
+        ));
+    }
+    Ok(set)
+}
+
+/// Same as read_points but requires at least one triangle (for ground-truth meshes); error
+/// otherwise.
+pub fn read_mesh(path: &Path) -> Result<PointSet> {
+    let set = read_points(path)?;
+    if set.triangles.is_empty() {
+        return Err(Error::input(
+            path,
+            "",
+            "no faces: a mesh file (.obj or .ply with faces) is needed here, not just points",
+        ));
+    }
+    Ok(set)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Helpers shared by the parsers.
+
+/// Text formats are decoded in one pass up front so that a binary file with the wrong
+/// extension is reported once, with a position, instead of as a confusing parse error.
+fn as_text<'a>(path: &Path, bytes: &'a [u8], what: &str) -> Result<&'a str> {
+    let nul = bytes.iter().position(|&b| b == 0);
+    let prefix = &bytes[..nul.unwrap_or(bytes.len())];
+    let bad_at = match std::str::from_utf8(prefix) {
+        Ok(text) => match nul {
+            None => return Ok(text.strip_prefix('\u{feff}').unwrap_or(text)),
+            Some(at) => at,
+        },
+        Err(e) => e.valid_up_to(),
+    };
+    let line = bytes[..bad_at].iter().filter(|&&b| b == b'\n').count() + 1;
+    Err(Error::input(
+        path,
+        format!("line {line}"),
+        format!("binary data at byte offset {bad_at}; this is not a text {what} file"),
+    ))
+}
+
+fn check_finite(p: [f64; 3]) -> std::result::Result<[f64; 3], String> {
+    if p.iter().all(|c| c.is_finite()) {
+        Ok(p)
+    } else {
+        Err(format!("non-finite coordinate ({}, {}, {})", p[0], p[1], p[2]))
+    }
+}
+
+/// Capacity guess from the file size, so large files avoid repeated regrowth while a header or
+/// file that lies cannot make us allocate more than the data could possibly hold.
+fn capacity(declared: usize, bytes_left: usize, min_bytes_each: usize) -> usize {
+    declared.min(bytes_left / min_bytes_each.max(1) + 1)
+}
+
+/// Fan triangulation of one polygon whose corners arrive one at a time: corners `a b c d ...`
+/// give the triangles `(a b c), (a c d), ...`, so no per-face buffer is needed. OBJ and PLY both
+/// store polygons as corner lists.
+#[derive(Default)]
+struct Fan {
+    first: usize,
+    prev: usize,
+    corners: u64,
+}
+
+impl Fan {
+    fn push(&mut self, v: usize, triangles: &mut Vec<[usize; 3]>) {
+        match self.corners {
+            0 => self.first = v,
+            1 => self.prev = v,
+            _ => {
+                triangles.push([self.first, self.prev, v]);
+                self.prev = v;
+            }
+        }
+        self.corners += 1;
+    }
+}
+
+/// A face needs at least three corners.
+fn check_corners(n: u64) -> std::result::Result<(), String> {
+    if n < 3 {
+        return Err(format!("face has {n} vertices; at least 3 are needed"));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod testutil {
+    //! Helpers shared by the tests of the parsers.
+
+    use super::*;
+    use std::path::PathBuf;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    /// A private directory per test, removed on drop, so parallel tests never collide.
+    pub(super) struct TempDir(pub(super) PathBuf);
+
+    impl TempDir {
+        pub(super) fn new() -> Self {
+            static NEXT: AtomicUsize = AtomicUsize::new(0);
+            let n = NEXT.fetch_add(1, Ordering::Relaxed);
+            let dir = std::env::temp_dir().join(format!("volspline_points_{}_{n}", std::process::id()));
+            std::fs::create_dir_all(&dir).expect("create temp dir");
+            TempDir(dir)
+        }
+
+        pub(super) fn file(&self, name: &str, contents: impl AsRef<[u8]>) -> PathBuf {
+            let path = self.0.join(name);
+            std::fs::write(&path, contents).expect("write temp file");
+            path
+        }
+    }
+
+    impl Drop for TempDir {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+
+    pub(super) const CUBE: [[f64; 3]; 5] =
+        [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.5, -2.25, 3e-3]];
+
+    /// Checks that reading `path` fails with an input error at `location` for a reason that
+    /// mentions `want`.
+    pub(super) fn fails_with(path: &Path, location: &str, want: &str) {
+        let shown = path.display();
+        match read_points(path) {
+            Err(Error::Input { location: at, reason, .. }) => {
+                assert_eq!(at, location, "{shown}: {reason}");
+                assert!(reason.contains(want), "{shown}: '{want}' not in '{reason}'");
+            }
+            other => panic!("expected an input error for {shown}, got {other:?}"),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::testutil::{fails_with, TempDir, CUBE};
+    use super::*;
+
+    #[test]
+    fn faults_before_and_after_parsing() {
+        let dir = TempDir::new();
+        let elf = [0x7f, b'E', b'L', b'F', 2, 1, 1, 0, 0xc3];
+        let supported = ".obj, .ply, .xyz, .txt, .csv";
+        let cases: [(&str, &[u8], &str, &str); 6] = [
+            ("few.xyz", b"0 0 0\n1 0 0\n0 1 0\n", "", "at least 4"),
+            ("empty.xyz", b"", "", "no points"),
+            ("binary.xyz", b"0 0 0\n1 0 0\n\x00\x01\xff\x80 junk", "line 3", "binary"),
+            ("elf.obj", &elf, "line 1", "not a text OBJ"),
+            ("p.stl", b"0 0 0\n", "", supported),
+            ("noext", b"0 0 0\n", "", supported),
+        ];
+        for (name, contents, at, why) in cases {
+            fails_with(&dir.file(name, contents), at, why);
+        }
+    }
+
+    #[test]
+    fn missing_file_is_an_io_error() {
+        let dir = TempDir::new();
+        let err = read_points(&dir.0.join("absent.xyz")).expect_err("missing");
+        assert!(matches!(err, Error::Io { .. }), "{err:?}");
+    }
+
+    #[test]
+    fn read_mesh_requires_triangles() {
+        let dir = TempDir::new();
+        let (text, obj) = ("0 0 0\n1 0 0\n0 1 0\n0 0 1\n", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n");
+        let mut points_ply = b"ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\n\
+                               property float y\nproperty float z\nend_header\n"
+            .to_vec();
+        CUBE[..4].iter().flatten().for_each(|&c| points_ply.extend((c as f32).to_le_bytes()));
+        for path in [dir.file("a.xyz", text), dir.file("b.obj", obj), dir.file("c.ply", points_ply)] {
+            assert!(read_points(&path).is_ok());
+            match read_mesh(&path) {
+                Err(Error::Input { reason, .. }) => {
+                    assert!(reason.contains("no faces"), "{reason}")
+                }
+                other => panic!("{other:?}"),
+            }
+        }
+    }
+}
