@@ -14,6 +14,9 @@ fn main() {
             if launcher_rank() == 0 {
                 e.exit();
             }
+            // every rank parsed the same arguments; rank 0 prints the message and exits, and the
+            // launcher then ends the others: leaving first could end the job before the message
+            std::thread::sleep(std::time::Duration::from_secs(10));
             std::process::exit(e.exit_code());
         }
     };
