@@ -156,24 +156,23 @@ impl Cli {
     }
 }
 
-/// Threads per rank when the user gave 0: this node's cores divided by the ranks on it (from the
-/// launcher's environment), at least 1, so that the defaults never oversubscribe the cores.
+/// Threads per rank when the user gave 0: this node's cores divided by the ranks on it, at least 1,
+/// so that the defaults never oversubscribe the cores.
 pub fn default_threads(requested: usize) -> usize {
     if requested > 0 {
         return requested;
     }
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let local = [
-        "OMPI_COMM_WORLD_LOCAL_SIZE",
-        "MPI_LOCALNRANKS",
-        "MV2_COMM_WORLD_LOCAL_SIZE",
-        "SLURM_NTASKS_PER_NODE",
-    ]
-    .iter()
-    .find_map(|v| std::env::var(v).ok()?.parse::<usize>().ok())
-    .unwrap_or(1)
-    .max(1);
-    (cores / local).max(1)
+    (cores / ranks_on_this_node()).max(1)
+}
+
+/// The number of ranks the launcher started on this node (1 without a launcher).
+pub fn ranks_on_this_node() -> usize {
+    ["OMPI_COMM_WORLD_LOCAL_SIZE", "MPI_LOCALNRANKS", "MV2_COMM_WORLD_LOCAL_SIZE", "SLURM_NTASKS_PER_NODE"]
+        .iter()
+        .find_map(|v| std::env::var(v).ok()?.parse::<usize>().ok())
+        .unwrap_or(1)
+        .max(1)
 }
 
 /// This process's rank as the launcher announces it, before MPI is started (0 without one).

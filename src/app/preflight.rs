@@ -9,6 +9,7 @@
 
 use std::path::Path;
 
+use crate::cli::ranks_on_this_node;
 use crate::error::{Error, Result};
 use crate::grid::Grid;
 use crate::par::{agree, Comm};
@@ -46,16 +47,7 @@ pub fn available_per_rank() -> Option<(f64, String)> {
         (None, Some(c)) => (c, "the job's cgroup limit"),
         (None, None) => return None,
     };
-    let local = [
-        "OMPI_COMM_WORLD_LOCAL_SIZE",
-        "MPI_LOCALNRANKS",
-        "MV2_COMM_WORLD_LOCAL_SIZE",
-        "SLURM_NTASKS_PER_NODE",
-    ]
-    .iter()
-    .find_map(|v| std::env::var(v).ok()?.parse::<usize>().ok())
-    .unwrap_or(1)
-    .max(1);
+    let local = ranks_on_this_node();
     Some((bytes / local as f64, format!("{source} shared by {local} rank(s) on the node")))
 }
 
