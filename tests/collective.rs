@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use faer::{Mat, MatRef, Par};
+use faer::{Mat, MatRef};
 use volspline::app::contours::solve_sections;
 use volspline::app::fit::assemble;
 use volspline::contour::planes::{slice_mesh, PlaneFamily};
@@ -32,7 +32,7 @@ use volspline::error::{Error, Result};
 use volspline::grid::Grid;
 use volspline::io::vtkhdf::{read_image, write_image};
 use volspline::linalg::dense::{householder_solve, lu_solve};
-use volspline::linalg::dist::{self, LocalRows, RowCyclic, SolverKind};
+use volspline::linalg::dist::{self, Job, LocalRows, RowCyclic, SolverKind};
 use volspline::par::mpi::World;
 use volspline::par::{self, Comm, Solo};
 use volspline::spline::hygiene::{prepare, Prepared};
@@ -421,7 +421,7 @@ fn solvers_match_the_oracles(comm: &dyn Comm, log: &mut Log) {
         for panel in [7, 16, 64] {
             let layout = RowCyclic::new(n, comm.size(), comm.rank());
             let mut rows = assemble(&k, &prep.centres, &prep.values, layout);
-            let x = must(kind.run(comm, &mut rows, panel, Par::Seq, &|_, _| ()), kind.name());
+            let x = must(kind.run(&Job::on(comm).panel(panel), &mut rows), kind.name());
             let want = if kind == SolverKind::Lu { &x_lu } else { &x_qr };
             let what = format!("{} panel {panel}", kind.name());
             log.close(&x, want, 1e-9, || what.clone());
@@ -442,10 +442,9 @@ fn check_fallback(
 ) {
     for panel in [0, 3, 8] {
         let layout = RowCyclic::new(n, comm.size(), comm.rank());
-        let solved =
-            dist::solve(comm, SolverKind::Cholesky, rows_of(layout), panel, Par::Seq, &|_, _| (), || {
-                rows_of(layout)
-            });
+        let solved = dist::solve(&Job::on(comm).panel(panel), SolverKind::Cholesky, rows_of(layout), || {
+            rows_of(layout)
+        });
         let s = must(solved, what);
         log.check(s.used == SolverKind::Lu, || format!("{what} panel {panel}: used {:?}", s.used));
         let why = s.fallback.as_ref();

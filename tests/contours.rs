@@ -26,7 +26,7 @@ use volspline::contour::format::{self, Section};
 use volspline::contour::{fit_values, Blend, ContourModel, Interp, Orient, SectionCarrier, SectionModel};
 use volspline::io::contour_model_file::read_contour_model;
 use volspline::io::vtkhdf::read_image;
-use volspline::linalg::dist::{LocalRows, SolverKind};
+use volspline::linalg::dist::{Job, LocalRows, SolverKind};
 use volspline::mesh::{
     connected_components, cut_by_plane, is_closed_manifold_edges, point_mesh_distances, TriMesh,
 };
@@ -188,7 +188,7 @@ fn sliced_accuracy_test_against_one_2d_spline() {
     let centres: Vec<f64> =
         nodes.chunks_exact(2).flat_map(|p| [(p[0] - 5.0) / norm.scale, (p[1] - 5.0) / norm.scale]).collect();
     let mut rows: LocalRows = common::assemble_one(&centres, &values, &k2);
-    let x = SolverKind::Cholesky.run(&Solo, &mut rows, 64, faer::Par::Seq, &|_, _| ()).unwrap();
+    let x = SolverKind::Cholesky.run(&Job::on(&Solo).panel(64), &mut rows).unwrap();
     let whole = Spline::from_solution(k2, centres, &x, norm);
     let rms_2d = rms(&|x, y| whole.eval(&[x, y]));
 

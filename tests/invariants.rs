@@ -9,14 +9,14 @@
 mod common;
 
 use common::{assemble_one, solve_serial};
-use volspline::linalg::dist::{LocalRows, RowCyclic, SolverKind};
+use volspline::linalg::dist::{Job, LocalRows, RowCyclic, SolverKind};
 use volspline::par::Solo;
 use volspline::spline::hygiene::{prepare, Prepared};
 use volspline::spline::{Carrier, Kernel, Model, Provenance, Spline};
 
 fn solve_dist(prep: &Prepared, kernel: &Kernel, solver: SolverKind, panel: usize) -> Spline {
     let mut rows: LocalRows = assemble_one(&prep.centres, &prep.values, kernel);
-    let x = solver.run(&Solo, &mut rows, panel, faer::Par::Seq, &|_, _| ()).unwrap();
+    let x = solver.run(&Job::on(&Solo).panel(panel), &mut rows).unwrap();
     Spline::from_solution(*kernel, prep.centres.clone(), &x, prep.norm)
 }
 
@@ -228,6 +228,6 @@ fn projected_cholesky_reports_an_indefinite_block() {
         }
         rows.set(i, size, rnd());
     }
-    let err = SolverKind::Cholesky.run(&Solo, &mut rows, 8, faer::Par::Seq, &|_, _| ()).unwrap_err();
+    let err = SolverKind::Cholesky.run(&Job::on(&Solo).panel(8), &mut rows).unwrap_err();
     assert!(matches!(err, Error::NotDefinite(_)), "{err}");
 }

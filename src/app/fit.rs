@@ -17,7 +17,7 @@ use crate::cli::FitArgs;
 use crate::error::Result;
 use crate::grid::{padded_box, Grid};
 use crate::io::{self, model_file, points};
-use crate::linalg::dist::{self, LocalRows, RowCyclic};
+use crate::linalg::dist::{self, Job, LocalRows, RowCyclic};
 use crate::par::{agree, on_root, Comm};
 use crate::spline::hygiene::{prepare, Prepared};
 use crate::spline::{fill_rows, residual_parts, Evaluator, Kernel, Model, Provenance, Spline};
@@ -74,9 +74,9 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let rows = stages.time(Stage::Assemble, || assemble(&a.kernel, &centres, &values, layout));
     let progress = Progress::new("solve", comm);
     let solved = stages.time(Stage::Solve, || {
-        dist::solve(comm, a.solver, rows, a.panel, Par::rayon(threads), &|d, t| progress.update(d, t), || {
-            assemble(&a.kernel, &centres, &values, layout)
-        })
+        let report = |d, t| progress.update(d, t);
+        let job = Job::on(comm).panel(a.panel).par(Par::rayon(threads)).progress(&report);
+        dist::solve(&job, a.solver, rows, || assemble(&a.kernel, &centres, &values, layout))
     })?;
     if let (Some(why), 0) = (&solved.fallback, comm.rank()) {
         eprintln!("volspline: cholesky: {}; fell back to LU", why.root());

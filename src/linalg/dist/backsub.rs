@@ -27,7 +27,7 @@ pub fn back_substitute(comm: &dyn Comm, rows: &mut LocalRows, panel: usize, tol:
             }
             send.push(rows.data[l + rhs * ld]);
         }
-        let block = all_gather_rows(comm, lay, &send, b0, b1, bs + 1);
+        let block = all_gather_rows(comm, lay, &send, b0..b1, bs + 1);
         for i in (0..bs).rev() {
             let row = &block[i * (bs + 1)..(i + 1) * (bs + 1)];
             let d = row[i];

@@ -47,6 +47,7 @@ use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
 use faer::reborrow::Reborrow;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 
+use super::solver::Job;
 use super::system::{all_gather_rows, GatherBuffers, LocalRows};
 use crate::error::{Error, Result};
 use crate::linalg::reflector::{apply, explicit_v, qr_in_place, wy_t};
@@ -61,13 +62,8 @@ const ROW_CHUNK: usize = 96;
 /// `Error::NotDefinite` (on every rank) when a pivot of B is not positive, in which case the
 /// caller should fall back to LU on a freshly assembled system: `rows` is overwritten. `par` is
 /// the parallelism of the local GEMMs and triangular solves.
-pub fn cholesky_solve(
-    comm: &dyn Comm,
-    rows: &mut LocalRows,
-    panel: usize,
-    par: Par,
-    progress: &dyn Fn(usize, usize),
-) -> Result<Vec<f64>> {
+pub fn cholesky_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>> {
+    let Job { comm, panel, par, progress } = *job;
     let lay = rows.layout;
     let k = rows.border;
     let n = lay.n - k;
@@ -237,7 +233,7 @@ fn project(
     matmul(x_loc.as_mut(), Accum::Replace, a, v, 1.0, par);
     let send: Vec<f64> =
         (0..la).flat_map(|l| (0..k).map(move |j| (l, j))).map(|(l, j)| x_loc[(l, j)]).collect();
-    let x_rows = all_gather_rows(comm, lay, &send, 0, n, k);
+    let x_rows = all_gather_rows(comm, lay, &send, 0..n, k);
     let x = Mat::<f64>::from_fn(n, k, |i, j| x_rows[i * k + j]);
     let z = v.transpose() * &x;
     let y = &x * &t - (v * (t.transpose() * &z * &t)) * 0.5;
@@ -249,7 +245,7 @@ fn project(
     // y <- Q^T y = y - V T^T V^T y on the right-hand side column
     let mut ry = vec![0.0; la];
     ry.copy_from_slice(&rows.data[rhs * ld..rhs * ld + la]);
-    let y_all = all_gather_rows(comm, lay, &ry, 0, n, 1);
+    let y_all = all_gather_rows(comm, lay, &ry, 0..n, 1);
     let vty: Vec<f64> = (0..k).map(|j| (0..n).map(|i| v[(i, j)] * y_all[i]).sum()).collect();
     let coef: Vec<f64> = (0..k).map(|j| (0..k).map(|i| t[(i, j)] * vty[i]).sum()).collect();
     for l in 0..la {

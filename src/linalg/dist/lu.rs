@@ -27,6 +27,7 @@ use faer::reborrow::Reborrow;
 use faer::{Accum, MatMut, MatRef, Par};
 
 use super::backsub::back_substitute;
+use super::solver::Job;
 use super::system::{GatherBuffers, LocalRows};
 use crate::error::{Error, Result};
 use crate::par::Comm;
@@ -34,18 +35,11 @@ use crate::par::Comm;
 /// Solves the distributed system in `rows` (right-hand side in the last column) and returns the
 /// solution on every rank. Collective. `rows` is overwritten by U (and the multipliers of L, not
 /// row-interchanged) and L^-1 P b. `par` is the parallelism of the local trailing-update GEMMs.
-pub fn lu_solve(
-    comm: &dyn Comm,
-    rows: &mut LocalRows,
-    panel: usize,
-    par: Par,
-    progress: &dyn Fn(usize, usize),
-) -> Result<Vec<f64>> {
-    let lay = rows.layout;
+pub fn lu_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>> {
+    let Job { comm, panel, par, progress } = *job;
+    let (lay, cols, nb) = (rows.layout, rows.cols, panel.max(1));
     let n = lay.n;
-    let cols = rows.cols;
-    let nb = panel.max(1);
-    let tol = rows.max_abs(comm) * f64::EPSILON * n as f64;
+    let tol = rows.singular_tol(comm);
     let mut bufs = GatherBuffers::default();
     let mut k = 0;
     while k < n {

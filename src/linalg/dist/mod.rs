@@ -19,5 +19,5 @@ pub use cholesky::cholesky_solve;
 pub use householder::householder_solve;
 pub use layout::RowCyclic;
 pub use lu::lu_solve;
-pub use solver::{solve, Solved, SolverKind, AUTO_CHOLESKY_FROM};
+pub use solver::{solve, Job, Solved, SolverKind, AUTO_CHOLESKY_FROM};
 pub use system::{all_gather_rows, GatherBuffers, LocalRows};

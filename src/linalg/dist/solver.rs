@@ -8,6 +8,37 @@ use super::{cholesky_solve, householder_solve, lu_solve, LocalRows};
 use crate::error::{Error, Result};
 use crate::par::{agree, Comm};
 
+/// The context of a distributed solve: the ranks, the panel width (0: the solver's default), the
+/// parallelism of each rank's local kernels (GEMMs, triangular solves) and where progress goes.
+#[derive(Clone, Copy)]
+pub struct Job<'a> {
+    pub comm: &'a dyn Comm,
+    pub panel: usize,
+    pub par: Par,
+    pub progress: &'a dyn Fn(usize, usize),
+}
+
+fn silent(_: usize, _: usize) {}
+
+impl<'a> Job<'a> {
+    /// A solve on `comm` with the default panel, sequential local kernels and no progress.
+    pub fn on(comm: &'a dyn Comm) -> Self {
+        Job { comm, panel: 0, par: Par::Seq, progress: &silent }
+    }
+
+    pub fn panel(self, panel: usize) -> Self {
+        Job { panel, ..self }
+    }
+
+    pub fn par(self, par: Par) -> Self {
+        Job { par, ..self }
+    }
+
+    pub fn progress(self, progress: &'a dyn Fn(usize, usize)) -> Self {
+        Job { progress, ..self }
+    }
+}
+
 /// The distributed dense solvers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SolverKind {
@@ -69,24 +100,15 @@ impl SolverKind {
         }
     }
 
-    /// Runs this one solver (resolved for the size) on `rows` without any fallback; `panel` 0 is
-    /// the solver's default, `par` the parallelism of each rank's local BLAS-3 kernels
-    /// (`Par::Seq`, or `Par::rayon(t)` for t threads per rank). Collective. The local outcome is
-    /// not agreed on: see [`solve`].
-    pub fn run(
-        &self,
-        comm: &dyn Comm,
-        rows: &mut LocalRows,
-        panel: usize,
-        par: Par,
-        progress: &dyn Fn(usize, usize),
-    ) -> Result<Vec<f64>> {
+    /// Runs this one solver (resolved for the size) on `rows` without any fallback; a panel of 0
+    /// is the solver's default. Collective. The local outcome is not agreed on: see [`solve`].
+    pub fn run(&self, job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>> {
         let kind = self.resolve(rows.layout.n);
-        let panel = if panel > 0 { panel } else { kind.default_panel() };
+        let job = Job { panel: if job.panel > 0 { job.panel } else { kind.default_panel() }, ..*job };
         match kind {
-            SolverKind::Householder => householder_solve(comm, rows, panel, par, progress),
-            SolverKind::Lu => lu_solve(comm, rows, panel, par, progress),
-            SolverKind::Cholesky | SolverKind::Auto => cholesky_solve(comm, rows, panel, par, progress),
+            SolverKind::Householder => householder_solve(&job, rows),
+            SolverKind::Lu => lu_solve(&job, rows),
+            SolverKind::Cholesky | SolverKind::Auto => cholesky_solve(&job, rows),
         }
     }
 }
@@ -112,22 +134,20 @@ pub struct Solved {
 /// it (the agreed error keeps its kind), the system is assembled again by `reassemble` (the
 /// factorisation overwrote it) and solved by LU.
 pub fn solve(
-    comm: &dyn Comm,
+    job: &Job<'_>,
     kind: SolverKind,
     mut rows: LocalRows,
-    panel: usize,
-    par: Par,
-    progress: &dyn Fn(usize, usize),
     reassemble: impl FnOnce() -> LocalRows,
 ) -> Result<Solved> {
+    let comm = job.comm;
     let used = kind.resolve(rows.layout.n);
-    let panel_of = |k: SolverKind| if panel > 0 { panel } else { k.default_panel() };
-    match agree(comm, used.run(comm, &mut rows, panel, par, progress)) {
+    let panel_of = |k: SolverKind| if job.panel > 0 { job.panel } else { k.default_panel() };
+    match agree(comm, used.run(job, &mut rows)) {
         Ok(x) => Ok(Solved { x, used, panel: panel_of(used), fallback: None }),
         Err(e) if e.is_not_definite() => {
             drop(rows);
             let mut rows = reassemble();
-            let x = agree(comm, SolverKind::Lu.run(comm, &mut rows, panel, par, progress))?;
+            let x = agree(comm, SolverKind::Lu.run(job, &mut rows))?;
             Ok(Solved { x, used: SolverKind::Lu, panel: panel_of(SolverKind::Lu), fallback: Some(e) })
         }
         Err(e) => Err(e),

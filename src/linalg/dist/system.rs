@@ -1,6 +1,8 @@
 //! The local part of a row-cyclic distributed matrix with its right-hand side as the last column,
 //! so that every row operation of a factorisation reaches the right-hand side too.
 
+use std::ops::Range;
+
 use faer::{MatMut, MatRef};
 
 use super::layout::RowCyclic;
@@ -65,6 +67,11 @@ impl LocalRows {
         }
     }
 
+    /// The size below which an elimination treats a pivot as zero: n eps max |a_ij|. Collective.
+    pub fn singular_tol(&self, comm: &dyn Comm) -> f64 {
+        self.max_abs(comm) * f64::EPSILON * self.layout.n as f64
+    }
+
     /// Largest |entry| of the global matrix (all columns but the right-hand side). Collective.
     pub fn max_abs(&self, comm: &dyn Comm) -> f64 {
         let n = self.ld() * (self.cols - 1);
@@ -105,7 +112,7 @@ impl LocalRows {
                 send[t * w + (c - c0)] = *v;
             }
         }
-        all_gather_rows_into(comm, lay, &bufs.send, g0, g1, w, &mut bufs.recv, &mut bufs.out);
+        all_gather_rows_into(comm, lay, &bufs.send, (g0, g1, w), &mut bufs.recv, &mut bufs.out);
     }
 
     /// Exchanges global rows a and b in columns c0..c1 between their owners. Only the two owners
@@ -211,24 +218,20 @@ pub fn all_gather_rows(
     comm: &dyn Comm,
     lay: RowCyclic,
     send: &[f64],
-    g0: usize,
-    g1: usize,
+    rows: Range<usize>,
     w: usize,
 ) -> Vec<f64> {
     let (mut recv, mut out) = (Vec::new(), Vec::new());
-    all_gather_rows_into(comm, lay, send, g0, g1, w, &mut recv, &mut out);
+    all_gather_rows_into(comm, lay, send, (rows.start, rows.end, w), &mut recv, &mut out);
     out
 }
 
-/// [`all_gather_rows`] into reused buffers.
-#[allow(clippy::too_many_arguments)]
+/// [`all_gather_rows`] of rows g0..g1 of width w, into reused buffers.
 fn all_gather_rows_into(
     comm: &dyn Comm,
     lay: RowCyclic,
     send: &[f64],
-    g0: usize,
-    g1: usize,
-    w: usize,
+    (g0, g1, w): (usize, usize, usize),
     recv: &mut Vec<f64>,
     out: &mut Vec<f64>,
 ) {
