@@ -47,3 +47,4 @@
 pub mod dense;
 pub mod dist;
 pub mod reflector;
+pub mod sparse;
