@@ -1,6 +1,25 @@
 //! Sparse symmetric positive definite systems, the linear algebra of compactly supported splines:
 //! the matrix format shared by assembly and the solvers ([`SymCsr`]), and the interface every
 //! factorisation offers ([`SpdSolve`]).
+//!
+//! The serial solvers: [`envelope`] (Jennings' envelope storage and the envelope Cholesky, for
+//! centres ordered spatially), [`cholesky`] (faer's supernodal sparse Cholesky with a
+//! minimum-degree ordering, the production solver), [`ordering`] (reverse Cuthill-McKee) and
+//! [`bordered`] (the spline's bordered system [A P; P^T 0] by block elimination on top of any of
+//! them).
+
+pub mod bordered;
+mod check;
+pub mod cholesky;
+pub mod envelope;
+pub mod ordering;
+#[cfg(test)]
+mod test_support;
+
+pub use bordered::bordered_solve;
+pub use cholesky::{CholeskyStats, SparseCholesky};
+pub use envelope::{envelope_size, Envelope, EnvelopeCholesky, EnvelopeStats};
+pub use ordering::reverse_cuthill_mckee;
 
 use crate::error::Result;
 
