@@ -16,8 +16,10 @@
 //!
 //! The matrix is given in MUMPS's distributed assembled format: each rank passes the entries it
 //! holds (its rows of the lower triangle, [`SymCsr`] with global indices) as 1-based triples
-//! (i, j, a_ij); entries given twice, on one rank or on several, are summed. The matrix is never
-//! gathered on one rank. The right-hand sides are centralised: they are the same on every rank,
+//! (i, j, a_ij); entries given twice, on one rank or on several, are summed. The values are never
+//! gathered on one rank; a sequential analysis (the only kind the Debian build of MUMPS offers,
+//! which has neither PT-SCOTCH nor ParMETIS) gathers the pattern, the (i, j) pairs, on rank 0 to
+//! order it. The right-hand sides are centralised: they are the same on every rank,
 //! MUMPS reads rank 0's copy and writes the solution there, and the solution is broadcast, so
 //! every rank returns the same bits. (Two solves with the same factors on several ranks may differ
 //! in the last bits: MUMPS sums contributions in the order its messages arrive.)
