@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs what volspline needs on a fresh Debian 12 machine: OpenMPI, parallel HDF5 (OpenMPI
-# flavour), libclang and pkg-config for the -sys crates, hdf5-tools, and the Python packages the
-# tests use (vtk, numpy). Idempotent and quiet when everything is present.
+# flavour), MUMPS (libmumps-dev: the OpenMPI build, with ScaLAPACK for OpenMPI), libclang and
+# pkg-config for the -sys crates and build.rs, hdf5-tools, and the Python packages the tests use
+# (vtk, numpy). Idempotent and quiet when everything is present.
 set -euo pipefail
 
 # ensure_debs PKG...: installs the Debian packages that are missing, quietly
@@ -17,7 +18,7 @@ ensure_debs() {
         DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
     fi
 }
-ensure_debs libopenmpi-dev openmpi-bin libhdf5-openmpi-dev libclang-dev pkg-config hdf5-tools
+ensure_debs libopenmpi-dev openmpi-bin libhdf5-openmpi-dev libclang-dev pkg-config hdf5-tools libmumps-dev
 
 # two MPI flavours in one build make binaries abort at start ("Invalid communicator")
 if dpkg-query -W -f='${Status}' libmpich-dev 2>/dev/null | grep -q "install ok installed"; then

@@ -2,26 +2,17 @@
 //! collectives, the agreement on errors, the distributed solvers and the Cholesky -> LU fallback,
 //! the parallel VTKHDF writer, and the per-slice fits of `contours`.
 //!
-//! A target without the libtest harness. As the parent (what `cargo test` starts) it runs this same
-//! executable under `mpirun -n 2` and `mpirun -n 3 --oversubscribe` and fails unless every job exits
-//! 0 within its time limit, so a collective that hangs fails the suite instead of stalling it. As a
-//! child (`VOLSPLINE_COLLECTIVE_CHILD` set) it starts MPI, runs every check on `world.comm()`, prints
-//! one line per check on rank 0 and exits non-zero if a check failed on any rank. Every check is
-//! collective: each rank records its own mismatches, and the lines are gathered to rank 0 after each
-//! check. An unexpected library error panics, and the panic aborts the whole job.
+//! A target without the libtest harness (see `common::mpijob`): the checks run as jobs under
+//! `mpirun -n 2` and `mpirun -n 3 --oversubscribe`, each within a time limit.
 //!
 //! Two more jobs check the harness itself: with `VOLSPLINE_COLLECTIVE_BREAK` set, one check compares
 //! against a wrong value and the job must fail; with `VOLSPLINE_COLLECTIVE_HANG` set, rank 0 never
 //! joins a barrier and the job must be killed at its (short) limit.
-//!
-//! Arguments as libtest takes them: `--list`, name filters (substrings, or whole names with
-//! `--exact`), `--skip NAME`; other options are accepted and ignored.
 
 mod common;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use faer::{Mat, MatRef};
 use volspline::app::contours::solve_sections;
@@ -38,194 +29,36 @@ use volspline::par::{self, Comm, Solo};
 use volspline::spline::hygiene::{prepare, Prepared};
 use volspline::spline::{full_system, system_size, Carrier, Kernel};
 
-const CHILD: &str = "VOLSPLINE_COLLECTIVE_CHILD";
+use common::mpijob::{self, must, same_on_every_rank, Case, Check, Expect, Log};
+
 const BREAK: &str = "VOLSPLINE_COLLECTIVE_BREAK";
 const HANG: &str = "VOLSPLINE_COLLECTIVE_HANG";
 
 fn main() {
-    if std::env::var_os(CHILD).is_some() {
-        child();
-    } else {
-        parent();
-    }
-}
-
-// ---------------------------------------------------------------------------------------------
-// The parent: one mpirun job per case, each with a time limit
-
-/// What a job must do to pass.
-#[derive(Clone, Copy)]
-enum Expect {
-    /// Exit 0 with every check passed.
-    Pass,
-    /// Exit non-zero through the agreed failure flag (a check compared against a wrong value).
-    Fail,
-    /// Run past its limit and be killed.
-    Hang,
-}
-
-struct Case {
-    name: &'static str,
-    ranks: usize,
-    expect: Expect,
-    limit: Duration,
-}
-
-fn cases() -> Vec<Case> {
     let limit = Duration::from_secs(120);
-    vec![
-        Case { name: "collective_checks_on_2_ranks", ranks: 2, expect: Expect::Pass, limit },
-        Case { name: "collective_checks_on_3_ranks", ranks: 3, expect: Expect::Pass, limit },
-        Case { name: "harness_a_wrong_value_fails_the_job", ranks: 2, expect: Expect::Fail, limit },
+    let cases = vec![
+        Case { name: "collective_checks_on_2_ranks", ranks: 2, env: &[], expect: Expect::Pass, limit },
+        Case { name: "collective_checks_on_3_ranks", ranks: 3, env: &[], expect: Expect::Pass, limit },
+        Case {
+            name: "harness_a_wrong_value_fails_the_job",
+            ranks: 2,
+            env: &[(BREAK, "1")],
+            expect: Expect::Fail("typed collectives"),
+            limit,
+        },
         Case {
             name: "harness_a_hung_job_is_killed",
             ranks: 2,
+            env: &[(HANG, "1")],
             expect: Expect::Hang,
             limit: Duration::from_secs(5),
         },
-    ]
-}
-
-/// The cases selected by libtest-style arguments.
-fn selected(args: &[String]) -> Vec<Case> {
-    let (mut filters, mut skips, mut exact) = (Vec::new(), Vec::new(), false);
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--exact" => exact = true,
-            "--skip" => skips.extend(it.next().cloned()),
-            // options of libtest that take a value
-            "--test-threads" | "--format" | "--color" | "--logfile" | "-Z" | "--shuffle-seed" => {
-                it.next();
-            }
-            s if s.starts_with('-') => {}
-            s => filters.push(s.to_string()),
-        }
-    }
-    let hit = |name: &str, f: &String| if exact { name == f } else { name.contains(f.as_str()) };
-    cases()
-        .into_iter()
-        .filter(|c| filters.is_empty() || filters.iter().any(|f| hit(c.name, f)))
-        .filter(|c| !skips.iter().any(|f| hit(c.name, f)))
-        .collect()
-}
-
-fn parent() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let cases = selected(&args);
-    if args.iter().any(|a| a == "--list") {
-        for c in &cases {
-            println!("{}: test", c.name);
-        }
-        return;
-    }
-    if args.iter().any(|a| a == "--ignored") {
-        return; // no ignored cases
-    }
-    println!("\nrunning {} tests", cases.len());
-    let exe = std::env::current_exe().expect("the path of this test executable");
-    let mut failed = Vec::new();
-    for case in &cases {
-        let t = Instant::now();
-        match run_case(&exe, case) {
-            Ok(()) => println!("test {} ... ok ({:.1} s)", case.name, t.elapsed().as_secs_f64()),
-            Err(why) => {
-                println!("test {} ... FAILED\n{why}", case.name);
-                failed.push(case.name);
-            }
-        }
-    }
-    if !failed.is_empty() {
-        println!("\nfailures: {}", failed.join(", "));
-        std::process::exit(101);
-    }
-    println!("\ntest result: ok. {} passed\n", cases.len());
-}
-
-/// Runs one case's mpirun job and judges how it ended.
-fn run_case(exe: &Path, case: &Case) -> std::result::Result<(), String> {
-    let mut cmd = Command::new("mpirun");
-    cmd.args(["-n", &case.ranks.to_string(), "--oversubscribe"])
-        .arg(exe)
-        .env(CHILD, "1")
-        .env_remove(BREAK)
-        .env_remove(HANG)
-        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
-        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-        .env("OMPI_MCA_rmaps_base_oversubscribe", "1")
-        .env("RAYON_NUM_THREADS", "1");
-    match case.expect {
-        Expect::Fail => {
-            cmd.env(BREAK, "1");
-        }
-        Expect::Hang => {
-            cmd.env(HANG, "1");
-        }
-        Expect::Pass => {}
-    }
-    let done = common::output_within(cmd, case.limit);
-    let (stdout, stderr) =
-        (String::from_utf8_lossy(&done.output.stdout), String::from_utf8_lossy(&done.output.stderr));
-    let text = format!("--- stdout\n{stdout}--- stderr\n{stderr}");
-    let summary = stdout.lines().rev().find_map(|l| l.strip_prefix("summary: ")).unwrap_or("");
-    let field = |key: &str| -> Option<usize> {
-        summary.split(' ').find_map(|kv| kv.strip_prefix(key)?.strip_prefix('=')?.parse().ok())
-    };
-    let limit = case.limit.as_secs();
-    let (ok, checks) = (done.output.status.success(), field("checks").unwrap_or(0));
-    match case.expect {
-        _ if done.timed_out && !matches!(case.expect, Expect::Hang) => {
-            Err(format!("the job did not finish within {limit} s and was killed (a hang?)\n{text}"))
-        }
-        Expect::Pass
-            if ok
-                && field("ranks") == Some(case.ranks)
-                && checks > 0
-                && field("failed") == Some(0)
-                && !stdout.contains("FAIL") =>
-        {
-            print!("{stdout}");
-            Ok(())
-        }
-        Expect::Pass => Err(format!("the job failed ({}) or ran no checks\n{text}", done.output.status)),
-        // exactly the broken comparison fails, the job exits non-zero through the agreed flag
-        Expect::Fail if !ok && field("failed") == Some(1) && stdout.contains("FAIL  typed collectives") => {
-            Ok(())
-        }
-        Expect::Fail => Err(format!("a check against a wrong value did not fail the job\n{text}")),
-        Expect::Hang if done.timed_out => Ok(()),
-        Expect::Hang => Err(format!("the hung job was not killed at its limit of {limit} s\n{text}")),
-    }
+    ];
+    mpijob::main(cases, child);
 }
 
 // ---------------------------------------------------------------------------------------------
 // The child: every check on the MPI world
-
-/// One rank's mismatches in one check.
-#[derive(Default)]
-struct Log {
-    fails: Vec<String>,
-}
-
-impl Log {
-    fn check(&mut self, ok: bool, what: impl FnOnce() -> String) {
-        if !ok {
-            self.fails.push(what());
-        }
-    }
-
-    /// `got` within `tol` of `want`, relative to the largest |want|.
-    fn close(&mut self, got: &[f64], want: &[f64], tol: f64, what: impl FnOnce() -> String) {
-        if got.len() != want.len() {
-            self.fails.push(format!("{}: {} values, expected {}", what(), got.len(), want.len()));
-        } else {
-            let d = common::rel_diff(got, want);
-            self.check(d <= tol, || format!("{}: relative difference {d:e} > {tol:e}", what()));
-        }
-    }
-}
-
-type Check = fn(&dyn Comm, &mut Log);
 
 fn child() {
     let world = World::start().expect("MPI could not be started");
@@ -250,41 +83,11 @@ fn child() {
         ("parallel VTKHDF write vs serial values", vtkhdf_slabs_read_back),
         ("contour slices vs one process", sections_match_solo),
     ];
-    let mut failed = 0;
-    for (name, check) in checks {
-        let start = Instant::now();
-        let mut log = Log::default();
-        check(comm, &mut log);
-        let mut count = [log.fails.len() as u64];
-        comm.sum_u64(&mut count);
-        let lines = comm.gather_values(0, &log.fails);
-        if let Some(lines) = lines {
-            let secs = start.elapsed().as_secs_f64();
-            if count[0] == 0 {
-                println!("  ok    {name} ({secs:.2} s)");
-            } else {
-                println!("  FAIL  {name}");
-                for (r, fails) in lines.iter().enumerate() {
-                    for f in fails {
-                        println!("          rank {r}: {f}");
-                    }
-                }
-            }
-        }
-        failed += usize::from(count[0] > 0);
-    }
-    if comm.rank() == 0 {
-        println!("summary: ranks={} checks={} failed={failed}", comm.size(), checks.len());
-    }
+    let failed = mpijob::run_checks(comm, &checks);
     drop(world);
     if failed > 0 {
         std::process::exit(1);
     }
-}
-
-/// An unexpected library error: abort the job with it (the panic hook of `World` aborts all ranks).
-fn must<T>(r: Result<T>, what: &str) -> T {
-    r.unwrap_or_else(|e| panic!("{what}: unexpected error: {e}"))
 }
 
 /// 1 in the self-test of a failing check (`VOLSPLINE_COLLECTIVE_BREAK`), else 0.
@@ -403,12 +206,6 @@ fn oracle(prep: &Prepared, k: &Kernel, solve: fn(MatRef<'_, f64>, &[f64]) -> Res
     let n = system_size(k, prep.values.len());
     let (data, b) = full_system(k, &prep.centres, &prep.values);
     must(solve(MatRef::from_column_major_slice(&data, n, n), &b), "the dense oracle")
-}
-
-/// Checks that every rank holds the same solution, bit for bit.
-fn same_on_every_rank(comm: &dyn Comm, log: &mut Log, x: &[f64], what: &str) {
-    let x0: Vec<f64> = comm.broadcast_value(0, (comm.rank() == 0).then(|| x.to_vec()));
-    log.check(x0 == x, || format!("{what}: the solution differs from rank 0's"));
 }
 
 fn solvers_match_the_oracles(comm: &dyn Comm, log: &mut Log) {

@@ -1,6 +1,8 @@
 //! Dense linear algebra of the spline systems: one Householder reflector and its compact-WY
 //! blocks ([`reflector`]), serial oracles on one process ([`dense`]) and the row-cyclic distributed
-//! solvers ([`dist`]).
+//! solvers ([`dist`]). The sparse symmetric positive definite systems of compactly supported
+//! splines have their own format and interface ([`sparse`]) and a distributed factorisation by
+//! MUMPS ([`mumps`]).
 //!
 //! # The system
 //!
@@ -46,5 +48,6 @@
 
 pub mod dense;
 pub mod dist;
+pub mod mumps;
 pub mod reflector;
 pub mod sparse;

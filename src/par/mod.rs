@@ -55,6 +55,11 @@ pub trait Comm {
     fn raw(&self) -> Option<RawComm> {
         None
     }
+    /// The communicator as a Fortran handle (`MPI_Comm_c2f`), for libraries with a Fortran
+    /// interface (MUMPS), where there is an MPI communicator.
+    fn fortran_handle(&self) -> Option<i32> {
+        None
+    }
 }
 
 impl dyn Comm + '_ {

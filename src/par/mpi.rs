@@ -163,4 +163,9 @@ impl Comm for MpiComm {
     fn raw(&self) -> Option<RawComm> {
         Some(self.comm.as_raw())
     }
+    fn fortran_handle(&self) -> Option<i32> {
+        // SAFETY: the handle is a valid communicator for as long as `self` lives; the conversion
+        // only reads it.
+        Some(unsafe { mpi::ffi::MPI_Comm_c2f(self.comm.as_raw()) })
+    }
 }

@@ -9,6 +9,8 @@ use std::time::{Duration, Instant};
 
 use volspline::io::points::read_points;
 
+pub mod mpijob;
+
 pub const BUNNY: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/bunny10k.obj");
 pub const COW: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/cow.obj");
 pub const BIN: &str = env!("CARGO_BIN_EXE_volspline");
