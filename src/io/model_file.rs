@@ -2,18 +2,25 @@
 //! solving again, and how it was made. Written and read serially by one rank.
 //!
 //! Layout (all in the root group):
-//! - attributes `format` = "volspline-model", `format_version` = 1, `kernel_dim` (n),
-//!   `kernel_order` (m), `kernel` (name, e.g. "r"), `carrier` (spec, see `carrier`),
+//! - attributes `format` = "volspline-model", `format_version` (1, or 2 for a compactly supported
+//!   kernel), `kernel_dim` (n), `kernel_order` (m; 2 for a Wendland kernel, whose polynomial part
+//!   is linear), `kernel` (name, e.g. "r" or "wendland2 (support 0.08)"), for a compactly
+//!   supported kernel `kernel_compact` (`wendland0`, `wendland2` or `wendland4`) and
+//!   `kernel_support` (R, normalised coordinates), `carrier` (spec, see `carrier`),
 //!   `normalisation_centre` (3 doubles), `normalisation_scale`, and the provenance:
 //!   `input`, `data_box_lo`, `data_box_hi` (the input points' bounding box), `points_read`, `duplicates_merged`, `solver`, `residual`, `ranks`, `threads`,
 //!   `volspline_version`, `timing_stages` (comma-separated), `timing_seconds`;
 //! - datasets `centres` (N x n, input coordinates), `centres_normalised` (N x n, the ones the
 //!   system was built from), `weights` (lambda, N), `poly_coefficients` (c, k) and
 //!   `poly_exponents` (k x 3, the monomial of each c).
+//!
+//! A file without `kernel_compact` holds a Green's-function kernel, as every version 1 file does.
+//! Models with a compactly supported kernel are written as version 2 so that a reader that knows
+//! only version 1 refuses them instead of taking them for a Green's-function spline.
 
 use std::path::Path;
 
-use super::h5::{open_model, Attrs};
+use super::h5::{format_of, Attrs};
 use crate::error::{Error, Result};
 use crate::spline::carrier::Carrier;
 use crate::spline::kernel::Kernel;
@@ -30,10 +37,15 @@ pub fn write_model(path: &Path, model: &Model) -> Result<()> {
     let sp = &model.spline;
     let dim = sp.kernel.dim();
     a.put_str("format", FORMAT)?;
-    a.put_int("format_version", 1)?;
+    let compact = sp.kernel.wendland_part();
+    a.put_int("format_version", if compact.is_some() { 2 } else { 1 })?;
     a.put_int("kernel_dim", dim as i64)?;
     a.put_int("kernel_order", sp.kernel.order() as i64)?;
     a.put_str("kernel", &sp.kernel.name())?;
+    if let Some(w) = compact {
+        a.put_str("kernel_compact", w.kind.name())?;
+        a.put_f64s("kernel_support", &[w.support])?;
+    }
     a.put_str("carrier", &model.carrier.to_string())?;
     a.put_f64s("normalisation_centre", &sp.norm.centre)?;
     a.put_f64s("normalisation_scale", &[sp.norm.scale])?;
@@ -63,10 +75,19 @@ pub fn write_model(path: &Path, model: &Model) -> Result<()> {
 
 /// Reads a model written by [`write_model`], checking its format and consistency.
 pub fn read_model(path: &Path) -> Result<Model> {
-    let f = open_model(path, FORMAT, "volspline model")?;
+    let f = open(path)?;
     let a = Attrs { file: &f, path };
-    let kernel = Kernel::new(a.int("kernel_dim")? as usize, a.int("kernel_order")? as usize)
-        .map_err(|e| a.bad(e.to_string()))?;
+    let (dim, order) = (a.int("kernel_dim")?, a.int("kernel_order")?);
+    let kernel = if f.attr("kernel_compact").is_ok() {
+        let support = a.f64s("kernel_support")?;
+        if support.len() != 1 || (dim, order) != (3, 2) {
+            return Err(a.bad("malformed compactly supported kernel"));
+        }
+        Kernel::wendland(&a.str("kernel_compact")?, support[0])
+    } else {
+        Kernel::new(dim as usize, order as usize)
+    }
+    .map_err(|e| a.bad(e.to_string()))?;
     let dim = kernel.dim();
     let carrier = Carrier::parse(&a.str("carrier")?, dim).map_err(|e| a.bad(e.to_string()))?;
     let centre = a.f64s("normalisation_centre")?;
@@ -92,4 +113,91 @@ pub fn read_model(path: &Path) -> Result<Model> {
     }
     let provenance = a.provenance()?;
     Ok(Model { carrier, spline: Spline { kernel, centres, weights, poly, norm }, provenance })
+}
+
+/// Opens a model file after checking its `format` and that its `format_version` is 1 or 2.
+fn open(path: &Path) -> Result<hdf5::File> {
+    if format_of(path)? != FORMAT {
+        return Err(Error::input(path, "", format!("not a volspline model (format is not '{FORMAT}')")));
+    }
+    let file = hdf5::File::open(path).map_err(|e| Error::hdf5(path, e))?;
+    let version = Attrs { file: &file, path }.int("format_version")?;
+    if !(1..=2).contains(&version) {
+        let why = format!("volspline model format version {version} is not supported (expected 1 or 2)");
+        return Err(Error::input(path, "", why));
+    }
+    Ok(file)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::spline::model::Provenance;
+
+    fn model(kernel: Kernel) -> Model {
+        let centres = vec![0.1, 0.2, 0.3, -0.4, 0.5, 0.6, 0.7, -0.8, 0.9, 0.0, 0.1, -0.5];
+        Model {
+            carrier: Carrier::parse("ball:0,0,0,2", 3).unwrap(),
+            spline: Spline {
+                kernel,
+                centres,
+                weights: vec![1.5, -2.0, 0.25, 3.0],
+                poly: (0..kernel.poly_count()).map(|i| 0.1 * (i + 1) as f64).collect(),
+                norm: Normalisation { centre: [1.0, 2.0, 3.0], scale: 4.5 },
+            },
+            provenance: Provenance { box_lo: [-1.0; 3], box_hi: [1.0; 3], ..Default::default() },
+        }
+    }
+
+    fn temp(name: &str) -> std::path::PathBuf {
+        std::env::temp_dir().join(format!("volspline-model-file-{}-{name}.h5", std::process::id()))
+    }
+
+    #[test]
+    fn kernels_round_trip_through_the_model_file() {
+        let kernels = [
+            Kernel::new(3, 2).unwrap(),
+            Kernel::new(3, 3).unwrap(),
+            Kernel::wendland("wendland0", 0.3).unwrap(),
+            Kernel::wendland("wendland2", 0.0800622707907602).unwrap(),
+            Kernel::wendland("wendland4", 1.25).unwrap(),
+        ];
+        for (i, k) in kernels.into_iter().enumerate() {
+            let path = temp(&format!("round-trip-{i}"));
+            let m = model(k);
+            write_model(&path, &m).unwrap();
+            let back = read_model(&path).unwrap();
+            let f = hdf5::File::open(&path).unwrap();
+            let version = Attrs { file: &f, path: &path }.int("format_version").unwrap();
+            // Green's-function models keep the version 1 layout, without the new attributes
+            assert_eq!(version, if k.is_compact().is_some() { 2 } else { 1 });
+            assert_eq!(f.attr("kernel_compact").is_ok(), k.is_compact().is_some());
+            drop(f);
+            std::fs::remove_file(&path).unwrap();
+            assert_eq!(back.spline.kernel, k, "{}", k.name());
+            assert_eq!(back.spline, m.spline);
+            assert_eq!(back.carrier, m.carrier);
+        }
+    }
+
+    #[test]
+    fn malformed_compact_kernels_are_reported() {
+        let path = temp("malformed");
+        write_model(&path, &model(Kernel::wendland("wendland2", 0.2).unwrap())).unwrap();
+        {
+            let f = hdf5::File::open_rw(&path).unwrap();
+            f.delete_attr("kernel_compact").unwrap();
+            Attrs { file: &f, path: &path }.put_str("kernel_compact", "wendland9").unwrap();
+        }
+        let err = read_model(&path).unwrap_err().to_string();
+        assert!(err.contains("wendland9"), "{err}");
+        {
+            let f = hdf5::File::open_rw(&path).unwrap();
+            f.delete_attr("format_version").unwrap();
+            Attrs { file: &f, path: &path }.put_int("format_version", 3).unwrap();
+        }
+        let err = read_model(&path).unwrap_err().to_string();
+        assert!(err.contains("version 3"), "{err}");
+        std::fs::remove_file(&path).unwrap();
+    }
 }

@@ -4,7 +4,12 @@
 //! runs over the centres in one fixed order whatever the blocking, the thread or the rank, so
 //! values are reproducible bit for bit (no FMA contraction is allowed in Rust, so the AVX-512,
 //! AVX2 and portable paths round identically).
+//!
+//! A compactly supported kernel takes another path ([`crate::spline::compact_eval`]): each point
+//! sums only the centres within the support, gathered with the octree once per row, again in an
+//! order that depends on the point alone.
 
+use crate::spline::compact_eval::CompactRows;
 use crate::spline::Spline;
 
 const LANES: usize = 8;
@@ -28,14 +33,16 @@ pub struct Evaluator<'a> {
     cy: Vec<f64>,
     cz: Vec<f64>,
     w: Vec<f64>,
+    compact: Option<CompactRows>,
 }
 
 impl<'a> Evaluator<'a> {
     pub fn new(spline: &'a Spline) -> Self {
         let k = spline.kernel;
-        let form = match (k.dim(), k.order()) {
-            (3, 2) => Some(Form::R1),
-            (3, 3) => Some(Form::R3),
+        let compact = CompactRows::new(spline);
+        let form = match (k.dim(), k.order(), k.is_compact()) {
+            (3, 2, None) => Some(Form::R1),
+            (3, 3, None) => Some(Form::R3),
             _ => None,
         };
         let n = spline.len();
@@ -51,17 +58,37 @@ impl<'a> Evaluator<'a> {
             }
             w[..n].copy_from_slice(&spline.weights);
         }
-        Evaluator { spline, form, cx, cy, cz, w }
+        Evaluator { spline, form, cx, cy, cz, w, compact }
     }
 
-    /// Number of kernel evaluations per point.
+    /// Number of kernel evaluations per point (for a compactly supported kernel: at most; a
+    /// point near the data evaluates about [`Evaluator::compact_rows`]'s mean neighbour count).
     pub fn centres(&self) -> usize {
         self.spline.len()
+    }
+
+    /// The row evaluator of a compactly supported spline (None for the Green's functions).
+    pub fn compact_rows(&self) -> Option<&CompactRows> {
+        self.compact.as_ref()
     }
 
     /// U at the points `(xs[i], y, z)`, caller's coordinates, into `out`.
     pub fn eval_row(&self, xs: &[f64], y: f64, z: f64, out: &mut [f64]) {
         let sp = self.spline;
+        if let Some(c) = &self.compact {
+            let norm = &sp.norm;
+            let yn = (y - norm.centre[1]) / norm.scale;
+            let zn = (z - norm.centre[2]) / norm.scale;
+            let xn: Vec<f64> = xs.iter().map(|x| (x - norm.centre[0]) / norm.scale).collect();
+            c.radial_row(sp, &xn, yn, zn, &mut out[..xs.len()]);
+            let k = sp.poly.len();
+            let mut pv = [0.0; 10];
+            for (o, &x) in out.iter_mut().zip(&xn) {
+                sp.kernel.poly_eval(&[x, yn, zn], &mut pv[..k]);
+                *o += pv[..k].iter().zip(&sp.poly).map(|(p, c)| p * c).sum::<f64>();
+            }
+            return;
+        }
         let Some(form) = self.form else {
             for (o, &x) in out.iter_mut().zip(xs) {
                 *o = sp.eval(&[x, y, z]);

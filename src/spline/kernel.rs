@@ -1,21 +1,93 @@
-//! The Green's function G_{m,n} of the polyharmonic operator and the matching polynomial space.
-//! Pure functions of distances and coordinates: no knowledge of points, carriers or distribution.
+//! The kernels of the volume spline and the matching polynomial space. Pure functions of
+//! distances and coordinates: no knowledge of points, carriers or distribution.
 //!
-//! G_{m,n} is, up to a constant factor, the fundamental solution of the iterated Laplacian
-//! Delta^m in R^n: r^(2m-n) ln r for even n, r^(2m-n) for odd n, with G(0) = 0 (2m > n). The
-//! polynomials of degree <= m - 1 in n variables (k = C(n + m - 1, n) of them) are the functions
-//! the spline's energy cannot see; they complete the kernel terms to the unique interpolant. Why
-//! these pieces, the bordered system they make and the sign under which G is conditionally
-//! positive definite are derived in the documentation of [`crate::spline::system`].
+//! Two families:
+//!
+//! - **Green's functions** G_{m,n}: up to a constant factor, the fundamental solution of the
+//!   iterated Laplacian Delta^m in R^n: r^(2m-n) ln r for even n, r^(2m-n) for odd n, with
+//!   G(0) = 0 (2m > n). The polynomials of degree <= m - 1 in n variables (k = C(n + m - 1, n) of
+//!   them) are the functions the spline's energy cannot see; they complete the kernel terms to the
+//!   unique interpolant. Why these pieces, the bordered system they make and the sign under which
+//!   G is conditionally positive definite are derived in the documentation of
+//!   [`crate::spline::system`]. Every entry of their matrix is nonzero.
+//! - **Wendland functions** phi_{3,k} (3D only), compactly supported: zero beyond a support
+//!   radius R, so that the matrix is sparse. They complete with the linear polynomials (k = 4, as
+//!   for G = r), and the kernel reports `order() = 2` so that everything that depends only on the
+//!   polynomial part (unisolvency, the carrier's degree check) treats them alike. Their
+//!   definiteness, the choice of R and the sparse system are in [`crate::spline::compact`].
 
 use crate::error::{Error, Result};
 
-/// Kernel G_{m,n}(r) = r^(2m-n) ln r for even n, r^(2m-n) for odd n (G(0) = 0), together with the
-/// polynomials of degree <= m-1 in n variables that make the spline unique.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// The radial function of the spline together with the polynomials that make it unique: either
+/// the Green's function G_{m,n}(r) = r^(2m-n) ln r for even n, r^(2m-n) for odd n (G(0) = 0) with
+/// the polynomials of degree <= m-1 in n variables, or a compactly supported Wendland function
+/// in 3D with the linear polynomials (`dim` 3, `order` 2).
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Kernel {
     dim: usize,
     order: usize,
+    compact: Option<Wendland>,
+}
+
+/// The smoothness of a Wendland function phi_{3,k} (C^0, C^2 or C^4 at the origin and at the
+/// edge of its support).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WendlandKind {
+    /// phi_{3,0}(r) = (1 - r)^2_+
+    C0,
+    /// phi_{3,1}(r) = (1 - r)^4_+ (4r + 1)
+    C2,
+    /// phi_{3,2}(r) = (1 - r)^6_+ (35r^2 + 18r + 3)
+    C4,
+}
+
+impl WendlandKind {
+    /// All kinds, in order of smoothness.
+    pub const ALL: [WendlandKind; 3] = [WendlandKind::C0, WendlandKind::C2, WendlandKind::C4];
+
+    /// The command-line name: `wendland0`, `wendland2` or `wendland4`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            WendlandKind::C0 => "wendland0",
+            WendlandKind::C2 => "wendland2",
+            WendlandKind::C4 => "wendland4",
+        }
+    }
+
+    /// phi(r) for the scaled distance r = |x| / R (zero for r >= 1).
+    #[inline]
+    pub fn phi(&self, r: f64) -> f64 {
+        if !(r < 1.0) {
+            return 0.0;
+        }
+        let t = 1.0 - r;
+        match self {
+            WendlandKind::C0 => t * t,
+            WendlandKind::C2 => {
+                let t2 = t * t;
+                t2 * t2 * (4.0 * r + 1.0)
+            }
+            WendlandKind::C4 => {
+                let t3 = t * t * t;
+                t3 * t3 * ((35.0 * r + 18.0) * r + 3.0)
+            }
+        }
+    }
+}
+
+/// A Wendland function with its support radius R (in the spline's normalised coordinates).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Wendland {
+    pub kind: WendlandKind,
+    pub support: f64,
+}
+
+impl Wendland {
+    /// phi(|x| / R) as a function of the squared distance |x|^2.
+    #[inline]
+    pub fn eval_r2(&self, r2: f64) -> f64 {
+        self.kind.phi(r2.sqrt() / self.support)
+    }
 }
 
 impl Kernel {
@@ -29,7 +101,35 @@ impl Kernel {
                 "kernel order m = {order} in dimension n = {dim}: need 2m > n and m <= 4"
             )));
         }
-        Ok(Kernel { dim, order })
+        Ok(Kernel { dim, order, compact: None })
+    }
+
+    /// The compactly supported kernel `name` (`wendland0`, `wendland2` or `wendland4`) with support
+    /// radius `support` > 0 in normalised coordinates (the unit ball holds the data; see
+    /// [`crate::spline::compact::default_support`]), in 3D with the linear polynomials.
+    pub fn wendland(name: &str, support: f64) -> Result<Self> {
+        let Some(kind) = WendlandKind::ALL.into_iter().find(|k| k.name() == name) else {
+            return Err(Error::Usage(format!(
+                "unknown compactly supported kernel '{name}' (expected wendland0, wendland2 or wendland4)"
+            )));
+        };
+        if !(support > 0.0 && support.is_finite()) {
+            return Err(Error::Usage(format!(
+                "kernel {name}: the support radius must be a positive number, not {support}"
+            )));
+        }
+        Ok(Kernel { dim: 3, order: 2, compact: Some(Wendland { kind, support }) })
+    }
+
+    /// The Wendland function and its support when the kernel is compactly supported.
+    pub fn wendland_part(&self) -> Option<Wendland> {
+        self.compact
+    }
+
+    /// The support radius R (normalised coordinates) when the kernel is compactly supported:
+    /// `eval_r2` is zero at every distance >= R.
+    pub fn is_compact(&self) -> Option<f64> {
+        self.compact.map(|w| w.support)
     }
 
     /// The command-line names of the 3D kernels: `r` (m = 2) and `r3` (m = 3).
@@ -49,8 +149,11 @@ impl Kernel {
         self.order
     }
 
-    /// A short name: r, r3, r2log, r4log, ...
+    /// A short name: r, r3, r2log, r4log, ..., or e.g. "wendland2 (support 0.2)".
     pub fn name(&self) -> String {
+        if let Some(w) = self.compact {
+            return format!("{} (support {})", w.kind.name(), w.support);
+        }
         let p = self.power();
         let base = if p == 1 { "r".to_string() } else { format!("r{p}") };
         if self.has_log() {
@@ -60,7 +163,7 @@ impl Kernel {
         }
     }
 
-    /// The exponent 2m - n.
+    /// The exponent 2m - n of the Green's function (meaningless for a Wendland kernel).
     pub fn power(&self) -> i32 {
         (2 * self.order - self.dim) as i32
     }
@@ -69,10 +172,21 @@ impl Kernel {
         self.dim % 2 == 0
     }
 
-    /// G as a function of the squared distance, so that callers never take a square root the
-    /// kernel does not need.
+    /// The kernel as a function of the squared distance, so that callers never take a square root
+    /// the kernel does not need. Wendland kernels: phi(|x| / R), zero from |x| = R on.
     #[inline]
     pub fn eval_r2(&self, r2: f64) -> f64 {
+        match self.compact {
+            Some(w) => w.eval_r2(r2),
+            None => self.green_r2(r2),
+        }
+    }
+
+    /// The Green's function G_{m,n} as a function of the squared distance, whatever the kernel:
+    /// for loops that have already dispatched on [`Kernel::wendland_part`] and must not test it
+    /// again for every entry.
+    #[inline]
+    pub(crate) fn green_r2(&self, r2: f64) -> f64 {
         let p = self.power();
         if self.has_log() {
             if r2 == 0.0 {
@@ -139,8 +253,12 @@ impl Kernel {
     /// The sign s such that s * G is conditionally positive definite of order m on distinct
     /// points (s lambda^T A lambda > 0 whenever P^T lambda = 0, lambda != 0): (-1)^(ceil(p/2)) for
     /// odd powers r^p, (-1)^(p/2 + 1) for r^p ln r; so -1 for r and r^4 ln r, +1 for r^3 and
-    /// r^2 ln r (see "Conditional definiteness" in [`crate::spline::system`]).
+    /// r^2 ln r (see "Conditional definiteness" in [`crate::spline::system`]). +1 for Wendland
+    /// kernels, which are positive definite outright (see [`crate::spline::compact`]).
     pub fn definiteness_sign(&self) -> f64 {
+        if self.compact.is_some() {
+            return 1.0;
+        }
         let p = self.power();
         let e = if self.has_log() { p / 2 + 1 } else { (p + 1) / 2 };
         if e % 2 == 0 {
@@ -204,6 +322,52 @@ mod tests {
         assert!(Kernel::from_name_3d("gauss").is_err());
         assert_eq!(Kernel::from_name_3d("r3").unwrap().name(), "r3");
         assert_eq!(Kernel::new(2, 2).unwrap().name(), "r2log");
+    }
+
+    #[test]
+    fn wendland_functions_match_their_closed_forms() {
+        let r = 0.3f64;
+        let support = 0.5;
+        let d = r * support;
+        let w = |name| Kernel::wendland(name, support).unwrap();
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-14 * b.abs().max(1.0);
+        assert!(close(w("wendland0").eval_r2(d * d), (1.0 - r).powi(2)));
+        assert!(close(w("wendland2").eval_r2(d * d), (1.0 - r).powi(4) * (4.0 * r + 1.0)));
+        assert!(close(w("wendland4").eval_r2(d * d), (1.0 - r).powi(6) * (35.0 * r * r + 18.0 * r + 3.0)));
+        for (name, at0) in [("wendland0", 1.0), ("wendland2", 1.0), ("wendland4", 3.0)] {
+            let k = w(name);
+            assert_eq!(k.eval_r2(0.0), at0);
+            // zero on and beyond the support, positive inside it
+            for s in [support, 1.0001 * support, 7.0] {
+                assert_eq!(k.eval_r2(s * s), 0.0, "{name} at {s}");
+            }
+            assert!(k.eval_r2((0.999 * support).powi(2)) > 0.0);
+            assert_eq!(k.is_compact(), Some(support));
+            assert_eq!(k.poly_count(), 4);
+            assert_eq!(k.definiteness_sign(), 1.0);
+        }
+        assert_eq!(w("wendland2").name(), "wendland2 (support 0.5)");
+        assert_eq!(Kernel::new(3, 2).unwrap().is_compact(), None);
+    }
+
+    #[test]
+    fn wendland_functions_are_smooth_at_the_edge_of_their_support() {
+        // phi_{3,k} is C^{2k}: near r = 1 it vanishes like (1 - r)^(2k + 2) at least
+        for (kind, power) in [(WendlandKind::C0, 2), (WendlandKind::C2, 4), (WendlandKind::C4, 6)] {
+            for t in [1e-2, 1e-3] {
+                let v = kind.phi(1.0 - t);
+                let scale = v / t.powi(power);
+                assert!(scale > 0.1 && scale < 200.0, "{kind:?}: phi(1 - {t}) = {v}");
+            }
+        }
+    }
+
+    #[test]
+    fn bad_wendland_kernels_are_rejected() {
+        assert!(Kernel::wendland("wendland3", 0.2).is_err());
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            assert!(Kernel::wendland("wendland2", bad).is_err(), "{bad}");
+        }
     }
 
     #[test]

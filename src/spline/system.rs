@@ -38,6 +38,10 @@
 //! In general k = C(n + m - 1, n), the dimension of the polynomials of degree <= m - 1 in n
 //! variables ([`Kernel::poly_count`]; the basis order is [`Kernel::monomials`]).
 //!
+//! With a compactly supported Wendland kernel in place of G (k = 4, the linear polynomials) the
+//! same rows ([`fill_rows`]) are the dense form of a sparse system; its own assembly, its
+//! definiteness and its block solution are in [`crate::spline::compact`].
+//!
 //! # The bordered system
 //!
 //! The N interpolation conditions and the k moment conditions
@@ -175,6 +179,22 @@ pub fn system_size(kernel: &Kernel, n_centres: usize) -> usize {
 /// `rows.len()` and N + k + 1 columns (the right-hand side last). Rows are independent: each costs
 /// N kernel evaluations, so any distribution of the rows over ranks can be assembled in place.
 pub fn fill_rows(kernel: &Kernel, centres: &[f64], values: &[f64], rows: &[usize], out: &mut [f64]) {
+    // one dispatch on the kind of kernel for the whole fill, not one per entry
+    match kernel.wendland_part() {
+        Some(w) => fill_rows_with(kernel, move |r2| w.eval_r2(r2), centres, values, rows, out),
+        None => fill_rows_with(kernel, |r2| kernel.green_r2(r2), centres, values, rows, out),
+    }
+}
+
+/// [`fill_rows`] with the radial function `radial` (which is `kernel.eval_r2`).
+fn fill_rows_with(
+    kernel: &Kernel,
+    radial: impl Fn(f64) -> f64 + Sync,
+    centres: &[f64],
+    values: &[f64],
+    rows: &[usize],
+    out: &mut [f64],
+) {
     let dim = kernel.dim();
     let n = values.len();
     let k = kernel.poly_count();
@@ -191,9 +211,7 @@ pub fn fill_rows(kernel: &Kernel, centres: &[f64], values: &[f64], rows: &[usize
             let pj = &centres[j * dim..(j + 1) * dim];
             for (v, &g) in col.iter_mut().zip(rows) {
                 *v = if g < n {
-                    let pg = &centres[g * dim..(g + 1) * dim];
-                    let r2: f64 = pg.iter().zip(pj).map(|(a, b)| (a - b) * (a - b)).sum();
-                    kernel.eval_r2(r2)
+                    radial(dist2(&centres[g * dim..(g + 1) * dim], pj))
                 } else {
                     monomial(&monomials[g - n], pj)
                 };
@@ -221,8 +239,16 @@ pub fn full_system(kernel: &Kernel, centres: &[f64], values: &[f64]) -> (Vec<f64
     (m, b)
 }
 
+/// The squared distance between two points, summed over the coordinates in order: the one
+/// formula behind every matrix entry, dense or sparse, so that both assemblies agree bit for bit.
 #[inline]
-fn monomial(e: &[u8; 3], x: &[f64]) -> f64 {
+pub(crate) fn dist2(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(a, b)| (a - b) * (a - b)).sum()
+}
+
+/// The monomial with exponents `e` at x (first `x.len()` exponents used).
+#[inline]
+pub(crate) fn monomial(e: &[u8; 3], x: &[f64]) -> f64 {
     x.iter().zip(e).map(|(v, &p)| v.powi(p as i32)).product()
 }
 
@@ -277,7 +303,9 @@ impl Spline {
         self.weights.is_empty()
     }
 
-    /// U at a point given in the caller's coordinates.
+    /// U at a point given in the caller's coordinates: the plain sum over all N centres, in index
+    /// order (for a compactly supported kernel the terms beyond the support are zero). The
+    /// reference for [`crate::spline::Evaluator`], which is the fast way to evaluate many points.
     pub fn eval(&self, x: &[f64]) -> f64 {
         let dim = self.kernel.dim();
         let mut xn = [0.0; 3];
