@@ -50,9 +50,30 @@ pub struct FitArgs {
     /// union(A,B) / intersection(A,B) / difference(A,B) of carriers (R-functions).
     #[arg(long, default_value = "ball", value_name = "SPEC", value_parser = carrier_3d)]
     pub carrier: Carrier,
-    /// Green's function: r (m = 2, biharmonic) or r3 (m = 3, triharmonic).
-    #[arg(long, default_value = "r", value_name = "r|r3", value_parser = kernel_3d)]
-    pub kernel: Kernel,
+    /// How the spline is built: dense (a global Green's function, the dense row-cyclic solvers),
+    /// csrbf (a compactly supported Wendland function: an octree, a sparse Cholesky, MUMPS across
+    /// ranks) or auto (dense while its matrix fits in memory and its solve should take under a
+    /// minute, csrbf above).
+    #[arg(long, default_value = "auto", value_name = "auto|dense|csrbf", value_parser = method)]
+    pub method: Method,
+    /// Radial function: r (m = 2, biharmonic) or r3 (m = 3, triharmonic) for dense;
+    /// wendland0, wendland2, wendland4 (C0, C2, C4 Wendland functions of compact support) for
+    /// csrbf; auto: r for dense, wendland2 for csrbf.
+    #[arg(long, default_value = "auto", value_name = "auto|r|r3|wendland0|wendland2|wendland4", value_parser = kernel_choice)]
+    pub kernel: KernelChoice,
+    /// Support radius of a Wendland kernel, in the internal coordinates where the data's longest
+    /// side is about 2 (default: chosen from the point spacing so that each point has about 30
+    /// neighbours).
+    #[arg(long, value_name = "R", value_parser = support)]
+    pub support: Option<f64>,
+    /// Points per octree leaf for csrbf.
+    #[arg(long, default_value = "10", value_name = "K", value_parser = leaf)]
+    pub leaf: usize,
+    /// Sparse solver of csrbf: auto (cholesky on one rank, mumps on several), cholesky (sparse
+    /// supernodal Cholesky with a fill-reducing ordering, one rank), envelope (envelope Cholesky
+    /// after the octree ordering, one rank) or mumps (distributed multifrontal Cholesky).
+    #[arg(long, default_value = "auto", value_name = "auto|cholesky|envelope|mumps", value_parser = sparse_solver)]
+    pub sparse_solver: SparseSolver,
     /// Distributed dense solver: auto (the fastest for the size: householder below 1000 rows,
     /// cholesky above), cholesky (projected Cholesky of the definite block, falls back to lu with a
     /// message when a pivot is not positive), householder (QR) or lu (partial pivoting).
@@ -67,6 +88,33 @@ pub struct FitArgs {
     pub merge_tol: f64,
     #[command(flatten)]
     pub grid: GridArgs,
+}
+
+/// How `fit` builds the spline.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    Auto,
+    Dense,
+    Csrbf,
+}
+
+/// The radial function asked for: a global Green's function, a compactly supported Wendland
+/// function (its support is settled once the points are known), or the method's default.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum KernelChoice {
+    Auto,
+    Global(Kernel),
+    /// Wendland function of smoothness C^(2s): 0, 1 or 2 -> wendland0, wendland2, wendland4.
+    Wendland(u8),
+}
+
+/// The sparse solver of `--method csrbf`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SparseSolver {
+    Auto,
+    Cholesky,
+    Envelope,
+    Mumps,
 }
 
 #[derive(Debug, Args)]
@@ -198,8 +246,46 @@ fn carrier_3d(s: &str) -> Parsed<Carrier> {
     reason(Carrier::parse(s, 3))
 }
 
-fn kernel_3d(s: &str) -> Parsed<Kernel> {
-    reason(Kernel::from_name_3d(s))
+fn kernel_choice(s: &str) -> Parsed<KernelChoice> {
+    match s {
+        "auto" => Ok(KernelChoice::Auto),
+        "wendland0" => Ok(KernelChoice::Wendland(0)),
+        "wendland2" => Ok(KernelChoice::Wendland(1)),
+        "wendland4" => Ok(KernelChoice::Wendland(2)),
+        other => Kernel::from_name_3d(other).map(KernelChoice::Global).map_err(|_| {
+            format!("unknown kernel '{other}' (expected auto, r, r3, wendland0, wendland2 or wendland4)")
+        }),
+    }
+}
+
+fn method(s: &str) -> Parsed<Method> {
+    match s {
+        "auto" => Ok(Method::Auto),
+        "dense" => Ok(Method::Dense),
+        "csrbf" => Ok(Method::Csrbf),
+        other => Err(format!("unknown method '{other}' (expected auto, dense or csrbf)")),
+    }
+}
+
+fn sparse_solver(s: &str) -> Parsed<SparseSolver> {
+    match s {
+        "auto" => Ok(SparseSolver::Auto),
+        "cholesky" => Ok(SparseSolver::Cholesky),
+        "envelope" => Ok(SparseSolver::Envelope),
+        "mumps" => Ok(SparseSolver::Mumps),
+        other => Err(format!("unknown sparse solver '{other}' (expected auto, cholesky, envelope or mumps)")),
+    }
+}
+
+fn support(s: &str) -> Parsed<f64> {
+    number_in(s, f64::MIN_POSITIVE..=4.0, "(0, 4] (the data's longest side is about 2 inside)")
+}
+
+fn leaf(s: &str) -> Parsed<usize> {
+    match s.trim().parse::<usize>() {
+        Ok(k) if (1..=100_000).contains(&k) => Ok(k),
+        _ => Err(format!("'{s}': expected a leaf capacity in 1..=100000")),
+    }
 }
 
 fn kernel_2d(s: &str) -> Parsed<Kernel> {
@@ -281,7 +367,9 @@ mod tests {
             parse(&["fit", "a.xyz", "--out", "o", "--solver", "lu", "--carrier", "ball:0,0,0,2"]).unwrap();
         let Command::Fit(a) = cli.command else { panic!("fit") };
         assert_eq!(a.solver, SolverKind::Lu);
-        assert_eq!(a.kernel.order(), 2);
+        assert_eq!(a.kernel, KernelChoice::Auto);
+        assert_eq!(a.method, Method::Auto);
+        assert_eq!(a.leaf, 10);
         assert_eq!(a.grid.grid, GridSize::Longest(64));
         assert_eq!(a.merge_tol, 1e-6);
         assert!(a.carrier.to_string().starts_with("ball:"));
@@ -299,6 +387,10 @@ mod tests {
             &["contours", "c.txt", "--out", "o", "--interp", "quintic"],
             &["slice", "m.obj", "--out", "c.txt", "--planes", "w:3"],
             &["fit", "a.xyz", "--out", "o", "--threads", "20000"],
+            &["fit", "a.xyz", "--out", "o", "--kernel", "wendland3"],
+            &["fit", "a.xyz", "--out", "o", "--method", "sparse"],
+            &["fit", "a.xyz", "--out", "o", "--support", "0"],
+            &["fit", "a.xyz", "--out", "o", "--leaf", "0"],
         ] {
             let e = parse(bad).unwrap_err();
             assert_eq!(e.exit_code(), 2, "{bad:?}");

@@ -1,6 +1,6 @@
 //! Runs that cannot finish are refused before the heavy work, with the figures and what to do, on
 //! every rank count, and leave no output: a dense system larger than the memory (a densely
-//! resampled bunny), a grid larger than the memory, an output prefix that names a directory or a
+//! resampled bunny, `--method dense`), a grid larger than the memory, an output prefix that names a directory or a
 //! missing one, an absurd thread count.
 
 mod common;
@@ -40,11 +40,12 @@ fn a_system_too_large_for_memory_is_refused_before_assembly() {
     common::write_xyz(&input, &pts);
     for ranks in [1, 2] {
         let prefix = dir.join(format!("big{ranks}"));
-        let out = common::run(ranks, &["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap()]);
+        let args = ["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--method", "dense"];
+        let out = common::run(ranks, &args);
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "{err}");
         assert!(err.contains("not enough memory: the dense system of"), "{err}");
-        assert!(err.contains("GB per rank") && err.contains("use more ranks"), "{err}");
+        assert!(err.contains("GB per rank") && err.contains("use --method csrbf"), "{err}");
         assert!(!err.contains("panic"), "{err}");
     }
     assert_eq!(files_in(&dir), ["bunny150k.xyz"]);

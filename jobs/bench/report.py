@@ -1,5 +1,5 @@
 """Summaries and plots of the benchmark jobs: reads OUT/raw.csv, writes OUT/summary.md and PNGs.
-Usage: python3 report.py table1|table2|solve|eval|io|mesh OUT"""
+Usage: python3 report.py table1|table2|solve|eval|io|mesh|table1csrbf|scalecsrbf OUT"""
 import csv
 import sys
 from collections import defaultdict
@@ -199,6 +199,243 @@ elif mode == "mesh":
         lines.append(f"| {n}^3 | {threads} | {poly:.4f} | {wld:.4f} | {cells / poly:.3e} | {r['vertices']} | {r['loop_centres']} | {r['triangles']} | yes | {len(group)} |")
     lines.append("\nSphere of radius 0.8 on [-1, 1]^3, one slab (no MPI); bench_mesh stops with an error unless the "
                  "welded mesh is a closed oriented manifold, so every row listed is one.")
+
+
+# The modes of the compactly supported (csrbf) studies: jobs/table1-csrbf and jobs/scale-csrbf.
+# Their raw.csv leave a column empty where a run did not report it (e.g. dense dry runs).
+import math  # noqa: E402
+import os  # noqa: E402
+
+
+def val(r, k):
+    """The number in column k of row r, None where the run did not report it."""
+    v = r.get(k)
+    return float(v) if v not in (None, "") else None
+
+
+def fmt(v, spec, none="—"):
+    return none if v is None else format(v, spec)
+
+
+def least(vals):
+    vals = [v for v in vals if v is not None]
+    return min(vals) if vals else None
+
+
+def summed(r, *ks):
+    vs = [val(r, k) for k in ks if val(r, k) is not None]
+    return sum(vs) if vs else None
+
+
+if mode == "table1csrbf":
+    # Kojekine et al. (2001), Table 1: AMD Athlon 1 GHz (Pentium III 700 MHz in brackets)
+    PAPER_CS = {
+        "Head": dict(points="1487", leaf="10", tree="467 nodes at 6 levels", tree_s="0.05 (0.11)", support="0.2",
+                     matrix_s="0.17 (0.98)", storage="426,811 of 2,211,169 (19.3 %)", solution_s="1.98 (1.722)",
+                     rms="1.37e-08", max="4.49e-06"),
+        "Seashell": dict(points="915", leaf="10", tree="291 nodes at 8 levels", tree_s="0.05 (0.07)", support="0.2",
+                         matrix_s="0.1 (0.2)", storage="189,310 of 837,225 (22.6 %)", solution_s="0.61 (0.501)",
+                         rms="5.81e-08", max="3.08e-05"),
+    }
+    groups = defaultdict(list)
+    for r in rows:
+        groups[(r["model"], r["paper_model"], r["kernel"], r["sparse_solver"])].append(r)
+    models = list(dict.fromkeys((k[0], k[1]) for k in groups))
+    plot = defaultdict(dict)
+    for model, paper_model in models:
+        keys = [k for k in groups if k[0] == model]
+        paper = PAPER_CS[paper_model]
+        cols = []
+        for k in keys:
+            rs = groups[k]
+            r0 = rs[0]
+            used = f" ({r0['kernel_used']}, {r0['solver_used'] or 'dense'})" if (r0["kernel_used"], r0["solver_used"]) != (k[2], k[3]) else ""
+            stored, full = val(r0, "stored_entries"), val(r0, "full_entries")
+            c = dict(
+                head=f"{k[2]}, {k[3]}{used}", points=r0["points"], leaf=r0["leaf"] or "—",
+                tree=f"{r0['tree_nodes']} nodes at {r0['tree_levels']} levels" if r0["tree_nodes"] else "—",
+                tree_s=least(summed(r, "read_s", "tree_s") for r in rs) if r0["tree_s"] else None,
+                read_s=least(val(r, "read_s") for r in rs),
+                support=r0["support"] or "—", matrix_s=least(val(r, "assemble_s") for r in rs),
+                factor_s=least(val(r, "factor_s") for r in rs), solve_s=least(val(r, "solve_s") for r in rs),
+                solution_s=least(summed(r, "factor_s", "solve_s") for r in rs),
+                storage=f"{stored:,.0f} of {full:,.0f} ({100 * stored / full:.1f} %)" if stored and full else "—",
+                fill=fmt(val(r0, "fill"), ".2f"), nnz=f"{r0['nnz_row_mean'] or '—'} / {r0['nnz_row_max'] or '—'}",
+                rms=fmt(val(r0, "rms_at_points"), ".2e"), max=fmt(val(r0, "max_at_points"), ".2e"),
+                residual=fmt(val(r0, "residual"), ".2e"),
+                mem=fmt(least(val(r, "peak_rss_bytes") / 1e6 for r in rs if val(r, "peak_rss_bytes")), ".1f"),
+                reps=len(rs))
+            cols.append(c)
+            plot[model][c["head"]] = (c["tree_s"], c["matrix_s"], c["solution_s"],
+                                      100 * stored / full if stored and full else None)
+        lines.append(f"\n## {model} ({cols[0]['points']} points) beside the paper's {paper_model}\n")
+        lines.append("| | paper: " + paper_model + " | " + " | ".join(c["head"] for c in cols) + " |")
+        lines.append("|---|---|" + "---:|" * len(cols))
+        table = [
+            ("Number of points N", paper["points"], lambda c: c["points"]),
+            ("Max. points in a leaf K", paper["leaf"], lambda c: c["leaf"]),
+            ("Octree", paper["tree"], lambda c: c["tree"]),
+            ("Tree creation, including file reading (s)", paper["tree_s"], lambda c: fmt(c["tree_s"], ".4f")),
+            ("of which file reading (s)", "—", lambda c: fmt(c["read_s"], ".4f")),
+            ("Selected radius r", paper["support"], lambda c: c["support"]),
+            ("Matrix calculation (s)", paper["matrix_s"], lambda c: fmt(c["matrix_s"], ".4f")),
+            ("Storage of A: stored entries of N^2", paper["storage"], lambda c: c["storage"]),
+            ("Fill of the factor (`fill`)", "—", lambda c: c["fill"]),
+            ("Nonzeros per row of A: mean / max", "—", lambda c: c["nnz"]),
+            ("Factorisation (s)", "—", lambda c: fmt(c["factor_s"], ".4f")),
+            ("Triangular solutions (s)", "—", lambda c: fmt(c["solve_s"], ".4f")),
+            ("Solution by Cholesky decomposition (s)", paper["solution_s"], lambda c: fmt(c["solution_s"], ".4f")),
+            ("RMS at the data", paper["rms"], lambda c: c["rms"]),
+            ("MAX at the data", paper["max"], lambda c: c["max"]),
+            ("Relative residual", "—", lambda c: c["residual"]),
+            ("Peak memory (MB)", "128 MB machine", lambda c: c["mem"]),
+        ]
+        for name, p, get in table:
+            lines.append(f"| {name} | {p} | " + " | ".join(str(get(c)) for c in cols) + " |")
+        lines.append(f"\nTimes: best of {cols[0]['reps']} runs; stage maxima over ranks (one rank here).")
+    lines.append(
+        "\nPaper: Kojekine, Savchenko, Berzin, Hagiwara (2001), \"Software tools for compactly supported radial basis functions\", Table 1: \"Head\" and \"Seashell\" (not available; "
+        "here evenly strided vertices of the repository's bunny and cow meshes in their place), AMD Athlon 1 GHz "
+        "(Pentium III 700 MHz in brackets), envelope (profile) storage of the band of A and its Cholesky factor. "
+        "Storage here: the entries the solver keeps (envelope or sparse factor) against N^2. Plot: table1csrbf.png.")
+    fig, ax = plt.subplots(1, 2, figsize=(12, 4.4))
+    labels, series = [], defaultdict(list)
+    for model, paper_model in models:
+        pm = PAPER_CS[paper_model]
+        first = lambda s: float(s.split()[0])  # noqa: E731
+        labels.append(f"paper {paper_model}")
+        for i, key in enumerate(["tree_s", "matrix_s", "solution_s"]):
+            series[i].append(first(pm[key]))
+        series[3].append(float(pm["storage"].split("(")[1].split()[0]))
+        for head, v in plot[model].items():
+            labels.append(f"{model}: {head}")
+            for i in range(4):
+                series[i].append(v[i] if v[i] is not None else float("nan"))
+    x = list(range(len(labels)))
+    for i, name in enumerate(["tree", "matrix", "solution"]):
+        ax[0].bar([a + (i - 1) * 0.27 for a in x], series[i], width=0.27, label=name)
+    ax[0].set(yscale="log", ylabel="time (s)", title="Table 1 times (paper: Athlon 1 GHz)")
+    ax[1].bar(x, series[3], color="grey")
+    ax[1].set(ylabel="stored entries / N^2 (%)", title="Storage of A")
+    for a in ax:
+        a.set_xticks(x)
+        a.set_xticklabels(labels, rotation=35, ha="right", fontsize=7)
+    ax[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(f"{out}/table1csrbf.png", dpi=110)
+
+elif mode == "scalecsrbf":
+    series = defaultdict(list)
+    for r in rows:
+        series[(r["impl"], int(r["ranks"]))].append(r)
+    for rs in series.values():
+        rs.sort(key=lambda r: int(r["points"]))
+
+    def slope(pts):
+        """Least-squares slope of log t against log N."""
+        pts = [(math.log(n), math.log(t)) for n, t in pts if t and t > 0]
+        if len({x for x, _ in pts}) < 2:
+            return None
+        mx = sum(x for x, _ in pts) / len(pts)
+        my = sum(y for _, y in pts) / len(pts)
+        return sum((x - mx) * (y - my) for x, y in pts) / sum((x - mx) ** 2 for x, _ in pts)
+
+    lines.append("| implementation | ranks | threads/rank | N | kernel, support, leaf, solver | tree (s) | matrix (s) | factor (s) | solve (s) | fit (s) | "
+                 "grid evaluation (s) | grid nodes | wall (s) | peak memory/rank (MB) | nonzeros/row mean / max | fill | "
+                 "held-out distance mean / p95 / max (% of diagonal) | MAX at the data |")
+    lines.append("|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|")
+    for (impl, p), rs in sorted(series.items()):
+        for r in rs:
+            dist = " / ".join(fmt(val(r, k), ".3f") for k in ["dist_mean_pct", "dist_p95_pct", "dist_max_pct"])
+            nnz = f"{fmt(val(r, 'nnz_row_mean'), '.1f')} / {fmt(val(r, 'nnz_row_max'), '.0f')}" if r["nnz_row_mean"] else "—"
+            mem = val(r, "peak_rss_bytes")
+            setting = ", ".join(r[k] or "—" for k in ["kernel", "support", "leaf", "sparse_solver"])
+            lines.append(
+                f"| {impl} | {p} | {r['threads']} | {int(r['points']):,} | {setting} | {fmt(val(r, 'tree_s'), '.3f')} | "
+                f"{fmt(val(r, 'assemble_s'), '.3f')} | {fmt(val(r, 'factor_s'), '.3f')} | {fmt(val(r, 'solve_s'), '.3f')} | "
+                f"{fmt(val(r, 'fit_s'), '.3f')} | {fmt(val(r, 'evaluate_s'), '.3f')} | {r['grid_nodes']} | {fmt(val(r, 'wall_s'), '.1f')} | "
+                f"{fmt(mem / 1e6 if mem else None, '.0f')} | {nnz} | {fmt(val(r, 'fill'), '.2f')} | {dist} | "
+                f"{fmt(val(r, 'max_at_points'), '.2e')} |")
+    lines.append("\nfit = read + tree + matrix + factorisation + solution (stage maxima over ranks; ferreus_rbf: the "
+                 "constructor, its whole fit); wall: the whole run (volspline: also the check, the grid evaluation, the "
+                 "surface and the files). volspline evaluates its own grid inside the fit; ferreus_rbf a grid of its own "
+                 "size (grid nodes column). MAX at the data: volspline's max |f| at the points as it reports it; "
+                 "ferreus_rbf: max |s - f_c| at the points relative to max |f_c|.")
+    lines.append("\n## Exponent of fit time in N (least squares of log fit time against log N)\n")
+    lines.append("| implementation | ranks | sizes | exponent, all sizes | exponent, N >= 10^5 |")
+    lines.append("|---|---:|---|---:|---:|")
+    for (impl, p), rs in sorted(series.items()):
+        pts = [(int(r["points"]), val(r, "fit_s")) for r in rs]
+        big = [(n, t) for n, t in pts if n >= 100_000]
+        lines.append(f"| {impl} | {p} | {', '.join(f'{n:,}' for n, _ in pts)} | {fmt(slope(pts), '.2f')} | {fmt(slope(big), '.2f')} |")
+    vol = {p: {int(r["points"]): r for r in rs} for (impl, p), rs in series.items() if impl == "volspline"}
+    if len(vol) > 1 and 1 in vol:
+        lines.append("\n## Ranks: speed-up of fit and grid evaluation against 1 rank\n")
+        lines.append("| N | ranks | fit speed-up | evaluation speed-up | peak memory/rank against 1 rank |")
+        lines.append("|---:|---:|---:|---:|---:|")
+        for p in sorted(vol):
+            if p == 1:
+                continue
+            for n in sorted(set(vol[1]) & set(vol[p])):
+                a, b = vol[1][n], vol[p][n]
+                sp = lambda k: fmt(val(a, k) / val(b, k) if val(a, k) and val(b, k) else None, ".2f")  # noqa: E731
+                lines.append(f"| {n:,} | {p} | {sp('fit_s')} | {sp('evaluate_s')} | {fmt(val(b, 'peak_rss_bytes') / val(a, 'peak_rss_bytes') if val(a, 'peak_rss_bytes') and val(b, 'peak_rss_bytes') else None, '.2f')} |")
+    peer = {int(r["points"]): r for r in series.get(("ferreus_rbf", 1), [])}
+    if peer and vol:
+        lines.append("\n## Against ferreus_rbf\n")
+        lines.append("| N | volspline ranks x threads | volspline fit (s) | ferreus_rbf fit (s) | fit ratio (ferreus / volspline) | "
+                     "volspline grid nodes/s | ferreus_rbf grid nodes/s |")
+        lines.append("|---:|---|---:|---:|---:|---:|---:|")
+        for p in sorted(vol):
+            for n in sorted(set(vol[p]) & set(peer)):
+                a, b = vol[p][n], peer[n]
+                ta, tb = val(a, "fit_s"), val(b, "fit_s")
+                ra = val(a, "grid_nodes") / val(a, "evaluate_s") if val(a, "evaluate_s") else None
+                rb = val(b, "grid_nodes") / val(b, "evaluate_s") if val(b, "evaluate_s") else None
+                lines.append(f"| {n:,} | {p} x {a['threads']} | {fmt(ta, '.3f')} | {fmt(tb, '.3f')} | "
+                             f"{fmt(tb / ta if ta and tb else None, '.2f')} | {fmt(ra, '.3e')} | {fmt(rb, '.3e')} |")
+        lines.append(f"\nferreus_rbf: linear kernel |r| with a linear drift (the global spline of the dense method) on "
+                     f"{next(iter(peer.values()))['threads']} threads, fitted to the carrier values of the same points.")
+    for name in ["skipped", "failed"]:
+        path = f"{out}/{name}.txt"
+        if os.path.exists(path) and open(path).read().strip():
+            lines.append(f"\n## {name.capitalize()} runs\n\n```\n{open(path).read().strip()}\n```")
+    lines.append("\nPlots: scale_fit.png (fit time against N, log-log, least-squares lines), scale_stages.png "
+                 "(volspline stages and peak memory against N).")
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    for (impl, p), rs in sorted(series.items()):
+        pts = [(int(r["points"]), val(r, "fit_s")) for r in rs if val(r, "fit_s")]
+        if not pts:
+            continue
+        e = slope(pts)
+        line = ax.loglog([n for n, _ in pts], [t for _, t in pts], marker="o",
+                         label=f"{impl}, {p} x {rs[0]['threads']}" + (f" (N^{e:.2f})" if e is not None else ""))
+        if e is not None:
+            mx = sum(math.log(n) for n, _ in pts) / len(pts)
+            my = sum(math.log(t) for _, t in pts) / len(pts)
+            ns = [pts[0][0], pts[-1][0]]
+            ax.loglog(ns, [math.exp(my + e * (math.log(n) - mx)) for n in ns], ls=":", color=line[0].get_color())
+    ax.set(xlabel="points N", ylabel="fit time (s)", title="Fit time against N (ranks x threads per rank)")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(f"{out}/scale_fit.png", dpi=110)
+    fig, ax = plt.subplots(1, 2, figsize=(12, 4.4))
+    for (impl, p), rs in sorted(series.items()):
+        ns = [int(r["points"]) for r in rs]
+        if impl == "volspline" and p == min(q for i, q in series if i == "volspline"):
+            for k in ["tree_s", "assemble_s", "factor_s", "solve_s", "evaluate_s", "mesh_s"]:
+                got = [(n, val(r, k)) for n, r in zip(ns, rs) if val(r, k)]
+                if got:
+                    ax[0].loglog([n for n, _ in got], [t for _, t in got], marker="o", label=k[:-2])
+        mem = [(n, val(r, "peak_rss_bytes") / 1e6) for n, r in zip(ns, rs) if val(r, "peak_rss_bytes")]
+        if mem:
+            ax[1].loglog([n for n, _ in mem], [m for _, m in mem], marker="o", label=f"{impl}, {p} x {rs[0]['threads']}")
+    ax[0].set(xlabel="points N", ylabel="time (s)", title="volspline stages (fewest ranks)")
+    ax[1].set(xlabel="points N", ylabel="peak memory per rank (MB)", title="Peak memory (ranks x threads per rank)")
+    for a in ax:
+        a.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(f"{out}/scale_stages.png", dpi=110)
 
 open(f"{out}/summary.md", "w").write("\n".join(lines) + "\n")
 print("\n".join(lines))

@@ -45,8 +45,8 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         let n = model.spline.len();
         r.line(format!("N = {n} centres, kernel {}, carrier {}", model.spline.kernel.name(), model.carrier));
         r.figure("points", n);
-        r.figure("kernel_evals", grid.node_count() as f64 * n as f64);
-        per_node = n;
+        per_node = crate::spline::Field::kernel_evals_per_node(&model);
+        r.figure("kernel_evals", grid.node_count() as f64 * per_node as f64);
         volume
     };
     r.line(format!("ranks = {}, threads per rank = {threads}", comm.size()));

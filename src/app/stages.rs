@@ -9,7 +9,9 @@ use crate::par::Comm;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Stage {
     Read,
+    Tree,
     Assemble,
+    Factor,
     Solve,
     Check,
     Evaluate,
@@ -19,9 +21,11 @@ pub enum Stage {
 }
 
 impl Stage {
-    pub const ALL: [Stage; 8] = [
+    pub const ALL: [Stage; 10] = [
         Stage::Read,
+        Stage::Tree,
         Stage::Assemble,
+        Stage::Factor,
         Stage::Solve,
         Stage::Check,
         Stage::Evaluate,
@@ -33,7 +37,9 @@ impl Stage {
     pub fn name(self) -> &'static str {
         match self {
             Stage::Read => "read",
+            Stage::Tree => "tree",
             Stage::Assemble => "assemble",
+            Stage::Factor => "factor",
             Stage::Solve => "solve",
             Stage::Check => "check",
             Stage::Evaluate => "evaluate",

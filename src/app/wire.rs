@@ -21,13 +21,20 @@ impl Wire for MeshPiece {
     }
 }
 
+/// A kernel travels as (dim, order) and, for a compactly supported one, its name and support.
 impl Wire for Kernel {
     fn put(&self, out: &mut Vec<u8>) {
         (self.dim(), self.order()).put(out);
+        self.wendland_part().map(|w| (w.kind.name().to_string(), w.support)).put(out);
     }
     fn take(r: &mut Reader<'_>) -> Self {
         let (dim, order) = Wire::take(r);
-        Kernel::new(dim, order).expect("a kernel sent by another rank is valid")
+        let compact: Option<(String, f64)> = Wire::take(r);
+        match compact {
+            None => Kernel::new(dim, order),
+            Some((name, support)) => Kernel::wendland(&name, support),
+        }
+        .expect("a kernel sent by another rank is valid")
     }
 }
 
@@ -111,5 +118,8 @@ mod tests {
         assert_eq!(back.spline.norm.scale, fit.spline.norm.scale);
         assert_eq!(back.spline.poly, fit.spline.poly);
         assert_eq!((back.points, back.merged), (2, 1));
+        let w = Kernel::wendland("wendland4", 0.25).unwrap();
+        assert_eq!(Kernel::decode(&w.encode()), w);
+        assert_eq!(Kernel::decode(&kernel.encode()), kernel);
     }
 }

@@ -1,0 +1,81 @@
+//! The dense method: each rank assembles its row-cyclic rows of the bordered system of a global
+//! Green's function (or of any kernel: a compactly supported one gives the dense oracle of the
+//! sparse method), and the distributed dense solvers factor it without ever gathering it.
+
+use faer::Par;
+
+use super::Fitted;
+use crate::app::preflight::{check_memory, dense_fit_bytes};
+use crate::app::progress::Progress;
+use crate::app::stages::{Stage, Stages};
+use crate::cli::FitArgs;
+use crate::error::Result;
+use crate::linalg::dist::{self, Job, LocalRows, RowCyclic};
+use crate::par::Comm;
+use crate::spline::hygiene::Prepared;
+use crate::spline::{fill_rows, residual_parts, Kernel, Spline};
+
+/// This rank's rows of the bordered system of `kernel` through `values` at `centres`.
+pub fn assemble(kernel: &Kernel, centres: &[f64], values: &[f64], layout: RowCyclic) -> LocalRows {
+    let k = kernel.poly_count();
+    let mut rows = LocalRows::zeros(layout, layout.n + 1, k);
+    let globals: Vec<usize> = (0..layout.local_count()).map(|l| layout.global(l)).collect();
+    fill_rows(kernel, centres, values, &globals, &mut rows.data);
+    rows
+}
+
+/// Refuses a dense system that does not fit in the ranks' memory. Collective.
+pub fn check(comm: &dyn Comm, kernel: &Kernel, n: usize) -> Result<()> {
+    let system = n + kernel.poly_count();
+    check_memory(
+        comm,
+        dense_fit_bytes(system, comm.size()),
+        &format!("the dense system of {system} rows ({n} points)"),
+        "use --method csrbf (compactly supported, sparse), more ranks or nodes (the rows are split over all ranks) or fewer points",
+    )
+}
+
+/// Fits the spline of `kernel` to the prepared points with the dense solvers. Collective.
+pub fn fit(
+    a: &FitArgs,
+    comm: &dyn Comm,
+    threads: usize,
+    kernel: Kernel,
+    prep: &Prepared,
+    stages: &mut Stages,
+) -> Result<Fitted> {
+    let (centres, values) = (&prep.centres, &prep.values);
+    let layout = RowCyclic::new(values.len() + kernel.poly_count(), comm.size(), comm.rank());
+    let rows = stages.time(Stage::Assemble, || assemble(&kernel, centres, values, layout));
+    let progress = Progress::new("solve", comm);
+    let solved = stages.time(Stage::Solve, || {
+        let report = |d, t| progress.update(d, t);
+        let job = Job::on(comm).panel(a.panel).par(Par::rayon(threads)).progress(&report);
+        dist::solve(&job, a.solver, rows, || assemble(&kernel, centres, values, layout))
+    })?;
+    if let (Some(why), 0) = (&solved.fallback, comm.rank()) {
+        eprintln!("volspline: cholesky: {}; fell back to LU", why.root());
+    }
+    let residual = stages.time(Stage::Check, || {
+        let globals: Vec<usize> = (0..layout.local_count()).map(|l| layout.global(l)).collect();
+        let mut parts = residual_parts(&kernel, centres, values, &globals, &solved.x).to_vec();
+        comm.sum_f64(&mut parts);
+        if parts[1] > 0.0 {
+            (parts[0] / parts[1]).sqrt()
+        } else {
+            parts[0].sqrt()
+        }
+    });
+    let spline = Spline::from_solution(kernel, centres.clone(), &solved.x, prep.norm);
+    Ok(Fitted {
+        spline,
+        solver: solved.used.name().to_string(),
+        residual,
+        line: format!("solver {} (dense, row-cyclic), panel {}", solved.used.name(), solved.panel),
+        figures: vec![
+            ("solver".into(), solved.used.name().into()),
+            ("panel".into(), solved.panel.to_string()),
+            ("system_size".into(), layout.n.to_string()),
+        ],
+    })
+}

@@ -1,0 +1,227 @@
+//! `volspline fit`: scattered points -> the solid. Rank 0 reads the points and every rank gets
+//! them; hygiene runs identically everywhere; the method (dense or compactly supported) is chosen
+//! and checked against the memory; the method fits the spline; |f| at the data is checked in
+//! parallel; rank 0 writes the model; the volume outputs follow.
+
+pub mod compact;
+pub mod dense;
+
+use std::path::Path;
+
+use rayon::prelude::*;
+
+use super::preflight::{available_per_rank, check_prefix, dense_fit_bytes};
+use super::report::{run_provenance, Report};
+use super::stages::{Stage, Stages};
+use super::volume::{check_grid, output_path, throughput_line, write_volume};
+use crate::cli::{FitArgs, KernelChoice, Method};
+use crate::error::{Error, Result};
+use crate::grid::{padded_box, Grid};
+use crate::io::{self, model_file, points};
+use crate::par::{agree, on_root, Comm};
+use crate::spline::compact::{default_support, DEFAULT_NEIGHBOURS};
+use crate::spline::hygiene::{prepare, Prepared};
+use crate::spline::{Evaluator, Kernel, Model, Provenance, Spline};
+
+pub use dense::assemble;
+
+/// What a method produced.
+pub struct Fitted {
+    pub spline: Spline,
+    /// The solver, as the model file records it.
+    pub solver: String,
+    /// ||M x - b|| / ||b|| of the whole bordered system.
+    pub residual: f64,
+    /// The report line that describes the method's run.
+    pub line: String,
+    /// The method's own figures for the CSV record.
+    pub figures: Vec<(String, String)>,
+}
+
+/// Reads the input points on rank 0 and gives them to every rank, 3 values per point.
+fn read_points_everywhere(comm: &dyn Comm, path: &Path) -> Result<Vec<f64>> {
+    let local = if comm.rank() == 0 {
+        points::read_points(path).map(|set| Some(set.points.iter().flatten().copied().collect::<Vec<f64>>()))
+    } else {
+        Ok(None)
+    };
+    let mine = agree(comm, local)?;
+    Ok(comm.broadcast_value(0, mine))
+}
+
+/// Dense flop rate per rank assumed by `--method auto` to predict the solve time (the projected
+/// Cholesky ran at 30 to 35 GFLOP/s per rank on the machines measured; a slower node is allowed
+/// for).
+const DENSE_FLOPS_PER_RANK: f64 = 15e9;
+
+/// The longest dense solve `--method auto` accepts before it turns to the sparse method.
+const DENSE_SECONDS: f64 = 60.0;
+
+/// Wendland kernel of `smoothness` (0, 1, 2) with `--support` or the default support.
+fn wendland(a: &FitArgs, smoothness: u8, centres: &[f64]) -> Result<Kernel> {
+    let name = ["wendland0", "wendland2", "wendland4"][smoothness.min(2) as usize];
+    let support = a.support.unwrap_or_else(|| default_support(centres, DEFAULT_NEIGHBOURS));
+    Kernel::wendland(name, support)
+}
+
+/// The method and the kernel of a run of `n` points on `ranks` ranks, and why they were chosen.
+fn choose(a: &FitArgs, n: usize, ranks: usize, centres: &[f64]) -> Result<(Method, Kernel, String)> {
+    let asked = || "as asked".to_string();
+    match (a.method, a.kernel) {
+        (Method::Csrbf, KernelChoice::Global(k)) => Err(Error::Usage(format!(
+            "--method csrbf needs a compactly supported kernel (wendland0, wendland2 or wendland4), not {}",
+            k.name()
+        ))),
+        (Method::Dense | Method::Auto, KernelChoice::Global(k)) => Ok((Method::Dense, k, asked())),
+        (Method::Dense, KernelChoice::Auto) => Ok((Method::Dense, Kernel::new(3, 2)?, asked())),
+        (Method::Dense, KernelChoice::Wendland(s)) => Ok((Method::Dense, wendland(a, s, centres)?, asked())),
+        (Method::Csrbf | Method::Auto, KernelChoice::Wendland(s)) => {
+            Ok((Method::Csrbf, wendland(a, s, centres)?, asked()))
+        }
+        (Method::Csrbf, KernelChoice::Auto) => Ok((Method::Csrbf, wendland(a, 1, centres)?, asked())),
+        (Method::Auto, KernelChoice::Auto) => {
+            let system = (n + 4) as f64;
+            let bytes = dense_fit_bytes(n + 4, ranks);
+            let seconds = system.powi(3) / 3.0 / (DENSE_FLOPS_PER_RANK * ranks as f64);
+            let room = available_per_rank().map_or(f64::INFINITY, |(b, _)| b);
+            if bytes <= room && seconds <= DENSE_SECONDS {
+                let why = format!("auto: the dense system fits and should solve in about {seconds:.0} s");
+                Ok((Method::Dense, Kernel::new(3, 2)?, why))
+            } else {
+                let why = format!(
+                    "auto: the dense system would need {:.1} GB per rank and about {seconds:.0} s",
+                    bytes / 1e9
+                );
+                Ok((Method::Csrbf, wendland(a, 1, centres)?, why))
+            }
+        }
+    }
+}
+
+/// Runs `volspline fit`. Collective.
+pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
+    let mut stages = Stages::default();
+    check_prefix(comm, &a.out)?;
+    let raw = stages.time(Stage::Read, || read_points_everywhere(comm, &a.input))?;
+    let points_read = raw.len() / 3;
+    // hygiene needs only the polynomial part, linear for every kernel but r3
+    let base = match a.kernel {
+        KernelChoice::Global(k) => k,
+        _ => Kernel::new(3, 2)?,
+    };
+    let prep = prepare(&raw, &base, &a.carrier, a.merge_tol)?;
+    let n = prep.values.len();
+    let (method, kernel, why) = choose(a, n, comm.size(), &prep.centres)?;
+    if comm.rank() == 0 {
+        eprintln!(
+            "volspline fit: {points_read} points read from {}, {} duplicates merged, N = {n}, kernel {}, carrier {}",
+            a.input.display(),
+            prep.merged,
+            kernel.name(),
+            prep.carrier
+        );
+    }
+    let (plo, phi) = padded_box(&prep.box_lo, &prep.box_hi, a.grid.margin);
+    let grid = Grid::covering(plo, phi, a.grid.grid)?;
+    let fitted = match method {
+        Method::Dense | Method::Auto => {
+            dense::check(comm, &kernel, n)?;
+            check_grid(comm, &grid)?;
+            dense::fit(a, comm, threads, kernel, &prep, &mut stages)?
+        }
+        Method::Csrbf => {
+            check_grid(comm, &grid)?;
+            compact::fit(a, comm, threads, kernel, &prep, &mut stages)?
+        }
+    };
+    let (rms, max_abs) = stages.time(Stage::Check, || at_points(comm, &fitted.spline, &prep));
+    let Prepared { carrier, box_lo: lo, box_hi: hi, merged, .. } = prep;
+    let model = Model {
+        carrier,
+        spline: fitted.spline,
+        provenance: Provenance {
+            input: a.input.display().to_string(),
+            box_lo: [lo[0], lo[1], lo[2]],
+            box_hi: [hi[0], hi[1], hi[2]],
+            points_read,
+            duplicates_merged: merged,
+            solver: fitted.solver.clone(),
+            residual: fitted.residual,
+            ..run_provenance(comm, threads, &stages)
+        },
+    };
+    let model_path = output_path(&a.out, ".model.h5");
+    stages.time(Stage::Write, || {
+        on_root(comm, || io::write_atomically(&model_path, |tmp| model_file::write_model(tmp, &model)))
+    })?;
+    let volume = write_volume(comm, &model, &grid, &a.out, &mut stages)?;
+
+    let mut r = Report::new("fit", &a.input);
+    let method_name = if method == Method::Csrbf { "csrbf" } else { "dense" };
+    r.line(format!(
+        "N = {n} points ({points_read} read, {merged} duplicates merged), method {method_name} ({why}), kernel {}",
+        kernel.name()
+    ));
+    r.line(fitted.line.clone());
+    r.line(format!("ranks = {}, threads per rank = {threads}", comm.size()));
+    r.line(format!("relative residual |Mx - b|/|b| = {:.3e}", fitted.residual));
+    r.line(format!("|f| at the data points: rms {rms:.3e}, max {max_abs:.3e}"));
+    r.figure("input", a.input.display());
+    r.figure("points", n);
+    r.figure("method", method_name);
+    r.figure("kernel", kernel.name());
+    for (k, v) in &fitted.figures {
+        r.figure(k, v);
+    }
+    r.figure("ranks", comm.size());
+    r.figure("threads", threads);
+    r.figure("residual", format!("{:e}", fitted.residual));
+    r.figure("rms_at_points", format!("{rms:e}"));
+    r.figure("max_at_points", format!("{max_abs:e}"));
+    r.figure("max_abs_f_at_points", format!("{max_abs:e}"));
+    r.figure(
+        "kernel_evals",
+        grid.node_count() as f64 * crate::spline::Field::kernel_evals_per_node(&model) as f64,
+    );
+    r.output(&model_path);
+    volume.report(&mut r);
+    let nodes = grid.node_count();
+    let per_node = crate::spline::Field::kernel_evals_per_node(&model);
+    r.finish(
+        comm,
+        &stages,
+        &|t| {
+            let mut l = throughput_line(nodes, per_node, t.max(Stage::Evaluate));
+            l.push(format!(
+                "Table 2 columns: matrix formation {:.3} s, solution of the SLAE {:.3} s, evaluation of {nodes} grid nodes {:.3} s",
+                t.max(Stage::Assemble),
+                t.max(Stage::Factor) + t.max(Stage::Solve),
+                t.max(Stage::Evaluate)
+            ));
+            l
+        },
+        a.grid.timings.as_deref(),
+    )?;
+    Ok(())
+}
+
+/// RMS and maximum of |f| = |f_c - U| at the data points (zero for an exact interpolant), each
+/// rank taking every P-th point with the blocked evaluator. Collective.
+fn at_points(comm: &dyn Comm, spline: &Spline, prep: &Prepared) -> (f64, f64) {
+    let ev = Evaluator::new(spline);
+    let mine: Vec<&[f64]> = prep.points.chunks_exact(3).skip(comm.rank()).step_by(comm.size()).collect();
+    let (sq, max) = mine
+        .par_iter()
+        .map(|p| {
+            let mut u = [0.0];
+            ev.eval_row(&p[..1], p[1], p[2], &mut u);
+            let d = (prep.carrier.eval(p) - u[0]).abs();
+            (d * d, d)
+        })
+        .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1.max(b.1)));
+    let mut s = [sq];
+    comm.sum_f64(&mut s);
+    let mut m = [max];
+    comm.max_f64(&mut m);
+    ((s[0] / prep.values.len().max(1) as f64).sqrt(), m[0])
+}
