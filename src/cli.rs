@@ -61,9 +61,9 @@ pub struct FitArgs {
     /// csrbf; auto: r for dense, wendland2 for csrbf.
     #[arg(long, default_value = "auto", value_name = "auto|r|r3|wendland0|wendland2|wendland4", value_parser = kernel_choice)]
     pub kernel: KernelChoice,
-    /// Support radius of a Wendland kernel, in the internal coordinates where the data's longest
-    /// side is about 2 (default: chosen from the point spacing so that each point has about 30
-    /// neighbours).
+    /// Support radius of a Wendland kernel, in the internal coordinates where the data's bounding
+    /// box is centred with diagonal 2 (default: from the point spacing, so that each point has
+    /// about 30 neighbours).
     #[arg(long, value_name = "R", value_parser = support)]
     pub support: Option<f64>,
     /// Points per octree leaf for csrbf.
@@ -278,7 +278,7 @@ fn sparse_solver(s: &str) -> Parsed<SparseSolver> {
 }
 
 fn support(s: &str) -> Parsed<f64> {
-    number_in(s, f64::MIN_POSITIVE..=4.0, "(0, 4] (the data's longest side is about 2 inside)")
+    number_in(s, f64::MIN_POSITIVE..=4.0, "(0, 4] (the data's box has diagonal 2 inside)")
 }
 
 fn leaf(s: &str) -> Parsed<usize> {
