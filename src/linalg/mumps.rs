@@ -158,10 +158,23 @@ impl<'c> MumpsSpd<'c> {
         instance.started = started.is_ok();
         started?;
         instance.configure(options);
-        for (job, phase) in [(1, "analysis"), (2, "factorisation")] {
-            instance.call(job);
-            // on an error, `instance` is dropped, JOB = -2, on every rank
-            par::agree(comm, instance.outcome(phase))?;
+        instance.call(1);
+        // on an error, `instance` is dropped, JOB = -2, on every rank
+        par::agree(comm, instance.outcome("analysis"))?;
+        // the analysis estimates the workspace; where the pivots' fronts come out larger than
+        // estimated (more so on more ranks) MUMPS stops with a workspace error, and the remedy is
+        // to factor again with a larger relaxation ICNTL(14) (a percentage of the estimate)
+        let mut relax = WORKSPACE_RELAXATION;
+        loop {
+            instance.set_icntl(14, relax);
+            instance.call(2);
+            let short = WORKSPACE_SHORT.contains(&instance.id.infog[0]);
+            if short && relax < MAX_WORKSPACE_RELAXATION {
+                relax *= 2;
+                continue;
+            }
+            par::agree(comm, instance.outcome("factorisation"))?;
+            break;
         }
         let stats = instance.stats();
         Ok(MumpsSpd { comm, n: a.n, stats, instance: RefCell::new(instance) })
@@ -203,6 +216,16 @@ impl SpdSolve for MumpsSpd<'_> {
         Ok(())
     }
 }
+
+/// Percentage by which the factorisation's workspace exceeds the analysis's estimate at first
+/// (MUMPS's own default is 20 to 35).
+const WORKSPACE_RELAXATION: i32 = 50;
+
+/// The relaxation beyond which a workspace error is reported rather than retried.
+const MAX_WORKSPACE_RELAXATION: i32 = 800;
+
+/// INFOG(1) codes of a workspace that was estimated too small (MUMPS 5.5 user guide, section 8).
+const WORKSPACE_SHORT: [i32; 4] = [-8, -9, -14, -15];
 
 /// The triples MUMPS takes (1-based row and column indices, values) of this rank's entries, or
 /// why they cannot be given.
