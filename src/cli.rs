@@ -77,7 +77,7 @@ pub struct FitArgs {
     /// Distributed dense solver: auto (the fastest for the size: householder below 1000 rows,
     /// cholesky above), cholesky (projected Cholesky of the definite block, falls back to lu with a
     /// message when a pivot is not positive), householder (QR) or lu (partial pivoting).
-    #[arg(long, default_value = "auto", value_name = "auto|cholesky|householder|lu", value_parser = solver)]
+    #[arg(long, default_value = "auto", value_name = "auto|cholesky|householder|lu", value_parser = with(SolverKind::parse))]
     pub solver: SolverKind,
     /// Panel (block) width of the distributed solvers (0: automatic, 64 for householder, 128 for
     /// lu, 256 for cholesky).
@@ -125,7 +125,7 @@ pub struct EvalArgs {
     #[arg(long, value_name = "PREFIX")]
     pub out: PathBuf,
     /// Box to evaluate: xmin,ymin,zmin,xmax,ymax,zmax (default: the data's box plus --margin).
-    #[arg(long, value_name = "BOX", allow_hyphen_values = true, value_parser = bounds)]
+    #[arg(long, value_name = "BOX", allow_hyphen_values = true, value_parser = with(parse_bounds))]
     pub bounds: Option<([f64; 3], [f64; 3])>,
     #[command(flatten)]
     pub grid: GridArgs,
@@ -141,11 +141,11 @@ pub struct ContoursArgs {
     pub out: PathBuf,
     /// Interpolation between slices: linear or cubic (cardinal natural cubic splines in the slice
     /// parameter).
-    #[arg(long, default_value = "linear", value_name = "linear|cubic", value_parser = interp)]
+    #[arg(long, default_value = "linear", value_name = "linear|cubic", value_parser = with(Interp::parse))]
     pub interp: Interp,
     /// Interpolation of the section frames of non-parallel slices: slerp (quaternion geodesic) or
     /// log (exp((1-t) ln M_i + t ln M_i+1)).
-    #[arg(long, default_value = "slerp", value_name = "slerp|log", value_parser = orient)]
+    #[arg(long, default_value = "slerp", value_name = "slerp|log", value_parser = with(Orient::parse))]
     pub orient: Orient,
     /// Green's function of the 2D section splines: r2log (m = 2, thin plate, polynomial 1, x, y)
     /// or r4log (m = 3; needs --carrier union).
@@ -153,7 +153,7 @@ pub struct ContoursArgs {
     pub kernel: Kernel,
     /// Carrier of each section: disc (one disc round the slice) or union (R-union of one disc per
     /// contour, bounded by the slice's disc: keeps neighbouring contours, such as legs, apart).
-    #[arg(long, default_value = "disc", value_name = "disc|union", value_parser = section_carrier)]
+    #[arg(long, default_value = "disc", value_name = "disc|union", value_parser = with(SectionCarrier::parse))]
     pub carrier: SectionCarrier,
     /// Points of a slice closer than this fraction of the slice's diagonal are merged into one.
     #[arg(long, default_value = "1e-6", value_name = "F", value_parser = merge_tol)]
@@ -171,14 +171,14 @@ pub struct SliceArgs {
     pub out: PathBuf,
     /// Planes: AXIS:N (N parallel planes across the mesh, AXIS x, y or z) or fan-AXIS:N (N planes
     /// sweeping along AXIS while turning about a hinge line outside the mesh: non-parallel).
-    #[arg(long, default_value = "z:40", value_name = "SPEC", value_parser = planes)]
+    #[arg(long, default_value = "z:40", value_name = "SPEC", value_parser = with(PlaneFamily::parse))]
     pub planes: PlaneFamily,
 }
 
 #[derive(Debug, Args)]
 pub struct GridArgs {
     /// Grid nodes: N along the longest side of the box with cubic cells, or NX,NY,NZ.
-    #[arg(long, default_value = "64", value_name = "N|NX,NY,NZ", value_parser = grid_size)]
+    #[arg(long, default_value = "64", value_name = "N|NX,NY,NZ", value_parser = with(GridSize::parse))]
     pub grid: GridSize,
     /// Margin added on every side of the data's bounding box, as a fraction of its longest side.
     #[arg(long, default_value = "0.05", value_name = "F", value_parser = margin)]
@@ -234,6 +234,13 @@ pub fn launcher_rank() -> usize {
 // Value parsers: the library's own parsers, with a usage error's message as clap's reason.
 
 type Parsed<T> = std::result::Result<T, String>;
+
+/// A library parser as a clap value parser.
+fn with<T: 'static>(
+    parse: fn(&str) -> Result<T>,
+) -> impl Fn(&str) -> Parsed<T> + Clone + Send + Sync + 'static {
+    move |s| reason(parse(s))
+}
 
 fn reason<T>(r: Result<T>) -> Parsed<T> {
     r.map_err(|e| match e {
@@ -294,34 +301,6 @@ fn kernel_2d(s: &str) -> Parsed<Kernel> {
         "r4log" => reason(Kernel::new(2, 3)),
         other => Err(format!("unknown kernel '{other}' (expected r2log or r4log)")),
     }
-}
-
-fn solver(s: &str) -> Parsed<SolverKind> {
-    reason(SolverKind::parse(s))
-}
-
-fn interp(s: &str) -> Parsed<Interp> {
-    reason(Interp::parse(s))
-}
-
-fn orient(s: &str) -> Parsed<Orient> {
-    reason(Orient::parse(s))
-}
-
-fn section_carrier(s: &str) -> Parsed<SectionCarrier> {
-    reason(SectionCarrier::parse(s))
-}
-
-fn planes(s: &str) -> Parsed<PlaneFamily> {
-    reason(PlaneFamily::parse(s))
-}
-
-fn grid_size(s: &str) -> Parsed<GridSize> {
-    reason(GridSize::parse(s))
-}
-
-fn bounds(s: &str) -> Parsed<([f64; 3], [f64; 3])> {
-    reason(parse_bounds(s))
 }
 
 /// A number in `range`, described as `what` when it is not.

@@ -106,37 +106,21 @@ fn a_support_too_small_is_refused_and_auto_keeps_small_inputs_dense() {
     let input = dir.join("bunny.xyz");
     common::write_xyz(&input, &common::bunny_subset(8, 0));
     let prefix = dir.join("tiny");
+    let args = |extra: &[&'static str]| -> Vec<String> {
+        let head = ["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--method", "csrbf"];
+        head.iter().chain(extra).map(|a| a.to_string()).collect()
+    };
+    let run = |ranks, extra: &[&'static str]| {
+        let a = args(extra);
+        common::run(ranks, &a.iter().map(String::as_str).collect::<Vec<_>>())
+    };
     for ranks in [0, 2] {
-        let out = common::run(
-            ranks,
-            &[
-                "fit",
-                input.to_str().unwrap(),
-                "--out",
-                prefix.to_str().unwrap(),
-                "--method",
-                "csrbf",
-                "--support",
-                "1e-4",
-            ],
-        );
+        let out = run(ranks, &["--support", "1e-4"]);
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success(), "{err}");
         assert!(err.contains("is too small") && err.contains("--support"), "{err}");
     }
-    let out = common::run(
-        0,
-        &[
-            "fit",
-            input.to_str().unwrap(),
-            "--out",
-            prefix.to_str().unwrap(),
-            "--method",
-            "csrbf",
-            "--kernel",
-            "r",
-        ],
-    );
+    let out = run(0, &["--kernel", "r"]);
     assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
     let names: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
     assert_eq!(names.len(), 1, "failed runs leave no output: {names:?}");

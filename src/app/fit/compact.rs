@@ -8,10 +8,10 @@
 use faer::{MatRef, Par};
 use rayon::prelude::*;
 
-use super::Fitted;
+use super::{Fitted, Run};
 use crate::app::preflight::check_memory;
 use crate::app::stages::{Stage, Stages};
-use crate::cli::{FitArgs, SparseSolver};
+use crate::cli::SparseSolver;
 use crate::error::{Error, Result};
 use crate::linalg::mumps::MumpsSpd;
 use crate::linalg::sparse::{bordered_solve, EnvelopeCholesky, SparseCholesky, SpdSolve, SymCsr};
@@ -55,14 +55,8 @@ fn name(s: SparseSolver) -> &'static str {
 }
 
 /// Fits the compactly supported spline of `kernel` to the prepared points. Collective.
-pub fn fit(
-    a: &FitArgs,
-    comm: &dyn Comm,
-    threads: usize,
-    kernel: Kernel,
-    prep: &Prepared,
-    stages: &mut Stages,
-) -> Result<Fitted> {
+pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) -> Result<Fitted> {
+    let Run { args: a, comm, threads } = *run;
     let support = kernel.is_compact().expect("a compactly supported kernel");
     let solver = resolve(a.sparse_solver, comm.size())?;
     let (centres, values) = (&prep.centres, &prep.values);

@@ -4,11 +4,10 @@
 
 use faer::Par;
 
-use super::Fitted;
+use super::{Fitted, Run};
 use crate::app::preflight::{check_memory, dense_fit_bytes};
 use crate::app::progress::Progress;
 use crate::app::stages::{Stage, Stages};
-use crate::cli::FitArgs;
 use crate::error::Result;
 use crate::linalg::dist::{self, Job, LocalRows, RowCyclic};
 use crate::par::Comm;
@@ -36,14 +35,8 @@ pub fn check(comm: &dyn Comm, kernel: &Kernel, n: usize) -> Result<()> {
 }
 
 /// Fits the spline of `kernel` to the prepared points with the dense solvers. Collective.
-pub fn fit(
-    a: &FitArgs,
-    comm: &dyn Comm,
-    threads: usize,
-    kernel: Kernel,
-    prep: &Prepared,
-    stages: &mut Stages,
-) -> Result<Fitted> {
+pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) -> Result<Fitted> {
+    let Run { args: a, comm, threads } = *run;
     let (centres, values) = (&prep.centres, &prep.values);
     let layout = RowCyclic::new(values.len() + kernel.poly_count(), comm.size(), comm.rank());
     let rows = stages.time(Stage::Assemble, || assemble(&kernel, centres, values, layout));

@@ -25,6 +25,14 @@ use crate::spline::{Evaluator, Kernel, Model, Provenance, Spline};
 
 pub use dense::assemble;
 
+/// What every method is given: the command's arguments, the ranks and the threads per rank.
+#[derive(Clone, Copy)]
+pub struct Run<'a> {
+    pub args: &'a FitArgs,
+    pub comm: &'a dyn Comm,
+    pub threads: usize,
+}
+
 /// What a method produced.
 pub struct Fitted {
     pub spline: Spline,
@@ -127,11 +135,11 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         Method::Dense | Method::Auto => {
             dense::check(comm, &kernel, n)?;
             check_grid(comm, &grid)?;
-            dense::fit(a, comm, threads, kernel, &prep, &mut stages)?
+            dense::fit(&Run { args: a, comm, threads }, kernel, &prep, &mut stages)?
         }
         Method::Csrbf => {
             check_grid(comm, &grid)?;
-            compact::fit(a, comm, threads, kernel, &prep, &mut stages)?
+            compact::fit(&Run { args: a, comm, threads }, kernel, &prep, &mut stages)?
         }
     };
     let (rms, max_abs) = stages.time(Stage::Check, || at_points(comm, &fitted.spline, &prep));
