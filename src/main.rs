@@ -20,6 +20,7 @@ fn main() {
             std::process::exit(e.exit_code());
         }
     };
+    interrupts::watch();
     let Some(world) = World::start() else {
         eprintln!("volspline: error: MPI could not be initialised");
         std::process::exit(1);
@@ -45,6 +46,44 @@ fn main() {
         },
     };
     drop(comm);
+    // every HDF5 object is closed before MPI is finalised: otherwise the library's exit handler
+    // would close a file left open by a failed close through MPI-IO after MPI_Finalize
+    volspline::io::h5::close_library();
     drop(world);
     std::process::exit(code);
+}
+
+/// SIGINT and SIGTERM: blocked in every thread (they inherit the mask of the main thread, set
+/// before any is started) and taken by one watcher thread, which removes this run's temporary
+/// output files, says so and ends the process with 128 + the signal's number.
+mod interrupts {
+    use volspline::io::staging;
+
+    pub fn watch() {
+        // SAFETY: plain libc signal-set calls on a local set, before any other thread exists
+        let set = unsafe {
+            let mut set: libc::sigset_t = std::mem::zeroed();
+            libc::sigemptyset(&mut set);
+            libc::sigaddset(&mut set, libc::SIGINT);
+            libc::sigaddset(&mut set, libc::SIGTERM);
+            libc::pthread_sigmask(libc::SIG_BLOCK, &set, std::ptr::null_mut());
+            set
+        };
+        std::thread::spawn(move || {
+            let mut sig: libc::c_int = 0;
+            // SAFETY: waits for one of the signals blocked above
+            if unsafe { libc::sigwait(&set, &mut sig) } != 0 {
+                return;
+            }
+            let name = if sig == libc::SIGINT { "SIGINT" } else { "SIGTERM" };
+            let temps = staging::pending_temps();
+            let removed = staging::discard_all();
+            eprintln!(
+                "volspline: interrupted by {name}; removed {removed} temporary file(s){}; no output was replaced",
+                if temps.is_empty() { String::new() } else { format!(" ({})", temps[0].display()) }
+            );
+            // SAFETY: ends the process at once, without running exit handlers that could touch MPI
+            unsafe { libc::_exit(128 + sig) }
+        });
+    }
 }

@@ -655,7 +655,10 @@ fn ranks_agree_and_eval_reproduces_contours() {
         let model = read_contour_model(&dir.join(format!("r{ranks}.model.h5"))).unwrap();
         assert_eq!(model.provenance.ranks, ranks);
         assert_eq!((model.sections.len(), model.interp), (23, Interp::Cubic));
-        assert!(!dir.join(format!("r{ranks}.hdf.partial")).exists());
+        let left = std::fs::read_dir(&dir)
+            .unwrap()
+            .filter(|e| e.as_ref().unwrap().file_name().to_string_lossy().ends_with(".partial"));
+        assert_eq!(left.count(), 0, "temporary files left in {}", dir.display());
         match &first {
             None => first = Some((values, model)),
             Some((v1, m1)) => {

@@ -65,7 +65,11 @@ fn distributed_runs_match_the_serial_oracle() {
             let dv = common::rel_diff(&values, &expect);
             assert!(dv < 1e-9, "{solver:?} on {ranks} ranks: grid values differ by {dv:e}");
             // no temporary files are left behind
-            assert!(!Path::new(&format!("{p}.hdf.partial")).exists());
+            let dir = Path::new(&p).parent().unwrap();
+            let left = std::fs::read_dir(dir)
+                .unwrap()
+                .filter(|e| e.as_ref().unwrap().file_name().to_string_lossy().ends_with(".partial"));
+            assert_eq!(left.count(), 0, "temporary files left in {}", dir.display());
         }
     }
 }

@@ -17,14 +17,32 @@ mod wire;
 
 use crate::cli::Command;
 use crate::error::Result;
-use crate::par::Comm;
+use crate::io::staging;
+use crate::par::{on_root, Comm};
 
 /// Runs a parsed command on `comm` with `threads` threads per rank. Collective.
+///
+/// Every output is written under a temporary name unique to this run (chosen by rank 0, the same on
+/// every rank) and all of them are renamed into place together at the end, once every rank has
+/// succeeded; after a failure they are removed and the previous outputs stay as they were.
 pub fn run(command: &Command, comm: &dyn Comm, threads: usize) -> Result<()> {
-    match command {
+    let id: String = comm.broadcast_value(0, (comm.rank() == 0).then(staging::new_run_id));
+    staging::begin(&id);
+    let result = match command {
         Command::Fit(a) => fit::run(a, comm, threads),
         Command::Eval(a) => eval::run(a, comm, threads),
         Command::Contours(a) => contours::run(a, comm, threads),
         Command::Slice(a) => slice::run(a, comm),
+    };
+    match result {
+        Ok(()) => {
+            let committed = on_root(comm, staging::commit_all);
+            staging::forget_all();
+            committed
+        }
+        Err(e) => {
+            staging::discard_all();
+            Err(e)
+        }
     }
 }

@@ -11,7 +11,7 @@ use crate::error::{Error, Result};
 use crate::grid::{padded_box, Grid, GridSize};
 use crate::io::{self, vtkhdf};
 use crate::mesh::{self, MeshPiece, SlabGrid, TriMesh};
-use crate::par::{agree, on_root, Comm};
+use crate::par::{on_root, Comm};
 use crate::spline::{Field, Provenance};
 
 /// What writing the volume and the mesh produced.
@@ -82,7 +82,7 @@ pub fn check_grid(comm: &dyn Comm, grid: &Grid) -> Result<()> {
 }
 
 /// Evaluates `field` on `grid` in z-slabs, writes `PREFIX.hdf` in parallel and `PREFIX.ply` from
-/// rank 0. Collective.
+/// rank 0, both under this run's temporary names (see [`io::staging`]). Collective.
 pub fn write_volume(
     comm: &dyn Comm,
     field: &dyn Field,
@@ -110,19 +110,9 @@ pub fn write_volume(
 
     let hdf_path = output_path(prefix, ".hdf");
     stages.time(Stage::Write, || {
-        let tmp = io::partial_path(&hdf_path);
-        let local = vtkhdf::write_image(comm, &tmp, grid, k0, layers, "f", &values[..nx * ny * layers]);
-        let all = agree(comm, local);
-        comm.barrier();
-        match all {
-            Ok(()) => on_root(comm, || io::commit(&hdf_path)),
-            Err(e) => {
-                if comm.rank() == 0 {
-                    io::discard(&hdf_path);
-                }
-                Err(e)
-            }
-        }
+        // written under this run's temporary name; renamed with the other outputs at the end
+        let tmp = io::staging::register(&hdf_path);
+        vtkhdf::write_image(comm, &tmp, grid, k0, layers, "f", &values[..nx * ny * layers])
     })?;
 
     let ply_path = output_path(prefix, ".ply");

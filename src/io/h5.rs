@@ -119,6 +119,15 @@ impl Attrs<'_> {
     }
 }
 
+/// Closes every HDF5 object still open and shuts the library down (a later call restarts it).
+/// Called before MPI is finalised, so that no HDF5 close runs through MPI-IO after it.
+pub fn close_library() {
+    // SAFETY: H5close under the library lock of hdf5-metno; no HDF5 handle is used after it
+    hdf5::sync::sync(|| unsafe {
+        hdf5_sys::h5::H5close();
+    });
+}
+
 /// The `format` attribute of an HDF5 model file (which of the model formats it holds).
 pub fn format_of(path: &Path) -> Result<String> {
     if !path.exists() {

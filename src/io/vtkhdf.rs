@@ -23,10 +23,16 @@ use ndarray::{s, ArrayView3};
 
 use crate::error::{Error, Result};
 use crate::grid::Grid;
-use crate::par::Comm;
+use crate::par::{agree, on_root, Comm};
 
 /// Writes `values` (this rank's layers k0..k0+layers of `grid`, x fastest) as the point array
 /// `name` of a VTKHDF ImageData file at `path`. Collective.
+///
+/// Every collective step (free space, create, metadata, slab write, close) agrees on its outcome
+/// across ranks before the next, so a failure on one rank (a full disk, say) never leaves the ranks
+/// in different collectives. After a failed step the file is truncated by rank 0 before it is
+/// closed, which gives back the space the metadata flush of the close needs, every rank closes it
+/// in the same order, and rank 0 removes it.
 pub fn write_image(
     comm: &dyn Comm,
     path: &Path,
@@ -39,33 +45,98 @@ pub fn write_image(
     let h5 = |e: hdf5::Error| Error::hdf5(path, e);
     let [nx, ny, nz] = grid.dims;
     assert_eq!(values.len(), nx * ny * layers);
-    let file = match comm.raw() {
+    on_root(comm, || check_space(path, (nx * ny * nz * 8) as u64))?;
+    let created = match comm.raw() {
         Some(world) => hdf5::File::with_options().with_fapl(|p| p.mpio(world, None)).create(path),
         None => hdf5::File::create(path),
+    };
+    let file = match agree(comm, created.map_err(h5)) {
+        Ok(f) => f,
+        Err(e) => {
+            on_root(comm, || remove(path)).ok();
+            return Err(e);
+        }
+    };
+    let written = (|| {
+        let ds = agree(comm, metadata(&file, grid, name).map_err(h5))?;
+        let slab = if layers > 0 {
+            let view = ArrayView3::from_shape((layers, ny, nx), values).expect("slab shape");
+            ds.as_writer().write_slice(view, s![k0..k0 + layers, .., ..]).map_err(h5)
+        } else {
+            Ok(())
+        };
+        agree(comm, slab)
+    })();
+    if written.is_err() && comm.rank() == 0 {
+        // frees the space of the data written so far, so that the close can flush its metadata
+        let _ = std::fs::OpenOptions::new().write(true).open(path).and_then(|f| f.set_len(0));
     }
-    .map_err(h5)?;
-    let root = file.create_group("VTKHDF").map_err(h5)?;
-    root.new_attr_builder().with_data(&[1i64, 0]).create("Version").map_err(h5)?;
+    comm.barrier();
+    // every object of the file is closed by now (the dataset and groups live in the closure)
+    let closed = agree(comm, file.close().map_err(h5));
+    let result = written.and(closed);
+    if result.is_err() {
+        on_root(comm, || remove(path)).ok();
+    }
+    result
+}
+
+/// The groups, attributes and (empty) dataset of the layout described above.
+fn metadata(file: &hdf5::File, grid: &Grid, name: &str) -> hdf5::Result<hdf5::Dataset> {
+    let [nx, ny, nz] = grid.dims;
+    let root = file.create_group("VTKHDF")?;
+    root.new_attr_builder().with_data(&[1i64, 0]).create("Version")?;
     let ty = FixedAscii::<9>::from_ascii(b"ImageData").expect("ASCII literal");
-    root.new_attr::<FixedAscii<9>>().create("Type").map_err(h5)?.write_scalar(&ty).map_err(h5)?;
+    root.new_attr::<FixedAscii<9>>().create("Type")?.write_scalar(&ty)?;
     let ext = [0i64, nx as i64 - 1, 0, ny as i64 - 1, 0, nz as i64 - 1];
-    root.new_attr_builder().with_data(&ext).create("WholeExtent").map_err(h5)?;
-    root.new_attr_builder().with_data(&grid.origin).create("Origin").map_err(h5)?;
-    root.new_attr_builder().with_data(&grid.spacing).create("Spacing").map_err(h5)?;
+    root.new_attr_builder().with_data(&ext).create("WholeExtent")?;
+    root.new_attr_builder().with_data(&grid.origin).create("Origin")?;
+    root.new_attr_builder().with_data(&grid.spacing).create("Spacing")?;
     let dir = [1.0f64, 0., 0., 0., 1., 0., 0., 0., 1.];
-    root.new_attr_builder().with_data(&dir).create("Direction").map_err(h5)?;
-    let pd = root.create_group("PointData").map_err(h5)?;
-    let ds = pd.new_dataset::<f64>().shape([nz, ny, nx]).create(name).map_err(h5)?;
+    root.new_attr_builder().with_data(&dir).create("Direction")?;
+    let pd = root.create_group("PointData")?;
+    let ds = pd.new_dataset::<f64>().shape([nz, ny, nx]).create(name)?;
     let sc = FixedAscii::<7>::from_ascii(b"Scalars").expect("ASCII literal");
-    ds.new_attr::<FixedAscii<7>>().create("Attribute").map_err(h5)?.write_scalar(&sc).map_err(h5)?;
-    if layers > 0 {
-        let view = ArrayView3::from_shape((layers, ny, nx), values).expect("slab shape");
-        ds.as_writer().write_slice(view, s![k0..k0 + layers, .., ..]).map_err(h5)?;
+    ds.new_attr::<FixedAscii<7>>().create("Attribute")?.write_scalar(&sc)?;
+    Ok(ds)
+}
+
+/// Refuses to start a write of `bytes` of data (plus 1 MiB of metadata) into the directory of
+/// `path` when its file system has less space free, before any collective write can fail. The
+/// fault-injection tests set `VOLSPLINE_TEST_SKIP_SPACE_CHECK` to reach the failing write itself.
+fn check_space(path: &Path, bytes: u64) -> Result<()> {
+    if std::env::var_os("VOLSPLINE_TEST_SKIP_SPACE_CHECK").is_some() {
+        return Ok(());
     }
-    drop(ds);
-    drop(pd);
-    drop(root);
-    file.close().map_err(h5)
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let Ok(c) = std::ffi::CString::new(dir.as_os_str().as_encoded_bytes()) else { return Ok(()) };
+    // SAFETY: statvfs fills the zeroed struct it is given from a NUL-terminated path
+    let mut st: libc::statvfs = unsafe { std::mem::zeroed() };
+    if unsafe { libc::statvfs(c.as_ptr(), &mut st) } != 0 {
+        return Ok(()); // no figure: the write itself reports a full disk
+    }
+    let free = st.f_bavail as u64 * st.f_frsize as u64;
+    let need = bytes + (1 << 20);
+    if free < need {
+        let mb = |b: u64| b as f64 / 1048576.0;
+        return Err(Error::Io {
+            path: dir.into(),
+            reason: format!(
+                "not enough free space for the volume: it needs {:.1} MB, {:.1} MB are free (use a coarser --grid or another --out directory)",
+                mb(need),
+                mb(free)
+            ),
+        });
+    }
+    Ok(())
+}
+
+fn remove(path: &Path) -> Result<()> {
+    let _ = std::fs::remove_file(path);
+    Ok(())
 }
 
 /// Reads a whole VTKHDF ImageData point array back (serially): grid and values, x fastest.

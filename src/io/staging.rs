@@ -1,0 +1,162 @@
+//! One output discipline for every command: each output is written under a temporary name unique
+//! to the run, in the directory of its final name (`.NAME.RUNID.partial`, the same on every rank),
+//! and all outputs of a command are renamed into place together at the end, only after every rank
+//! has succeeded. A failing run therefore leaves the previous complete set untouched, and two runs
+//! on one prefix never mix their files: the set of the last to finish replaces the other whole
+//! (the renames of one set happen under an exclusive lock on each output directory).
+//!
+//! The registry of pending temporaries is process-wide so that the signal handler of the binary can
+//! remove them when the job is interrupted ([`pending_temps`]). A target that exists and is not a
+//! regular file (a symbolic link such as `/dev/stdout`, a pipe, a device node) is never renamed
+//! over: it is written directly.
+
+use std::fs::File;
+use std::os::fd::AsRawFd;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use crate::error::{Error, Result};
+
+struct Registry {
+    run_id: String,
+    /// (final name, temporary name) of every output written so far and not yet committed.
+    pending: Vec<(PathBuf, PathBuf)>,
+}
+
+static REGISTRY: Mutex<Registry> = Mutex::new(Registry { run_id: String::new(), pending: Vec::new() });
+
+fn registry() -> std::sync::MutexGuard<'static, Registry> {
+    REGISTRY.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// A run id for the temporary names: the batch job id where there is one, the process id, and
+/// the clock, so that two runs on one prefix never share a temporary name. Chosen by one rank and
+/// broadcast (see [`begin`]).
+pub fn new_run_id() -> String {
+    let job = ["SLURM_JOB_ID", "PBS_JOBID", "LSB_JOBID"]
+        .iter()
+        .find_map(|k| std::env::var(k).ok())
+        .map(|j| j.chars().filter(char::is_ascii_alphanumeric).collect::<String>() + "-")
+        .unwrap_or_default();
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.subsec_nanos())
+        .unwrap_or(0);
+    format!("{job}{}-{nanos:09}", std::process::id())
+}
+
+/// Starts a run with the id `run_id` (the same on every rank); forgets any earlier pending outputs.
+pub fn begin(run_id: &str) {
+    let mut r = registry();
+    r.run_id = run_id.to_string();
+    r.pending.clear();
+}
+
+/// The temporary name of `path` in this run: `.NAME.RUNID.partial` beside it.
+pub fn temp_path(path: &Path) -> PathBuf {
+    let id = registry().run_id.clone();
+    let id = if id.is_empty() { std::process::id().to_string() } else { id };
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    path.with_file_name(format!(".{name}.{id}.partial"))
+}
+
+/// Whether `path` exists and is not a regular file: a symbolic link (`/dev/stdout`, which leads to
+/// a pipe or to a file opened by the shell), a pipe, a device node. Such a target is written
+/// directly (through the link), never renamed over.
+pub fn is_special(path: &Path) -> bool {
+    std::fs::symlink_metadata(path).is_ok_and(|m| !m.is_file())
+}
+
+/// Registers `path` as an output of this run and returns the temporary name to write it under.
+pub fn register(path: &Path) -> PathBuf {
+    let tmp = temp_path(path);
+    let mut r = registry();
+    if !r.pending.iter().any(|(f, _)| f == path) {
+        r.pending.push((path.to_path_buf(), tmp.clone()));
+    }
+    tmp
+}
+
+/// Writes the output `path` of this run: `write` fills its temporary file, which waits for
+/// [`commit_all`]; on failure it is removed at once. A special target is written directly.
+pub fn stage(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    if is_special(path) {
+        return write(path);
+    }
+    let tmp = register(path);
+    write(&tmp).inspect_err(|_| {
+        let _ = std::fs::remove_file(&tmp);
+    })
+}
+
+/// The temporary files of this run not yet renamed into place.
+pub fn pending_temps() -> Vec<PathBuf> {
+    registry().pending.iter().map(|(_, t)| t.clone()).collect()
+}
+
+/// Removes the temporary files of this run (errors ignored: a file may already be gone) and
+/// forgets them. Returns how many were removed.
+pub fn discard_all() -> usize {
+    let mut r = registry();
+    let removed = r.pending.iter().filter(|(_, t)| std::fs::remove_file(t).is_ok()).count();
+    r.pending.clear();
+    removed
+}
+
+/// Forgets the pending outputs without touching them (the ranks that do not rename).
+pub fn forget_all() {
+    registry().pending.clear();
+}
+
+/// Renames every pending output of this run into place, as a set: under an exclusive lock on each
+/// output directory, so that two runs committing at once cannot interleave their renames. On a
+/// failure the remaining temporaries are removed.
+pub fn commit_all() -> Result<()> {
+    let pending = std::mem::take(&mut registry().pending);
+    let mut dirs: Vec<PathBuf> = pending.iter().map(|(f, _)| parent_dir(f)).collect();
+    dirs.sort();
+    dirs.dedup();
+    // the locks are released when the handles are dropped, after the last rename
+    let _locks: Vec<File> = dirs.iter().filter_map(|d| lock_dir(d)).collect();
+    let mut result = Ok(());
+    for (path, tmp) in &pending {
+        if result.is_ok() {
+            result = std::fs::rename(tmp, path).map_err(|e| Error::io(path, &e));
+        }
+        if result.is_err() {
+            let _ = std::fs::remove_file(tmp);
+        }
+    }
+    result
+}
+
+fn parent_dir(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+/// An exclusive advisory lock on a directory (None where the file system does not offer one:
+/// the renames then go ahead unlocked).
+fn lock_dir(dir: &Path) -> Option<File> {
+    let f = File::open(dir).ok()?;
+    // SAFETY: flock on a descriptor owned by `f`, which outlives the call
+    let rc = unsafe { libc::flock(f.as_raw_fd(), libc::LOCK_EX) };
+    (rc == 0).then_some(f)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn temp_name_is_hidden_beside_the_target_and_unique_to_the_run() {
+        begin("r1");
+        assert_eq!(temp_path(Path::new("out/a.ply")), PathBuf::from("out/.a.ply.r1.partial"));
+        assert_ne!(new_run_id(), "");
+        assert!(is_special(Path::new("/dev/null")));
+        assert!(is_special(Path::new("/dev/stdout")));
+        assert!(!is_special(Path::new("/nonexistent/x")));
+    }
+}

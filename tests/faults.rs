@@ -1,0 +1,239 @@
+//! Fault injection through the binary: a full disk (a 2 MB tmpfs, mounted when the tests run as
+//! root, otherwise skipped with a message), SIGTERM in the middle of a run, two concurrent runs
+//! on one prefix, a failing rerun over good outputs and `--timings` to a special file. Each test
+//! checks the exit code, the message and the exact set of files left in the output directory.
+
+mod common;
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use common::{output_within, run, run_limit, temp_dir, BIN};
+
+/// 300 points on the sphere of radius `r` about the origin.
+fn sphere(path: &Path, r: f64) {
+    let mut s = String::new();
+    for i in 0..300 {
+        let z = -1.0 + (2 * i + 1) as f64 / 300.0;
+        let t = i as f64 * 2.399_963_229_728_653;
+        let q = (1.0 - z * z).sqrt();
+        s.push_str(&format!("{} {} {}\n", r * q * t.cos(), r * q * t.sin(), r * z));
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+/// The names in `dir`, hidden ones included.
+fn names(dir: &Path) -> BTreeSet<String> {
+    std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect()
+}
+
+fn set(items: &[&str]) -> BTreeSet<String> {
+    items.iter().map(|s| s.to_string()).collect()
+}
+
+fn mpirun(ranks: usize, args: &[&str]) -> Command {
+    let mut c = Command::new("mpirun");
+    c.args(["-n", &ranks.to_string(), "--oversubscribe", BIN])
+        .args(args)
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .env("RAYON_NUM_THREADS", "1");
+    c
+}
+
+fn text(out: &std::process::Output) -> String {
+    format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr))
+}
+
+/// A 2 MB tmpfs, unmounted on drop; None (with a message) where mounting is not permitted.
+struct Tmpfs(PathBuf);
+
+impl Tmpfs {
+    fn mount(name: &str) -> Option<Tmpfs> {
+        let dir = temp_dir(name);
+        let ok = Command::new("mount")
+            .args(["-t", "tmpfs", "-o", "size=2m", "tmpfs"])
+            .arg(&dir)
+            .stderr(Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success());
+        if !ok {
+            eprintln!("skipped: a 2 MB tmpfs cannot be mounted here (the disk-full tests need root)");
+            return None;
+        }
+        Some(Tmpfs(dir))
+    }
+}
+
+impl Drop for Tmpfs {
+    fn drop(&mut self) {
+        let _ = Command::new("umount").arg(&self.0).status();
+    }
+}
+
+#[test]
+fn disk_full_ends_the_job_with_a_message_on_1_and_2_ranks() {
+    let Some(fs) = Tmpfs::mount("diskfull") else { return };
+    let input = temp_dir("diskfull-in").join("s.xyz");
+    sphere(&input, 1.0);
+    let out = fs.0.join("a");
+    let args = ["fit", input.to_str().unwrap(), "--out", out.to_str().unwrap(), "--grid", "100"];
+    for ranks in [1, 2] {
+        // the free-space check refuses before the write
+        let done = output_within(mpirun(ranks, &args), run_limit());
+        let t = text(&done.output);
+        assert!(!done.timed_out, "hung on {ranks} ranks:\n{t}");
+        assert_eq!(done.output.status.code(), Some(1), "{t}");
+        assert!(t.contains("not enough free space for the volume"), "{t}");
+        assert_eq!(names(&fs.0), set(&[]), "{t}");
+        // without it, the write itself fails: every rank must leave the collective close together
+        let mut c = mpirun(ranks, &args);
+        c.env("VOLSPLINE_TEST_SKIP_SPACE_CHECK", "1");
+        let done = output_within(c, run_limit());
+        let t = text(&done.output);
+        assert!(!done.timed_out, "hung on {ranks} ranks after the write error:\n{t}");
+        assert_eq!(done.output.status.code(), Some(1), "{ranks} ranks:\n{t}");
+        assert!(t.contains("volspline: error") && t.contains("HDF5 error"), "{t}");
+        assert_eq!(names(&fs.0), set(&[]), "{t}");
+    }
+}
+
+#[test]
+fn sigterm_mid_run_removes_the_temporaries_and_says_so() {
+    let dir = temp_dir("sigterm");
+    let input = dir.join("s.xyz");
+    sphere(&input, 1.0);
+    let log = dir.join("stderr.txt");
+    let out = dir.join("out/a");
+    std::fs::create_dir(dir.join("out")).unwrap();
+    let mut c = mpirun(2, &["fit", input.to_str().unwrap(), "--out", out.to_str().unwrap(), "--grid", "400"]);
+    c.stdin(Stdio::null()).stdout(Stdio::null()).stderr(std::fs::File::create(&log).unwrap());
+    let mut child = c.spawn().unwrap();
+    // wait until the evaluation of the big grid has begun
+    let start = Instant::now();
+    while !std::fs::read_to_string(&log).unwrap_or_default().contains("kernel evaluations per node") {
+        assert!(start.elapsed() < run_limit(), "the run never reached the evaluation");
+        assert!(child.try_wait().unwrap().is_none(), "the run ended early");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    // SAFETY: a signal to the child process this test started
+    unsafe { libc::kill(child.id() as i32, libc::SIGTERM) };
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        assert!(start.elapsed() < run_limit(), "the run did not end after SIGTERM");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let t = std::fs::read_to_string(&log).unwrap();
+    assert!(!status.success(), "{t}");
+    assert!(t.contains("interrupted by SIGTERM"), "{t}");
+    assert_eq!(names(&dir.join("out")), set(&[]), "{t}");
+}
+
+/// The x extent of a PLY mesh's vertices.
+fn mesh_width(path: &Path) -> f64 {
+    let m = common::load_mesh(path);
+    let xs = m.vertices.iter().map(|v| v[0]);
+    xs.clone().fold(f64::MIN, f64::max) - xs.fold(f64::MAX, f64::min)
+}
+
+#[test]
+fn concurrent_runs_on_one_prefix_leave_one_whole_set() {
+    let dir = temp_dir("concurrent");
+    let (small, big) = (dir.join("small.xyz"), dir.join("big.xyz"));
+    sphere(&small, 1.0);
+    sphere(&big, 2.0);
+    std::fs::create_dir(dir.join("out")).unwrap();
+    let out = dir.join("out/a");
+    let runs: Vec<_> = [&small, &big]
+        .iter()
+        .map(|input| {
+            let c =
+                mpirun(1, &["fit", input.to_str().unwrap(), "--out", out.to_str().unwrap(), "--grid", "40"]);
+            std::thread::spawn(move || output_within(c, run_limit()))
+        })
+        .collect();
+    for r in runs {
+        let done = r.join().unwrap();
+        assert!(!done.timed_out && done.output.status.success(), "{}", text(&done.output));
+    }
+    assert_eq!(names(&dir.join("out")), set(&["a.hdf", "a.model.h5", "a.ply"]));
+    let model = volspline::io::model_file::read_model(&dir.join("out/a.model.h5")).unwrap();
+    let (grid, _) = volspline::io::vtkhdf::read_image(&dir.join("out/a.hdf"), "f").unwrap();
+    let r = model.provenance.box_hi[0];
+    assert!((r - 1.0).abs() < 0.05 || (r - 2.0).abs() < 0.1, "data box {r}");
+    // the volume and the mesh are of the same run as the model
+    let grid_width = grid.spacing[0] * (grid.dims[0] - 1) as f64;
+    assert!(
+        (grid_width / (2.0 * r) - 1.1).abs() < 0.05,
+        "grid width {grid_width} for a sphere of radius {r}"
+    );
+    let w = mesh_width(&dir.join("out/a.ply"));
+    assert!((w / (2.0 * r) - 1.0).abs() < 0.1, "mesh width {w} for a sphere of radius {r}");
+}
+
+#[test]
+fn failing_rerun_leaves_the_previous_set_untouched() {
+    let dir = temp_dir("rerun");
+    let input = dir.join("s.xyz");
+    sphere(&input, 1.0);
+    std::fs::create_dir(dir.join("out")).unwrap();
+    let out = dir.join("out/a");
+    let o = out.to_str().unwrap();
+    for ranks in [1, 2] {
+        let done = run(ranks, &["fit", input.to_str().unwrap(), "--out", o, "--grid", "24"]);
+        assert!(done.status.success(), "{}", text(&done));
+        let before: Vec<Vec<u8>> = ["a.hdf", "a.model.h5", "a.ply"]
+            .iter()
+            .map(|n| std::fs::read(dir.join("out").join(n)).unwrap())
+            .collect();
+        // the rerun fails at its very end (the timings file cannot be written), after the model,
+        // the volume and the mesh were written under their temporary names
+        let bad = dir.join("missing/t.csv");
+        let done = run(
+            ranks,
+            &["fit", input.to_str().unwrap(), "--out", o, "--grid", "30", "--timings", bad.to_str().unwrap()],
+        );
+        let t = text(&done);
+        assert_eq!(done.status.code(), Some(1), "{t}");
+        assert!(t.contains("volspline: error") && t.contains("t.csv"), "{t}");
+        assert_eq!(names(&dir.join("out")), set(&["a.hdf", "a.model.h5", "a.ply"]), "{t}");
+        let after: Vec<Vec<u8>> = ["a.hdf", "a.model.h5", "a.ply"]
+            .iter()
+            .map(|n| std::fs::read(dir.join("out").join(n)).unwrap())
+            .collect();
+        assert!(before == after, "a failing rerun changed the previous outputs");
+    }
+}
+
+#[test]
+fn timings_to_stdout_prints_the_csv() {
+    let dir = temp_dir("timings");
+    let input = dir.join("s.xyz");
+    sphere(&input, 1.0);
+    std::fs::create_dir(dir.join("out")).unwrap();
+    let out = dir.join("out/a");
+    let done = run(
+        1,
+        &[
+            "fit",
+            input.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--grid",
+            "20",
+            "--timings",
+            "/dev/stdout",
+        ],
+    );
+    let stdout = String::from_utf8_lossy(&done.stdout);
+    assert!(done.status.success(), "{}", text(&done));
+    assert!(stdout.contains("key,value\n") && stdout.contains("\npoints,300\n"), "{stdout}");
+    assert_eq!(names(&dir.join("out")), set(&["a.hdf", "a.model.h5", "a.ply"]));
+    // the link itself is untouched (never renamed over)
+    assert!(std::fs::symlink_metadata("/dev/stdout").is_ok_and(|m| m.file_type().is_symlink()));
+}
