@@ -111,6 +111,7 @@ pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         ..run_provenance(comm, threads, &stages)
     };
     let model = ContourModel::new(models, a.interp, a.orient, provenance);
+    super::finite::check_grid_field(comm, &model, &grid)?;
     let model_path = output_path(&a.out, ".model.h5");
     stages.time(Stage::Write, || {
         on_root(comm, || {
