@@ -312,8 +312,11 @@ fn readers_refuse_random_and_mutated_bytes_without_panicking() {
     // its attributes, which reach the format checks
     let (mdir, model) = fitted_model("hardening-fuzz-model");
     let bytes = std::fs::read(&model).unwrap();
+    // a model that reads back must also evaluate
     let read_model = |p: &Path| {
-        let _ = volspline::io::model_file::read_model(p);
+        if let Ok(m) = volspline::io::model_file::read_model(p) {
+            let _ = m.eval(&[0.1, 0.2, 0.3]);
+        }
         let _ = volspline::io::contour_model_file::read_contour_model(p);
     };
     hdf5::silence_errors(true);
@@ -334,7 +337,7 @@ fn readers_refuse_random_and_mutated_bytes_without_panicking() {
         "format_version",
         "normalisation_scale",
     ];
-    for i in 0..60 {
+    for i in 0..150 {
         let path = mdir.join(format!("edited-{}.model.h5", i % 4));
         std::fs::copy(&model, &path).unwrap();
         {
@@ -342,11 +345,16 @@ fn readers_refuse_random_and_mutated_bytes_without_panicking() {
             let a = Attrs { file: &f, path: &path };
             let name = attrs[rng.below(attrs.len())];
             let _ = f.delete_attr(name);
-            let value =
-                String::from_utf8_lossy(&rng.mutate(b"union(ball:0,0,0,1,ball:1,0,0,2)")).into_owned();
+            let seeds =
+                ["union(ball:0,0,0,1,ball:1,0,0,2)", "ball", "difference(ball:0,0,0,2,ball)", "ball:0,0,0,1"];
+            let seed = seeds[rng.below(seeds.len())];
+            let value = match rng.below(3) {
+                0 => seed.to_string(),
+                _ => String::from_utf8_lossy(&rng.mutate(seed.as_bytes())).into_owned(),
+            };
             let _ = match rng.below(3) {
                 0 => a.put_str(name, &value),
-                1 => a.put_int(name, rng.next() as i64 % 8),
+                1 => a.put_int(name, (rng.next() % 8) as i64),
                 _ => a.put_f64s(name, &[f64::from_bits(rng.next())]),
             };
         }
