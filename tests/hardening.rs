@@ -206,6 +206,14 @@ fn edited_models_are_refused() {
             "malformed normalisation",
         ),
         (
+            "format-type",
+            |_, a| {
+                a.file.delete_attr("format").unwrap();
+                a.put_int("format", 1).unwrap();
+            },
+            "'format' attribute is not a text",
+        ),
+        (
             "huge-weights",
             |f, _| {
                 let n = f.dataset("weights").unwrap().size();
