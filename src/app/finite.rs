@@ -9,6 +9,7 @@
 //! values can be checked again before they are written ([`check_slab`]).
 
 use super::fit::Fitted;
+use crate::contour::SectionFit;
 use crate::error::{Error, Result};
 use crate::grid::Grid;
 use crate::par::{agree, Comm};
@@ -36,6 +37,22 @@ pub fn check_fit(fitted: &Fitted, prep: &Prepared) -> Result<()> {
          {coords:e}, beyond what the solve can represent; rescale the data (or use a carrier of smaller \
          magnitude)",
         reach(&prep.values)
+    )))
+}
+
+/// Refuses contour sections whose solution or residual is not finite, naming the first such slice
+/// and the data's coordinates. Identical on every rank (every rank holds every section).
+pub fn check_sections(fits: &[SectionFit], lo: &[f64], hi: &[f64]) -> Result<()> {
+    let bad = fits.iter().position(|f| {
+        let s = &f.spline;
+        !f.residual.is_finite() || !s.weights.iter().chain(&s.poly).all(|v| v.is_finite())
+    });
+    let Some(i) = bad else { return Ok(()) };
+    Err(Error::Numerical(format!(
+        "the solution of slice {i} is not finite (residual {:e}): the data's coordinates reach {:e}, \
+         beyond what the solve can represent; rescale the data",
+        fits[i].residual,
+        reach(lo).max(reach(hi))
     )))
 }
 
@@ -116,6 +133,28 @@ mod tests {
         let huge = Grid { dims: [5, 5, 5], origin: [-1e308; 3], spacing: [1e308; 3] };
         let e = check_grid_field(&Solo, &m, &huge).unwrap_err().to_string();
         assert!(e.contains("not representable"), "{e}");
+    }
+
+    #[test]
+    fn sections_with_nan_are_refused() {
+        let fit = |residual: f64, w: f64| SectionFit {
+            carrier: Carrier::parse("ball:0,0,1", 2).unwrap(),
+            spline: Spline {
+                kernel: Kernel::new(2, 2).unwrap(),
+                centres: vec![0.0; 2],
+                weights: vec![w],
+                poly: vec![0.0; 3],
+                norm: Normalisation { centre: [0.0; 3], scale: 1.0 },
+            },
+            points: 1,
+            merged: 0,
+            residual,
+            max_abs_at_points: 0.0,
+        };
+        check_sections(&[fit(1e-16, 1.0), fit(0.0, 2.0)], &[0.0; 3], &[1.0; 3]).unwrap();
+        let e = check_sections(&[fit(1e-16, 1.0), fit(f64::NAN, 2.0)], &[0.0; 3], &[1.0; 3]).unwrap_err();
+        assert!(e.to_string().contains("slice 1"), "{e}");
+        assert!(check_sections(&[fit(0.0, f64::INFINITY)], &[0.0; 3], &[1.0; 3]).is_err());
     }
 
     #[test]
