@@ -59,6 +59,46 @@ fn extreme_scales_are_refused_with_the_cause() {
     }
 }
 
+/// The contour file `text` with every coordinate times `scale` (the frames' axes unchanged).
+fn scaled_contours(text: &str, scale: f64) -> String {
+    let times =
+        |t: &[&str]| t.iter().map(|v| format!("{:e}", v.parse::<f64>().unwrap() * scale)).collect::<Vec<_>>();
+    let mut out = String::new();
+    for line in text.lines() {
+        let t: Vec<&str> = line.split_whitespace().collect();
+        let scaled = match t.as_slice() {
+            [] | ["contour"] => line.to_string(),
+            [first, ..] if first.starts_with('#') => line.to_string(),
+            ["slice", "plane", rest @ ..] => {
+                format!("slice plane {} {}", times(&rest[..3]).join(" "), rest[3..].join(" "))
+            }
+            ["slice", axis, v] => format!("slice {axis} {}", times(&[v]).join(" ")),
+            _ => times(&t).join(" "),
+        };
+        out.push_str(&scaled);
+        out.push('\n');
+    }
+    out
+}
+
+#[test]
+fn contours_at_extreme_scales_are_refused() {
+    let dir = temp_dir("hardening-contours-scale");
+    let cut = dir.join("cow.txt");
+    let out = run(0, &["slice", COW, "--out", s(&cut), "--planes", "z:6"]);
+    assert!(out.status.success(), "{}", text(&out));
+    let original = std::fs::read_to_string(&cut).unwrap();
+    for (scale, needle) in [(1e150, "not finite"), (1e-200, "spread is not representable")] {
+        let input = dir.join(format!("scaled-{scale:e}.txt"));
+        std::fs::write(&input, scaled_contours(&original, scale)).unwrap();
+        for ranks in [1, 2] {
+            let out = run(ranks, &["contours", s(&input), "--out", s(&dir.join("k")), "--grid", "12"]);
+            refused(&out, 1, needle, &dir, &[&cut, &input]);
+        }
+        std::fs::remove_file(&input).unwrap();
+    }
+}
+
 #[test]
 fn carrier_specs_are_checked() {
     let dir = temp_dir("hardening-carriers");
