@@ -64,10 +64,10 @@ pub struct FitArgs {
     /// Support radius of a Wendland kernel, in the internal coordinates where the data's bounding
     /// box is centred with diagonal 2 (default: from the point spacing, so that each point has
     /// about 30 neighbours).
-    #[arg(long, value_name = "R", value_parser = support)]
+    #[arg(long, allow_hyphen_values = true, value_name = "R", value_parser = support)]
     pub support: Option<f64>,
     /// Points per octree leaf for csrbf.
-    #[arg(long, default_value = "10", value_name = "K", value_parser = leaf)]
+    #[arg(long, allow_negative_numbers = true, default_value = "10", value_name = "K", value_parser = leaf)]
     pub leaf: usize,
     /// Sparse solver of csrbf: auto (cholesky on one rank, mumps on several), cholesky (sparse
     /// supernodal Cholesky with a fill-reducing ordering, one rank), envelope (envelope Cholesky
@@ -81,10 +81,10 @@ pub struct FitArgs {
     pub solver: SolverKind,
     /// Panel (block) width of the distributed solvers (0: automatic, 64 for householder, 128 for
     /// lu, 256 for cholesky).
-    #[arg(long, default_value_t = 0, value_name = "NB")]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0, value_name = "NB")]
     pub panel: usize,
     /// Points closer than this fraction of the bounding-box diagonal are merged into one.
-    #[arg(long, default_value = "1e-6", value_name = "F", value_parser = merge_tol)]
+    #[arg(long, allow_hyphen_values = true, default_value = "1e-6", value_name = "F", value_parser = merge_tol)]
     pub merge_tol: f64,
     #[command(flatten)]
     pub grid: GridArgs,
@@ -156,7 +156,7 @@ pub struct ContoursArgs {
     #[arg(long, default_value = "disc", value_name = "disc|union", value_parser = with(SectionCarrier::parse))]
     pub carrier: SectionCarrier,
     /// Points of a slice closer than this fraction of the slice's diagonal are merged into one.
-    #[arg(long, default_value = "1e-6", value_name = "F", value_parser = merge_tol)]
+    #[arg(long, allow_hyphen_values = true, default_value = "1e-6", value_name = "F", value_parser = merge_tol)]
     pub merge_tol: f64,
     #[command(flatten)]
     pub grid: GridArgs,
@@ -178,13 +178,13 @@ pub struct SliceArgs {
 #[derive(Debug, Args)]
 pub struct GridArgs {
     /// Grid nodes: N along the longest side of the box with cubic cells, or NX,NY,NZ.
-    #[arg(long, default_value = "64", value_name = "N|NX,NY,NZ", value_parser = with(GridSize::parse))]
+    #[arg(long, allow_hyphen_values = true, default_value = "64", value_name = "N|NX,NY,NZ", value_parser = with(GridSize::parse))]
     pub grid: GridSize,
     /// Margin added on every side of the data's bounding box, as a fraction of its longest side.
-    #[arg(long, default_value = "0.05", value_name = "F", value_parser = margin)]
+    #[arg(long, allow_hyphen_values = true, default_value = "0.05", value_name = "F", value_parser = margin)]
     pub margin: f64,
     /// Threads per rank (0: the cores of this node divided by the ranks on it).
-    #[arg(long, default_value = "0", value_name = "T", value_parser = threads)]
+    #[arg(long, allow_negative_numbers = true, default_value = "0", value_name = "T", value_parser = threads)]
     pub threads: usize,
     /// Also write the run's figures (sizes, stage min/max seconds, residual, peak memory) as
     /// `key,value` CSV to this file, for scaling studies.

@@ -91,6 +91,7 @@ pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let fits = stages.time(Stage::Solve, || {
         solve_sections(comm, &a.input, &sections, &a.kernel, a.carrier, a.merge_tol)
     })?;
+    super::finite::check_sections(&fits, &lo, &hi)?;
     let max_residual = fits.iter().map(|f| f.residual).fold(0.0, f64::max);
     let max_abs = fits.iter().map(|f| f.max_abs_at_points).fold(0.0, f64::max);
     let merged: usize = fits.iter().map(|f| f.merged).sum();
@@ -111,6 +112,7 @@ pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         ..run_provenance(comm, threads, &stages)
     };
     let model = ContourModel::new(models, a.interp, a.orient, provenance);
+    super::finite::check_grid_field(comm, &model, &grid)?;
     let model_path = output_path(&a.out, ".model.h5");
     stages.time(Stage::Write, || {
         on_root(comm, || {

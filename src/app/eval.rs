@@ -1,6 +1,7 @@
 //! `volspline eval`: a saved model (scattered-point or contour) evaluated on a new grid, without
 //! solving again. Every rank reads the small model file itself and all agree on the outcome.
 
+use super::finite::check_grid_field;
 use super::preflight::check_prefix;
 use super::report::Report;
 use super::stages::{Stage, Stages};
@@ -25,6 +26,7 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         let model = stages.time(Stage::Read, || agree(comm, read_contour_model(&a.model)))?;
         let grid = model_grid(a.grid.grid, a.bounds, a.grid.margin, &model.provenance)?;
         check_grid(comm, &grid)?;
+        check_grid_field(comm, &model, &grid)?;
         let volume = write_volume(comm, &model, &grid, &a.out, &mut stages)?;
         r.line(format!(
             "contour model: {} slices, N = {} centres, interp {}, orient {}",
@@ -41,6 +43,7 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         let model = stages.time(Stage::Read, || agree(comm, read_model(&a.model)))?;
         let grid = model_grid(a.grid.grid, a.bounds, a.grid.margin, &model.provenance)?;
         check_grid(comm, &grid)?;
+        check_grid_field(comm, &model, &grid)?;
         let volume = write_volume(comm, &model, &grid, &a.out, &mut stages)?;
         let n = model.spline.len();
         r.line(format!("N = {n} centres, kernel {}, carrier {}", model.spline.kernel.name(), model.carrier));

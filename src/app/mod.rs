@@ -6,6 +6,7 @@
 
 pub mod contours;
 pub mod eval;
+pub mod finite;
 pub mod fit;
 pub mod preflight;
 pub mod progress;

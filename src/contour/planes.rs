@@ -32,6 +32,9 @@ impl std::fmt::Display for PlaneFamily {
     }
 }
 
+/// The most planes one family may have.
+pub const MAX_PLANES: usize = 100_000;
+
 impl PlaneFamily {
     pub fn parse(spec: &str) -> Result<Self> {
         let bad = || {
@@ -43,6 +46,12 @@ impl PlaneFamily {
         let count: usize = n.trim().parse().map_err(|_| bad())?;
         if count < 2 {
             return Err(bad());
+        }
+        if count > MAX_PLANES {
+            return Err(Error::Usage(format!(
+                "planes '{spec}': {count} planes are more than {MAX_PLANES}, the most a contour file is \
+                 cut with (each plane holds its cut in memory)"
+            )));
         }
         let axis_of = |a: &str| match a {
             "x" => Ok(0),

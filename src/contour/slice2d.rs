@@ -9,7 +9,7 @@ use faer::MatRef;
 use crate::error::{Error, Result};
 use crate::linalg::dense;
 use crate::spline::carrier::Carrier;
-use crate::spline::hygiene::{bounding_box, check_unisolvent, diagonal, merge_duplicates};
+use crate::spline::hygiene::{bounding_box, check_unisolvent, diagonal, merge_duplicates, MIN_SPREAD};
 use crate::spline::kernel::Kernel;
 use crate::spline::{full_system, Normalisation, Spline};
 
@@ -99,7 +99,16 @@ pub fn fit_section(
     let where_ = || format!("the slice of line {}", section.line);
     let raw: Vec<f64> = section.contours.iter().flatten().flat_map(|p| [p[0], p[1]]).collect();
     let (lo, hi) = bounding_box(&raw, 2);
-    let (points, merged) = merge_duplicates(&raw, 2, merge_tol * diagonal(&lo, &hi));
+    let diag = diagonal(&lo, &hi);
+    if !diag.is_finite() || (diag > 0.0 && diag < MIN_SPREAD) {
+        return Err(Error::Numerical(format!(
+            "{}: the section's spread is not representable (its diagonal is {diag:e}; squared distances \
+             must neither overflow nor fall below {:e}); rescale the data",
+            where_(),
+            MIN_SPREAD * MIN_SPREAD
+        )));
+    }
+    let (points, merged) = merge_duplicates(&raw, 2, merge_tol * diag);
     let carrier = match carrier {
         SectionCarrier::Disc => disc_around(&points),
         SectionCarrier::Union => {
@@ -124,6 +133,13 @@ pub fn fit_section(
         }
     }
     let values: Vec<f64> = points.chunks_exact(2).map(|p| carrier.eval(p)).collect();
+    if let Some(bad) = values.iter().find(|v| !v.is_finite()) {
+        return Err(Error::Numerical(format!(
+            "{}: the carrier '{carrier}' is not finite at the section's points (a value is {bad}): its \
+             squares overflow at this scale; rescale the data",
+            where_()
+        )));
+    }
     let (spline, residual) = fit_values(kernel, &points, &values).map_err(|e| match e {
         Error::Numerical(m) => Error::Numerical(format!("{}: {m}", where_())),
         other => other,

@@ -81,11 +81,14 @@ pub fn read_contour_model(path: &Path) -> Result<ContourModel> {
     let f = open_model(path, FORMAT, "contour model")?;
     let a = Attrs { file: &f, path };
     let bad = |why: String| a.bad(why);
-    let kernel = Kernel::new(a.int("kernel_dim")? as usize, a.int("kernel_order")? as usize)
-        .map_err(|e| bad(e.to_string()))?;
-    if kernel.dim() != 2 {
-        return Err(bad(format!("section kernels are two-dimensional, this one has n = {}", kernel.dim())));
+    let (dim, order) = (a.int("kernel_dim")?, a.int("kernel_order")?);
+    if dim != 2 || !(order == 2 || order == 3) {
+        return Err(bad(format!(
+            "kernel_dim {dim} and kernel_order {order} are not a section kernel (dimension 2, order 2 for \
+             r2log or 3 for r4log)"
+        )));
     }
+    let kernel = Kernel::new(2, order as usize).map_err(|e| bad(e.to_string()))?;
     let interp = Interp::parse(&a.str("interp")?).map_err(|e| bad(e.to_string()))?;
     let orient = Orient::parse(&a.str("orient")?).map_err(|e| bad(e.to_string()))?;
     let carriers: Vec<Carrier> = a
@@ -94,6 +97,18 @@ pub fn read_contour_model(path: &Path) -> Result<ContourModel> {
         .map(|c| Carrier::parse(c, 2))
         .collect::<Result<_>>()
         .map_err(|e| bad(e.to_string()))?;
+    if let Some(c) = carriers.iter().find(|c| !c.is_resolved()) {
+        return Err(bad(format!("section carrier '{c}': a stored disc must give its centre and radius")));
+    }
+    let s = carriers.len();
+    let k = kernel.poly_count();
+    a.expect_shape("origins", &[Some(s), Some(3)])?;
+    a.expect_shape("frames", &[Some(s), Some(9)])?;
+    a.expect_shape("offsets", &[Some(s + 1)])?;
+    let n = a.expect_shape("centres_normalised", &[None, Some(2)])?[0];
+    a.expect_shape("weights", &[Some(n)])?;
+    a.expect_shape("poly_coefficients", &[Some(s), Some(k)])?;
+    a.expect_shape("normalisation", &[Some(s), Some(3)])?;
     let origins = a.dataset_f64("origins")?;
     let frames = a.dataset_f64("frames")?;
     let offsets = a.dataset_i64("offsets")?;
@@ -101,8 +116,6 @@ pub fn read_contour_model(path: &Path) -> Result<ContourModel> {
     let weights = a.dataset_f64("weights")?;
     let poly = a.dataset_f64("poly_coefficients")?;
     let norm = a.dataset_f64("normalisation")?;
-    let s = carriers.len();
-    let k = kernel.poly_count();
     let consistent = s >= 2
         && origins.len() == 3 * s
         && frames.len() == 9 * s
@@ -119,6 +132,10 @@ pub fn read_contour_model(path: &Path) -> Result<ContourModel> {
     if [&origins, &frames, &centres, &weights, &poly, &norm].iter().any(|v| v.iter().any(|x| !x.is_finite()))
     {
         return Err(bad("the model holds non-finite numbers".into()));
+    }
+    super::model_file::check_magnitudes(&a, &centres, &weights, &poly)?;
+    if origins.iter().chain(&norm).any(|v| v.abs() > crate::spline::carrier::MAX_CARRIER_NUMBER) {
+        return Err(bad("the slices' origins or normalisations are too large to evaluate".into()));
     }
     let mut sections = Vec::with_capacity(s);
     for (i, carrier) in carriers.into_iter().enumerate() {

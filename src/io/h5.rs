@@ -75,6 +75,28 @@ impl Attrs<'_> {
         ds.read_raw::<f64>().map_err(|e| self.h5(e))
     }
 
+    /// The shape of dataset `name`.
+    pub fn shape(&self, name: &str) -> Result<Vec<usize>> {
+        let ds = self.file.dataset(name).map_err(|_| self.bad(format!("dataset '{name}' is missing")))?;
+        Ok(ds.shape())
+    }
+
+    /// Refuses dataset `name` unless its shape is `want` (`None`: any length on that axis).
+    pub fn expect_shape(&self, name: &str, want: &[Option<usize>]) -> Result<Vec<usize>> {
+        let got = self.shape(name)?;
+        let fits = got.len() == want.len() && got.iter().zip(want).all(|(g, w)| w.is_none_or(|w| w == *g));
+        if fits {
+            return Ok(got);
+        }
+        let show = |v: Vec<String>| v.join(" x ");
+        let want: Vec<String> = want.iter().map(|w| w.map_or("N".to_string(), |w| w.to_string())).collect();
+        Err(self.bad(format!(
+            "dataset '{name}' has shape {}, expected {}",
+            show(got.iter().map(|g| g.to_string()).collect()),
+            show(want)
+        )))
+    }
+
     pub fn dataset_i64(&self, name: &str) -> Result<Vec<i64>> {
         let ds = self.file.dataset(name).map_err(|_| self.bad(format!("dataset '{name}' is missing")))?;
         ds.read_raw::<i64>().map_err(|e| self.h5(e))
@@ -135,7 +157,10 @@ pub fn format_of(path: &Path) -> Result<String> {
     }
     let f = hdf5::File::open(path).map_err(|e| Error::hdf5(path, e))?;
     let a = Attrs { file: &f, path };
-    a.str("format").map_err(|_| a.bad("not a volspline model: no 'format' attribute"))
+    if f.attr("format").is_err() {
+        return Err(a.bad("not a volspline model: no 'format' attribute"));
+    }
+    a.str("format").map_err(|_| a.bad("not a volspline model: its 'format' attribute is not a text"))
 }
 
 /// Opens a model file for reading after checking that its `format` attribute is `format` (else

@@ -84,18 +84,35 @@ pub fn read_model(path: &Path) -> Result<Model> {
             return Err(a.bad("malformed compactly supported kernel"));
         }
         Kernel::wendland(&a.str("kernel_compact")?, support[0])
+    } else if dim == 3 && (order == 2 || order == 3) {
+        Kernel::new(3, order as usize)
     } else {
-        Kernel::new(dim as usize, order as usize)
+        return Err(a.bad(format!(
+            "kernel_dim {dim} and kernel_order {order} are not a kernel of this format (dimension 3, \
+             order 2 for r or 3 for r3)"
+        )));
     }
     .map_err(|e| a.bad(e.to_string()))?;
     let dim = kernel.dim();
     let carrier = Carrier::parse(&a.str("carrier")?, dim).map_err(|e| a.bad(e.to_string()))?;
+    if !carrier.is_resolved() {
+        return Err(a.bad(format!("carrier '{carrier}': a stored ball must give its centre and radius")));
+    }
     let centre = a.f64s("normalisation_centre")?;
     let scale = a.f64s("normalisation_scale")?;
-    if centre.len() != 3 || scale.len() != 1 || !(scale[0] > 0.0) {
-        return Err(a.bad("malformed normalisation"));
+    let finite = centre.iter().chain(&scale).all(|v| v.is_finite());
+    if centre.len() != 3 || scale.len() != 1 || !(scale[0] > 0.0) || !finite {
+        return Err(
+            a.bad("malformed normalisation: a centre of 3 finite numbers and a finite positive scale")
+        );
     }
     let norm = Normalisation { centre: [centre[0], centre[1], centre[2]], scale: scale[0] };
+    let n = a.expect_shape("centres_normalised", &[None, Some(3)])?[0];
+    if n == 0 {
+        return Err(a.bad("the model has no centres"));
+    }
+    a.expect_shape("weights", &[Some(n)])?;
+    a.expect_shape("poly_coefficients", &[Some(kernel.poly_count())])?;
     let centres = a.dataset_f64("centres_normalised")?;
     let weights = a.dataset_f64("weights")?;
     let poly = a.dataset_f64("poly_coefficients")?;
@@ -111,8 +128,32 @@ pub fn read_model(path: &Path) -> Result<Model> {
     if centres.iter().chain(&weights).chain(&poly).any(|v| !v.is_finite()) {
         return Err(a.bad("the model holds non-finite numbers"));
     }
+    check_magnitudes(&a, &centres, &weights, &poly)?;
     let provenance = a.provenance()?;
     Ok(Model { carrier, spline: Spline { kernel, centres, weights, poly, norm }, provenance })
+}
+
+/// The normalised centres lie in the unit ball (the data's box is scaled to half-diagonal 1):
+/// anything much beyond it was not written by volspline.
+const MAX_NORMALISED: f64 = 1e3;
+
+/// Refuses weights and coefficients whose sum overflows (U(x) adds them up, times kernel values
+/// of order one near the data) and centres far outside the unit ball. Shared with the contour
+/// model reader.
+pub(crate) fn check_magnitudes(a: &Attrs<'_>, centres: &[f64], weights: &[f64], poly: &[f64]) -> Result<()> {
+    if centres.iter().any(|c| c.abs() > MAX_NORMALISED) {
+        return Err(a.bad(format!(
+            "normalised centres beyond {MAX_NORMALISED:e}: the model was edited or is corrupt"
+        )));
+    }
+    let sum = |v: &[f64]| v.iter().map(|x| x.abs()).sum::<f64>();
+    // the factor leaves room for the kernel's values across the normalised box
+    if !(1e6 * (sum(weights) + sum(poly))).is_finite() {
+        return Err(a.bad(
+            "the weights or polynomial coefficients are so large that evaluating the spline overflows",
+        ));
+    }
+    Ok(())
 }
 
 /// Opens a model file after checking its `format` and that its `format_version` is 1 or 2.

@@ -72,7 +72,7 @@ pub enum Carrier {
 impl Carrier {
     /// Parses a carrier spec for `dim`-dimensional data.
     pub fn parse(spec: &str, dim: usize) -> Result<Carrier> {
-        let mut p = Parser { s: spec.as_bytes(), pos: 0, spec, dim };
+        let mut p = Parser { s: spec.as_bytes(), pos: 0, spec, dim, depth: 0 };
         let c = p.carrier()?;
         p.skip_ws();
         if p.pos != p.s.len() {
@@ -87,8 +87,8 @@ impl Carrier {
     pub fn resolve(&self, lo: &[f64], hi: &[f64]) -> Carrier {
         match self {
             Carrier::AutoBall => {
-                let centre: Vec<f64> = lo.iter().zip(hi).map(|(a, b)| 0.5 * (a + b)).collect();
-                let diag = lo.iter().zip(hi).map(|(a, b)| (b - a) * (b - a)).sum::<f64>().sqrt();
+                let centre: Vec<f64> = lo.iter().zip(hi).map(|(a, b)| 0.5 * a + 0.5 * b).collect();
+                let diag = crate::spline::hygiene::diagonal(lo, hi);
                 Carrier::Ball { centre, radius: (0.5 * diag).max(f64::MIN_POSITIVE) }
             }
             Carrier::Union(a, b) => Carrier::Union(Box::new(a.resolve(lo, hi)), Box::new(b.resolve(lo, hi))),
@@ -99,6 +99,18 @@ impl Carrier {
                 Carrier::Difference(Box::new(a.resolve(lo, hi)), Box::new(b.resolve(lo, hi)))
             }
             other => other.clone(),
+        }
+    }
+
+    /// Whether every automatic ball has been replaced by a concrete one (a stored model's carrier
+    /// must be: only a resolved carrier can be evaluated).
+    pub fn is_resolved(&self) -> bool {
+        match self {
+            Carrier::AutoBall => false,
+            Carrier::Ball { .. } | Carrier::Ellipsoid { .. } => true,
+            Carrier::Union(a, b) | Carrier::Intersection(a, b) | Carrier::Difference(a, b) => {
+                a.is_resolved() && b.is_resolved()
+            }
         }
     }
 
@@ -160,11 +172,24 @@ impl fmt::Display for Carrier {
     }
 }
 
+/// The largest magnitude of a number in a carrier spec: f_c squares centres, radii and semi-axes,
+/// and the square of 1e150 (1e300) is still below the largest double (about 1.8e308).
+pub const MAX_CARRIER_NUMBER: f64 = 1e150;
+
+/// How deeply R-functions may nest in a carrier spec (the parser, the evaluation and the printing
+/// recurse once per level).
+pub const MAX_CARRIER_DEPTH: usize = 64;
+
+/// The words that start a carrier spec.
+const CARRIER_WORDS: [&str; 8] =
+    ["ball", "sphere", "disc", "ellipsoid", "ellipse", "union", "intersection", "difference"];
+
 struct Parser<'a> {
     s: &'a [u8],
     pos: usize,
     spec: &'a str,
     dim: usize,
+    depth: usize,
 }
 
 impl Parser<'_> {
@@ -181,10 +206,13 @@ impl Parser<'_> {
     fn word(&mut self) -> String {
         self.skip_ws();
         let start = self.pos;
-        while self.pos < self.s.len() && self.s[self.pos].is_ascii_alphabetic() {
+        // non-ASCII letters belong to the word too, so that a misspelt name is reported whole
+        while self.pos < self.s.len()
+            && (self.s[self.pos].is_ascii_alphanumeric() || self.s[self.pos] >= 0x80)
+        {
             self.pos += 1;
         }
-        String::from_utf8_lossy(&self.s[start..self.pos]).to_ascii_lowercase()
+        String::from_utf8_lossy(&self.s[start..self.pos]).to_lowercase()
     }
 
     fn expect(&mut self, c: u8) -> Result<()> {
@@ -200,10 +228,7 @@ impl Parser<'_> {
     fn numbers(&mut self) -> Result<Vec<f64>> {
         let start = self.pos;
         while self.pos < self.s.len() && !matches!(self.s[self.pos], b')') {
-            if self.s[self.pos] == b','
-                && self.pos + 1 < self.s.len()
-                && self.s[self.pos + 1].is_ascii_alphabetic()
-            {
+            if self.s[self.pos] == b',' && self.carrier_follows(self.pos + 1) {
                 break;
             }
             self.pos += 1;
@@ -213,7 +238,14 @@ impl Parser<'_> {
         for tok in text.split(',') {
             let tok = tok.trim();
             match tok.parse::<f64>() {
-                Ok(v) if v.is_finite() => out.push(v),
+                Ok(v) if v.is_finite() && v.abs() <= MAX_CARRIER_NUMBER => out.push(v),
+                Ok(v) if v.is_finite() => {
+                    self.pos = start;
+                    return Err(self.error(&format!(
+                        "{tok} is larger in magnitude than {MAX_CARRIER_NUMBER:e}, the largest carrier \
+                         number whose square is representable; rescale the data"
+                    )));
+                }
                 _ => {
                     self.pos = start;
                     return Err(self.error(&format!("'{tok}' is not a finite number")));
@@ -223,7 +255,26 @@ impl Parser<'_> {
         Ok(out)
     }
 
+    /// Whether a carrier name starts at byte `at` (after blanks): what ends a list of numbers.
+    fn carrier_follows(&self, at: usize) -> bool {
+        let rest = &self.s[at.min(self.s.len())..];
+        let rest = &rest[rest.iter().take_while(|b| b.is_ascii_whitespace()).count()..];
+        let len = rest.iter().take_while(|b| b.is_ascii_alphabetic()).count();
+        let word = String::from_utf8_lossy(&rest[..len]).to_ascii_lowercase();
+        CARRIER_WORDS.contains(&word.as_str())
+    }
+
     fn carrier(&mut self) -> Result<Carrier> {
+        self.depth += 1;
+        if self.depth > MAX_CARRIER_DEPTH {
+            return Err(self.error(&format!("R-functions nest deeper than {MAX_CARRIER_DEPTH} levels")));
+        }
+        let c = self.carrier_inner();
+        self.depth -= 1;
+        c
+    }
+
+    fn carrier_inner(&mut self) -> Result<Carrier> {
         let start = self.pos;
         let name = self.word();
         let d = self.dim;
@@ -321,6 +372,32 @@ mod tests {
             let e = Carrier::parse(spec, 3).unwrap_err();
             assert!(matches!(e, Error::Usage(ref m) if m.contains(spec)), "{spec}: {e}");
         }
+    }
+
+    #[test]
+    fn messages_name_the_real_fault() {
+        let msg = |spec: &str| Carrier::parse(spec, 3).unwrap_err().to_string();
+        assert!(msg("ball:0,0,0,inf").contains("'inf' is not a finite number"), "{}", msg("ball:0,0,0,inf"));
+        assert!(msg("ball:0,0,0,nan").contains("'nan' is not a finite number"));
+        assert!(msg("bäll").contains("unknown carrier 'bäll'"), "{}", msg("bäll"));
+        let big = msg("ball:0,0,0,1e160");
+        assert!(big.contains("1e160") && big.contains("1e150"), "{big}");
+        // a number list still ends where the next carrier begins
+        Carrier::parse("union(ball:0,0,0,1, ellipsoid:0,0,0,1,2,3)", 3).unwrap();
+    }
+
+    #[test]
+    fn nesting_is_limited() {
+        let nest = |d: usize| "union(".repeat(d) + "ball:0,0,0,1" + &",ball:0,0,0,1)".repeat(d);
+        Carrier::parse(&nest(MAX_CARRIER_DEPTH - 1), 3).unwrap();
+        let e = Carrier::parse(&nest(200_000), 3).unwrap_err().to_string();
+        assert!(e.contains("deeper than 64"), "{}", &e[e.len() - 80..]);
+    }
+
+    #[test]
+    fn only_concrete_carriers_are_resolved() {
+        assert!(!Carrier::parse("union(ball:0,0,0,1,ball)", 3).unwrap().is_resolved());
+        assert!(Carrier::parse("union(ball:0,0,0,1,ball:1,0,0,1)", 3).unwrap().is_resolved());
     }
 
     #[test]

@@ -27,15 +27,27 @@ pub fn bounding_box(points: &[f64], dim: usize) -> (Vec<f64>, Vec<f64>) {
     (lo, hi)
 }
 
-/// Length of the diagonal of a box.
+/// Length of the diagonal of a box, computed without overflow or underflow of the squares (the
+/// extents are divided by the longest before squaring): finite whenever the extents are.
 pub fn diagonal(lo: &[f64], hi: &[f64]) -> f64 {
-    lo.iter().zip(hi).map(|(a, b)| (b - a) * (b - a)).sum::<f64>().sqrt()
+    let longest = lo.iter().zip(hi).map(|(a, b)| (b - a).abs()).fold(0.0, f64::max);
+    if !(longest > 0.0) || !longest.is_finite() {
+        return longest;
+    }
+    longest * lo.iter().zip(hi).map(|(a, b)| ((b - a) / longest).powi(2)).sum::<f64>().sqrt()
 }
 
 /// Removes every point closer than `tol` to an earlier kept point (the first of a cluster is
 /// kept, so the result does not depend on anything but the input order). Returns the kept points
 /// and how many were merged away.
 pub fn merge_duplicates(points: &[f64], dim: usize, tol: f64) -> (Vec<f64>, usize) {
+    let kept = merge_indices(points, dim, tol);
+    let merged = points.len() / dim - kept.len();
+    (kept.iter().flat_map(|&i| points[i * dim..(i + 1) * dim].iter().copied()).collect(), merged)
+}
+
+/// The indices of the points [`merge_duplicates`] keeps, in order.
+pub fn merge_indices(points: &[f64], dim: usize, tol: f64) -> Vec<usize> {
     let n = points.len() / dim;
     let cell = if tol > 0.0 { tol } else { f64::MIN_POSITIVE };
     let key = |p: &[f64]| -> [i64; 3] {
@@ -46,8 +58,7 @@ pub fn merge_duplicates(points: &[f64], dim: usize, tol: f64) -> (Vec<f64>, usiz
         k
     };
     let mut grid: HashMap<[i64; 3], Vec<usize>> = HashMap::new();
-    let mut kept: Vec<f64> = Vec::with_capacity(points.len());
-    let mut merged = 0;
+    let mut kept: Vec<usize> = Vec::with_capacity(n);
     for i in 0..n {
         let p = &points[i * dim..(i + 1) * dim];
         let c = key(p);
@@ -57,7 +68,7 @@ pub fn merge_duplicates(points: &[f64], dim: usize, tol: f64) -> (Vec<f64>, usiz
                 for dz in if dim > 2 { -1..=1i64 } else { 0..=0 } {
                     if let Some(list) = grid.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) {
                         for &q in list {
-                            let kq = &kept[q * dim..(q + 1) * dim];
+                            let kq = &points[q * dim..(q + 1) * dim];
                             let d2: f64 = kq.iter().zip(p).map(|(a, b)| (a - b) * (a - b)).sum();
                             if d2 <= tol * tol {
                                 dup = true;
@@ -68,14 +79,12 @@ pub fn merge_duplicates(points: &[f64], dim: usize, tol: f64) -> (Vec<f64>, usiz
                 }
             }
         }
-        if dup {
-            merged += 1;
-        } else {
-            grid.entry(c).or_default().push(kept.len() / dim);
-            kept.extend_from_slice(p);
+        if !dup {
+            grid.entry(c).or_default().push(i);
+            kept.push(i);
         }
     }
-    (kept, merged)
+    kept
 }
 
 /// Checks that the (normalised) points determine the polynomial part uniquely: the N x k matrix
@@ -125,6 +134,10 @@ fn degenerate_set(kernel: &Kernel) -> &'static str {
     }
 }
 
+/// The smallest diagonal of the data's box: the square of 1e-150 (1e-300) is still a normal
+/// double, so the carrier's squared distances keep their precision.
+pub const MIN_SPREAD: f64 = 1e-150;
+
 /// Points made ready for the spline: duplicates merged, normalised, checked for unisolvency, and
 /// the carrier resolved and evaluated at them.
 #[derive(Debug, Clone)]
@@ -158,15 +171,43 @@ pub fn prepare(raw: &[f64], kernel: &Kernel, carrier: &Carrier, merge_tol: f64) 
         }
     }
     let (lo, hi) = bounding_box(raw, 3);
-    let (points, merged) = merge_duplicates(raw, 3, merge_tol * diagonal(&lo, &hi));
+    let diag = diagonal(&lo, &hi);
+    if !diag.is_finite() {
+        let big = lo.iter().chain(&hi).fold(0.0f64, |a, b| a.max(b.abs()));
+        return Err(Error::Numerical(format!(
+            "the data's spread is not representable: the bounding box's extents overflow (coordinates \
+             up to {big:e}); rescale the data"
+        )));
+    }
+    if diag > 0.0 && diag < MIN_SPREAD {
+        return Err(Error::Numerical(format!(
+            "the data's spread is not representable: the bounding box's diagonal is {diag:e}, below \
+             {MIN_SPREAD:e}, so squared distances underflow (the carrier would vanish everywhere); rescale \
+             the data"
+        )));
+    }
+    // merged in normalised coordinates (the box's half-diagonal is 1), where the squared distances
+    // neither overflow nor underflow whatever the data's scale
     let norm = Normalisation::of_box(&lo, &hi);
-    let mut centres = vec![0.0; points.len()];
-    for (c, p) in centres.chunks_exact_mut(3).zip(points.chunks_exact(3)) {
+    let mut all = vec![0.0; raw.len()];
+    for (c, p) in all.chunks_exact_mut(3).zip(raw.chunks_exact(3)) {
         norm.apply(p, c);
     }
+    let keep = merge_indices(&all, 3, 2.0 * merge_tol);
+    let merged = raw.len() / 3 - keep.len();
+    let pick =
+        |v: &[f64]| -> Vec<f64> { keep.iter().flat_map(|&i| v[3 * i..3 * i + 3].iter().copied()).collect() };
+    let (points, centres) = (pick(raw), pick(&all));
     check_unisolvent(kernel, &centres)?;
     let carrier = carrier.resolve(&lo, &hi);
     let values: Vec<f64> = points.chunks_exact(3).map(|p| carrier.eval(p)).collect();
+    if let Some(bad) = values.iter().find(|v| !v.is_finite()) {
+        let big = lo.iter().chain(&hi).fold(0.0f64, |a, b| a.max(b.abs()));
+        return Err(Error::Numerical(format!(
+            "the carrier '{carrier}' is not finite at the data (a value is {bad}): its squares overflow \
+             for coordinates up to {big:e}; rescale the data or choose a carrier of smaller magnitude"
+        )));
+    }
     Ok(Prepared { points, centres, values, carrier, norm, merged, box_lo: lo, box_hi: hi })
 }
 
@@ -190,6 +231,35 @@ mod tests {
         let tol = 1e-6;
         let pts = [tol * 10.0 - 5e-8, 0.0, 0.0, tol * 10.0 + 5e-8, 0.0, 0.0];
         assert_eq!(merge_duplicates(&pts, 3, tol).1, 1);
+    }
+
+    fn sphere(scale: f64) -> Vec<f64> {
+        (0..200)
+            .flat_map(|i| {
+                let z = -1.0 + (2 * i + 1) as f64 / 200.0;
+                let (r, t) = ((1.0 - z * z).sqrt(), i as f64 * 2.399963);
+                [r * t.cos() * scale, r * t.sin() * scale, z * scale]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn extreme_scales_are_diagnosed() {
+        let k = Kernel::new(3, 2).unwrap();
+        // the diagonal of 2e154-wide data no longer overflows: the points stay distinct and the
+        // failure is the carrier's overflow, said as such
+        assert!(diagonal(&[-1e154; 3], &[1e154; 3]).is_finite());
+        let e = prepare(&sphere(1e154), &k, &Carrier::AutoBall, 1e-6).unwrap_err().to_string();
+        assert!(e.contains("is not finite at the data") && !e.contains("distinct"), "{e}");
+        let e = prepare(&sphere(1e-200), &k, &Carrier::AutoBall, 1e-6).unwrap_err().to_string();
+        assert!(e.contains("spread is not representable") && !e.contains("plane"), "{e}");
+        let e = prepare(&[-1e308, 0.0, 0.0, 1e308, 1.0, 1.0], &k, &Carrier::AutoBall, 1e-6).unwrap_err();
+        assert!(e.to_string().contains("extents overflow"), "{e}");
+        // moderate scales are merged and checked in normalised coordinates alike
+        for scale in [1e-100, 1.0, 1e100] {
+            let p = prepare(&sphere(scale), &k, &Carrier::parse("ball:0,0,0,1", 3).unwrap(), 1e-6).unwrap();
+            assert_eq!((p.merged, p.points.len()), (0, 600));
+        }
     }
 
     #[test]

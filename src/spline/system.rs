@@ -139,12 +139,10 @@ impl Normalisation {
     /// The normalisation of a bounding box (lo, hi) in `dim` dimensions.
     pub fn of_box(lo: &[f64], hi: &[f64]) -> Self {
         let mut centre = [0.0; 3];
-        let mut d2 = 0.0;
         for d in 0..lo.len() {
-            centre[d] = 0.5 * (lo[d] + hi[d]);
-            d2 += (hi[d] - lo[d]).powi(2);
+            centre[d] = 0.5 * lo[d] + 0.5 * hi[d];
         }
-        let scale = 0.5 * d2.sqrt();
+        let scale = 0.5 * crate::spline::hygiene::diagonal(lo, hi);
         Normalisation { centre, scale: if scale > 0.0 { scale } else { 1.0 } }
     }
 

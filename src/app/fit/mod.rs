@@ -142,6 +142,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             compact::fit(&Run { args: a, comm, threads }, kernel, &prep, &mut stages)?
         }
     };
+    super::finite::check_fit(&fitted, &prep)?;
     let (rms, max_abs) = stages.time(Stage::Check, || at_points(comm, &fitted.spline, &prep));
     let Prepared { carrier, box_lo: lo, box_hi: hi, merged, .. } = prep;
     let model = Model {
@@ -158,6 +159,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             ..run_provenance(comm, threads, &stages)
         },
     };
+    super::finite::check_grid_field(comm, &model, &grid)?;
     let model_path = output_path(&a.out, ".model.h5");
     stages.time(Stage::Write, || {
         on_root(comm, || io::write_atomically(&model_path, |tmp| model_file::write_model(tmp, &model)))

@@ -1,0 +1,166 @@
+//! Finite results or a clear error: a solve whose solution or residual is not finite, and a grid
+//! on which f overflows, are refused with the likely cause (the data's scale, the carrier's
+//! magnitude) instead of writing NaN volumes, empty meshes and models that cannot be read back.
+//!
+//! f = f_c - U grows like the square of the distance from the data (a ball carrier) or like the
+//! distance (the spline's kernel terms), so on a box its largest magnitudes are at the corners:
+//! |x - c|^2 and sum_i |w_i| |x - c_i| are convex and take their maxima on a box at a vertex. The
+//! grid is therefore checked at its eight corners before any slab is evaluated, and a slab's
+//! values can be checked again before they are written ([`check_slab`]).
+
+use super::fit::Fitted;
+use crate::contour::SectionFit;
+use crate::error::{Error, Result};
+use crate::grid::Grid;
+use crate::par::{agree, Comm};
+use crate::spline::hygiene::Prepared;
+use crate::spline::Field;
+
+/// Largest magnitude in `v` (NaN counts as infinite).
+fn reach(v: &[f64]) -> f64 {
+    v.iter().fold(0.0f64, |a, &b| if b.is_nan() { f64::INFINITY } else { a.max(b.abs()) })
+}
+
+/// Refuses a fit whose solution (weights, polynomial coefficients) or residual is not finite,
+/// naming the carrier's values at the data and the data's coordinates. Identical on every rank
+/// (the solution and the residual are).
+pub fn check_fit(fitted: &Fitted, prep: &Prepared) -> Result<()> {
+    let s = &fitted.spline;
+    let solution_ok = s.weights.iter().chain(&s.poly).all(|v| v.is_finite());
+    if solution_ok && fitted.residual.is_finite() {
+        return Ok(());
+    }
+    let what = if solution_ok { "the residual of the solve" } else { "the solution" };
+    let coords = reach(&prep.box_lo).max(reach(&prep.box_hi));
+    Err(Error::Numerical(format!(
+        "{what} is not finite: the carrier's values at the data reach {:e} and the data's coordinates \
+         {coords:e}, beyond what the solve can represent; rescale the data (or use a carrier of smaller \
+         magnitude)",
+        reach(&prep.values)
+    )))
+}
+
+/// Refuses contour sections whose solution or residual is not finite, naming the first such slice
+/// and the data's coordinates. Identical on every rank (every rank holds every section).
+pub fn check_sections(fits: &[SectionFit], lo: &[f64], hi: &[f64]) -> Result<()> {
+    let bad = fits.iter().position(|f| {
+        let s = &f.spline;
+        !f.residual.is_finite() || !s.weights.iter().chain(&s.poly).all(|v| v.is_finite())
+    });
+    let Some(i) = bad else { return Ok(()) };
+    Err(Error::Numerical(format!(
+        "the solution of slice {i} is not finite (residual {:e}): the data's coordinates reach {:e}, \
+         beyond what the solve can represent; rescale the data",
+        fits[i].residual,
+        reach(lo).max(reach(hi))
+    )))
+}
+
+/// Refuses a grid whose origin or spacing is not finite, or on whose corners `field` is not finite
+/// (where f is largest, see the module doc). Collective: every rank agrees.
+pub fn check_grid_field(comm: &dyn Comm, field: &dyn Field, grid: &Grid) -> Result<()> {
+    let local = (|| {
+        let far: Vec<f64> =
+            (0..3).map(|d| grid.origin[d] + grid.spacing[d] * (grid.dims[d] - 1) as f64).collect();
+        if grid.origin.iter().chain(&grid.spacing).chain(&far).any(|v| !v.is_finite()) {
+            return Err(Error::Usage(format!(
+                "the grid is not representable: origin {:?}, spacing {:?}; choose --bounds nearer the data",
+                grid.origin, grid.spacing
+            )));
+        }
+        let corners = Grid {
+            dims: [2, 2, 2],
+            origin: grid.origin,
+            spacing: [far[0] - grid.origin[0], far[1] - grid.origin[1], far[2] - grid.origin[2]],
+        };
+        let values = field.eval_layers(&corners, 0, 2);
+        if values.iter().all(|v| v.is_finite()) {
+            return Ok(());
+        }
+        Err(Error::Numerical(format!(
+            "f is not finite at the grid's corners (the grid reaches coordinates of {:e}): the carrier's \
+             magnitude overflows so far from the data; choose --bounds nearer the data or rescale it",
+            reach(&grid.origin).max(reach(&far))
+        )))
+    })();
+    agree(comm, local)
+}
+
+/// Refuses a slab of evaluated values that holds a non-finite one. Collective: every rank agrees,
+/// so that no rank writes while another refuses.
+pub fn check_slab(comm: &dyn Comm, values: &[f64]) -> Result<()> {
+    let local = match values.iter().position(|v| !v.is_finite()) {
+        None => Ok(()),
+        Some(i) => Err(Error::Numerical(format!(
+            "the evaluated volume holds a non-finite value ({} at node {i} of rank {}'s slab): the \
+             data's scale or the carrier's magnitude overflows on this grid; rescale the data or choose \
+             --bounds nearer it",
+            values[i],
+            comm.rank()
+        ))),
+    };
+    agree(comm, local)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::par::Solo;
+    use crate::spline::{Carrier, Kernel, Model, Normalisation, Provenance, Spline};
+
+    fn ball_model() -> Model {
+        Model {
+            carrier: Carrier::parse("ball:0,0,0,1", 3).unwrap(),
+            spline: Spline {
+                kernel: Kernel::new(3, 2).unwrap(),
+                centres: vec![0.0; 3],
+                weights: vec![0.0],
+                poly: vec![0.0; 4],
+                norm: Normalisation { centre: [0.0; 3], scale: 1.0 },
+            },
+            provenance: Provenance::default(),
+        }
+    }
+
+    #[test]
+    fn far_grids_are_refused_near_ones_accepted() {
+        let m = ball_model();
+        let near = Grid { dims: [5, 5, 5], origin: [-2.0; 3], spacing: [1.0; 3] };
+        check_grid_field(&Solo, &m, &near).unwrap();
+        let far = Grid { dims: [5, 5, 5], origin: [-1e300; 3], spacing: [5e299; 3] };
+        let e = check_grid_field(&Solo, &m, &far).unwrap_err().to_string();
+        assert!(e.contains("not finite at the grid's corners"), "{e}");
+        let huge = Grid { dims: [5, 5, 5], origin: [-1e308; 3], spacing: [1e308; 3] };
+        let e = check_grid_field(&Solo, &m, &huge).unwrap_err().to_string();
+        assert!(e.contains("not representable"), "{e}");
+    }
+
+    #[test]
+    fn sections_with_nan_are_refused() {
+        let fit = |residual: f64, w: f64| SectionFit {
+            carrier: Carrier::parse("ball:0,0,1", 2).unwrap(),
+            spline: Spline {
+                kernel: Kernel::new(2, 2).unwrap(),
+                centres: vec![0.0; 2],
+                weights: vec![w],
+                poly: vec![0.0; 3],
+                norm: Normalisation { centre: [0.0; 3], scale: 1.0 },
+            },
+            points: 1,
+            merged: 0,
+            residual,
+            max_abs_at_points: 0.0,
+        };
+        check_sections(&[fit(1e-16, 1.0), fit(0.0, 2.0)], &[0.0; 3], &[1.0; 3]).unwrap();
+        let e = check_sections(&[fit(1e-16, 1.0), fit(f64::NAN, 2.0)], &[0.0; 3], &[1.0; 3]).unwrap_err();
+        assert!(e.to_string().contains("slice 1"), "{e}");
+        assert!(check_sections(&[fit(0.0, f64::INFINITY)], &[0.0; 3], &[1.0; 3]).is_err());
+    }
+
+    #[test]
+    fn slabs_with_nan_are_refused() {
+        check_slab(&Solo, &[0.0, 1.0]).unwrap();
+        let e = check_slab(&Solo, &[0.0, f64::NAN]).unwrap_err().to_string();
+        assert!(e.contains("node 1"), "{e}");
+    }
+}

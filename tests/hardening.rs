@@ -1,0 +1,412 @@
+//! Non-finite results, extreme scales, edited model files and misleading messages: every case
+//! ends with the program's own message, the right exit code and no output file left behind.
+//! Plus a bounded property test that feeds random and mutated bytes to every reader.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Output;
+
+use common::{run, temp_dir, write_xyz, COW};
+use volspline::io::h5::Attrs;
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn text(out: &Output) -> String {
+    format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr))
+}
+
+/// Asserts the exit code and the message, and that `dir` holds only the files in `keep`.
+fn refused(out: &Output, code: i32, needle: &str, dir: &Path, keep: &[&Path]) {
+    let t = text(out);
+    assert_eq!(out.status.code(), Some(code), "{t}");
+    assert!(t.contains(needle), "expected '{needle}' in:\n{t}");
+    assert!(!t.contains("panicked"), "{t}");
+    let mut left: Vec<PathBuf> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).collect();
+    left.retain(|p| !keep.contains(&p.as_path()));
+    assert!(left.is_empty(), "files left after a refusal: {left:?}\n{t}");
+}
+
+/// 200 points on a sphere of radius `scale`.
+fn sphere(scale: f64) -> Vec<f64> {
+    (0..200)
+        .flat_map(|i| {
+            let z = -1.0 + (2 * i + 1) as f64 / 200.0;
+            let (r, t) = ((1.0 - z * z).sqrt(), i as f64 * 2.399963);
+            [r * t.cos() * scale, r * t.sin() * scale, z * scale]
+        })
+        .collect()
+}
+
+#[test]
+fn extreme_scales_are_refused_with_the_cause() {
+    for (scale, needle) in [
+        (1e154, "is not finite at the data"),
+        (1e100, "is not finite"),
+        (1e-200, "spread is not representable"),
+    ] {
+        for ranks in [1, 2] {
+            let dir = temp_dir(&format!("hardening-scale-{scale:e}-{ranks}"));
+            let input = dir.join("points.xyz");
+            write_xyz(&input, &sphere(scale));
+            let out = run(ranks, &["fit", s(&input), "--out", s(&dir.join("out")), "--grid", "12"]);
+            refused(&out, 1, needle, &dir, &[&input]);
+            let t = text(&out);
+            assert!(!t.contains("distinct points") && !t.contains("one plane"), "{t}");
+        }
+    }
+}
+
+/// The contour file `text` with every coordinate times `scale` (the frames' axes unchanged).
+fn scaled_contours(text: &str, scale: f64) -> String {
+    let times =
+        |t: &[&str]| t.iter().map(|v| format!("{:e}", v.parse::<f64>().unwrap() * scale)).collect::<Vec<_>>();
+    let mut out = String::new();
+    for line in text.lines() {
+        let t: Vec<&str> = line.split_whitespace().collect();
+        let scaled = match t.as_slice() {
+            [] | ["contour"] => line.to_string(),
+            [first, ..] if first.starts_with('#') => line.to_string(),
+            ["slice", "plane", rest @ ..] => {
+                format!("slice plane {} {}", times(&rest[..3]).join(" "), rest[3..].join(" "))
+            }
+            ["slice", axis, v] => format!("slice {axis} {}", times(&[v]).join(" ")),
+            _ => times(&t).join(" "),
+        };
+        out.push_str(&scaled);
+        out.push('\n');
+    }
+    out
+}
+
+#[test]
+fn contours_at_extreme_scales_are_refused() {
+    let dir = temp_dir("hardening-contours-scale");
+    let cut = dir.join("cow.txt");
+    let out = run(0, &["slice", COW, "--out", s(&cut), "--planes", "z:6"]);
+    assert!(out.status.success(), "{}", text(&out));
+    let original = std::fs::read_to_string(&cut).unwrap();
+    for (scale, needle) in [(1e150, "not finite"), (1e-200, "spread is not representable")] {
+        let input = dir.join(format!("scaled-{scale:e}.txt"));
+        std::fs::write(&input, scaled_contours(&original, scale)).unwrap();
+        for ranks in [1, 2] {
+            let out = run(ranks, &["contours", s(&input), "--out", s(&dir.join("k")), "--grid", "12"]);
+            refused(&out, 1, needle, &dir, &[&cut, &input]);
+        }
+        std::fs::remove_file(&input).unwrap();
+    }
+}
+
+#[test]
+fn carrier_specs_are_checked() {
+    let dir = temp_dir("hardening-carriers");
+    let input = dir.join("points.xyz");
+    write_xyz(&input, &sphere(1.0));
+    let nest = "union(".repeat(200) + "ball:0,0,0,1" + &",ball:0,0,0,1)".repeat(200);
+    for (spec, needle) in [
+        ("ball:0,0,0,1e160", "larger in magnitude than 1e150"),
+        ("ball:0,0,0,inf", "'inf' is not a finite number"),
+        ("bäll", "unknown carrier 'bäll'"),
+        (nest.as_str(), "nest deeper than 64"),
+    ] {
+        let out = run(0, &["fit", s(&input), "--out", s(&dir.join("out")), "--carrier", spec]);
+        refused(&out, 2, needle, &dir, &[&input]);
+    }
+}
+
+#[test]
+fn negative_numbers_get_the_range_message() {
+    let dir = temp_dir("hardening-negative");
+    let input = dir.join("points.xyz");
+    write_xyz(&input, &sphere(1.0));
+    let out_prefix = dir.join("out");
+    for (opt, value, needle) in [
+        ("--margin", "-1", "expected a number in [0, 10]"),
+        ("--grid", "-1,2,3", "is not a node count"),
+        ("--merge-tol", "-1e-6", "-1e-6"),
+        ("--threads", "-1", "-1"),
+    ] {
+        let out = run(0, &["fit", s(&input), "--out", s(&out_prefix), opt, value]);
+        refused(&out, 2, needle, &dir, &[&input]);
+        assert!(!text(&out).contains("-- -"), "{}", text(&out));
+    }
+}
+
+#[test]
+fn too_many_planes_are_refused() {
+    let dir = temp_dir("hardening-planes");
+    let out = run(0, &["slice", COW, "--out", s(&dir.join("c.txt")), "--planes", "z:1000000000000"]);
+    refused(&out, 2, "more than 100000", &dir, &[]);
+}
+
+/// A model fitted to a unit sphere, in its own folder.
+fn fitted_model(name: &str) -> (PathBuf, PathBuf) {
+    let dir = temp_dir(name);
+    let input = dir.join("points.xyz");
+    write_xyz(&input, &sphere(1.0));
+    let out = run(0, &["fit", s(&input), "--out", s(&dir.join("m")), "--grid", "8"]);
+    assert!(out.status.success(), "{}", text(&out));
+    for ext in ["hdf", "ply"] {
+        std::fs::remove_file(dir.join(format!("m.{ext}"))).unwrap();
+    }
+    (dir.clone(), dir.join("m.model.h5"))
+}
+
+#[test]
+fn far_bounds_are_refused_before_any_output() {
+    let (dir, model) = fitted_model("hardening-bounds");
+    let input = dir.join("points.xyz");
+    for ranks in [1, 2] {
+        let out = run(
+            ranks,
+            &[
+                "eval",
+                s(&model),
+                "--out",
+                s(&dir.join("e")),
+                "--bounds",
+                "-1e300,-1e300,-1e300,1e300,1e300,1e300",
+            ],
+        );
+        refused(&out, 1, "not finite at the grid's corners", &dir, &[&input, &model]);
+        let out = run(
+            ranks,
+            &["eval", s(&model), "--out", s(&dir.join("e")), "--bounds", "-1e308,-1,-1,1e308,1,1"],
+        );
+        refused(&out, 2, "not finite", &dir, &[&input, &model]);
+    }
+}
+
+fn rewrite_f64(f: &hdf5::File, name: &str, data: ndarray::ArrayD<f64>) {
+    f.unlink(name).unwrap();
+    f.new_dataset_builder().with_data(&data.as_standard_layout().to_owned()).create(name).unwrap();
+}
+
+#[test]
+fn edited_models_are_refused() {
+    type Edit = fn(&hdf5::File, &Attrs<'_>);
+    let edits: Vec<(&str, Edit, &str)> = vec![
+        (
+            "order4",
+            |_, a| {
+                a.file.delete_attr("kernel_order").unwrap();
+                a.put_int("kernel_order", 4).unwrap();
+            },
+            "kernel_order 4",
+        ),
+        (
+            "dim2",
+            |_, a| {
+                a.file.delete_attr("kernel_dim").unwrap();
+                a.put_int("kernel_dim", 2).unwrap();
+            },
+            "kernel_dim 2",
+        ),
+        (
+            "autoball",
+            |_, a| {
+                a.file.delete_attr("carrier").unwrap();
+                a.put_str("carrier", "ball").unwrap();
+            },
+            "must give its centre and radius",
+        ),
+        (
+            "deep",
+            |_, a| {
+                a.file.delete_attr("carrier").unwrap();
+                let deep = "union(".repeat(200_000) + "ball:0,0,0,1" + &",ball:0,0,0,1)".repeat(200_000);
+                a.put_str("carrier", &deep).unwrap();
+            },
+            "nest deeper than 64",
+        ),
+        (
+            "transposed",
+            |f, _| {
+                let c = f.dataset("centres_normalised").unwrap().read_2d::<f64>().unwrap();
+                rewrite_f64(f, "centres_normalised", c.t().to_owned().into_dyn());
+            },
+            "has shape 3 x",
+        ),
+        (
+            "empty",
+            |f, _| {
+                rewrite_f64(f, "centres_normalised", ndarray::Array2::<f64>::zeros((0, 3)).into_dyn());
+                rewrite_f64(f, "weights", ndarray::Array1::<f64>::zeros(0).into_dyn());
+            },
+            "no centres",
+        ),
+        (
+            "nan-centre",
+            |_, a| {
+                a.file.delete_attr("normalisation_centre").unwrap();
+                a.put_f64s("normalisation_centre", &[f64::NAN, 0.0, 0.0]).unwrap();
+            },
+            "malformed normalisation",
+        ),
+        (
+            "format-type",
+            |_, a| {
+                a.file.delete_attr("format").unwrap();
+                a.put_int("format", 1).unwrap();
+            },
+            "'format' attribute is not a text",
+        ),
+        (
+            "huge-weights",
+            |f, _| {
+                let n = f.dataset("weights").unwrap().size();
+                rewrite_f64(f, "weights", ndarray::Array1::from_elem(n, 1e307).into_dyn());
+            },
+            "evaluating the spline overflows",
+        ),
+    ];
+    let (dir, model) = fitted_model("hardening-edits");
+    let input = dir.join("points.xyz");
+    for (name, edit, needle) in edits {
+        let edited = dir.join(format!("{name}.model.h5"));
+        std::fs::copy(&model, &edited).unwrap();
+        {
+            let f = hdf5::File::open_rw(&edited).unwrap();
+            edit(&f, &Attrs { file: &f, path: &edited });
+        }
+        let ranks = if name == "order4" { 2 } else { 0 };
+        let out = run(ranks, &["eval", s(&edited), "--out", s(&dir.join("e")), "--grid", "8"]);
+        refused(&out, 1, needle, &dir, &[&input, &model, &edited]);
+        std::fs::remove_file(&edited).unwrap();
+    }
+}
+
+/// xorshift64*: a small deterministic generator for the property test.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
+    }
+
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n.max(1) as u64) as usize
+    }
+
+    /// `base` with a few bytes replaced, inserted, deleted or duplicated, or random bytes.
+    fn mutate(&mut self, base: &[u8]) -> Vec<u8> {
+        if self.below(8) == 0 {
+            return (0..self.below(400)).map(|_| self.next() as u8).collect();
+        }
+        let mut v = base.to_vec();
+        for _ in 0..1 + self.below(8) {
+            let at = self.below(v.len());
+            match self.below(5) {
+                0 if !v.is_empty() => v[at] = self.next() as u8,
+                1 => {
+                    let alphabet = b"-0123456789.eE,;:\n #\tinfNaN/";
+                    v.insert(at, alphabet[self.below(alphabet.len())]);
+                }
+                2 if !v.is_empty() => {
+                    v.remove(at);
+                }
+                3 => {
+                    let end = (at + self.below(64)).min(v.len());
+                    let chunk = v[at..end].to_vec();
+                    v.splice(at..at, chunk);
+                }
+                _ => v.truncate(at),
+            }
+        }
+        v
+    }
+}
+
+/// Reads `bytes` with `read` after writing them to `path`; the reader may refuse them, never panic.
+fn no_panic(path: &Path, bytes: &[u8], read: &dyn Fn(&Path)) {
+    std::fs::write(path, bytes).unwrap();
+    let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| read(path)));
+    assert!(caught.is_ok(), "a reader panicked on {} ({} bytes)", path.display(), bytes.len());
+}
+
+#[test]
+fn readers_refuse_random_and_mutated_bytes_without_panicking() {
+    let dir = temp_dir("hardening-fuzz");
+    let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+    let read_points = |p: &Path| {
+        let _ = volspline::io::points::read_points(p);
+    };
+    let read_contours = |p: &Path| {
+        if let Ok(t) = std::fs::read_to_string(p) {
+            let _ = volspline::contour::format::parse(p, &t);
+        }
+    };
+    let xyz: Vec<u8> =
+        sphere(1.0).chunks(3).flat_map(|p| format!("{} {} {}\n", p[0], p[1], p[2]).into_bytes()).collect();
+    let obj = std::fs::read(COW).unwrap();
+    let obj = &obj[..obj.len().min(20_000)];
+    let ply = b"ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n\
+                element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n";
+    let contours =
+        b"# contours\nslice z 0.5\ncontour\n1.0 0.0\n0.0 1.0\n-1.0 0.0\nslice plane 0 0 1  1 0 0  0 1 0\n\
+                     contour\n0 0\n1 0\n1 1\nslice omega 0 0.1 0  0 0 2\ncontour\n0 0\n1 0\n1 1\n";
+    for _ in 0..300 {
+        no_panic(&dir.join("p.xyz"), &rng.mutate(&xyz), &read_points);
+        no_panic(&dir.join("p.obj"), &rng.mutate(obj), &read_points);
+        no_panic(&dir.join("p.ply"), &rng.mutate(ply), &read_points);
+        no_panic(&dir.join("c.txt"), &rng.mutate(contours), &read_contours);
+    }
+    // model files: byte mutations of a real one (mostly refused by HDF5 itself) and mutations of
+    // its attributes, which reach the format checks
+    let (mdir, model) = fitted_model("hardening-fuzz-model");
+    let bytes = std::fs::read(&model).unwrap();
+    // a model that reads back must also evaluate
+    let read_model = |p: &Path| {
+        if let Ok(m) = volspline::io::model_file::read_model(p) {
+            let _ = m.eval(&[0.1, 0.2, 0.3]);
+        }
+        let _ = volspline::io::contour_model_file::read_contour_model(p);
+    };
+    hdf5::silence_errors(true);
+    for i in 0..60 {
+        let mut v = bytes.clone();
+        for _ in 0..1 + rng.below(4) {
+            let at = rng.below(v.len());
+            v[at] = rng.next() as u8;
+        }
+        no_panic(&mdir.join(format!("mutated-{}.model.h5", i % 4)), &v, &read_model);
+    }
+    let attrs = [
+        "carrier",
+        "kernel",
+        "kernel_dim",
+        "kernel_order",
+        "format",
+        "format_version",
+        "normalisation_scale",
+    ];
+    for i in 0..150 {
+        let path = mdir.join(format!("edited-{}.model.h5", i % 4));
+        std::fs::copy(&model, &path).unwrap();
+        {
+            let f = hdf5::File::open_rw(&path).unwrap();
+            let a = Attrs { file: &f, path: &path };
+            let name = attrs[rng.below(attrs.len())];
+            let _ = f.delete_attr(name);
+            let seeds =
+                ["union(ball:0,0,0,1,ball:1,0,0,2)", "ball", "difference(ball:0,0,0,2,ball)", "ball:0,0,0,1"];
+            let seed = seeds[rng.below(seeds.len())];
+            let value = match rng.below(3) {
+                0 => seed.to_string(),
+                _ => String::from_utf8_lossy(&rng.mutate(seed.as_bytes())).into_owned(),
+            };
+            let _ = match rng.below(3) {
+                0 => a.put_str(name, &value),
+                1 => a.put_int(name, (rng.next() % 8) as i64),
+                _ => a.put_f64s(name, &[f64::from_bits(rng.next())]),
+            };
+        }
+        let caught = std::panic::catch_unwind(|| read_model(&path));
+        assert!(caught.is_ok(), "the model reader panicked on an edited model");
+    }
+}
