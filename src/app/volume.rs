@@ -107,6 +107,8 @@ pub fn write_volume(
         );
     }
     let values = stages.time(Stage::Evaluate, || field.eval_layers(grid, k0, layers + ghost));
+    // a non-finite value would make an unusable volume and mesh: refuse it with the cause
+    super::finite::check_slab(comm, &values[..nx * ny * layers])?;
 
     let hdf_path = output_path(prefix, ".hdf");
     stages.time(Stage::Write, || {
