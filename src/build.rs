@@ -9,7 +9,7 @@ use std::env;
 use std::path::PathBuf;
 
 fn main() {
-    println!("cargo:rerun-if-changed=build.rs");
+    println!("cargo:rerun-if-changed=src/build.rs");
     println!("cargo:rerun-if-env-changed=MUMPS_INCLUDE_DIR");
     println!("cargo:rerun-if-env-changed=MUMPS_LIB_DIR");
 
