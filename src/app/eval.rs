@@ -48,7 +48,7 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         let n = model.spline.len();
         r.line(format!("N = {n} centres, kernel {}, carrier {}", model.spline.kernel.name(), model.carrier));
         r.figure("points", n);
-        per_node = crate::spline::Field::kernel_evals_per_node(&model);
+        per_node = volume.evals_per_node;
         r.figure("kernel_evals", grid.node_count() as f64 * per_node as f64);
         volume
     };

@@ -22,6 +22,8 @@ pub struct VolumeSummary {
     pub vertices: usize,
     pub hdf_path: PathBuf,
     pub ply_path: PathBuf,
+    /// Kernel evaluations per grid node (for the throughput figures).
+    pub evals_per_node: usize,
 }
 
 impl VolumeSummary {
@@ -96,6 +98,8 @@ pub fn write_volume(
     // one ghost layer above the slab lets this rank polygonise the cells between its last layer and
     // the next rank's first
     let ghost = usize::from(layers > 0 && k0 + layers < nz);
+    // measured once (a compact model samples its neighbour counts through an octree)
+    let evals_per_node = field.kernel_evals_per_node();
     if comm.rank() == 0 {
         eprintln!(
             "volspline: grid {}x{}x{} = {} nodes, {} kernel evaluations per node",
@@ -103,7 +107,7 @@ pub fn write_volume(
             ny,
             nz,
             grid.node_count(),
-            field.kernel_evals_per_node()
+            evals_per_node
         );
     }
     let values = stages.time(Stage::Evaluate, || field.eval_layers(grid, k0, layers + ghost));
@@ -138,6 +142,7 @@ pub fn write_volume(
         vertices: counts[1] as usize,
         hdf_path,
         ply_path,
+        evals_per_node,
     })
 }
 

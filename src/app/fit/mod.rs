@@ -188,15 +188,11 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     r.figure("residual", format!("{:e}", fitted.residual));
     r.figure("rms_at_points", format!("{rms:e}"));
     r.figure("max_at_points", format!("{max_abs:e}"));
-    r.figure("max_abs_f_at_points", format!("{max_abs:e}"));
-    r.figure(
-        "kernel_evals",
-        grid.node_count() as f64 * crate::spline::Field::kernel_evals_per_node(&model) as f64,
-    );
+    r.figure("kernel_evals", grid.node_count() as f64 * volume.evals_per_node as f64);
     r.output(&model_path);
     volume.report(&mut r);
     let nodes = grid.node_count();
-    let per_node = crate::spline::Field::kernel_evals_per_node(&model);
+    let per_node = volume.evals_per_node;
     r.finish(
         comm,
         &stages,
