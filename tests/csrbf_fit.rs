@@ -129,3 +129,16 @@ fn a_support_too_small_is_refused_and_auto_keeps_small_inputs_dense() {
     assert_eq!(figure(&auto.timings, "method"), "dense");
     assert_eq!(auto.model.spline.kernel.name(), "r");
 }
+
+#[test]
+fn the_default_support_gives_every_point_of_an_unevenly_sampled_mesh_a_neighbour() {
+    // the cow's vertices are sampled unevenly: at the median radius of 30 neighbours some vertex
+    // is alone, which the fit refuses; the default grows the radius just enough
+    let dir = common::temp_dir("csrbf-cow");
+    let run = fit(&dir, Path::new(common::COW), "cow", 0, &["--method", "csrbf"]);
+    let t = &run.timings;
+    let support: f64 = figure(t, "support").parse().unwrap();
+    assert!(support > 0.0 && support < 0.5, "{support}");
+    assert!(figure(t, "rms_at_points").parse::<f64>().unwrap() < 1e-9);
+    assert_eq!(run.model.spline.weights.len(), figure(t, "points").parse::<usize>().unwrap());
+}

@@ -139,6 +139,11 @@ pub struct RowStats {
 /// the distance to the target-th nearest other point (see the module doc). With fewer than two
 /// distinct points there is no spacing to measure and the answer is 2, the diameter of the unit
 /// ball that holds the data.
+///
+/// Real scans are sampled unevenly: where the median radius would leave some point with no
+/// other point within it (a spike of the spline there, useless between points), R grows to just
+/// past the largest nearest-neighbour distance, up to `MAX_SUPPORT_GROWTH` times the median; an
+/// outlier farther out than that is left for the fit to refuse with its fix (`--support`).
 pub fn default_support(centres: &[f64], target: usize) -> f64 {
     let n = centres.len() / 3;
     let tree = Octree::new(centres, crate::spline::octree::DEFAULT_LEAF_CAPACITY);
@@ -154,12 +159,18 @@ pub fn default_support(centres: &[f64], target: usize) -> f64 {
     }
     let mid = d.len() / 2;
     d.select_nth_unstable_by(mid, f64::total_cmp);
-    if d[mid] > 0.0 && d[mid].is_finite() {
-        d[mid]
-    } else {
-        2.0
+    if !(d[mid] > 0.0 && d[mid].is_finite()) {
+        return 2.0;
     }
+    let median = d[mid];
+    // the largest distance from a point to its nearest other point, over all points
+    let loneliest =
+        (0..n).into_par_iter().map(|i| tree.kth_distance(tree.point(i), 2, median)).reduce(|| 0.0, f64::max);
+    median.max((1.0 + 1e-6) * loneliest.min(MAX_SUPPORT_GROWTH * median))
 }
+
+/// How far [`default_support`] may grow the median radius to give every point a neighbour.
+pub const MAX_SUPPORT_GROWTH: f64 = 4.0;
 
 /// The lower triangle of A_ij = phi(|P_i - P_j| / R), diagonal included, for the global rows
 /// `rows` (any subset of 0..N, in any order; `SymCsr::rows` keeps them), from the normalised
