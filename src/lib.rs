@@ -13,11 +13,14 @@
 //! - [`par`]: the communicator, typed collectives and the agreement on failures (the only room
 //!   that talks to MPI).
 //! - [`io`]: point, mesh, model and VTKHDF files; [`mesh`]: marching cubes and mesh measures.
+//! - [`frep`]: reconstructed solids as function-representation objects (evaluation at points,
+//!   derivatives, bounds) for modelling and pictures.
 
 pub mod app;
 pub mod cli;
 pub mod contour;
 pub mod error;
+pub mod frep;
 pub mod grid;
 pub mod io;
 pub mod linalg;

@@ -1,0 +1,112 @@
+//! Reconstructed solids as first-class function-representation (FRep) objects: anything with a
+//! defining function f(x) >= 0 inside that can be evaluated at a point, differentiated, and
+//! bounded in space. Models read from files, carriers and expressions over them all implement
+//! [`Implicit`]; rendering, curvature and set operations are written against it alone.
+//!
+//! Must not touch ranks or files: callers distribute the points they evaluate.
+
+use crate::spline::Model;
+
+/// Step of the central differences of the default derivatives, relative to the size of the
+/// solid's box (small enough for second-order accuracy, large enough to stay above rounding).
+const DIFF_STEP: f64 = 1e-5;
+
+/// A solid f(x) >= 0 inside, f = 0 on its surface, f < 0 outside, in the caller's coordinates.
+pub trait Implicit: Sync {
+    /// f at a point.
+    fn value(&self, p: [f64; 3]) -> f64;
+
+    /// A box (lo, hi) that contains the solid and the region where its surface is meant to be
+    /// looked at (for a reconstructed model: the data's box with a margin).
+    fn bounds(&self) -> ([f64; 3], [f64; 3]);
+
+    /// grad f at a point. The default takes central differences of [`Implicit::value`] with a
+    /// step relative to [`Implicit::bounds`]; implementations with analytic derivatives override it.
+    fn gradient(&self, p: [f64; 3]) -> [f64; 3] {
+        let h = diff_step(self);
+        let mut g = [0.0; 3];
+        for (d, gd) in g.iter_mut().enumerate() {
+            let (mut a, mut b) = (p, p);
+            a[d] += h;
+            b[d] -= h;
+            *gd = (self.value(a) - self.value(b)) / (2.0 * h);
+        }
+        g
+    }
+
+    /// The Hessian of f at a point, row-major. The default takes central differences of
+    /// [`Implicit::gradient`].
+    fn hessian(&self, p: [f64; 3]) -> [[f64; 3]; 3] {
+        let h = diff_step(self);
+        let mut m = [[0.0; 3]; 3];
+        for d in 0..3 {
+            let (mut a, mut b) = (p, p);
+            a[d] += h;
+            b[d] -= h;
+            let (ga, gb) = (self.gradient(a), self.gradient(b));
+            for e in 0..3 {
+                m[e][d] = (ga[e] - gb[e]) / (2.0 * h);
+            }
+        }
+        // symmetrise: the differences of the two orders agree only to the step's accuracy
+        for d in 0..3 {
+            for e in 0..d {
+                let s = 0.5 * (m[d][e] + m[e][d]);
+                m[d][e] = s;
+                m[e][d] = s;
+            }
+        }
+        m
+    }
+}
+
+fn diff_step<S: Implicit + ?Sized>(s: &S) -> f64 {
+    let (lo, hi) = s.bounds();
+    let size = (0..3).map(|d| (hi[d] - lo[d]).abs()).fold(0.0, f64::max);
+    DIFF_STEP * if size > 0.0 { size } else { 1.0 }
+}
+
+impl Implicit for Model {
+    fn value(&self, p: [f64; 3]) -> f64 {
+        self.eval(&p)
+    }
+
+    /// The data's bounding box widened by a tenth of its size on every side.
+    fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+        let (lo, hi) = (self.provenance.box_lo, self.provenance.box_hi);
+        let pad: Vec<f64> = (0..3).map(|d| 0.1 * (hi[d] - lo[d]).abs().max(f64::MIN_POSITIVE)).collect();
+        ([lo[0] - pad[0], lo[1] - pad[1], lo[2] - pad[2]], [hi[0] + pad[0], hi[1] + pad[1], hi[2] + pad[2]])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The ball x.x <= 4 with its exact derivatives left to the defaults.
+    struct Ball;
+    impl Implicit for Ball {
+        fn value(&self, p: [f64; 3]) -> f64 {
+            4.0 - p[0] * p[0] - p[1] * p[1] - p[2] * p[2]
+        }
+        fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+            ([-2.0; 3], [2.0; 3])
+        }
+    }
+
+    #[test]
+    fn default_derivatives_of_a_ball_are_exact_to_the_step() {
+        let p = [0.3, -0.7, 1.1];
+        let g = Ball.gradient(p);
+        for d in 0..3 {
+            assert!((g[d] + 2.0 * p[d]).abs() < 1e-8, "{g:?}");
+        }
+        let h = Ball.hessian(p);
+        for d in 0..3 {
+            for e in 0..3 {
+                let want = if d == e { -2.0 } else { 0.0 };
+                assert!((h[d][e] - want).abs() < 1e-4, "{h:?}");
+            }
+        }
+    }
+}
