@@ -19,7 +19,7 @@ cores = int([l for l in machine.splitlines() if l.startswith("cores:")][0].split
 PAPER_T1 = {1: (180.2, 99.9), 2: (90.5, 99.4), 3: (62.5, 96.0), 6: (32.7, 92.0)}
 PAPER_T2 = {184: (3.0, 6, 38), 377: (11, 42, 70), 628: (30, 192, 113), 942: (66, 633, 167)}
 FLOPS = {"lu": 2 / 3, "dgetrf": 2 / 3, "pdgesv": 2 / 3, "solve": 2 / 3, "householder": 4 / 3,
-         "dgeqrf": 4 / 3, "pdgeqrf": 4 / 3, "cholesky": 1 / 3}
+         "dgeqrf": 4 / 3, "pdgeqrf": 4 / 3, "cholesky": 1 / 3, "pdpotrf": 1 / 3}
 
 
 def best(group):
@@ -100,17 +100,19 @@ elif mode == "table2":
     lines.append("\nPaper: Savchenko et al. (1995), Table 2: Fobos, 6 transputers T800. Plot: table2.png.")
 
 elif mode == "solve":
-    lines.append("| implementation | operation | n | ranks | threads/rank | time (s) | GFLOP/s | peak memory/rank (MB) | memory bound (MB) |")
-    lines.append("|---|---|---:|---:|---:|---:|---:|---:|---:|")
+    lines.append("| implementation | operation | n | ranks | grid | threads/rank | time (s) | GFLOP/s | peak memory/rank (MB) | memory bound (MB) |")
+    lines.append("|---|---|---:|---:|---|---:|---:|---:|---:|---:|")
     gf = {}
     for r in rows:
         n, t = int(r["n"]), float(r["seconds"])
         g = FLOPS[r["operation"]] * n**3 / t / 1e9
         p = int(r["ranks"])
-        gf[(r["impl"], r["operation"], n, p)] = (g, t)
+        # raw.csv before the grid column: ScaLAPACK ran on P x 1
+        grid = r.get("grid") or (f"{p}x1" if r["impl"] in ("volspline", "scalapack") else "")
+        gf[(r["impl"], r["operation"], n, p) + ((grid,) if r["impl"] == "scalapack" else ())] = (g, t)
         mem = f"{float(r['peak_rss_bytes']) / 1e6:.0f}" if r["peak_rss_bytes"] else ""
         bound = f"{1.15 * n * n * 8 / p / 1e6 + 200:.0f}" if r["impl"] == "volspline" else ""
-        lines.append(f"| {r['impl']} | {r['operation']} | {n} | {p} | {r['threads']} | {t:.3f} | {g:.1f} | {mem} | {bound} |")
+        lines.append(f"| {r['impl']} | {r['operation']} | {n} | {p} | {grid} | {r['threads']} | {t:.3f} | {g:.1f} | {mem} | {bound} |")
     nmax = max(int(r["n"]) for r in rows)
     ranks = max(int(r["ranks"]) for r in rows)
     lines.append(f"\n## Targets at n = {nmax}, {ranks} ranks\n")
@@ -123,9 +125,19 @@ elif mode == "solve":
         lines.append(f"- {name}: {ours:.2f} vs {ref:.2f} -> {'met' if ok else 'MISSED'}")
 
     get = lambda *k: gf.get(k, (None, None))  # noqa: E731
+    row = f"{ranks}x1"
     check("LU GFLOP/s >= 0.9 x dgetrf", get("volspline", "lu", nmax, ranks)[0], get("lapack", "dgetrf", nmax, 1)[0], 0.9)
     check("Householder GFLOP/s >= 0.9 x dgeqrf", get("volspline", "householder", nmax, ranks)[0], get("lapack", "dgeqrf", nmax, 1)[0], 0.9)
     check("Cholesky path time <= scipy.linalg.solve time / 2", get("volspline", "cholesky", nmax, ranks)[1], get("scipy", "solve", nmax, 1)[1], 2, higher=False)
+    check(f"LU time <= PDGESV time ({row})", get("volspline", "lu", nmax, ranks)[1], get("scalapack", "pdgesv", nmax, ranks, row)[1], 1, higher=False)
+    check(f"Householder time <= PDGEQRF time ({row})", get("volspline", "householder", nmax, ranks)[1], get("scalapack", "pdgeqrf", nmax, ranks, row)[1], 1, higher=False)
+    check(f"projected Cholesky time <= PDPOTRF + PDPOTRS time ({row}) + 10 %", get("volspline", "cholesky", nmax, ranks)[1],
+          1.1 * get("scalapack", "pdpotrf", nmax, ranks, row)[1] if get("scalapack", "pdpotrf", nmax, ranks, row)[1] else None, 1, higher=False)
+    for grid in sorted({k[4] for k in gf if k[0] == "scalapack" and k[4] != row}):
+        for op in ["pdgesv", "pdgeqrf", "pdpotrf"]:
+            a, b = get("scalapack", op, nmax, ranks, row)[1], get("scalapack", op, nmax, ranks, grid)[1]
+            if a and b:
+                lines.append(f"- ScaLAPACK {op}: {grid} grid {b:.2f} s against {row} {a:.2f} s ({a / b:.2f}x)")
     for solver in ["householder", "lu", "cholesky"]:
         for n in sorted({int(r["n"]) for r in rows}):
             t1, tp = get("volspline", solver, n, 1)[1], get("volspline", solver, n, ranks)[1]
@@ -142,16 +154,21 @@ elif mode == "solve":
     lines.append("- memory: every volspline row not listed above is within 1.15 (N+k)^2 8 / P + 200 MB")
     fig, ax = plt.subplots(figsize=(7, 4.5))
     series = defaultdict(list)
-    for (impl, op, n, p), (g, _) in gf.items():
-        series[(impl, op, p)].append((n, g))
-    for (impl, op, p), pts in sorted(series.items()):
+    for key, (g, _) in gf.items():
+        impl, op, n, p = key[:4]
+        label = f"{impl} {op} ({key[4]} grid)" if impl == "scalapack" else f"{impl} {op} ({p} ranks)"
+        series[label].append((n, g))
+    for label, pts in sorted(series.items()):
         pts.sort()
-        ax.plot([a for a, _ in pts], [b for _, b in pts], marker="o", label=f"{impl} {op} ({p} ranks)")
+        ax.plot([a for a, _ in pts], [b for _, b in pts], marker="o", label=label)
     ax.set(xlabel="n", ylabel="GFLOP/s (nominal flops)", title="Dense solvers on this machine")
     ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(f"{out}/gflops.png", dpi=110)
-    lines.append("\nNominal flops: LU 2/3 n^3, QR 4/3 n^3, Cholesky 1/3 n^3 (the projection's O(k n^2) not counted). Plot: gflops.png.")
+    lines.append("\nNominal flops: LU 2/3 n^3, QR 4/3 n^3, Cholesky 1/3 n^3 (the projection's O(k n^2) not counted). "
+                 "pdpotrf: PDPOTRF + PDPOTRS of one right-hand side on a symmetric positive definite matrix of the same "
+                 "size (symmetrised random matrix + n I). Grid PRxPC: ScaLAPACK's process grid (blocks of NB); "
+                 "volspline's rows are row-cyclic (P x 1, blocks of one row). Plot: gflops.png.")
 
 elif mode == "eval":
     lines.append("| implementation | points | grid nodes | threads | time (s) | kernel evaluations/s | max diff of U (relative) |")
