@@ -503,6 +503,18 @@ def main(out):
             ax[i][j].legend(fontsize=6)
     fig.tight_layout()
     fig.savefig(f"{out}/crossover.png", dpi=100)
+    load = [ln.split(":", 1)[1].strip() for ln in machine_txt.splitlines() if ln.startswith("load_average_at_start")]
+    L.append("\n## Caveats\n")
+    L.append(f"- The micro-benchmarks share this machine's cores with whatever else runs (load average at the start: "
+             f"{load[0] if load else '?'}): where eff > 1, OpenBLAS's DGEMM ran slower here and now than volspline's "
+             "kernels ran in the study. The model uses only the product eff g3 (the local rate column), fitted to each "
+             "study's own 1-rank times, so the load moves eff, not the predictions; the message costs are the best of "
+             "9 short rounds, the figure least disturbed by the load.")
+    L.append("- The 2D column of every table is the model's, not a measurement: ScaLAPACK's 2D times on 2 ranks "
+             "(jobs/bench-solve, GRIDS) are the only measured 2D points so far. At P = 2 and 3 the squarest grid is "
+             "1 x P (a column-cyclic layout: the panel on one rank, no collective per column).")
+    L.append("- The 16-core Xeon's network is assumed to be this machine's shared memory, and its ranks are assumed "
+             "to have a core each; its errors grow with P (memory bandwidth shared by 16 ranks is not in the model).")
     L.append("\nPlots: validation.png (measured against predicted), table1_prediction.png (Householder predictions "
              "P = 1..1024 with the measured points, and the transputer Table 1), crossover.png (row-cyclic / 2D).")
     L.append("\nThe model (equations and what each term stands for): the module doc of jobs/bench/scaling_model.py.")
