@@ -1,7 +1,7 @@
 """Surface quality on unoriented scans: volspline's methods against screened Poisson.
 
   python3 surface.py OUT [--check] [--quick] [--meshes bunny,cow] [--sizes 400,1000,2000,4000]
-                         [--variant-sizes 1000,4000] [--methods default,carrier,poisson]
+                         [--variant-sizes 1000,2000] [--methods default,carrier,poisson]
                          [--ranks 2] [--grid 100] [--poisson-depth 8] [--sampling area|strided]
 
 Point sets. For each mesh (tests/data/bunny10k.obj, tests/data/cow.obj) and each size N: N
@@ -57,8 +57,9 @@ FIELDS = ["set", "mesh", "n_requested", "variant", "points", "method", "flags", 
           "t2m_rms_pct", "t2m_mean_pct", "t2m_p95_pct", "t2m_max_pct",
           "m2t_rms_pct", "m2t_mean_pct", "m2t_p95_pct", "m2t_max_pct", "far2_pct",
           "components", "vertices", "triangles", "fit_s", "solve_s", "evaluate_s", "wall_s", "note"]
-# Sets drawn as slices (when they are run): the headline scan, the open one, the noisiest cow
-PICTURED = ["bunny-2000-clean", "bunny-1000-open", "bunny-4000-open", "cow-1000-noise0.5", "cow-4000-noise0.5"]
+# Sets drawn as slices when they are run (else the first set and the first open one): the headline
+# scan, open scans, the noisiest cow
+PICTURED = ["bunny-2000-clean", "bunny-2000-open", "bunny-1000-open", "cow-2000-noise0.5", "cow-1000-clean"]
 
 
 def require_tools(binary):
@@ -89,7 +90,8 @@ def surface_flag(binary):
 
 
 def make_sets(args):
-    """[(name, mesh, n, variant, points, truth_pts, verts, faces, diag)] for every requested set."""
+    """[(name, mesh, n, variant, points, truth_pts, verts, faces, diag, focus)] for every requested set;
+    focus: the point the slices go through (the centre of the removed ball of an open set, else None)."""
     import numpy as np
 
     import sample_surface
@@ -110,17 +112,17 @@ def make_sets(args):
                 pts = sample_surface.sample(v, f, n, np.random.default_rng([args.seed, 0, n]))
             variants = []
             if n in args.sizes:
-                variants.append(("clean", pts))
+                variants.append(("clean", pts, None))
             if n in args.variant_sizes:
                 for pct in (0.1, 0.5):
                     rng = np.random.default_rng([args.seed, 2, n, int(pct * 10)])
-                    variants.append((f"noise{pct:g}", pts + rng.normal(scale=pct / 100 * diag, size=pts.shape)))
+                    variants.append((f"noise{pct:g}", pts + rng.normal(scale=pct / 100 * diag, size=pts.shape), None))
                 d = (pts - lo) / (hi - lo) @ np.ones(3)
                 centre = pts[np.argmax(d)]
                 keep = np.linalg.norm(pts - centre, axis=1) > 0.15 * diag
-                variants.append(("open", pts[keep]))
-            for variant, p in variants:
-                sets.append((f"{mesh}-{n}-{variant}", mesh, n, variant, p, truth, v, f, diag))
+                variants.append(("open", pts[keep], centre))
+            for variant, p, focus in variants:
+                sets.append((f"{mesh}-{n}-{variant}", mesh, n, variant, p, truth, v, f, diag, focus))
     return sets
 
 
@@ -226,7 +228,7 @@ def parse(argv):
                     help="a subset: the bunny at 1000 and 2000 points, its variants at 1000, the cow at 1000; grid 64")
     ap.add_argument("--meshes", type=lst(str), default=["bunny", "cow"])
     ap.add_argument("--sizes", type=lst(int), default=[400, 1000, 2000, 4000])
-    ap.add_argument("--variant-sizes", type=lst(int), default=[1000, 4000])
+    ap.add_argument("--variant-sizes", type=lst(int), default=[1000, 2000])
     ap.add_argument("--methods", type=lst(str), default=["default", "carrier", "poisson"])
     ap.add_argument("--ranks", type=int, default=2)
     ap.add_argument("--grid", type=int, default=100)
@@ -260,6 +262,9 @@ def main(argv):
     sets = make_sets(args)
     if args.quick:
         sets = [s for s in sets if s[1] == "bunny" or s[0] == "cow-1000-clean"]
+    names = [s[0] for s in sets]
+    opens = [x for x in names if x.endswith("-open")]
+    pictured = [x for x in PICTURED if x in names] or names[:1] + opens[:1]
     os.makedirs(os.path.join(args.out, "slices"), exist_ok=True)
     with open(os.path.join(args.out, "notes.txt"), "w") as notes:
         notes.write(f"methods: {', '.join(m[0] + (' ' + ' '.join(m[2]) if m[2] else '') for m in methods)}\n")
@@ -273,7 +278,7 @@ def main(argv):
     writer.writeheader()
     t_start = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
-        for name, mesh, n, variant, pts, truth, tv, tf, diag in sets:
+        for name, mesh, n, variant, pts, truth, tv, tf, diag, focus in sets:
             xyz = os.path.join(tmp, name + ".xyz")
             with open(xyz, "w") as fh:
                 fh.write("".join(f"{x!r} {y!r} {z!r}\n" for x, y, z in pts.tolist()))
@@ -299,9 +304,9 @@ def main(argv):
                 print(f"  {name:20s} {label:10s} {status:6s} t2m rms {row.get('t2m_rms_pct', '-'):>7s} "
                       f"m2t rms {row.get('m2t_rms_pct', '-'):>7s} far {row.get('far2_pct', '-'):>6s} % "
                       f"comp {row.get('components', '-')!s:>3s} fit {row.get('fit_s', '-')} s", flush=True)
-            if name in PICTURED and results:
+            if name in pictured and results:
                 png = os.path.join(args.out, "slices", name + ".png")
-                surface_figures.slices(png, name, pts, tv, tf, diag, results)
+                surface_figures.slices(png, name, pts, tv, tf, diag, results, focus)
     rows.close()
     print(f"bench-surface: {len(sets)} sets x {len(methods)} methods in {time.perf_counter() - t_start:.0f} s")
 

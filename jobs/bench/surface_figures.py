@@ -1,4 +1,5 @@
-"""Slices of jobs/bench/surface.py: three axis planes through the centre of the evaluation grid.
+"""Slices of jobs/bench/surface.py: three axis planes through the centre of the evaluation grid, or
+through the grid node nearest a given point (the removed region of an open scan).
 
 Each panel shows, in the plane, the field f of the first volspline method of the set (read from
 its VTKHDF volume with h5py; drawn as tanh(f / s), red where f > 0 inside) as the background, the zero contour of every
@@ -53,8 +54,9 @@ def mesh_cut(v, f, axis, c):
     return ends[two][cross[two]].reshape(-1, 2, 3)[:, :, keep]
 
 
-def slices(png, name, pts, tv, tf, diag, results):
-    """Writes the figure of one set; results maps a method to (kind, prefix, (verts, faces))."""
+def slices(png, name, pts, tv, tf, diag, results, focus=None):
+    """Writes the figure of one set; results maps a method to (kind, prefix, (verts, faces)); the
+    planes go through the grid node nearest `focus`, or through the centre of the grid."""
     vols = {m: read_volume(prefix + ".hdf") for m, (kind, prefix, _) in results.items() if kind == "volspline"}
     if vols:
         base = next(iter(vols))
@@ -67,6 +69,8 @@ def slices(png, name, pts, tv, tf, diag, results):
     fig, axes = plt.subplots(1, 3, figsize=(16, 5.6))
     for axis, ax in enumerate(axes):
         index = int(shape[axis] // 2)
+        if focus is not None:
+            index = int(np.clip(np.rint((focus[axis] - origin[axis]) / spacing[axis]), 0, shape[axis] - 1))
         c = origin[axis] + spacing[axis] * index
         keep = [a for a in range(3) if a != axis]
         if base is not None:
@@ -101,7 +105,8 @@ def slices(png, name, pts, tv, tf, diag, results):
         ax.set_title(f"{AXES[axis]} = {c:.4g}")
     axes[-1].legend(handles=handles, loc="upper right", fontsize=8, framealpha=0.85)
     back = f"; background: f of {base} (red inside)" if base else ""
-    fig.suptitle(f"{name}: {len(pts)} points, zero sets in three planes{back}")
+    where = "through the removed region" if focus is not None else "through the centre"
+    fig.suptitle(f"{name}: {len(pts)} points, zero sets in three planes {where}{back}")
     fig.tight_layout()
     fig.savefig(png, dpi=90)
     plt.close(fig)

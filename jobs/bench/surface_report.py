@@ -126,7 +126,7 @@ def main(out):
         lines += ["", "The new default method did not run (see notes.txt), so its targets are not checked."]
     pngs = sorted(p for p in os.listdir(os.path.join(out, "slices"))) if os.path.isdir(os.path.join(out, "slices")) else []
     if pngs:
-        lines += ["", "Slices (three axis planes through the grid centre; black: the true surface):\n"]
+        lines += ["", "Slices (three axis planes through the grid centre, or through the removed region of an open set; black: the true surface):\n"]
         lines += [f"![{p[:-4]}](slices/{p})" for p in pngs]
     open(os.path.join(out, "summary.md"), "w").write("\n".join(lines) + "\n")
     print(f"surface_report: {out}/summary.md")
