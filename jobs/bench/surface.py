@@ -173,7 +173,7 @@ def run_volspline(args, flags, xyz, prefix):
     return "ok", kv.get("method", ""), (v, f), times
 
 
-def run_poisson(args, pts, prefix):
+def run_poisson(args, pts):
     """(status, note, mesh, timings) of screened Poisson on PCA normals."""
     import numpy as np
     import pymeshlab
@@ -191,22 +191,7 @@ def run_poisson(args, pts, prefix):
     secs = f"{time.perf_counter() - t0:.3f}"
     if len(f) == 0:
         return "empty", "no surface", None, {"fit_s": secs, "wall_s": secs}
-    write_ply(prefix + ".ply", v, f)
     return "ok", f"depth {args.poisson_depth}, k 10", (v, f), {"fit_s": secs, "wall_s": secs}
-
-
-def write_ply(path, v, f):
-    import numpy as np
-
-    head = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(v)}\nproperty double x\n"
-            f"property double y\nproperty double z\nelement face {len(f)}\nproperty list uchar int vertex_indices\n"
-            "end_header\n")
-    rec = np.zeros(len(f), dtype=[("n", "u1"), ("i", "<i4", 3)])
-    rec["n"], rec["i"] = 3, f
-    with open(path, "wb") as out:
-        out.write(head.encode())
-        out.write(np.asarray(v, dtype="<f8").tobytes())
-        out.write(rec.tobytes())
 
 
 def method_list(args, has_surface):
@@ -290,7 +275,7 @@ def main(argv):
                 prefix = os.path.join(tmp, f"{name}.{label}")
                 try:
                     if kind == "poisson":
-                        status, why, rec, times = run_poisson(args, pts, prefix)
+                        status, why, rec, times = run_poisson(args, pts)
                     else:
                         status, why, rec, times = run_volspline(args, flags, xyz, prefix)
                 except subprocess.TimeoutExpired:
