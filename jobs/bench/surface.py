@@ -161,8 +161,10 @@ def run_volspline(args, flags, xyz, prefix):
     out = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout)
     wall = time.perf_counter() - t0
     if out.returncode != 0:
-        reason = (out.stderr.strip() or out.stdout.strip()).splitlines()
-        return "failed", (reason[-1] if reason else f"exit {out.returncode}"), None, {"wall_s": f"{wall:.3f}"}
+        # volspline's own message, not mpirun's report that a rank failed
+        lines = (out.stderr + out.stdout).splitlines()
+        reason = [x.strip() for x in lines if x.startswith("volspline") and "error" in x] or [f"exit {out.returncode}"]
+        return "failed", reason[0], None, {"wall_s": f"{wall:.3f}"}
     kv = dict(line.split(",", 1) for line in open(prefix + ".csv").read().splitlines()[1:] if "," in line)
     stages = [float(val) for key, val in kv.items() if key.startswith("stage_") and key.endswith("_max_s")]
     times = {"fit_s": f"{sum(stages):.3f}", "solve_s": kv.get("stage_solve_max_s", ""),
