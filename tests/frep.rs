@@ -49,6 +49,9 @@ fn two_bunnies(dir: &Path) -> (PathBuf, PathBuf) {
     (a, fit(dir, "b", &moved, &[]))
 }
 
+/// An R-function of two operand values.
+type RFunction = fn(f64, f64) -> f64;
+
 const BUNNY_BOX: &str = "-11,1,-8,13,21,8";
 
 fn unit(path: &Path) -> f64 {
@@ -65,7 +68,7 @@ fn set_operations_of_two_bunnies_are_the_r_functions_of_their_volumes() {
     let fa = eval(0, &dir, "ea", s(&a), BUNNY_BOX, 20);
     let fb = eval(0, &dir, "eb", s(&b), BUNNY_BOX, 20);
     let scale = fa.iter().chain(&fb).map(|v| v.abs() / ua.min(ub)).fold(0.0, f64::max);
-    let cases: [(&str, fn(f64, f64) -> f64); 3] =
+    let cases: [(&str, RFunction); 3] =
         [("union", r_union), ("intersection", r_intersection), ("difference", |x, y| r_intersection(x, -y))];
     for (op, rf) in cases {
         let f = eval(2, &dir, op, &format!("{op}({}, {})", s(&a), s(&b)), BUNNY_BOX, 20);
@@ -149,7 +152,7 @@ fn cube_points() -> Vec<f64> {
 }
 
 const NEAR: &str = "union(ball:-0.6,0,0,1.2,ball:0.6,0,0,1.2)";
-const APART: &str = "union(ball:-1.2,0,0,1.2,ball:1.2,0,0,1.2)";
+const APART: &str = "union(ball:-0.9,0,0,1.2,ball:0.9,0,0,1.2)";
 
 #[test]
 fn carrier_swap_of_figure_5_moves_the_solid_and_keeps_the_spline() {

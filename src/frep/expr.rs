@@ -50,8 +50,8 @@
 //!
 //! The offset moves the surface by d along its normal (outward for d > 0): its zero set is
 //! f1 / |grad f1| = -d, the set where the first-order distance to the surface is d. For a ball of
-//! radius R (f1 = R^2 - |x|^2) it is the sphere of radius d + sqrt(d^2 + R^2) = R + d + d^2 / (2R)
-//! + ...: exact to second order in d / R. The gradient is taken by central differences with the
+//! radius R (f1 = R^2 - |x|^2) it is the sphere of radius d + sqrt(d^2 + R^2), which is
+//! R + d + d^2 / (2R) up to terms of fourth order: the error is of second order in d / R. The gradient is taken by central differences with the
 //! step of [`Implicit::gradient`]. `scale` multiplies by s so that a distance stays a distance.
 //!
 //! `carrier(MODEL, SPEC)` is the deformation of Savchenko et al. (1995): the spline interpolated
@@ -69,9 +69,10 @@
 
 use std::path::Path;
 
-use glam::DVec3;
 use rayon::prelude::*;
 
+use super::geom::{add, carrier_box, corners, meet, mul, mul_t, sub};
+pub use super::geom::{hull, rotation, widened, Box3};
 use super::parse::{Op, Syntax};
 use super::Implicit;
 use crate::contour::ContourModel;
@@ -82,9 +83,6 @@ use crate::io::h5::format_of;
 use crate::io::model_file::read_model;
 use crate::spline::carrier::{r_intersection, r_union};
 use crate::spline::{Carrier, Field, Model};
-
-/// A box (lo, hi).
-pub type Box3 = ([f64; 3], [f64; 3]);
 
 /// How many data points the unit of a model is measured on.
 const UNIT_SAMPLES: usize = 64;
@@ -415,85 +413,6 @@ fn carrier_unit(c: &Carrier) -> f64 {
     }
 }
 
-/// The box of a resolved carrier's solid.
-fn carrier_box(c: &Carrier) -> Box3 {
-    let around = |centre: &[f64], r: &dyn Fn(usize) -> f64| {
-        ([0, 1, 2].map(|d| centre[d] - r(d)), [0, 1, 2].map(|d| centre[d] + r(d)))
-    };
-    match c {
-        Carrier::AutoBall => ([-1.0; 3], [1.0; 3]),
-        Carrier::Ball { centre, radius } => around(centre, &|_| *radius),
-        Carrier::Ellipsoid { centre, semi_axes } => around(centre, &|d| semi_axes[d]),
-        Carrier::Union(a, b) => hull(carrier_box(a), carrier_box(b)),
-        Carrier::Intersection(a, b) => {
-            let m = meet(carrier_box(a), carrier_box(b));
-            if (0..3).all(|d| m.0[d] <= m.1[d]) {
-                m
-            } else {
-                carrier_box(a)
-            }
-        }
-        Carrier::Difference(a, _) => carrier_box(a),
-    }
-}
-
-pub fn hull(a: Box3, b: Box3) -> Box3 {
-    ([0, 1, 2].map(|d| a.0[d].min(b.0[d])), [0, 1, 2].map(|d| a.1[d].max(b.1[d])))
-}
-
-fn meet(a: Box3, b: Box3) -> Box3 {
-    ([0, 1, 2].map(|d| a.0[d].max(b.0[d])), [0, 1, 2].map(|d| a.1[d].min(b.1[d])))
-}
-
-fn corners((lo, hi): Box3) -> Vec<[f64; 3]> {
-    (0..8).map(|c| [0, 1, 2].map(|d| if c >> d & 1 == 0 { lo[d] } else { hi[d] })).collect()
-}
-
-fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-/// The rotation by `degrees` about the unit `axis` (Rodrigues' formula), row-major.
-pub fn rotation(axis: [f64; 3], degrees: f64) -> [[f64; 3]; 3] {
-    let (s, c) = degrees.to_radians().sin_cos();
-    let k = DVec3::from_array(axis);
-    let mut r = [[0.0; 3]; 3];
-    for (i, row) in r.iter_mut().enumerate() {
-        for (j, v) in row.iter_mut().enumerate() {
-            let cross = match (i, j) {
-                (0, 1) => -k.z,
-                (0, 2) => k.y,
-                (1, 0) => k.z,
-                (1, 2) => -k.x,
-                (2, 0) => -k.y,
-                (2, 1) => k.x,
-                _ => 0.0,
-            };
-            *v = if i == j { c } else { 0.0 } + s * cross + (1.0 - c) * axis[i] * axis[j];
-        }
-    }
-    r
-}
-
-fn mul(r: &[[f64; 3]; 3], p: [f64; 3]) -> [f64; 3] {
-    [0, 1, 2].map(|i| r[i][0] * p[0] + r[i][1] * p[1] + r[i][2] * p[2])
-}
-
-/// R^T p.
-fn mul_t(r: &[[f64; 3]; 3], p: [f64; 3]) -> [f64; 3] {
-    [0, 1, 2].map(|i| r[0][i] * p[0] + r[1][i] * p[1] + r[2][i] * p[2])
-}
-
-/// The box grown by a tenth of its size on every side (as [`Implicit::bounds`] of a model).
-pub fn widened((lo, hi): Box3) -> Box3 {
-    let pad = [0, 1, 2].map(|d| 0.1 * (hi[d] - lo[d]).abs().max(f64::MIN_POSITIVE));
-    ([0, 1, 2].map(|d| lo[d] - pad[d]), [0, 1, 2].map(|d| hi[d] + pad[d]))
-}
-
 impl Implicit for Expr {
     fn value(&self, p: [f64; 3]) -> f64 {
         Expr::value(self, p)
@@ -540,5 +459,77 @@ impl Field for Expr {
 
     fn kernel_evals_per_node(&self) -> usize {
         self.kernel_evals()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn e(text: &str) -> Expr {
+        Expr::from_text(text).unwrap()
+    }
+
+    #[test]
+    fn operands_are_compared_in_length_units() {
+        // two balls of radii 1 and 3: as operands f / (2r), so the union is the R-union of
+        // (1 - |x|^2) / 2 and (9 - |x - c|^2) / 6
+        let u = e("union(ball:0,0,0,1, ball:4,0,0,3)");
+        for p in [[0.2f64, 0.1, 0.0], [2.0, 0.5, -0.3], [-3.0, 1.0, 1.0]] {
+            let a = (1.0 - p[0] * p[0] - p[1] * p[1] - p[2] * p[2]) / 2.0;
+            let b = (9.0 - (p[0] - 4.0).powi(2) - p[1] * p[1] - p[2] * p[2]) / 6.0;
+            assert_eq!(u.value(p), r_union(a, b));
+        }
+        // near its sphere a ball operand is the signed distance to first order
+        let ball = e("translate(ball:0,0,0,3, 0,0,0)");
+        assert!((ball.value([3.01, 0.0, 0.0]) + 0.01).abs() < 1e-4);
+        // a blend adds a0 where both surfaces meet
+        let b = e("blend_union(ball:0,0,0,1, ball:1,0,0,1, 0.25, 0.5, 0.5)");
+        let edge = [0.5, 0.75f64.sqrt(), 0.0];
+        assert!((b.value(edge) - 0.25).abs() < 1e-12, "{}", b.value(edge));
+    }
+
+    #[test]
+    fn motions_and_offsets_move_a_ball_where_they_should() {
+        let radius_along_x = |x: &Expr, from: f64| {
+            // bisection of f along the x axis from an inside point outwards
+            let (mut lo, mut hi) = (from, from + 10.0);
+            for _ in 0..100 {
+                let mid = 0.5 * (lo + hi);
+                if x.value([mid, 0.0, 0.0]) >= 0.0 {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            lo
+        };
+        let shifted = e("translate(ball:0,0,0,1, 2,0,0)");
+        assert!((radius_along_x(&shifted, 2.0) - 3.0).abs() < 1e-12);
+        let turned = e("rotate(ball:2,0,0,1, 0,0,1, 180)");
+        assert!(turned.value([-2.0, 0.0, 0.0]) > 0.0 && turned.value([2.0, 0.0, 0.0]) < 0.0);
+        let grown = e("scale(ball:1,0,0,1, 2)");
+        assert!((radius_along_x(&grown, 2.0) - 4.0).abs() < 1e-12);
+        let off = e("offset(ball:0,0,0,2, 0.5)");
+        assert!((radius_along_x(&off, 0.0) - (0.5 + 4.25f64.sqrt())).abs() < 1e-6);
+        let domain = e("rotate(translate(ball:0,0,0,1, 3,0,0), 0,0,1, 90)").domain().unwrap();
+        assert!((domain.0[1] - 2.0).abs() < 1e-12 && (domain.1[1] - 4.0).abs() < 1e-12, "{domain:?}");
+    }
+
+    #[test]
+    fn grid_layers_agree_with_pointwise_values() {
+        let x = e("difference(offset(scale(translate(ball:0,0,0,1, 0.3,0,0), 1.5), 0.2), \
+                   rotate(ellipsoid:0,0,0,0.5,1,2, 1,1,0, 30))");
+        let grid = Grid { dims: [9, 8, 7], origin: [-2.0, -1.9, -1.8], spacing: [0.5, 0.5, 0.6] };
+        let v = x.layers(&grid, 2, 3);
+        for k in 0..3 {
+            for j in 0..8 {
+                for i in 0..9 {
+                    let want = x.value(grid.node(i, j, k + 2));
+                    let got = v[i + 9 * (j + 8 * k)];
+                    assert!((got - want).abs() < 1e-9, "({i},{j},{k}): {got} != {want}");
+                }
+            }
+        }
     }
 }

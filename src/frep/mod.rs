@@ -6,6 +6,7 @@
 //! Must not touch ranks or files: callers distribute the points they evaluate.
 
 pub mod expr;
+pub mod geom;
 pub mod morph;
 pub mod parse;
 

@@ -191,16 +191,20 @@ impl Field for Morph<'_> {
     /// Without pairs A and B on the grid itself (the models' blocked evaluators); with pairs point
     /// by point through the maps. At t = 0 and t = 1 only the solid shown is evaluated.
     fn eval_layers(&self, grid: &Grid, k0: usize, layers: usize) -> Vec<f64> {
-        match (&self.maps, self.t) {
-            (_, t) if t == 0.0 => self.a.layers(grid, k0, layers),
-            (_, t) if t == 1.0 => self.b.layers(grid, k0, layers),
-            (None, _) => {
+        if self.t == 0.0 {
+            return self.a.layers(grid, k0, layers);
+        }
+        if self.t == 1.0 {
+            return self.b.layers(grid, k0, layers);
+        }
+        match &self.maps {
+            None => {
                 let mut a = self.a.layers(grid, k0, layers);
                 let b = self.b.layers(grid, k0, layers);
                 a.par_iter_mut().zip(&b).for_each(|(x, y)| *x = self.mix(*x, *y));
                 a
             }
-            (Some(_), _) => {
+            Some(_) => {
                 let [nx, ny, _] = grid.dims;
                 let mut out = vec![0.0; nx * ny * layers];
                 out.par_chunks_mut(nx.max(1)).enumerate().for_each(|(row, vals)| {
