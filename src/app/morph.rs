@@ -22,7 +22,7 @@ use super::volume::{check_grid, output_path, throughput_line, write_volume};
 use crate::cli::MorphArgs;
 use crate::error::{Error, Result};
 use crate::frep::expr::{hull, Expr};
-use crate::frep::morph::{read_pairs, Morph};
+use crate::frep::morph::{read_pairs, Morph, SlabCache};
 use crate::grid::{padded_box, Grid};
 use crate::io;
 use crate::par::{agree, on_root, Comm};
@@ -75,8 +75,9 @@ pub fn run(a: &MorphArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut names = Vec::with_capacity(k);
     let mut per_node = 0;
     let mut triangles = Vec::with_capacity(k);
+    let cache = SlabCache::default();
     for (i, &t) in times.iter().enumerate() {
-        let frame = agree(comm, Morph::new(&ea, &eb, t, pairs.as_deref()))?;
+        let frame = agree(comm, Morph::new(&ea, &eb, t, pairs.as_deref()))?.with_cache(&cache);
         if i == 0 {
             check_grid_field(comm, &frame, &grid)?;
         }

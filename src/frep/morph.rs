@@ -15,7 +15,11 @@
 //!
 //! so f_0 = f_A and f_1 = f_B exactly (the first and last frames are the two solids' own volumes,
 //! taken as they are) and in between the surfaces move over comparable distances. Without point
-//! pairs both maps M are the identity.
+//! pairs both maps M are the identity. Such a plain blend of two distance-like functions shrinks
+//! where the solids do not overlap: half-way between a solid and its copy moved by v it is thinner
+//! than the solid moved by v/2 (for a convex solid the distance inside is concave, so the mean of
+//! the two distances is at most the distance to the half-way copy). Point pairs that follow the
+//! motion remove the shrinking.
 //!
 //! # Controlled metamorphosis
 //!
@@ -39,6 +43,7 @@
 //! one plane.
 
 use std::path::Path;
+use std::sync::{Arc, Mutex};
 
 use faer::MatRef;
 use rayon::prelude::*;
@@ -130,12 +135,54 @@ impl SpaceMap {
     }
 }
 
+/// The values of A and B on the slabs a rank evaluates, kept from frame to frame (without point
+/// pairs they do not depend on t, so every frame after the first costs no model evaluation).
+#[derive(Default)]
+pub struct SlabCache {
+    slabs: Mutex<Vec<Slab>>,
+}
+
+/// A and B (each once computed) on layers k0..k0+layers of a grid.
+struct Slab {
+    grid: Grid,
+    k0: usize,
+    layers: usize,
+    values: [Option<Arc<Vec<f64>>>; 2],
+}
+
+impl SlabCache {
+    /// The values of `e` (A for `which` 0, B for 1) on the layers, computed on first use.
+    fn get(&self, which: usize, e: &Expr, grid: &Grid, k0: usize, layers: usize) -> Arc<Vec<f64>> {
+        let known = |s: &Slab| s.grid == *grid && s.k0 == k0 && s.layers == layers;
+        if let Some(v) = self.lock().iter().find(|s| known(s)).and_then(|s| s.values[which].clone()) {
+            return v;
+        }
+        // evaluated outside the lock: the evaluation itself runs on the thread pool
+        let v = Arc::new(e.layers(grid, k0, layers));
+        let mut slabs = self.lock();
+        match slabs.iter_mut().find(|s| known(s)) {
+            Some(s) => s.values[which] = Some(v.clone()),
+            None => {
+                let mut values = [None, None];
+                values[which] = Some(v.clone());
+                slabs.push(Slab { grid: *grid, k0, layers, values });
+            }
+        }
+        v
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Vec<Slab>> {
+        self.slabs.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
 /// Frame t of the metamorphosis of A into B (see the module doc).
 pub struct Morph<'a> {
     a: &'a Expr,
     b: &'a Expr,
     t: f64,
     maps: Option<(SpaceMap, SpaceMap)>,
+    cache: Option<&'a SlabCache>,
 }
 
 impl<'a> Morph<'a> {
@@ -151,7 +198,23 @@ impl<'a> Morph<'a> {
                 Some((SpaceMap::through(&q, &pa)?, SpaceMap::through(&q, &pb)?))
             }
         };
-        Ok(Morph { a, b, t, maps })
+        Ok(Morph { a, b, t, maps, cache: None })
+    }
+
+    /// Takes the values of A and B on the grid from `cache` (filled by the first frame that needs
+    /// them), for frames evaluated one after another on the same grid.
+    pub fn with_cache(mut self, cache: &'a SlabCache) -> Self {
+        self.cache = Some(cache);
+        self
+    }
+
+    /// A (`which` 0) or B (1) on the layers, through the cache when there is one.
+    fn solid(&self, which: usize, grid: &Grid, k0: usize, layers: usize) -> Arc<Vec<f64>> {
+        let e = if which == 0 { self.a } else { self.b };
+        match self.cache {
+            Some(c) => c.get(which, e, grid, k0, layers),
+            None => Arc::new(e.layers(grid, k0, layers)),
+        }
     }
 
     /// u_t (1 - t) a / u_A + u_t t b / u_B for the values a of A and b of B; exactly a at t = 0 and
@@ -188,21 +251,22 @@ impl Implicit for Morph<'_> {
 }
 
 impl Field for Morph<'_> {
-    /// Without pairs A and B on the grid itself (the models' blocked evaluators); with pairs point
-    /// by point through the maps. At t = 0 and t = 1 only the solid shown is evaluated.
+    /// Without pairs A and B on the grid itself (the models' blocked evaluators, once for all
+    /// frames with a [`SlabCache`]); with pairs point by point through the maps. At t = 0 and t = 1
+    /// only the solid shown is evaluated.
     fn eval_layers(&self, grid: &Grid, k0: usize, layers: usize) -> Vec<f64> {
         if self.t == 0.0 {
-            return self.a.layers(grid, k0, layers);
+            return self.solid(0, grid, k0, layers).to_vec();
         }
         if self.t == 1.0 {
-            return self.b.layers(grid, k0, layers);
+            return self.solid(1, grid, k0, layers).to_vec();
         }
         match &self.maps {
             None => {
-                let mut a = self.a.layers(grid, k0, layers);
-                let b = self.b.layers(grid, k0, layers);
-                a.par_iter_mut().zip(&b).for_each(|(x, y)| *x = self.mix(*x, *y));
-                a
+                let (a, b) = (self.solid(0, grid, k0, layers), self.solid(1, grid, k0, layers));
+                let mut out = a.to_vec();
+                out.par_iter_mut().zip(b.as_slice()).for_each(|(x, y)| *x = self.mix(*x, *y));
+                out
             }
             Some(_) => {
                 let [nx, ny, _] = grid.dims;
