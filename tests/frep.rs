@@ -353,3 +353,14 @@ fn contour_models_are_operands_too() {
     }
     assert!(f1.iter().any(|v| *v > 0.0), "the bunny and the moved contour bunny do not overlap");
 }
+
+#[test]
+fn a_model_whose_name_looks_like_an_expression_is_still_a_model() {
+    let dir = temp_dir("frep-oddname");
+    let a = fit(&dir, "a", &common::bunny_subset(40, 0), &[]);
+    let odd = dir.join("union(x,y).model.h5");
+    std::fs::copy(&a, &odd).unwrap();
+    let fa = eval(0, &dir, "ea", s(&a), BUNNY_BOX, 12);
+    let fo = eval(0, &dir, "eo", s(&odd), BUNNY_BOX, 12);
+    assert_eq!(fa, fo);
+}

@@ -22,8 +22,9 @@
 //! carrier(MODEL, SPEC)        SPEC: any carrier spec of `fit --carrier`, e.g. union(ball:..,ball:..)
 //! ```
 //!
-//! Names are case-insensitive; blanks between tokens are ignored. An error names the expression,
-//! the 1-based character where parsing stopped and what was expected there.
+//! Names are case-insensitive; blanks between tokens are ignored. A text that names an existing
+//! file is read as that model file, even when its name holds commas or parentheses. An error names
+//! the expression, the 1-based character where parsing stopped and what was expected there.
 
 use std::fmt;
 use std::path::PathBuf;
@@ -73,8 +74,12 @@ pub enum Syntax {
 }
 
 impl Syntax {
-    /// Parses an expression (see the module doc for the grammar).
+    /// Parses an expression (see the module doc for the grammar). A text that names an existing
+    /// file is that file, whatever characters its name holds (a plain model path always works).
     pub fn parse(text: &str) -> Result<Syntax> {
+        if std::path::Path::new(text).is_file() {
+            return Ok(Syntax::Model(PathBuf::from(text)));
+        }
         let mut p = Parser { s: text.as_bytes(), text, pos: 0, depth: 0 };
         let e = p.expr()?;
         p.skip_ws();
@@ -321,6 +326,7 @@ impl Parser<'_> {
             }
         };
         self.expect(b',', "carrier(MODEL, SPEC) takes a model file and a carrier spec")?;
+        self.skip_ws();
         let spec_start = self.pos;
         let mut depth = 0usize;
         while self.pos < self.s.len() {
