@@ -41,6 +41,7 @@
 //! translate(f1, t)              f1(x - t)
 //! rotate(f1, axis, angle)       f1(R^T x), R the rotation by angle about axis (through the origin)
 //! scale(f1, s)                  s f1(x / s)
+//! scale(f1, sx, sy, sz)         min(sx, sy, sz) f1(x1 / sx, x2 / sy, x3 / sz)
 //! carrier(MODEL, SPEC)          f_c'(x) - U(x), U the model's spline, f_c' the carrier SPEC
 //! ```
 //!
@@ -52,7 +53,10 @@
 //! f1 / |grad f1| = -d, the set where the first-order distance to the surface is d. For a ball of
 //! radius R (f1 = R^2 - |x|^2) it is the sphere of radius d + sqrt(d^2 + R^2), which is
 //! R + d + d^2 / (2R) up to terms of fourth order: the error is of second order in d / R. The gradient is taken by central differences with the
-//! step of [`Implicit::gradient`]. `scale` multiplies by s so that a distance stays a distance.
+//! step of [`Implicit::gradient`]. `scale` multiplies by s so that a distance stays a distance; scaled
+//! by different factors no factor keeps distances, and the smallest one keeps the bound that
+//! matters: for g(x) = c f(S^-1 x), |grad g| <= c |grad f| / min_j s_j, so with c = min_j s_j the
+//! slope of g is no steeper than that of f (a distance bound stays a bound).
 //!
 //! `carrier(MODEL, SPEC)` is the deformation of Savchenko et al. (1995): the spline interpolated
 //! r_i = f_c(P_i) and stays as it is, so at the data points f'(P_i) = f_c'(P_i) - f_c(P_i); where
@@ -182,7 +186,8 @@ impl Expr {
                         let r = rotation(*axis, *degrees);
                         corners(b).into_iter().map(|c| (mul(&r, c), mul(&r, c))).reduce(hull).unwrap_or(b)
                     }),
-                    Op::Scale(s) => first.map(|(lo, hi)| (lo.map(|v| v * s), hi.map(|v| v * s))),
+                    Op::Scale(s) => first
+                        .map(|(lo, hi)| ([0, 1, 2].map(|d| lo[d] * s[d]), [0, 1, 2].map(|d| hi[d] * s[d]))),
                 }
             }
         }
@@ -217,7 +222,7 @@ impl Expr {
                 }
                 Op::Translate(t) => args[0].operand(sub(p, *t)),
                 Op::Rotate { axis, degrees } => args[0].operand(mul_t(&rotation(*axis, *degrees), p)),
-                Op::Scale(s) => s * args[0].operand(p.map(|v| v / s)),
+                Op::Scale(s) => min3(s) * args[0].operand([0, 1, 2].map(|d| p[d] / s[d])),
             },
         }
     }
@@ -245,12 +250,13 @@ impl Expr {
                     }
                     Op::Scale(s) => {
                         let g = Grid {
-                            origin: grid.origin.map(|v| v / s),
-                            spacing: grid.spacing.map(|v| v / s),
+                            origin: [0, 1, 2].map(|d| grid.origin[d] / s[d]),
+                            spacing: [0, 1, 2].map(|d| grid.spacing[d] / s[d]),
                             ..*grid
                         };
                         let mut v = operand(&args[0], &g);
-                        v.iter_mut().for_each(|x| *x *= s);
+                        let c = min3(s);
+                        v.iter_mut().for_each(|x| *x *= c);
                         v
                     }
                     Op::Offset(d) => {
@@ -316,6 +322,11 @@ fn combine(op: &Op, v: &[f64]) -> f64 {
         }
         _ => unreachable!("not a pointwise operation: {op:?}"),
     }
+}
+
+/// The smallest of three factors: the value factor of a scaling (see the module doc).
+fn min3(s: &[f64; 3]) -> f64 {
+    s[0].min(s[1]).min(s[2])
 }
 
 fn offset(f: f64, d: f64, g: [f64; 3]) -> f64 {
@@ -510,6 +521,9 @@ mod tests {
         assert!(turned.value([-2.0, 0.0, 0.0]) > 0.0 && turned.value([2.0, 0.0, 0.0]) < 0.0);
         let grown = e("scale(ball:1,0,0,1, 2)");
         assert!((radius_along_x(&grown, 2.0) - 4.0).abs() < 1e-12);
+        let stretched = e("scale(ball:1,0,0,1, 3,1,0.5)");
+        assert!((radius_along_x(&stretched, 3.0) - 6.0).abs() < 1e-12);
+        assert!(stretched.value([3.0, 0.0, 0.49]) > 0.0 && stretched.value([3.0, 0.0, 0.51]) < 0.0);
         let off = e("offset(ball:0,0,0,2, 0.5)");
         assert!((radius_along_x(&off, 0.0) - (0.5 + 4.25f64.sqrt())).abs() < 1e-6);
         let domain = e("rotate(translate(ball:0,0,0,1, 3,0,0), 0,0,1, 90)").domain().unwrap();
@@ -518,7 +532,7 @@ mod tests {
 
     #[test]
     fn grid_layers_agree_with_pointwise_values() {
-        let x = e("difference(offset(scale(translate(ball:0,0,0,1, 0.3,0,0), 1.5), 0.2), \
+        let x = e("difference(offset(scale(translate(ball:0,0,0,1, 0.3,0,0), 1.5, 1.2, 0.9), 0.2), \
                    rotate(ellipsoid:0,0,0,0.5,1,2, 1,1,0, 30))");
         let grid = Grid { dims: [9, 8, 7], origin: [-2.0, -1.9, -1.8], spacing: [0.5, 0.5, 0.6] };
         let v = x.layers(&grid, 2, 3);

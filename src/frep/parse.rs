@@ -19,6 +19,7 @@
 //! union(e1, e2, ...)  intersection(e1, e2, ...)  difference(e1, e2)  complement(e)
 //! blend_union(e1, e2, a0, a1, a2)  blend_intersection(e1, e2, a0, a1, a2)
 //! offset(e, d)  translate(e, dx, dy, dz)  rotate(e, ax, ay, az, degrees)  scale(e, s)
+//! scale(e, sx, sy, sz)
 //! carrier(MODEL, SPEC)        SPEC: any carrier spec of `fit --carrier`, e.g. union(ball:..,ball:..)
 //! ```
 //!
@@ -58,7 +59,8 @@ pub enum Op {
         axis: [f64; 3],
         degrees: f64,
     },
-    Scale(f64),
+    /// Scaling about the origin by factors along x, y and z (all equal for `scale(e, s)`).
+    Scale([f64; 3]),
 }
 
 /// A parsed expression whose model files are not read yet.
@@ -124,7 +126,8 @@ impl fmt::Display for Syntax {
                     Op::Offset(d) => write!(f, "offset({list},{d:?})"),
                     Op::Translate(t) => write!(f, "translate({list},{})", nums(t)),
                     Op::Rotate { axis, degrees } => write!(f, "rotate({list},{},{degrees:?})", nums(axis)),
-                    Op::Scale(s) => write!(f, "scale({list},{s:?})"),
+                    Op::Scale(s) if s[0] == s[1] && s[1] == s[2] => write!(f, "scale({list},{:?})", s[0]),
+                    Op::Scale(s) => write!(f, "scale({list},{})", nums(s)),
                 }
             }
         }
@@ -413,12 +416,14 @@ impl Parser<'_> {
                 Op::Rotate { axis: [v[0] / len, v[1] / len, v[2] / len], degrees: v[3] }
             }
             "scale" => {
-                arity(2, "an expression and a factor")?;
-                let s = numbers(1)?[0];
-                if !(s > 0.0) {
-                    return Err(self.error_at(args[1].1, "the scale factor must be positive"));
+                if n != 4 {
+                    arity(2, "an expression and a factor s, or factors sx, sy, sz")?;
                 }
-                Op::Scale(s)
+                let v = numbers(1)?;
+                if let Some(i) = v.iter().position(|s| !(*s > 0.0)) {
+                    return Err(self.error_at(args[1 + i].1, "a scale factor must be positive"));
+                }
+                Op::Scale(if n == 2 { [v[0]; 3] } else { [v[0], v[1], v[2]] })
             }
             _ => {
                 return Err(
@@ -452,6 +457,7 @@ mod tests {
             "union(a.model.h5,b.model.h5,ball:0.0,0.0,0.0,1.0)",
             "blend_union(a.model.h5,complement(b.model.h5),0.1,0.5,0.5)",
             "offset(translate(scale(a.model.h5,2.0),1.0,-2.0,3.0),0.25)",
+            "scale(a.model.h5,1.0,2.0,0.5)",
             "carrier(dir/a.model.h5,union(ball:0.0,0.0,0.0,1.0,ball:2.0,0.0,0.0,1.0))",
             "difference(ellipsoid:0.0,0.0,0.0,1.0,2.0,3.0,-1.5)",
         ] {
@@ -478,6 +484,8 @@ mod tests {
             ("offset(a.model.h5,x)", 19, "expected a number"),
             ("offset(a.model.h5,1", 20, "expected ',' or ')'"),
             ("scale(a.model.h5,-1)", 18, "positive"),
+            ("scale(a.model.h5,1,0,2)", 20, "positive"),
+            ("scale(a.model.h5,1,2)", 1, "factors sx, sy, sz"),
             ("ball:0,0,1", 11, "expected ','"),
             ("ball:0,0,0,-1", 1, "radius"),
             ("carrier(a.model.h5,cube)", 20, "cube"),
