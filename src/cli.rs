@@ -9,6 +9,7 @@ use clap::{Args, Parser, Subcommand};
 use crate::contour::planes::PlaneFamily;
 use crate::contour::{Interp, Orient, SectionCarrier};
 use crate::error::{Error, Result};
+use crate::frep::Syntax;
 use crate::grid::{parse_bounds, GridSize};
 use crate::linalg::dist::SolverKind;
 use crate::spline::{Carrier, Kernel};
@@ -30,8 +31,13 @@ pub enum Command {
     /// Fit a volume spline to scattered points; write PREFIX.model.h5, PREFIX.hdf (VTKHDF volume of
     /// f for ParaView) and PREFIX.ply (the surface f = 0).
     Fit(FitArgs),
-    /// Evaluate a saved model on a new grid without solving again; write PREFIX.hdf and PREFIX.ply.
+    /// Evaluate a saved model, or an FRep expression over models and carriers (README.md,
+    /// "Expressions"), on a grid without solving again; write PREFIX.hdf and PREFIX.ply.
     Eval(EvalArgs),
+    /// Metamorphosis of solid A into solid B (models or expressions): K frames of
+    /// (1-t) fA + t fB, each PREFIX_NNN.hdf and PREFIX_NNN.ply, and PREFIX.hdf.series, the time
+    /// series ParaView opens as one animated dataset.
+    Morph(MorphArgs),
     /// Reconstruct a solid from planar cross-sections (a contour file, see README.md): one 2D
     /// spline per slice, interpolated between slices; write PREFIX.model.h5, PREFIX.hdf, PREFIX.ply.
     Contours(ContoursArgs),
@@ -119,12 +125,44 @@ pub enum SparseSolver {
 
 #[derive(Debug, Args)]
 pub struct EvalArgs {
-    /// A model written by `volspline fit` or `volspline contours` (PREFIX.model.h5).
-    pub model: PathBuf,
+    /// A model written by `volspline fit` or `volspline contours` (PREFIX.model.h5), or an FRep
+    /// expression over models, carriers and numbers, e.g.
+    /// 'blend_union(a.model.h5, translate(b.model.h5, 1,0,0), 0.1, 0.2, 0.2)'. Operations: union,
+    /// intersection, difference, complement, blend_union, blend_intersection (e1, e2, a0, a1, a2),
+    /// offset(e, d), translate(e, dx,dy,dz), rotate(e, ax,ay,az, degrees), scale(e, s),
+    /// carrier(MODEL, SPEC). Operands are compared in length units (README.md, "Expressions").
+    #[arg(value_name = "MODEL|EXPR", value_parser = with(Syntax::parse))]
+    pub model: Syntax,
     /// Output prefix: writes PREFIX.hdf, PREFIX.ply.
     #[arg(long, value_name = "PREFIX")]
     pub out: PathBuf,
     /// Box to evaluate: xmin,ymin,zmin,xmax,ymax,zmax (default: the data's box plus --margin).
+    #[arg(long, value_name = "BOX", allow_hyphen_values = true, value_parser = with(parse_bounds))]
+    pub bounds: Option<([f64; 3], [f64; 3])>,
+    #[command(flatten)]
+    pub grid: GridArgs,
+}
+
+#[derive(Debug, Args)]
+pub struct MorphArgs {
+    /// The solid at t = 0: a model file or an expression (as for `eval`).
+    #[arg(value_name = "A", value_parser = with(Syntax::parse))]
+    pub a: Syntax,
+    /// The solid at t = 1.
+    #[arg(value_name = "B", value_parser = with(Syntax::parse))]
+    pub b: Syntax,
+    /// Output prefix: writes PREFIX_000.hdf, PREFIX_000.ply, ... and PREFIX.hdf.series.
+    #[arg(long, value_name = "PREFIX")]
+    pub out: PathBuf,
+    /// Number of frames K, at t = 0, 1/(K-1), ..., 1.
+    #[arg(long, default_value = "10", value_name = "K", value_parser = frames)]
+    pub frames: usize,
+    /// Point pairs `x y z x' y' z'` per line (at least 4, not all on one plane): the feature of A
+    /// at (x,y,z) travels to the feature of B at (x',y',z') along a volume-spline space mapping.
+    #[arg(long, value_name = "FILE")]
+    pub pairs: Option<PathBuf>,
+    /// Box to evaluate: xmin,ymin,zmin,xmax,ymax,zmax (default: the box of both solids' data plus
+    /// --margin).
     #[arg(long, value_name = "BOX", allow_hyphen_values = true, value_parser = with(parse_bounds))]
     pub bounds: Option<([f64; 3], [f64; 3])>,
     #[command(flatten)]
@@ -198,6 +236,7 @@ impl Cli {
         match &self.command {
             Command::Fit(a) => a.grid.threads,
             Command::Eval(a) => a.grid.threads,
+            Command::Morph(a) => a.grid.threads,
             Command::Contours(a) => a.grid.threads,
             Command::Slice(_) => 1,
         }
@@ -324,6 +363,16 @@ fn threads(s: &str) -> Parsed<usize> {
     }
 }
 
+/// Most frames of a metamorphosis.
+pub const MAX_FRAMES: usize = 1000;
+
+fn frames(s: &str) -> Parsed<usize> {
+    match s.trim().parse::<usize>() {
+        Ok(k) if (2..=MAX_FRAMES).contains(&k) => Ok(k),
+        _ => Err(format!("'{s}': expected a frame count in 2..={MAX_FRAMES}")),
+    }
+}
+
 fn margin(s: &str) -> Parsed<f64> {
     number_in(s, 0.0..=10.0, "[0, 10]")
 }
@@ -370,6 +419,8 @@ mod tests {
             &["fit", "a.xyz", "--out", "o", "--method", "sparse"],
             &["fit", "a.xyz", "--out", "o", "--support", "0"],
             &["fit", "a.xyz", "--out", "o", "--leaf", "0"],
+            &["eval", "union(a.model.h5,", "--out", "o"],
+            &["morph", "a.model.h5", "b.model.h5", "--out", "o", "--frames", "1"],
         ] {
             let e = parse(bad).unwrap_err();
             assert_eq!(e.exit_code(), 2, "{bad:?}");

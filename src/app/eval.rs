@@ -1,13 +1,18 @@
-//! `volspline eval`: a saved model (scattered-point or contour) evaluated on a new grid, without
-//! solving again. Every rank reads the small model file itself and all agree on the outcome.
+//! `volspline eval`: a saved model (scattered-point or contour), or an FRep expression over models
+//! and carriers ([`crate::frep::expr`]), evaluated on a new grid, without solving again. Every rank
+//! reads the small model files itself and all agree on the outcome.
 
 use super::finite::check_grid_field;
 use super::preflight::check_prefix;
 use super::report::Report;
 use super::stages::{Stage, Stages};
-use super::volume::{check_grid, model_grid, throughput_line, write_volume};
+use std::path::Path;
+
+use super::volume::{check_grid, model_grid, throughput_line, write_volume, VolumeSummary};
 use crate::cli::EvalArgs;
-use crate::error::Result;
+use crate::error::{Error, Result};
+use crate::frep::Expr;
+use crate::grid::{padded_box, Grid};
 use crate::io::contour_model_file::{self, read_contour_model};
 use crate::io::h5::format_of;
 use crate::io::model_file::read_model;
@@ -17,13 +22,17 @@ use crate::par::{agree, Comm};
 pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
     check_prefix(comm, &a.out)?;
+    let text = a.model.to_string();
+    let mut r = Report::new("eval", Path::new(&text));
+    r.figure("model", &text);
+    let Some(path) = a.model.as_model() else {
+        return expression(a, comm, threads, r, stages);
+    };
     // an unreadable file is left to the scattered-point reader to report
-    let is_contour = format_of(&a.model).is_ok_and(|f| f == contour_model_file::FORMAT);
-    let mut r = Report::new("eval", &a.model);
-    r.figure("model", a.model.display());
+    let is_contour = format_of(path).is_ok_and(|f| f == contour_model_file::FORMAT);
     let per_node;
     let volume = if is_contour {
-        let model = stages.time(Stage::Read, || agree(comm, read_contour_model(&a.model)))?;
+        let model = stages.time(Stage::Read, || agree(comm, read_contour_model(path)))?;
         let grid = model_grid(a.grid.grid, a.bounds, a.grid.margin, &model.provenance)?;
         check_grid(comm, &grid)?;
         check_grid_field(comm, &model, &grid)?;
@@ -40,7 +49,7 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         per_node = 0;
         volume
     } else {
-        let model = stages.time(Stage::Read, || agree(comm, read_model(&a.model)))?;
+        let model = stages.time(Stage::Read, || agree(comm, read_model(path)))?;
         let grid = model_grid(a.grid.grid, a.bounds, a.grid.margin, &model.provenance)?;
         check_grid(comm, &grid)?;
         check_grid_field(comm, &model, &grid)?;
@@ -52,6 +61,48 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         r.figure("kernel_evals", grid.node_count() as f64 * per_node as f64);
         volume
     };
+    finish(a, comm, threads, r, stages, volume, per_node)
+}
+
+/// An expression: its models read (every rank), evaluated on the box of its data plus the margin
+/// (or `--bounds`). Collective.
+fn expression(
+    a: &EvalArgs,
+    comm: &dyn Comm,
+    threads: usize,
+    mut r: Report,
+    mut stages: Stages,
+) -> Result<()> {
+    let expr = stages.time(Stage::Read, || agree(comm, Expr::load(&a.model)))?;
+    let (lo, hi) = match (a.bounds, expr.domain()) {
+        (Some(b), _) => b,
+        (None, Some((lo, hi))) => padded_box(&lo, &hi, a.grid.margin),
+        (None, None) => {
+            return Err(Error::Usage(format!(
+                "the expression '{}' has no model or carrier to take a box from: give --bounds",
+                a.model
+            )))
+        }
+    };
+    let grid = Grid::covering(lo, hi, a.grid.grid)?;
+    check_grid(comm, &grid)?;
+    check_grid_field(comm, &expr, &grid)?;
+    let volume = write_volume(comm, &expr, &grid, &a.out, &mut stages)?;
+    r.line(format!("expression {}: {} kernel evaluations per node", a.model, volume.evals_per_node));
+    let per_node = volume.evals_per_node;
+    r.figure("kernel_evals", grid.node_count() as f64 * per_node as f64);
+    finish(a, comm, threads, r, stages, volume, per_node)
+}
+
+fn finish(
+    a: &EvalArgs,
+    comm: &dyn Comm,
+    threads: usize,
+    mut r: Report,
+    stages: Stages,
+    volume: VolumeSummary,
+    per_node: usize,
+) -> Result<()> {
     r.line(format!("ranks = {}, threads per rank = {threads}", comm.size()));
     r.figure("ranks", comm.size());
     r.figure("threads", threads);

@@ -1,4 +1,4 @@
-//! The commands: one file each ([`fit`], [`eval`], [`contours`], [`slice`](mod@slice)), the checks
+//! The commands: one file each ([`fit`], [`eval`], [`contours`], [`morph`], [`slice`](mod@slice)), the checks
 //! made before heavy work ([`preflight`]), the volume outputs they share ([`volume`]), their report
 //! ([`report`], [`stages`], [`progress`]) and the encodings of what they send between ranks
 //! (`wire`). A command takes its typed arguments from `cli` and a communicator; everything it
@@ -8,6 +8,7 @@ pub mod contours;
 pub mod eval;
 pub mod finite;
 pub mod fit;
+pub mod morph;
 pub mod preflight;
 pub mod progress;
 pub mod report;
@@ -33,6 +34,7 @@ pub fn run(command: &Command, comm: &dyn Comm, threads: usize) -> Result<()> {
         Command::Fit(a) => fit::run(a, comm, threads),
         Command::Eval(a) => eval::run(a, comm, threads),
         Command::Contours(a) => contours::run(a, comm, threads),
+        Command::Morph(a) => morph::run(a, comm, threads),
         Command::Slice(a) => slice::run(a, comm),
     };
     match result {

@@ -5,11 +5,19 @@
 //!
 //! Must not touch ranks or files: callers distribute the points they evaluate.
 
+pub mod expr;
+pub mod geom;
+pub mod morph;
+pub mod parse;
+
+pub use expr::Expr;
+pub use parse::Syntax;
+
 use crate::spline::Model;
 
 /// Step of the central differences of the default derivatives, relative to the size of the
 /// solid's box (small enough for second-order accuracy, large enough to stay above rounding).
-const DIFF_STEP: f64 = 1e-5;
+pub(crate) const DIFF_STEP: f64 = 1e-5;
 
 /// A solid f(x) >= 0 inside, f = 0 on its surface, f < 0 outside, in the caller's coordinates.
 pub trait Implicit: Sync {

@@ -1,0 +1,135 @@
+//! `volspline morph`: the metamorphosis of solid A into solid B ([`crate::frep::morph`]) as K
+//! frames, each a VTKHDF volume and a PLY mesh, and a ParaView file series that lists the volumes
+//! with their times, so ParaView opens them as one animated dataset.
+//!
+//! ParaView's JSON file series is a file named after the files it lists plus `.series`
+//! (`PREFIX.hdf.series`: the extension before `.series` picks the reader):
+//!
+//! ```text
+//! {"file-series-version": "1.0", "files": [{"name": "PREFIX_000.hdf", "time": 0.0}, ...]}
+//! ```
+//!
+//! with names relative to the series file's folder. Every output is staged and renamed into place
+//! only when all frames succeeded.
+
+use std::path::{Path, PathBuf};
+
+use super::finite::check_grid_field;
+use super::preflight::check_prefix;
+use super::report::Report;
+use super::stages::{Stage, Stages};
+use super::volume::{check_grid, output_path, throughput_line, write_volume};
+use crate::cli::MorphArgs;
+use crate::error::{Error, Result};
+use crate::frep::expr::{hull, Expr};
+use crate::frep::morph::{read_pairs, Morph, SlabCache};
+use crate::grid::{padded_box, Grid};
+use crate::io;
+use crate::par::{agree, on_root, Comm};
+
+/// The prefix of frame `k`: PREFIX_NNN (three digits at least).
+pub fn frame_prefix(prefix: &Path, k: usize) -> PathBuf {
+    output_path(prefix, &format!("_{k:03}"))
+}
+
+/// The series file's text for the volumes `names` at `times`.
+pub fn series_json(names: &[String], times: &[f64]) -> String {
+    let files: Vec<String> = names
+        .iter()
+        .zip(times)
+        .map(|(n, t)| {
+            format!("    {{\"name\": \"{}\", \"time\": {t:?}}}", n.replace('\\', "\\\\").replace('"', "\\\""))
+        })
+        .collect();
+    format!("{{\n  \"file-series-version\": \"1.0\",\n  \"files\": [\n{}\n  ]\n}}\n", files.join(",\n"))
+}
+
+/// Runs `volspline morph`. Collective.
+pub fn run(a: &MorphArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
+    let mut stages = Stages::default();
+    check_prefix(comm, &a.out)?;
+    let subject = format!("{} -> {}", a.a, a.b);
+    let mut r = Report::new("morph", Path::new(&subject));
+    let (ea, eb) = stages
+        .time(Stage::Read, || agree(comm, Expr::load(&a.a).and_then(|x| Ok((x, Expr::load(&a.b)?)))))?;
+    let pairs = match &a.pairs {
+        Some(p) => Some(stages.time(Stage::Read, || agree(comm, read_pairs(p)))?),
+        None => None,
+    };
+    let (lo, hi) = match (a.bounds, ea.domain(), eb.domain()) {
+        (Some(b), ..) => b,
+        (None, da, db) => match [da, db].into_iter().flatten().reduce(hull) {
+            Some((lo, hi)) => padded_box(&lo, &hi, a.grid.margin),
+            None => {
+                return Err(Error::Usage(
+                    "neither solid has a model or carrier to take a box from: give --bounds".into(),
+                ))
+            }
+        },
+    };
+    let grid = Grid::covering(lo, hi, a.grid.grid)?;
+    check_grid(comm, &grid)?;
+
+    let k = a.frames;
+    let times: Vec<f64> = (0..k).map(|i| i as f64 / (k - 1) as f64).collect();
+    let mut names = Vec::with_capacity(k);
+    let mut per_node = 0;
+    let mut triangles = Vec::with_capacity(k);
+    let cache = SlabCache::default();
+    for (i, &t) in times.iter().enumerate() {
+        let frame = agree(comm, Morph::new(&ea, &eb, t, pairs.as_deref()))?.with_cache(&cache);
+        if i == 0 {
+            check_grid_field(comm, &frame, &grid)?;
+        }
+        let prefix = frame_prefix(&a.out, i);
+        let v = write_volume(comm, &frame, &grid, &prefix, &mut stages)?;
+        per_node = per_node.max(v.evals_per_node);
+        triangles.push(v.triangles);
+        let name = v.hdf_path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        names.push(name);
+        r.output(&v.hdf_path);
+        r.output(&v.ply_path);
+    }
+    let series = output_path(&a.out, ".hdf.series");
+    let json = series_json(&names, &times);
+    on_root(comm, || {
+        io::write_atomically(&series, |tmp| std::fs::write(tmp, &json).map_err(|e| Error::io(tmp, &e)))
+    })?;
+    r.output(&series);
+
+    let [nx, ny, nz] = grid.dims;
+    r.line(format!(
+        "{k} frames on a {nx} x {ny} x {nz} grid{}; triangles per frame: {:?}",
+        if pairs.is_some() { ", controlled by point pairs" } else { "" },
+        triangles
+    ));
+    r.line(format!("ranks = {}, threads per rank = {threads}", comm.size()));
+    r.figure("frames", k);
+    r.figure("grid_nodes", grid.node_count());
+    r.figure("ranks", comm.size());
+    r.figure("threads", threads);
+    let nodes = grid.node_count() * k;
+    r.finish(
+        comm,
+        &stages,
+        &|t| throughput_line(nodes, per_node, t.max(Stage::Evaluate)),
+        a.grid.timings.as_deref(),
+    )?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_series_lists_every_frame_with_its_time_as_json() {
+        let s = series_json(&["m_000.hdf".into(), "m_001.hdf".into()], &[0.0, 1.0]);
+        assert_eq!(
+            s,
+            "{\n  \"file-series-version\": \"1.0\",\n  \"files\": [\n    {\"name\": \"m_000.hdf\", \"time\": 0.0},\n    \
+             {\"name\": \"m_001.hdf\", \"time\": 1.0}\n  ]\n}\n"
+        );
+        assert_eq!(frame_prefix(Path::new("out/m"), 7), PathBuf::from("out/m_007"));
+    }
+}

@@ -1,0 +1,319 @@
+//! Metamorphosis between two solids A and B, optionally controlled by a space mapping through
+//! user-given point pairs (Savchenko, Pasko, Sourin and Kunii's metamorphosis through space
+//! mappings).
+//!
+//! # The common frame and the frames in time
+//!
+//! Both solids are taken in world coordinates, where they were fitted (or where the expressions
+//! A and B put them: `translate`, `rotate` and `scale` align solids that were scanned apart). Their
+//! values are made comparable by their units (see [`crate::frep::expr`]: f / u is near the surface
+//! the signed distance in length units). Frame t in [0, 1] is
+//!
+//! ```text
+//! f_t(x) = u_t ((1 - t) f_A(M_A,t(x)) / u_A + t f_B(M_B,t(x)) / u_B),     u_t = (1 - t) u_A + t u_B,
+//! ```
+//!
+//! so f_0 = f_A and f_1 = f_B exactly (the first and last frames are the two solids' own volumes,
+//! taken as they are) and in between the surfaces move over comparable distances. Without point
+//! pairs both maps M are the identity. Such a plain blend of two distance-like functions shrinks
+//! where the solids do not overlap: half-way between a solid and its copy moved by v it is thinner
+//! than the solid moved by v/2 (for a convex solid the distance inside is concave, so the mean of
+//! the two distances is at most the distance to the half-way copy). Point pairs that follow the
+//! motion remove the shrinking.
+//!
+//! # Controlled metamorphosis
+//!
+//! Pairs (p_i, p'_i), i = 1..n, say that the feature of A at p_i becomes the feature of B at p'_i.
+//! At time t the pair is at q_i(t) = (1 - t) p_i + t p'_i. A point x of frame t is looked up in A
+//! at M_A,t(x) and in B at M_B,t(x), where the maps are volume splines through the pairs' positions:
+//!
+//! ```text
+//! M_A,t(x) = x + D_A,t(x),   D_A,t(q_i(t)) = p_i  - q_i(t)  = t (p_i - p'_i)
+//! M_B,t(x) = x + D_B,t(x),   D_B,t(q_i(t)) = p'_i - q_i(t)  = (1 - t) (p'_i - p_i)
+//! ```
+//!
+//! Each component of a displacement D is the spline of least bending energy with the kernel r
+//! and a linear polynomial, D(x) = sum_i mu_i |x - q_i| + c_0 + c . x with sum_i mu_i = 0 and
+//! sum_i mu_i q_i = 0 (the same bordered system as the solid's spline, solved here by the serial
+//! dense LU of [`crate::linalg::dense`] in the coordinates normalised to the pairs' box). So at time
+//! t the point q_i(t) shows A's p_i and B's p'_i: the features travel along straight lines from
+//! where A has them to where B has them, the rest of space follows smoothly, and far from the
+//! pairs the maps tend to affine maps. At t = 0 D_A vanishes (A is seen as it is), at t = 1 D_B
+//! does. The spline needs at least four pairs whose positions q_i(t) are distinct and not all on
+//! one plane.
+
+use std::path::Path;
+use std::sync::{Arc, Mutex};
+
+use faer::MatRef;
+use rayon::prelude::*;
+
+use super::expr::Expr;
+use super::Implicit;
+use crate::error::{Error, Result};
+use crate::grid::Grid;
+use crate::linalg::dense::{lu_solve, relative_residual};
+use crate::spline::hygiene::{bounding_box, check_unisolvent};
+use crate::spline::{full_system, Field, Kernel, Normalisation, Spline};
+
+/// Most point pairs (the displacement systems are dense and solved on one process per frame).
+pub const MAX_PAIRS: usize = 2000;
+
+/// A point pair (p, p').
+pub type Pair = ([f64; 3], [f64; 3]);
+
+/// Reads point pairs `x y z x' y' z'`, one per line; blank lines and `#` comments are skipped.
+pub fn read_pairs(path: &Path) -> Result<Vec<Pair>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, &e))?;
+    let mut pairs = Vec::new();
+    for (no, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("").trim();
+        if line.is_empty() {
+            continue;
+        }
+        let at = format!("line {}", no + 1);
+        let v: Vec<f64> = line
+            .split(|c: char| c.is_whitespace() || c == ',')
+            .filter(|t| !t.is_empty())
+            .map(|t| t.parse::<f64>().ok().filter(|v| v.is_finite()))
+            .collect::<Option<_>>()
+            .ok_or_else(|| Error::input(path, &at, "expected six finite numbers x y z x' y' z'"))?;
+        if v.len() != 6 {
+            return Err(Error::input(
+                path,
+                &at,
+                format!("expected six numbers x y z x' y' z', found {}", v.len()),
+            ));
+        }
+        pairs.push(([v[0], v[1], v[2]], [v[3], v[4], v[5]]));
+    }
+    if pairs.len() < 4 || pairs.len() > MAX_PAIRS {
+        return Err(Error::input(
+            path,
+            "",
+            format!("{} point pairs: a space mapping needs 4 to {MAX_PAIRS} pairs", pairs.len()),
+        ));
+    }
+    Ok(pairs)
+}
+
+/// x -> x + D(x), D a volume spline (kernel r, linear polynomial) per component.
+#[derive(Debug, Clone)]
+pub struct SpaceMap {
+    d: [Spline; 3],
+}
+
+impl SpaceMap {
+    /// The map with D(from_i) = to_i - from_i.
+    pub fn through(from: &[[f64; 3]], to: &[[f64; 3]]) -> Result<SpaceMap> {
+        let kernel = Kernel::new(3, 2)?;
+        let flat: Vec<f64> = from.iter().flatten().copied().collect();
+        let (lo, hi) = bounding_box(&flat, 3);
+        let norm = Normalisation::of_box(&lo, &hi);
+        let mut centres = vec![0.0; flat.len()];
+        for (c, p) in centres.chunks_exact_mut(3).zip(flat.chunks_exact(3)) {
+            norm.apply(p, c);
+        }
+        let why = "the pair points of a space mapping must be distinct and not all on one plane";
+        check_unisolvent(&kernel, &centres).map_err(|e| Error::Numerical(format!("{why}: {e}")))?;
+        let solve = |d: usize| -> Result<Spline> {
+            let values: Vec<f64> = from.iter().zip(to).map(|(a, b)| b[d] - a[d]).collect();
+            let (m, b) = full_system(&kernel, &centres, &values);
+            let n = b.len();
+            let mat = MatRef::from_column_major_slice(&m, n, n);
+            let x = lu_solve(mat, &b).map_err(|e| Error::Numerical(format!("{why}: {e}")))?;
+            if !(relative_residual(mat, &x, &b) < 1e-8) {
+                return Err(Error::Numerical(format!("{why} (the displacement system is singular)")));
+            }
+            Ok(Spline::from_solution(kernel, centres.clone(), &x, norm))
+        };
+        Ok(SpaceMap { d: [solve(0)?, solve(1)?, solve(2)?] })
+    }
+
+    pub fn apply(&self, x: [f64; 3]) -> [f64; 3] {
+        [0, 1, 2].map(|k| x[k] + self.d[k].eval(&x))
+    }
+}
+
+/// The values of A and B on the slabs a rank evaluates, kept from frame to frame (without point
+/// pairs they do not depend on t, so every frame after the first costs no model evaluation).
+#[derive(Default)]
+pub struct SlabCache {
+    slabs: Mutex<Vec<Slab>>,
+}
+
+/// A and B (each once computed) on layers k0..k0+layers of a grid.
+struct Slab {
+    grid: Grid,
+    k0: usize,
+    layers: usize,
+    values: [Option<Arc<Vec<f64>>>; 2],
+}
+
+impl SlabCache {
+    /// The values of `e` (A for `which` 0, B for 1) on the layers, computed on first use.
+    fn get(&self, which: usize, e: &Expr, grid: &Grid, k0: usize, layers: usize) -> Arc<Vec<f64>> {
+        let known = |s: &Slab| s.grid == *grid && s.k0 == k0 && s.layers == layers;
+        if let Some(v) = self.lock().iter().find(|s| known(s)).and_then(|s| s.values[which].clone()) {
+            return v;
+        }
+        // evaluated outside the lock: the evaluation itself runs on the thread pool
+        let v = Arc::new(e.layers(grid, k0, layers));
+        let mut slabs = self.lock();
+        match slabs.iter_mut().find(|s| known(s)) {
+            Some(s) => s.values[which] = Some(v.clone()),
+            None => {
+                let mut values = [None, None];
+                values[which] = Some(v.clone());
+                slabs.push(Slab { grid: *grid, k0, layers, values });
+            }
+        }
+        v
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Vec<Slab>> {
+        self.slabs.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+/// Frame t of the metamorphosis of A into B (see the module doc).
+pub struct Morph<'a> {
+    a: &'a Expr,
+    b: &'a Expr,
+    t: f64,
+    maps: Option<(SpaceMap, SpaceMap)>,
+    cache: Option<&'a SlabCache>,
+}
+
+impl<'a> Morph<'a> {
+    /// Frame `t` in [0, 1], controlled by `pairs` when given.
+    pub fn new(a: &'a Expr, b: &'a Expr, t: f64, pairs: Option<&[Pair]>) -> Result<Self> {
+        let maps = match pairs {
+            None => None,
+            Some(pairs) => {
+                let q: Vec<[f64; 3]> =
+                    pairs.iter().map(|(p, r)| [0, 1, 2].map(|d| (1.0 - t) * p[d] + t * r[d])).collect();
+                let pa: Vec<[f64; 3]> = pairs.iter().map(|x| x.0).collect();
+                let pb: Vec<[f64; 3]> = pairs.iter().map(|x| x.1).collect();
+                Some((SpaceMap::through(&q, &pa)?, SpaceMap::through(&q, &pb)?))
+            }
+        };
+        Ok(Morph { a, b, t, maps, cache: None })
+    }
+
+    /// Takes the values of A and B on the grid from `cache` (filled by the first frame that needs
+    /// them), for frames evaluated one after another on the same grid.
+    pub fn with_cache(mut self, cache: &'a SlabCache) -> Self {
+        self.cache = Some(cache);
+        self
+    }
+
+    /// A (`which` 0) or B (1) on the layers, through the cache when there is one.
+    fn solid(&self, which: usize, grid: &Grid, k0: usize, layers: usize) -> Arc<Vec<f64>> {
+        let e = if which == 0 { self.a } else { self.b };
+        match self.cache {
+            Some(c) => c.get(which, e, grid, k0, layers),
+            None => Arc::new(e.layers(grid, k0, layers)),
+        }
+    }
+
+    /// u_t (1 - t) a / u_A + u_t t b / u_B for the values a of A and b of B; exactly a at t = 0 and
+    /// b at t = 1.
+    fn mix(&self, a: f64, b: f64) -> f64 {
+        let t = self.t;
+        if t == 0.0 {
+            return a;
+        }
+        if t == 1.0 {
+            return b;
+        }
+        let (ua, ub) = (self.a.unit(), self.b.unit());
+        ((1.0 - t) * ua + t * ub) * ((1.0 - t) * a / ua + t * b / ub)
+    }
+}
+
+impl Implicit for Morph<'_> {
+    fn value(&self, p: [f64; 3]) -> f64 {
+        match &self.maps {
+            None => self.mix(self.a.value(p), self.b.value(p)),
+            Some((ma, mb)) => {
+                let a = if self.t == 1.0 { 0.0 } else { self.a.value(ma.apply(p)) };
+                let b = if self.t == 0.0 { 0.0 } else { self.b.value(mb.apply(p)) };
+                self.mix(a, b)
+            }
+        }
+    }
+
+    fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+        let (a, b) = (Implicit::bounds(self.a), Implicit::bounds(self.b));
+        super::expr::hull(a, b)
+    }
+}
+
+impl Field for Morph<'_> {
+    /// Without pairs A and B on the grid itself (the models' blocked evaluators, once for all
+    /// frames with a [`SlabCache`]); with pairs point by point through the maps. At t = 0 and t = 1
+    /// only the solid shown is evaluated.
+    fn eval_layers(&self, grid: &Grid, k0: usize, layers: usize) -> Vec<f64> {
+        if self.t == 0.0 {
+            return self.solid(0, grid, k0, layers).to_vec();
+        }
+        if self.t == 1.0 {
+            return self.solid(1, grid, k0, layers).to_vec();
+        }
+        match &self.maps {
+            None => {
+                let (a, b) = (self.solid(0, grid, k0, layers), self.solid(1, grid, k0, layers));
+                let mut out = a.to_vec();
+                out.par_iter_mut().zip(b.as_slice()).for_each(|(x, y)| *x = self.mix(*x, *y));
+                out
+            }
+            Some(_) => {
+                let [nx, ny, _] = grid.dims;
+                let mut out = vec![0.0; nx * ny * layers];
+                out.par_chunks_mut(nx.max(1)).enumerate().for_each(|(row, vals)| {
+                    let (j, k) = (row % ny, k0 + row / ny);
+                    for (i, v) in vals.iter_mut().enumerate() {
+                        *v = Implicit::value(self, grid.node(i, j, k));
+                    }
+                });
+                out
+            }
+        }
+    }
+
+    fn kernel_evals_per_node(&self) -> usize {
+        self.a.kernel_evals() + self.b.kernel_evals()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_space_map_takes_each_pair_point_to_its_partner_and_is_affine_for_affine_pairs() {
+        let from = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.3, 0.4, 0.5]];
+        let bend = |p: [f64; 3]| [p[0] + 0.2 * p[1] * p[1], p[1] - 0.1 * p[2], p[2] + 0.3 * p[0] * p[2]];
+        let to: Vec<[f64; 3]> = from.iter().map(|&p| bend(p)).collect();
+        let m = SpaceMap::through(&from, &to).unwrap();
+        for (p, q) in from.iter().zip(&to) {
+            let r = m.apply(*p);
+            for d in 0..3 {
+                assert!((r[d] - q[d]).abs() < 1e-12, "{p:?} -> {r:?}, want {q:?}");
+            }
+        }
+        // an affine motion of the pairs is reproduced everywhere (the linear part takes it exactly)
+        let affine = |p: [f64; 3]| [2.0 * p[0] + 0.5 * p[2] + 1.0, p[1] - p[0], 3.0 * p[2] - 2.0];
+        let to: Vec<[f64; 3]> = from.iter().map(|&p| affine(p)).collect();
+        let m = SpaceMap::through(&from, &to).unwrap();
+        let x = [2.5, -1.0, 4.0];
+        let (r, want) = (m.apply(x), affine(x));
+        for d in 0..3 {
+            assert!((r[d] - want[d]).abs() < 1e-9, "{r:?} != {want:?}");
+        }
+        // four points on one plane do not determine the linear part
+        let flat = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]];
+        assert!(SpaceMap::through(&flat, &flat).is_err());
+    }
+}
