@@ -7,6 +7,7 @@ use super::report::Report;
 use super::stages::{Stage, Stages};
 use super::volume::{check_grid, model_grid, throughput_line, write_volume};
 use crate::cli::EvalArgs;
+use crate::frep::{Implicit, ModelSolid};
 use crate::error::Result;
 use crate::io::contour_model_file::{self, read_contour_model};
 use crate::io::h5::format_of;
@@ -27,7 +28,8 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         let grid = model_grid(a.grid.grid, a.bounds, a.grid.margin, &model.provenance)?;
         check_grid(comm, &grid)?;
         check_grid_field(comm, &model, &grid)?;
-        let volume = write_volume(comm, &model, &grid, &a.out, &mut stages)?;
+        let curvature = a.grid.curvature.then_some(&model as &dyn Implicit);
+        let volume = write_volume(comm, &model, curvature, &grid, &a.out, &mut stages)?;
         r.line(format!(
             "contour model: {} slices, N = {} centres, interp {}, orient {}",
             model.sections.len(),
@@ -44,7 +46,9 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         let grid = model_grid(a.grid.grid, a.bounds, a.grid.margin, &model.provenance)?;
         check_grid(comm, &grid)?;
         check_grid_field(comm, &model, &grid)?;
-        let volume = write_volume(comm, &model, &grid, &a.out, &mut stages)?;
+        let solid = a.grid.curvature.then(|| ModelSolid::new(model.clone()));
+        let curvature = solid.as_ref().map(|s| s as &dyn Implicit);
+        let volume = write_volume(comm, &model, curvature, &grid, &a.out, &mut stages)?;
         let n = model.spline.len();
         r.line(format!("N = {n} centres, kernel {}, carrier {}", model.spline.kernel.name(), model.carrier));
         r.figure("points", n);

@@ -1,4 +1,4 @@
-//! The commands: one file each ([`fit`], [`eval`], [`contours`], [`slice`](mod@slice)), the checks
+//! The commands: one file each ([`fit`], [`eval`], [`contours`], [`slice`](mod@slice), [`render`]), the checks
 //! made before heavy work ([`preflight`]), the volume outputs they share ([`volume`]), their report
 //! ([`report`], [`stages`], [`progress`]) and the encodings of what they send between ranks
 //! (`wire`). A command takes its typed arguments from `cli` and a communicator; everything it
@@ -10,6 +10,7 @@ pub mod finite;
 pub mod fit;
 pub mod preflight;
 pub mod progress;
+pub mod render;
 pub mod report;
 pub mod slice;
 pub mod stages;
@@ -34,6 +35,7 @@ pub fn run(command: &Command, comm: &dyn Comm, threads: usize) -> Result<()> {
         Command::Eval(a) => eval::run(a, comm, threads),
         Command::Contours(a) => contours::run(a, comm, threads),
         Command::Slice(a) => slice::run(a, comm),
+        Command::Render(a) => render::run(a, comm, threads),
     };
     match result {
         Ok(()) => {
