@@ -11,19 +11,20 @@
 //! the cell's bound is
 //!
 //! ```text
-//! L = SAFETY * max over the cell and its 26 neighbours of sqrt(s_x^2 + s_y^2 + s_z^2)
+//! S = sqrt(s_x^2 + s_y^2 + s_z^2),   L = SAFETY * S.
 //! ```
 //!
-//! (the neighbours, because a step of at most one cell width may leave the cell). A cell whose
-//! eight corners have the same sign and |f| > L h sqrt(3) / 2 at every corner (h the cell size)
-//! cannot hold the surface: every point of the cell is within h sqrt(3) / 2 of a corner. Rays
+//! A cell whose eight corners have the same sign and |f| > L h sqrt(3) / 2 at every corner (h
+//! the cell diagonal's sides) cannot hold the surface: every point of the cell is within
+//! h sqrt(3) / 2 of a corner. Rays
 //! cross such cells in one step, knowing the sign of f there without evaluating it. In the
 //! other cells the ray advances by s = |f| / L, but at least h / [`MIN_STEP_DIVISOR`] and at most
-//! h, evaluating f exactly at every sample. A sign change between two samples brackets the
-//! root; regula falsi with the Illinois modification (every third step a bisection) narrows it
-//! to 1e-5 h. The lower bound on the step is the one compromise: a part of the solid thinner
-//! than h / 8 along the ray, in a cell that may hold the surface, can be missed. The lattice is
-//! an estimate, not a proof: L is a sampled bound with a safety factor of 2.
+//! h, evaluating f exactly at every sample; L is here the largest over the cells such a step can
+//! reach (the cell and its neighbours on the side the ray is heading). A sign change between two
+//! samples brackets the root; regula falsi with the Illinois modification (every fourth step a
+//! bisection) narrows it to [`REFINE_TOLERANCE`] of the bracket. The lower bound on the step is the one compromise: a part of the solid thinner
+//! than h / 4 along the ray, in a cell that may hold the surface, can be missed. The lattice is
+//! an estimate, not a proof: L is a sampled bound with the safety factor [`SAFETY`].
 //!
 //! The surface is looked for only inside the bounds; a ray that starts inside the solid (where
 //! the solid reaches the bounds) is shown cut there.
@@ -42,9 +43,11 @@ use super::Implicit;
 /// Cells of the lattice along the longest side of the bounds.
 pub const LATTICE_CELLS: usize = 48;
 /// The factor on the sampled gradient bound.
-pub const SAFETY: f64 = 2.0;
+pub const SAFETY: f64 = 1.5;
 /// The smallest step is the cell size over this.
-pub const MIN_STEP_DIVISOR: f64 = 8.0;
+pub const MIN_STEP_DIVISOR: f64 = 4.0;
+/// The root is narrowed to this fraction of its first bracket (at most a cell wide).
+pub const REFINE_TOLERANCE: f64 = 1e-4;
 /// Vertical field of view in degrees.
 pub const FIELD_OF_VIEW: f64 = 30.0;
 
@@ -186,7 +189,8 @@ pub struct Lattice {
     /// Cells per axis.
     pub cells: [usize; 3],
     pub h: [f64; 3],
-    lipschitz: Vec<f64>,
+    /// The sampled gradient bound of each cell, without the safety factor.
+    slope: Vec<f64>,
     surface: Vec<bool>,
     inside: Vec<bool>,
 }
@@ -243,25 +247,10 @@ impl Lattice {
             }
         }
         let half_diag = 0.5 * (h[0] * h[0] + h[1] * h[1] + h[2] * h[2]).sqrt();
-        let mut lipschitz = vec![0.0; ncell];
-        for k in 0..cells[2] {
-            for j in 0..cells[1] {
-                for i in 0..cells[0] {
-                    let mut m = 0.0f64;
-                    for dk in k.saturating_sub(1)..(k + 2).min(cells[2]) {
-                        for dj in j.saturating_sub(1)..(j + 2).min(cells[1]) {
-                            for di in i.saturating_sub(1)..(i + 2).min(cells[0]) {
-                                m = m.max(slope[di + cells[0] * (dj + cells[1] * dk)]);
-                            }
-                        }
-                    }
-                    let c = i + cells[0] * (j + cells[1] * k);
-                    lipschitz[c] = SAFETY * m;
-                    surface[c] = surface[c] || !(min_abs[c] > lipschitz[c] * half_diag);
-                }
-            }
+        for c in 0..ncell {
+            surface[c] = surface[c] || !(min_abs[c] > SAFETY * slope[c] * half_diag);
         }
-        Lattice { lo, hi, cells, h, lipschitz, surface, inside }
+        Lattice { lo, hi, cells, h, slope, surface, inside }
     }
 
     fn cell_of(&self, x: [f64; 3]) -> ([usize; 3], usize) {
@@ -274,6 +263,35 @@ impl Lattice {
             }
         });
         (ijk, ijk[0] + self.cells[0] * (ijk[1] + self.cells[1] * ijk[2]))
+    }
+
+    /// How many cells may hold the surface.
+    pub fn surface_cells(&self) -> usize {
+        self.surface.iter().filter(|&&b| b).count()
+    }
+
+    /// SAFETY times the largest slope of the cells a step of at most one cell width from cell
+    /// `ijk` along `d` can reach: the cell and its neighbours on the side `d` points to.
+    fn lipschitz(&self, ijk: [usize; 3], d: [f64; 3]) -> f64 {
+        let span = |a: usize| {
+            let i = ijk[a];
+            if d[a] > 0.0 {
+                i..(i + 2).min(self.cells[a])
+            } else if d[a] < 0.0 {
+                i.saturating_sub(1)..i + 1
+            } else {
+                i..i + 1
+            }
+        };
+        let mut m = 0.0f64;
+        for k in span(2) {
+            for j in span(1) {
+                for i in span(0) {
+                    m = m.max(self.slope[i + self.cells[0] * (j + self.cells[1] * k)]);
+                }
+            }
+        }
+        SAFETY * m
     }
 
     fn min_h(&self) -> f64 {
@@ -312,7 +330,7 @@ pub fn first_root(solid: &dyn Implicit, lattice: &Lattice, o: [f64; 3], d: [f64;
         let (ijk, c) = lattice.cell_of(x);
         let (inside, f, next) = if lattice.surface[c] {
             let f = solid.value(x);
-            let step = (f.abs() / lattice.lipschitz[c]).clamp(h / MIN_STEP_DIVISOR, h);
+            let step = (f.abs() / lattice.lipschitz(ijk, d)).clamp(h / MIN_STEP_DIVISOR, h);
             (f >= 0.0, Some(f), t + if step.is_finite() { step } else { h / MIN_STEP_DIVISOR })
         } else {
             // across the cell in one step: to the nearest face it leaves through
@@ -354,14 +372,14 @@ fn refine(
     if (fa >= 0.0) == (fb >= 0.0) {
         return None;
     }
-    let tol = 1e-5 * (tb - ta).abs().max(f64::MIN_POSITIVE) + 1e-12 * ta.abs();
+    let tol = REFINE_TOLERANCE * (tb - ta).abs().max(f64::MIN_POSITIVE) + 1e-12 * ta.abs();
     let mut side = 0i8;
     for it in 0..100 {
         if (tb - ta).abs() <= tol {
             break;
         }
         let mut tc = (ta * fb - tb * fa) / (fb - fa);
-        if it % 3 == 2 || !(tc > ta.min(tb) && tc < ta.max(tb)) {
+        if it % 4 == 3 || !(tc > ta.min(tb) && tc < ta.max(tb)) {
             tc = 0.5 * (ta + tb);
         }
         let fc = solid.value(at(tc));
