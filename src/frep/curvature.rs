@@ -103,7 +103,7 @@ mod tests {
     fn a_torus_has_its_known_curvatures() {
         let t = Torus { big: 3.0, small: 1.0 };
         for v in [0.0f64, 0.7, 1.5, 2.4, std::f64::consts::PI, 4.0, 5.5] {
-            let u = 0.4;
+            let u = 0.4f64;
             let rho = t.big + t.small * v.cos();
             let p = [rho * u.cos(), rho * u.sin(), t.small * v.sin()];
             let c = curvature(&t, p);
