@@ -80,7 +80,23 @@ fn a_reconstructed_sphere_has_curvature_one_over_its_radius() {
     let out = dir.join("s");
     let out_s = out.to_str().unwrap();
     let carrier = "ellipsoid:0,0,0,3,2.5,2.2";
-    run_ok(2, &["fit", input.to_str().unwrap(), "--out", out_s, "--kernel", "r", "--carrier", carrier, "--grid", "32", "--curvature", "--no-preview"]);
+    run_ok(
+        2,
+        &[
+            "fit",
+            input.to_str().unwrap(),
+            "--out",
+            out_s,
+            "--kernel",
+            "r",
+            "--carrier",
+            carrier,
+            "--grid",
+            "32",
+            "--curvature",
+            "--no-preview",
+        ],
+    );
     let (pos, props) = ply_vertices(&dir.join("s.ply"), &["mean_curvature", "gaussian_curvature"]);
     assert!(pos.len() > 500);
     let mean = median(props[0].iter().map(|m| m * r).collect());
@@ -116,7 +132,23 @@ fn a_reconstructed_torus_has_its_known_curvatures() {
     let out = dir.join("t");
     // r^3 is C^2 (r has a cone at every centre); the carrier must not be a quadric for m = 3
     let carrier = "union(ball:-1,0,0,2.5,ball:1,0,0,2.5)";
-    run_ok(2, &["fit", input.to_str().unwrap(), "--out", out.to_str().unwrap(), "--kernel", "r3", "--carrier", carrier, "--grid", "40", "--curvature", "--no-preview"]);
+    run_ok(
+        2,
+        &[
+            "fit",
+            input.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--kernel",
+            "r3",
+            "--carrier",
+            carrier,
+            "--grid",
+            "40",
+            "--curvature",
+            "--no-preview",
+        ],
+    );
     // which side the reconstruction calls inside decides the sign of the mean curvature
     let model = read_model(&dir.join("t.model.h5")).unwrap();
     let side = model.eval(&[BIG, 0.0, 0.0]).signum();
@@ -141,9 +173,28 @@ fn analytic_derivatives_of_a_fit_match_finite_differences() {
     let dir = temp_dir("curv-derivs");
     let input = dir.join("torus.xyz");
     write_xyz(&input, &torus_points());
-    for (kernel, carrier) in [("r", "ball"), ("r3", "union(ball:-1,0,0,2.5,ball:1,0,0,2.5)"), ("wendland2", "ellipsoid:0,0,0,3,3,1.5")] {
+    for (kernel, carrier) in [
+        ("r", "ball"),
+        ("r3", "union(ball:-1,0,0,2.5,ball:1,0,0,2.5)"),
+        ("wendland2", "ellipsoid:0,0,0,3,3,1.5"),
+    ] {
         let out = dir.join(kernel);
-        run_ok(1, &["fit", input.to_str().unwrap(), "--out", out.to_str().unwrap(), "--kernel", kernel, "--carrier", carrier, "--grid", "12", "--no-preview"]);
+        run_ok(
+            1,
+            &[
+                "fit",
+                input.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "--kernel",
+                kernel,
+                "--carrier",
+                carrier,
+                "--grid",
+                "12",
+                "--no-preview",
+            ],
+        );
         let model = read_model(&dir.join(format!("{kernel}.model.h5"))).unwrap();
         let fast = ModelSolid::new(model.clone());
         /// the finite-difference defaults of the trait, for comparison
@@ -160,7 +211,11 @@ fn analytic_derivatives_of_a_fit_match_finite_differences() {
         let mut worst = (0.0f64, 0.0f64);
         for i in 0..40 {
             let a = 0.3 + i as f64 * 0.71;
-            let p = [(BIG + 0.8 * SMALL * a.cos()) * (1.3 * a).cos(), (BIG + 0.8 * SMALL * a.cos()) * (1.3 * a).sin(), 0.8 * SMALL * a.sin()];
+            let p = [
+                (BIG + 0.8 * SMALL * a.cos()) * (1.3 * a).cos(),
+                (BIG + 0.8 * SMALL * a.cos()) * (1.3 * a).sin(),
+                0.8 * SMALL * a.sin(),
+            ];
             let (g, h) = (fast.gradient(p), fast.hessian(p));
             let (gm, hm) = (model.gradient(p), model.hessian(p));
             let (gf, hf) = (plain.gradient(p), plain.hessian(p));
@@ -170,11 +225,17 @@ fn analytic_derivatives_of_a_fit_match_finite_differences() {
                 assert!((g[d] - gm[d]).abs() <= 1e-9 * gs, "{kernel}: fast and plain gradients differ");
                 worst.0 = worst.0.max((g[d] - gf[d]).abs() / gs);
                 for e in 0..3 {
-                    assert!((h[d][e] - hm[d][e]).abs() <= 1e-9 * hs, "{kernel}: fast and plain Hessians differ");
+                    assert!(
+                        (h[d][e] - hm[d][e]).abs() <= 1e-9 * hs,
+                        "{kernel}: fast and plain Hessians differ"
+                    );
                     worst.1 = worst.1.max((h[d][e] - hf[d][e]).abs() / hs);
                 }
             }
         }
-        assert!(worst.0 < 1e-6 && worst.1 < 1e-3, "{kernel}: relative differences to finite differences {worst:?}");
+        assert!(
+            worst.0 < 1e-6 && worst.1 < 1e-3,
+            "{kernel}: relative differences to finite differences {worst:?}"
+        );
     }
 }

@@ -51,7 +51,22 @@ fn a_rendered_sphere_covers_the_disc_its_radius_predicts() {
     assert!(prgb.chunks_exact(3).any(|c| c != BACKGROUND));
     let pic = dir.join("disc.png");
     let (w, h, distance) = (121usize, 101usize, 5.0f64);
-    let args = ["render", "s.model.h5", "--out", "disc.png", "--azimuth", "35", "--elevation", "-20", "--distance", "5", "--size", "121x101", "--up", "z"];
+    let args = [
+        "render",
+        "s.model.h5",
+        "--out",
+        "disc.png",
+        "--azimuth",
+        "35",
+        "--elevation",
+        "-20",
+        "--distance",
+        "5",
+        "--size",
+        "121x101",
+        "--up",
+        "z",
+    ];
     let mut full: Vec<String> = args.iter().map(|s| s.to_string()).collect();
     full[1] = dir.join("s.model.h5").to_string_lossy().into_owned();
     full[3] = pic.to_string_lossy().into_owned();
@@ -75,7 +90,11 @@ fn a_rendered_sphere_covers_the_disc_its_radius_predicts() {
                 rim += 1;
                 continue;
             }
-            assert_eq!(hit, rho < radius, "pixel ({i}, {j}) at {rho:.2} px from the centre, disc radius {radius:.2}");
+            assert_eq!(
+                hit,
+                rho < radius,
+                "pixel ({i}, {j}) at {rho:.2} px from the centre, disc radius {radius:.2}"
+            );
             inside += usize::from(hit);
         }
     }
@@ -88,19 +107,39 @@ fn pictures_are_the_same_on_one_two_and_three_ranks() {
     let input = dir.join("bunny.xyz");
     write_xyz(&input, &bunny_subset(8, 3));
     let prefix = dir.join("b");
-    run_ok(2, &["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--grid", "16", "--no-preview"]);
+    run_ok(
+        2,
+        &["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--grid", "16", "--no-preview"],
+    );
     assert!(!dir.join("b.png").exists(), "--no-preview wrote a preview");
     let model = dir.join("b.model.h5");
     for colour in ["shading", "curvature"] {
         let mut pictures = Vec::new();
         for ranks in [1, 2, 3] {
             let pic = dir.join(format!("{colour}{ranks}.png"));
-            run_ok(ranks, &["render", model.to_str().unwrap(), "--out", pic.to_str().unwrap(), "--size", "96x80", "--color", colour, "--azimuth", "-40"]);
+            run_ok(
+                ranks,
+                &[
+                    "render",
+                    model.to_str().unwrap(),
+                    "--out",
+                    pic.to_str().unwrap(),
+                    "--size",
+                    "96x80",
+                    "--color",
+                    colour,
+                    "--azimuth",
+                    "-40",
+                ],
+            );
             pictures.push(read_png(&pic));
         }
         let covered = pictures[0].2.chunks_exact(3).filter(|c| *c != BACKGROUND).count();
         assert!(covered > 96 * 80 / 10, "{colour}: the bunny covers only {covered} pixels");
-        assert!(pictures[1] == pictures[0] && pictures[2] == pictures[0], "{colour}: pictures differ between ranks");
+        assert!(
+            pictures[1] == pictures[0] && pictures[2] == pictures[0],
+            "{colour}: pictures differ between ranks"
+        );
     }
 }
 
@@ -124,9 +163,12 @@ fn bad_arguments_give_a_clear_error_and_no_file() {
         let text = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success(), "{args:?} succeeded");
         assert!(text.contains(says), "{args:?}: the error does not say '{says}':\n{text}");
-        assert!(std::fs::read_dir(&dir).unwrap().all(|e| {
-            let name = e.unwrap().file_name();
-            name == "garbage.model.h5"
-        }), "{args:?} left a file behind");
+        assert!(
+            std::fs::read_dir(&dir).unwrap().all(|e| {
+                let name = e.unwrap().file_name();
+                name == "garbage.model.h5"
+            }),
+            "{args:?} left a file behind"
+        );
     }
 }

@@ -5,17 +5,17 @@
 
 use std::path::Path;
 
-use super::render::{preview_view, write_picture};
 use super::preflight::check_prefix;
+use super::render::{preview_view, write_picture};
 use super::report::{run_provenance, Report};
 use super::stages::{Stage, Stages};
 use super::volume::{check_grid, output_path, write_volume};
-use crate::frep::raycast::Colouring;
-use crate::frep::Implicit;
 use crate::cli::ContoursArgs;
 use crate::contour::format::{self, Section};
 use crate::contour::{fit_section, ContourModel, SectionCarrier, SectionFit, SectionModel};
 use crate::error::{Error, Result};
+use crate::frep::raycast::Colouring;
+use crate::frep::Implicit;
 use crate::grid::{padded_box, Grid};
 use crate::io::{self, contour_model_file};
 use crate::par::{agree, on_root, Comm};

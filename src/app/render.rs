@@ -15,7 +15,9 @@ use super::stages::{Stage, Stages};
 use crate::cli::{RenderArgs, ViewArgs};
 use crate::error::{Error, Result};
 use crate::frep::curvature::curvature;
-use crate::frep::raycast::{first_root, pixel_colour, shade, Axis, Camera, Colouring, Lattice, View, BACKGROUND};
+use crate::frep::raycast::{
+    first_root, pixel_colour, shade, Axis, Camera, Colouring, Lattice, View, BACKGROUND,
+};
 use crate::frep::{Implicit, ModelSolid};
 use crate::io::contour_model_file::{self, read_contour_model};
 use crate::io::h5::format_of;
@@ -69,7 +71,12 @@ fn checked_bounds(solid: &dyn Implicit) -> Result<([f64; 3], [f64; 3])> {
 type Sample = [f64; 4];
 
 /// Ray-casts `solid` with `view`; the picture on rank 0, None elsewhere. Collective.
-pub fn render(comm: &dyn Comm, solid: &dyn Implicit, view: &View, colouring: Colouring) -> Result<Option<Picture>> {
+pub fn render(
+    comm: &dyn Comm,
+    solid: &dyn Implicit,
+    view: &View,
+    colouring: Colouring,
+) -> Result<Option<Picture>> {
     let bounds = agree(comm, checked_bounds(solid))?;
     let (rank, size) = (comm.rank(), comm.size());
     // the lattice: nodes dealt round the ranks, the others' left zero and the sum taken
@@ -127,7 +134,8 @@ pub fn render(comm: &dyn Comm, solid: &dyn Implicit, view: &View, colouring: Col
 
 /// The 95th percentile of |mean curvature| over the pixels that hit (1 if none or all zero).
 fn curvature_scale(samples: &[Sample]) -> f64 {
-    let mut m: Vec<f64> = samples.iter().filter(|s| s[0] != 0.0 && s[3].is_finite()).map(|s| s[3].abs()).collect();
+    let mut m: Vec<f64> =
+        samples.iter().filter(|s| s[0] != 0.0 && s[3].is_finite()).map(|s| s[3].abs()).collect();
     if m.is_empty() {
         return 1.0;
     }
@@ -192,7 +200,14 @@ pub fn write_picture(
 
 /// The default view of a preview: from the upper front left, y up.
 pub fn preview_view() -> View {
-    View { azimuth: 30.0, elevation: 20.0, distance: None, width: PREVIEW_SIZE, height: PREVIEW_SIZE, up: Axis::Y }
+    View {
+        azimuth: 30.0,
+        elevation: 20.0,
+        distance: None,
+        width: PREVIEW_SIZE,
+        height: PREVIEW_SIZE,
+        up: Axis::Y,
+    }
 }
 
 /// Runs `volspline render`. Collective.

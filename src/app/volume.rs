@@ -132,9 +132,8 @@ pub fn write_volume(
 
     let node_curvature = curvature.map(|solid| {
         stages.time(Stage::Evaluate, || {
-            let nodes: Vec<[f64; 3]> = (0..nx * ny * layers)
-                .map(|q| grid.node(q % nx, (q / nx) % ny, k0 + q / (nx * ny)))
-                .collect();
+            let nodes: Vec<[f64; 3]> =
+                (0..nx * ny * layers).map(|q| grid.node(q % nx, (q / nx) % ny, k0 + q / (nx * ny))).collect();
             curvatures(solid, &nodes)
         })
     });

@@ -78,7 +78,7 @@ pub fn write_image_arrays(
         let sets = agree(comm, metadata(&file, grid, &names).map_err(h5))?;
         for (ds, (_, values)) in sets.iter().zip(arrays) {
             let slab = if layers > 0 {
-                let view = ArrayView3::from_shape((layers, ny, nx), *values).expect("slab shape");
+                let view = ArrayView3::from_shape((layers, ny, nx), values).expect("slab shape");
                 ds.as_writer().write_slice(view, s![k0..k0 + layers, .., ..]).map_err(h5)
             } else {
                 Ok(())

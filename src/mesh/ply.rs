@@ -36,7 +36,11 @@ fn validate_props(mesh: &TriMesh, props: &[VertexProperty<'_>]) -> io::Result<()
         if !good_name || values.len() != mesh.vertices.len() {
             return Err(io::Error::new(
                 io::ErrorKind::InvalidInput,
-                format!("vertex property '{name}': {} values for {} vertices", values.len(), mesh.vertices.len()),
+                format!(
+                    "vertex property '{name}': {} values for {} vertices",
+                    values.len(),
+                    mesh.vertices.len()
+                ),
             ));
         }
     }
@@ -61,7 +65,11 @@ pub fn write_ply_to<W: Write>(w: &mut W, mesh: &TriMesh) -> io::Result<()> {
 }
 
 /// Writes the PLY encoding of `mesh` with extra vertex properties (see [`write_ply_with`]).
-pub fn write_ply_to_with<W: Write>(w: &mut W, mesh: &TriMesh, props: &[VertexProperty<'_>]) -> io::Result<()> {
+pub fn write_ply_to_with<W: Write>(
+    w: &mut W,
+    mesh: &TriMesh,
+    props: &[VertexProperty<'_>],
+) -> io::Result<()> {
     validate(mesh)?;
     validate_props(mesh, props)?;
     let extra: String = props.iter().map(|(name, _)| format!("property float {name}\n")).collect();
@@ -146,7 +154,8 @@ mod tests {
 
     #[test]
     fn extra_vertex_properties_follow_the_coordinates() {
-        let mesh = TriMesh { vertices: vec![[0.0; 3], [1.0, 2.0, 3.0], [0.5; 3]], triangles: vec![[0, 1, 2]] };
+        let mesh =
+            TriMesh { vertices: vec![[0.0; 3], [1.0, 2.0, 3.0], [0.5; 3]], triangles: vec![[0, 1, 2]] };
         let (a, b) = (vec![0.25, -1.5, 3.0], vec![7.0, 8.0, f64::NAN]);
         let mut out = Vec::new();
         write_ply_to_with(&mut out, &mesh, &[("mean_curvature", &a), ("gaussian_curvature", &b)]).unwrap();

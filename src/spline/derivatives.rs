@@ -230,9 +230,7 @@ pub fn carrier_jet(carrier: &Carrier, x: &[f64; 3]) -> Jet {
             }
         }
         Carrier::Union(a, b) => return r_function_jet(&carrier_jet(a, x), &carrier_jet(b, x), 1.0),
-        Carrier::Intersection(a, b) => {
-            return r_function_jet(&carrier_jet(a, x), &carrier_jet(b, x), -1.0)
-        }
+        Carrier::Intersection(a, b) => return r_function_jet(&carrier_jet(a, x), &carrier_jet(b, x), -1.0),
         Carrier::Difference(a, b) => {
             return r_function_jet(&carrier_jet(a, x), &carrier_jet(b, x).negated(), -1.0)
         }
@@ -302,9 +300,17 @@ mod tests {
     fn assert_jet_close(jet: &Jet, g: [f64; 3], h: [[f64; 3]; 3], tol: f64, what: &str) {
         let scale = 1.0 + jet.hessian.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
         for i in 0..3 {
-            assert!((jet.gradient[i] - g[i]).abs() <= tol * scale, "{what}: grad {:?} vs {g:?}", jet.gradient);
+            assert!(
+                (jet.gradient[i] - g[i]).abs() <= tol * scale,
+                "{what}: grad {:?} vs {g:?}",
+                jet.gradient
+            );
             for j in 0..3 {
-                assert!((jet.hessian[i][j] - h[i][j]).abs() <= tol * scale, "{what}: hess {:?} vs {h:?}", jet.hessian);
+                assert!(
+                    (jet.hessian[i][j] - h[i][j]).abs() <= tol * scale,
+                    "{what}: hess {:?} vs {h:?}",
+                    jet.hessian
+                );
             }
         }
     }

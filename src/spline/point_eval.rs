@@ -9,7 +9,9 @@
 //!
 //! The value at a point depends on nothing but the point: the same bits from any thread or rank.
 
-use crate::spline::derivatives::{add_radial_term, carrier_jet, denormalise, polynomial_jet, spline_jet, Jet};
+use crate::spline::derivatives::{
+    add_radial_term, carrier_jet, denormalise, polynomial_jet, spline_jet, Jet,
+};
 use crate::spline::octree::{Octree, DEFAULT_LEAF_CAPACITY};
 use crate::spline::Model;
 
@@ -122,7 +124,12 @@ impl PointEvaluator {
                 let mut jet = polynomial_jet(sp, &xn);
                 for i in found {
                     let p = &sp.centres[3 * i..3 * i + 3];
-                    add_radial_term(&mut jet, &sp.kernel, sp.weights[i], [xn[0] - p[0], xn[1] - p[1], xn[2] - p[2]]);
+                    add_radial_term(
+                        &mut jet,
+                        &sp.kernel,
+                        sp.weights[i],
+                        [xn[0] - p[0], xn[1] - p[1], xn[2] - p[2]],
+                    );
                 }
                 denormalise(jet, sp.norm.scale)
             }
@@ -262,7 +269,11 @@ mod tests {
             pts.push([0.3, 0.2, -0.1]);
             for x in pts {
                 let (v, plain) = (ev.value(&x), model.eval(&x));
-                assert!((v - plain).abs() <= 1e-12 * (1.0 + plain.abs()), "{}: {v} vs {plain}", kernel.name());
+                assert!(
+                    (v - plain).abs() <= 1e-12 * (1.0 + plain.abs()),
+                    "{}: {v} vs {plain}",
+                    kernel.name()
+                );
                 let (fast, slow) = (ev.jet(&x), model_jet(&model, &x));
                 let close = |a: f64, b: f64| (a - b).abs() <= 1e-10 * (1.0 + b.abs());
                 let g = ev.gradient(&x);
