@@ -14,15 +14,15 @@
 //! S = sqrt(s_x^2 + s_y^2 + s_z^2),   L = SAFETY * S.
 //! ```
 //!
-//! A cell whose eight corners have the same sign and |f| > L h sqrt(3) / 2 at every corner (h
-//! the cell diagonal's sides) cannot hold the surface: every point of the cell is within
-//! h sqrt(3) / 2 of a corner. Rays
-//! cross such cells in one step, knowing the sign of f there without evaluating it. In the
-//! other cells the ray advances by s = |f| / L, but at least h / [`MIN_STEP_DIVISOR`] and at most
-//! h, evaluating f exactly at every sample; L is here the largest over the cells such a step can
-//! reach (the cell and its neighbours on the side the ray is heading). A sign change between two
-//! samples brackets the root; regula falsi with the Illinois modification (every fourth step a
-//! bisection) narrows it to [`REFINE_TOLERANCE`] of the bracket. The lower bound on the step is the one compromise: a part of the solid thinner
+//! A cell whose eight corners have the same sign and |f| > L r at every corner (r half the
+//! cell's diagonal) cannot hold the surface, since every point of the cell is within r of a
+//! corner. Rays cross such cells in one step, knowing the sign of f there without evaluating it.
+//! In the other cells the ray advances by s = |f| / L, but at least h / [`MIN_STEP_DIVISOR`] and
+//! at most h (h the shortest side of a cell), evaluating f exactly at every sample; L is here the
+//! largest over the cells such a step can reach (the cell and its neighbours on the side the ray
+//! is heading). A sign change between two samples brackets the root; regula falsi with the
+//! Illinois modification (every fourth step a bisection) narrows it to [`REFINE_TOLERANCE`] of
+//! the bracket. The lower bound on the step is the one compromise: a part of the solid thinner
 //! than h / 4 along the ray, in a cell that may hold the surface, can be missed. The lattice is
 //! an estimate, not a proof: L is a sampled bound with the safety factor [`SAFETY`].
 //!
