@@ -12,7 +12,8 @@
 //! - a group `/VTKHDF/PointData` holding one dataset per array of node values. HDF5 lists
 //!   dimensions slowest first, so a scalar array over the grid has shape [nz, ny, nx]: x varies
 //!   fastest, the node order of [`Grid`]. Each rank writes the hyperslab of its layers
-//!   k0..k0+layers. The dataset also carries the string attribute `Attribute` = `Scalars`.
+//!   k0..k0+layers. The first dataset (f) also carries the string attribute `Attribute` =
+//!   `Scalars`, which makes it the active scalars.
 //!
 //! Several point arrays may be written side by side (f and, on request, the curvatures); there
 //! is no cell or field data.
@@ -116,10 +117,14 @@ fn metadata(file: &hdf5::File, grid: &Grid, names: &[&str]) -> hdf5::Result<Vec<
     root.new_attr_builder().with_data(&dir).create("Direction")?;
     let pd = root.create_group("PointData")?;
     let mut sets = Vec::with_capacity(names.len());
-    for name in names {
+    for (i, name) in names.iter().enumerate() {
         let ds = pd.new_dataset::<f64>().shape([nz, ny, nx]).create(*name)?;
-        let sc = FixedAscii::<7>::from_ascii(b"Scalars").expect("ASCII literal");
-        ds.new_attr::<FixedAscii<7>>().create("Attribute")?.write_scalar(&sc)?;
+        // only the first array is the active scalars: VTK drops an array marked Scalars when a
+        // later one takes that role
+        if i == 0 {
+            let sc = FixedAscii::<7>::from_ascii(b"Scalars").expect("ASCII literal");
+            ds.new_attr::<FixedAscii<7>>().create("Attribute")?.write_scalar(&sc)?;
+        }
         sets.push(ds);
     }
     Ok(sets)
