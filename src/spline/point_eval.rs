@@ -107,14 +107,10 @@ impl PointEvaluator {
     pub fn jet(&self, x: &[f64; 3]) -> Jet {
         let sp = &self.model.spline;
         let u = match (self.form, &self.tree) {
-            (Some(_), _) => {
+            (Some(form), _) => {
                 let xn = self.normalised(x);
-                let mut jet = polynomial_jet(sp, &xn);
-                for t in 0..sp.len() {
-                    let d = [xn[0] - self.cx[t], xn[1] - self.cy[t], xn[2] - self.cz[t]];
-                    add_radial_term(&mut jet, &sp.kernel, self.w[t], d);
-                }
-                denormalise(jet, sp.norm.scale)
+                let radial = radial_jet(form, xn, &self.cx, &self.cy, &self.cz, &self.w);
+                denormalise(polynomial_jet(sp, &xn).combine(1.0, &radial, 1.0), sp.norm.scale)
             }
             (None, Some(tree)) => {
                 let xn = self.normalised(x);
@@ -222,6 +218,62 @@ fn radial_gradient(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[f64], 
         }
     }
     acc.map(|a| ((a[0] + a[4]) + (a[2] + a[6])) + ((a[1] + a[5]) + (a[3] + a[7])))
+}
+
+/// sum_i w_i G(|x - P_i|) with its gradient and Hessian (normalised coordinates), in lanes:
+/// G = r has a = 1 / r, b = -1 / r^3, G = r^3 has a = 3r, b = 3 / r (both 0 at a centre; see
+/// [`crate::spline::derivatives`]).
+fn radial_jet(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[f64], w: &[f64]) -> Jet {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked just above).
+            return unsafe { radial_jet_avx2(form, x, cx, cy, cz, w) };
+        }
+    }
+    radial_jet_portable(form, x, cx, cy, cz, w)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn radial_jet_avx2(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[f64], w: &[f64]) -> Jet {
+    radial_jet_portable(form, x, cx, cy, cz, w)
+}
+
+#[inline(always)]
+fn radial_jet_portable(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[f64], w: &[f64]) -> Jet {
+    // value, gradient (3), Hessian (xx, yy, zz, xy, xz, yz)
+    let mut acc = [[0.0f64; LANES]; 10];
+    let lanes = cx.chunks_exact(LANES).zip(cy.chunks_exact(LANES)).zip(cz.chunks_exact(LANES));
+    for (((px, py), pz), pw) in lanes.zip(w.chunks_exact(LANES)) {
+        for l in 0..LANES {
+            let (dx, dy, dz) = (x[0] - px[l], x[1] - py[l], x[2] - pz[l]);
+            let r2 = (dx * dx + dy * dy) + dz * dz;
+            let r = r2.sqrt();
+            let inv = if r2 > 0.0 { 1.0 / r } else { 0.0 };
+            let (g, a, b) = match form {
+                Form::R1 => (r, inv, -inv * inv * inv),
+                Form::R3 => (r2 * r, 3.0 * r, 3.0 * inv),
+            };
+            let (wa, wb) = (pw[l] * a, pw[l] * b);
+            acc[0][l] += pw[l] * g;
+            acc[1][l] += wa * dx;
+            acc[2][l] += wa * dy;
+            acc[3][l] += wa * dz;
+            acc[4][l] += wa + wb * dx * dx;
+            acc[5][l] += wa + wb * dy * dy;
+            acc[6][l] += wa + wb * dz * dz;
+            acc[7][l] += wb * dx * dy;
+            acc[8][l] += wb * dx * dz;
+            acc[9][l] += wb * dy * dz;
+        }
+    }
+    let s = acc.map(|a| ((a[0] + a[4]) + (a[2] + a[6])) + ((a[1] + a[5]) + (a[3] + a[7])));
+    Jet {
+        value: s[0],
+        gradient: [s[1], s[2], s[3]],
+        hessian: [[s[4], s[7], s[8]], [s[7], s[5], s[9]], [s[8], s[9], s[6]]],
+    }
 }
 
 #[cfg(test)]
