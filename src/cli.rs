@@ -396,12 +396,17 @@ fn distance(s: &str) -> Parsed<f64> {
 
 /// The largest picture side in pixels.
 pub const MAX_PICTURE_SIDE: usize = 16384;
+/// The most pixels of a picture (rank 0 holds 32 bytes per pixel while it colours them).
+pub const MAX_PICTURE_PIXELS: usize = 1 << 26;
 
 fn size(s: &str) -> Parsed<(usize, usize)> {
     let parts: Vec<&str> = s.split(['x', 'X']).collect();
     let side = |t: &str| t.trim().parse::<usize>().ok().filter(|v| (1..=MAX_PICTURE_SIDE).contains(v));
     match parts.as_slice() {
         [w, h] => match (side(w), side(h)) {
+            (Some(w), Some(h)) if w * h > MAX_PICTURE_PIXELS => {
+                Err(format!("'{s}': {} pixels, more than the {MAX_PICTURE_PIXELS} a picture may have", w * h))
+            }
             (Some(w), Some(h)) => Ok((w, h)),
             _ => Err(format!("'{s}': each side must be a whole number of pixels in 1..={MAX_PICTURE_SIDE}")),
         },
@@ -474,6 +479,7 @@ mod tests {
             &["fit", "a.xyz", "--out", "o", "--leaf", "0"],
             &["render", "m.h5", "--out", "p.png", "--size", "0x10"],
             &["render", "m.h5", "--out", "p.png", "--size", "512"],
+            &["render", "m.h5", "--out", "p.png", "--size", "16384x16384"],
             &["render", "m.h5", "--out", "p.png", "--elevation", "91"],
             &["render", "m.h5", "--out", "p.png", "--distance", "-1"],
             &["render", "m.h5", "--out", "p.png", "--up", "w"],
