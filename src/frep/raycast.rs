@@ -47,7 +47,7 @@ pub const SAFETY: f64 = 1.5;
 /// The smallest step is the cell size over this.
 pub const MIN_STEP_DIVISOR: f64 = 4.0;
 /// The root is narrowed to this fraction of its first bracket (at most a cell wide).
-pub const REFINE_TOLERANCE: f64 = 1e-4;
+pub const REFINE_TOLERANCE: f64 = 1e-3;
 /// Vertical field of view in degrees.
 pub const FIELD_OF_VIEW: f64 = 30.0;
 
