@@ -10,6 +10,7 @@ use crate::contour::planes::PlaneFamily;
 use crate::contour::{Interp, Orient, SectionCarrier};
 use crate::error::{Error, Result};
 use crate::frep::Syntax;
+use crate::frep::raycast::{Axis, Colouring};
 use crate::grid::{parse_bounds, GridSize};
 use crate::linalg::dist::SolverKind;
 use crate::spline::{Carrier, Kernel};
@@ -43,6 +44,9 @@ pub enum Command {
     Contours(ContoursArgs),
     /// Cut a triangle mesh (.obj/.ply) by a family of planes and write the contour file.
     Slice(SliceArgs),
+    /// Ray-cast a solid into a PNG picture (shaded from the analytic gradient, or coloured by
+    /// mean curvature), pixel rows split over ranks.
+    Render(RenderArgs),
 }
 
 #[derive(Debug, Args)]
@@ -92,6 +96,9 @@ pub struct FitArgs {
     /// Points closer than this fraction of the bounding-box diagonal are merged into one.
     #[arg(long, allow_hyphen_values = true, default_value = "1e-6", value_name = "F", value_parser = merge_tol)]
     pub merge_tol: f64,
+    /// Do not write the picture PREFIX.png of the solid.
+    #[arg(long)]
+    pub no_preview: bool,
     #[command(flatten)]
     pub grid: GridArgs,
 }
@@ -196,6 +203,9 @@ pub struct ContoursArgs {
     /// Points of a slice closer than this fraction of the slice's diagonal are merged into one.
     #[arg(long, allow_hyphen_values = true, default_value = "1e-6", value_name = "F", value_parser = merge_tol)]
     pub merge_tol: f64,
+    /// Do not write the picture PREFIX.png of the solid.
+    #[arg(long)]
+    pub no_preview: bool,
     #[command(flatten)]
     pub grid: GridArgs,
 }
@@ -228,6 +238,53 @@ pub struct GridArgs {
     /// `key,value` CSV to this file, for scaling studies.
     #[arg(long, value_name = "FILE")]
     pub timings: Option<PathBuf>,
+    /// Also write the mean and Gaussian curvature of the level surfaces: arrays
+    /// `mean_curvature` and `gaussian_curvature` in PREFIX.hdf (at every node, of the level
+    /// surface through it) and vertex properties of the same names in PREFIX.ply.
+    #[arg(long)]
+    pub curvature: bool,
+}
+
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    /// The solid: a model written by `volspline fit` or `volspline contours` (PREFIX.model.h5).
+    pub model: String,
+    /// The picture to write (.png).
+    #[arg(long, value_name = "PNG")]
+    pub out: PathBuf,
+    #[command(flatten)]
+    pub view: ViewArgs,
+    /// Threads per rank (0: the cores of this node divided by the ranks on it).
+    #[arg(long, allow_negative_numbers = true, default_value = "0", value_name = "T", value_parser = threads)]
+    pub threads: usize,
+    /// Also write the run's figures as `key,value` CSV to this file.
+    #[arg(long, value_name = "FILE")]
+    pub timings: Option<PathBuf>,
+}
+
+/// The camera and the colouring of a picture.
+#[derive(Debug, Clone, Args)]
+pub struct ViewArgs {
+    /// Degrees about the up axis from which the camera looks at the centre of the solid's box.
+    #[arg(long, allow_hyphen_values = true, default_value = "30", value_name = "DEG", value_parser = azimuth)]
+    pub azimuth: f64,
+    /// Degrees above the plane normal to the up axis (-90 to 90).
+    #[arg(long, allow_hyphen_values = true, default_value = "20", value_name = "DEG", value_parser = elevation)]
+    pub elevation: f64,
+    /// Distance of the camera from the centre of the solid's box (default: the box just fills
+    /// the view).
+    #[arg(long, allow_hyphen_values = true, value_name = "D", value_parser = distance)]
+    pub distance: Option<f64>,
+    /// Picture size in pixels, WIDTHxHEIGHT.
+    #[arg(long, default_value = "512x512", value_name = "WxH", value_parser = size)]
+    pub size: (usize, usize),
+    /// The axis that points up in the picture: x, y or z.
+    #[arg(long, default_value = "y", value_name = "x|y|z", value_parser = axis)]
+    pub up: Axis,
+    /// Colouring: shading (a matte solid lit from the camera's upper left) or curvature (mean
+    /// curvature, red convex, blue concave, white flat, shaded).
+    #[arg(long, default_value = "shading", value_name = "shading|curvature", value_parser = colouring)]
+    pub color: Colouring,
 }
 
 impl Cli {
@@ -239,6 +296,7 @@ impl Cli {
             Command::Morph(a) => a.grid.threads,
             Command::Contours(a) => a.grid.threads,
             Command::Slice(_) => 1,
+            Command::Render(a) => a.threads,
         }
     }
 }
@@ -373,6 +431,55 @@ fn frames(s: &str) -> Parsed<usize> {
     }
 }
 
+fn azimuth(s: &str) -> Parsed<f64> {
+    number_in(s, -360.0..=360.0, "[-360, 360] degrees")
+}
+
+fn elevation(s: &str) -> Parsed<f64> {
+    number_in(s, -90.0..=90.0, "[-90, 90] degrees")
+}
+
+fn distance(s: &str) -> Parsed<f64> {
+    number_in(s, f64::MIN_POSITIVE..=f64::MAX, "(0, inf): a positive distance")
+}
+
+/// The largest picture side in pixels.
+pub const MAX_PICTURE_SIDE: usize = 16384;
+/// The most pixels of a picture (rank 0 holds 32 bytes per pixel while it colours them).
+pub const MAX_PICTURE_PIXELS: usize = 1 << 26;
+
+fn size(s: &str) -> Parsed<(usize, usize)> {
+    let parts: Vec<&str> = s.split(['x', 'X']).collect();
+    let side = |t: &str| t.trim().parse::<usize>().ok().filter(|v| (1..=MAX_PICTURE_SIDE).contains(v));
+    match parts.as_slice() {
+        [w, h] => match (side(w), side(h)) {
+            (Some(w), Some(h)) if w * h > MAX_PICTURE_PIXELS => {
+                Err(format!("'{s}': {} pixels, more than the {MAX_PICTURE_PIXELS} a picture may have", w * h))
+            }
+            (Some(w), Some(h)) => Ok((w, h)),
+            _ => Err(format!("'{s}': each side must be a whole number of pixels in 1..={MAX_PICTURE_SIDE}")),
+        },
+        _ => Err(format!("'{s}': expected WIDTHxHEIGHT, such as 512x512")),
+    }
+}
+
+fn axis(s: &str) -> Parsed<Axis> {
+    match s {
+        "x" => Ok(Axis::X),
+        "y" => Ok(Axis::Y),
+        "z" => Ok(Axis::Z),
+        other => Err(format!("unknown axis '{other}' (expected x, y or z)")),
+    }
+}
+
+fn colouring(s: &str) -> Parsed<Colouring> {
+    match s {
+        "shading" => Ok(Colouring::Shading),
+        "curvature" => Ok(Colouring::Curvature),
+        other => Err(format!("unknown colouring '{other}' (expected shading or curvature)")),
+    }
+}
+
 fn margin(s: &str) -> Parsed<f64> {
     number_in(s, 0.0..=10.0, "[0, 10]")
 }
@@ -421,6 +528,13 @@ mod tests {
             &["fit", "a.xyz", "--out", "o", "--leaf", "0"],
             &["eval", "union(a.model.h5,", "--out", "o"],
             &["morph", "a.model.h5", "b.model.h5", "--out", "o", "--frames", "1"],
+            &["render", "m.h5", "--out", "p.png", "--size", "0x10"],
+            &["render", "m.h5", "--out", "p.png", "--size", "512"],
+            &["render", "m.h5", "--out", "p.png", "--size", "16384x16384"],
+            &["render", "m.h5", "--out", "p.png", "--elevation", "91"],
+            &["render", "m.h5", "--out", "p.png", "--distance", "-1"],
+            &["render", "m.h5", "--out", "p.png", "--up", "w"],
+            &["render", "m.h5", "--out", "p.png", "--color", "rainbow"],
         ] {
             let e = parse(bad).unwrap_err();
             assert_eq!(e.exit_code(), 2, "{bad:?}");

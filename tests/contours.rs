@@ -110,6 +110,17 @@ fn reconstruct(ranks: usize, input: &Path, prefix: &Path, extra: &[&str]) -> Tri
     let mut args = vec!["contours", s(input), "--out", s(prefix)];
     args.extend_from_slice(extra);
     common::run_ok(ranks, &args);
+    // the preview: the solid ray-cast, some pixels not the background
+    let png = png::Decoder::new(std::io::BufReader::new(
+        std::fs::File::open(format!("{}.png", s(prefix))).unwrap(),
+    ));
+    let mut reader = png.read_info().unwrap();
+    let mut rgb = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut rgb).unwrap();
+    assert_eq!((info.width, info.height), (256, 256));
+    let background = volspline::frep::raycast::BACKGROUND;
+    let covered = rgb[..info.buffer_size()].chunks_exact(3).filter(|c| *c != background).count();
+    assert!(covered > 256 * 256 / 50, "the preview shows {covered} pixels of the solid");
     common::load_mesh(&PathBuf::from(format!("{}.ply", s(prefix))))
 }
 

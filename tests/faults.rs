@@ -161,7 +161,7 @@ fn concurrent_runs_on_one_prefix_leave_one_whole_set() {
         let done = r.join().unwrap();
         assert!(!done.timed_out && done.output.status.success(), "{}", text(&done.output));
     }
-    assert_eq!(names(&dir.join("out")), set(&["a.hdf", "a.model.h5", "a.ply"]));
+    assert_eq!(names(&dir.join("out")), set(&["a.hdf", "a.model.h5", "a.ply", "a.png"]));
     let model = volspline::io::model_file::read_model(&dir.join("out/a.model.h5")).unwrap();
     let (grid, _) = volspline::io::vtkhdf::read_image(&dir.join("out/a.hdf"), "f").unwrap();
     let r = model.provenance.box_hi[0];
@@ -187,7 +187,7 @@ fn failing_rerun_leaves_the_previous_set_untouched() {
     for ranks in [1, 2] {
         let done = run(ranks, &["fit", input.to_str().unwrap(), "--out", o, "--grid", "24"]);
         assert!(done.status.success(), "{}", text(&done));
-        let before: Vec<Vec<u8>> = ["a.hdf", "a.model.h5", "a.ply"]
+        let before: Vec<Vec<u8>> = ["a.hdf", "a.model.h5", "a.ply", "a.png"]
             .iter()
             .map(|n| std::fs::read(dir.join("out").join(n)).unwrap())
             .collect();
@@ -201,8 +201,8 @@ fn failing_rerun_leaves_the_previous_set_untouched() {
         let t = text(&done);
         assert_eq!(done.status.code(), Some(1), "{t}");
         assert!(t.contains("volspline: error") && t.contains("t.csv"), "{t}");
-        assert_eq!(names(&dir.join("out")), set(&["a.hdf", "a.model.h5", "a.ply"]), "{t}");
-        let after: Vec<Vec<u8>> = ["a.hdf", "a.model.h5", "a.ply"]
+        assert_eq!(names(&dir.join("out")), set(&["a.hdf", "a.model.h5", "a.ply", "a.png"]), "{t}");
+        let after: Vec<Vec<u8>> = ["a.hdf", "a.model.h5", "a.ply", "a.png"]
             .iter()
             .map(|n| std::fs::read(dir.join("out").join(n)).unwrap())
             .collect();
@@ -233,7 +233,7 @@ fn timings_to_stdout_prints_the_csv() {
     let stdout = String::from_utf8_lossy(&done.stdout);
     assert!(done.status.success(), "{}", text(&done));
     assert!(stdout.contains("key,value\n") && stdout.contains("\npoints,300\n"), "{stdout}");
-    assert_eq!(names(&dir.join("out")), set(&["a.hdf", "a.model.h5", "a.ply"]));
+    assert_eq!(names(&dir.join("out")), set(&["a.hdf", "a.model.h5", "a.ply", "a.png"]));
     // the link itself is untouched (never renamed over)
     assert!(std::fs::symlink_metadata("/dev/stdout").is_ok_and(|m| m.file_type().is_symlink()));
 }

@@ -142,7 +142,7 @@ fn fitted_model(name: &str) -> (PathBuf, PathBuf) {
     let dir = temp_dir(name);
     let input = dir.join("points.xyz");
     write_xyz(&input, &scaled_bunny(1.0));
-    let out = run(0, &["fit", s(&input), "--out", s(&dir.join("m")), "--grid", "8"]);
+    let out = run(0, &["fit", s(&input), "--out", s(&dir.join("m")), "--grid", "8", "--no-preview"]);
     assert!(out.status.success(), "{}", text(&out));
     for ext in ["hdf", "ply"] {
         std::fs::remove_file(dir.join(format!("m.{ext}"))).unwrap();

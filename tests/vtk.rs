@@ -1,6 +1,6 @@
 //! The VTKHDF volume written by 2 ranks is read back by VTK's own reader (the `vtk` Python wheel,
 //! installed by jobs/setup.sh): dimensions, origin, spacing and every value must be what volspline
-//! computed, in VTK's point order.
+//! computed, in VTK's point order; the curvature arrays of `--curvature` are read beside it.
 
 mod common;
 
@@ -16,7 +16,15 @@ fn vtk_reads_the_volume_as_written() {
     let prefix = dir.join("b");
     common::run_ok(
         2,
-        &["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--grid", "17,13,11"],
+        &[
+            "fit",
+            input.to_str().unwrap(),
+            "--out",
+            prefix.to_str().unwrap(),
+            "--grid",
+            "17,13,11",
+            "--curvature",
+        ],
     );
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/py/vtk_read.py");
     let python = std::env::var("PYTHON").unwrap_or_else(|_| "python3".into());
@@ -42,6 +50,9 @@ fn vtk_reads_the_volume_as_written() {
     let nums = |key: &str| -> Vec<f64> { line(key).iter().map(|v| v.parse().unwrap()).collect() };
     assert_eq!(line("class"), ["vtkImageData"]);
     assert_eq!(nums("dims"), [17.0, 13.0, 11.0]);
+    // the curvature arrays are read beside f, which stays the active scalars
+    assert_eq!(line("arrays"), ["f", "gaussian_curvature", "mean_curvature"]);
+    assert_eq!(line("scalars"), ["f"]);
     let model = read_model(&dir.join("b.model.h5")).unwrap();
     let (origin, spacing) = (nums("origin"), nums("spacing"));
     // the grid covers the input's box plus the default 5 % margin, in the input's coordinates

@@ -6,6 +6,7 @@
 use std::path::Path;
 
 use super::preflight::check_prefix;
+use super::render::{preview_view, write_picture};
 use super::report::{run_provenance, Report};
 use super::stages::{Stage, Stages};
 use super::volume::{check_grid, output_path, write_volume};
@@ -13,6 +14,8 @@ use crate::cli::ContoursArgs;
 use crate::contour::format::{self, Section};
 use crate::contour::{fit_section, ContourModel, SectionCarrier, SectionFit, SectionModel};
 use crate::error::{Error, Result};
+use crate::frep::raycast::Colouring;
+use crate::frep::Implicit;
 use crate::grid::{padded_box, Grid};
 use crate::io::{self, contour_model_file};
 use crate::par::{agree, on_root, Comm};
@@ -119,7 +122,12 @@ pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             io::write_atomically(&model_path, |tmp| contour_model_file::write_contour_model(tmp, &model))
         })
     })?;
-    let volume = write_volume(comm, &model, &grid, &a.out, &mut stages)?;
+    let curvature = a.grid.curvature.then_some(&model as &dyn Implicit);
+    let volume = write_volume(comm, &model, curvature, &grid, &a.out, &mut stages)?;
+    let preview = output_path(&a.out, ".png");
+    if !a.no_preview {
+        write_picture(comm, &model, &preview_view(), Colouring::Shading, &preview, &mut stages)?;
+    }
 
     let mut r = Report::new("contours", &a.input);
     r.line(format!(
@@ -147,6 +155,9 @@ pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     r.figure("residual", format!("{max_residual:e}"));
     r.output(&model_path);
     volume.report(&mut r);
+    if !a.no_preview {
+        r.output(&preview);
+    }
     r.finish(comm, &stages, &|_| Vec::new(), a.grid.timings.as_deref())?;
     Ok(())
 }

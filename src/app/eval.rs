@@ -11,7 +11,7 @@ use std::path::Path;
 use super::volume::{check_grid, model_grid, throughput_line, write_volume, VolumeSummary};
 use crate::cli::EvalArgs;
 use crate::error::{Error, Result};
-use crate::frep::Expr;
+use crate::frep::{Expr, Implicit, ModelSolid};
 use crate::grid::{padded_box, Grid};
 use crate::io::contour_model_file::{self, read_contour_model};
 use crate::io::h5::format_of;
@@ -36,7 +36,8 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         let grid = model_grid(a.grid.grid, a.bounds, a.grid.margin, &model.provenance)?;
         check_grid(comm, &grid)?;
         check_grid_field(comm, &model, &grid)?;
-        let volume = write_volume(comm, &model, &grid, &a.out, &mut stages)?;
+        let curvature = a.grid.curvature.then_some(&model as &dyn Implicit);
+        let volume = write_volume(comm, &model, curvature, &grid, &a.out, &mut stages)?;
         r.line(format!(
             "contour model: {} slices, N = {} centres, interp {}, orient {}",
             model.sections.len(),
@@ -53,7 +54,9 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         let grid = model_grid(a.grid.grid, a.bounds, a.grid.margin, &model.provenance)?;
         check_grid(comm, &grid)?;
         check_grid_field(comm, &model, &grid)?;
-        let volume = write_volume(comm, &model, &grid, &a.out, &mut stages)?;
+        let solid = a.grid.curvature.then(|| ModelSolid::new(model.clone()));
+        let curvature = solid.as_ref().map(|s| s as &dyn Implicit);
+        let volume = write_volume(comm, &model, curvature, &grid, &a.out, &mut stages)?;
         let n = model.spline.len();
         r.line(format!("N = {n} centres, kernel {}, carrier {}", model.spline.kernel.name(), model.carrier));
         r.figure("points", n);
@@ -87,7 +90,8 @@ fn expression(
     let grid = Grid::covering(lo, hi, a.grid.grid)?;
     check_grid(comm, &grid)?;
     check_grid_field(comm, &expr, &grid)?;
-    let volume = write_volume(comm, &expr, &grid, &a.out, &mut stages)?;
+    let curvature = a.grid.curvature.then_some(&expr as &dyn Implicit);
+    let volume = write_volume(comm, &expr, curvature, &grid, &a.out, &mut stages)?;
     r.line(format!("expression {}: {} kernel evaluations per node", a.model, volume.evals_per_node));
     let per_node = volume.evals_per_node;
     r.figure("kernel_evals", grid.node_count() as f64 * per_node as f64);

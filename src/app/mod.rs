@@ -1,4 +1,4 @@
-//! The commands: one file each ([`fit`], [`eval`], [`contours`], [`morph`], [`slice`](mod@slice)), the checks
+//! The commands: one file each ([`fit`], [`eval`], [`contours`], [`morph`], [`slice`](mod@slice), [`render`]), the checks
 //! made before heavy work ([`preflight`]), the volume outputs they share ([`volume`]), their report
 //! ([`report`], [`stages`], [`progress`]) and the encodings of what they send between ranks
 //! (`wire`). A command takes its typed arguments from `cli` and a communicator; everything it
@@ -11,6 +11,7 @@ pub mod fit;
 pub mod morph;
 pub mod preflight;
 pub mod progress;
+pub mod render;
 pub mod report;
 pub mod slice;
 pub mod stages;
@@ -36,6 +37,7 @@ pub fn run(command: &Command, comm: &dyn Comm, threads: usize) -> Result<()> {
         Command::Contours(a) => contours::run(a, comm, threads),
         Command::Morph(a) => morph::run(a, comm, threads),
         Command::Slice(a) => slice::run(a, comm),
+        Command::Render(a) => render::run(a, comm, threads),
     };
     match result {
         Ok(()) => {

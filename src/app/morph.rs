@@ -82,7 +82,7 @@ pub fn run(a: &MorphArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             check_grid_field(comm, &frame, &grid)?;
         }
         let prefix = frame_prefix(&a.out, i);
-        let v = write_volume(comm, &frame, &grid, &prefix, &mut stages)?;
+        let v = write_volume(comm, &frame, None, &grid, &prefix, &mut stages)?;
         per_node = per_node.max(v.evals_per_node);
         triangles.push(v.triangles);
         let name = v.hdf_path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();

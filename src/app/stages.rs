@@ -18,10 +18,11 @@ pub enum Stage {
     Mesh,
     Write,
     Slice,
+    Render,
 }
 
 impl Stage {
-    pub const ALL: [Stage; 10] = [
+    pub const ALL: [Stage; 11] = [
         Stage::Read,
         Stage::Tree,
         Stage::Assemble,
@@ -32,6 +33,7 @@ impl Stage {
         Stage::Mesh,
         Stage::Write,
         Stage::Slice,
+        Stage::Render,
     ];
 
     pub fn name(self) -> &'static str {
@@ -46,6 +48,7 @@ impl Stage {
             Stage::Mesh => "mesh",
             Stage::Write => "write",
             Stage::Slice => "slice",
+            Stage::Render => "render",
         }
     }
 }

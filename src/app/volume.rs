@@ -1,6 +1,8 @@
 //! The volume outputs every command ends with: the field evaluated on the grid in z-slabs (one slab
 //! per rank, rayon threads within), written in parallel as one VTKHDF file, polygonised per slab,
-//! gathered and welded on rank 0 and written as PLY.
+//! gathered and welded on rank 0 and written as PLY. On request the mean and Gaussian curvature
+//! ([`crate::frep::curvature`]) go with them: at every node (of the level surface through it) as
+//! two more arrays of the VTKHDF file, and at every vertex of the mesh as two vertex properties.
 
 use std::path::{Path, PathBuf};
 
@@ -8,6 +10,8 @@ use super::preflight::{check_memory, grid_bytes};
 use super::report::Report;
 use super::stages::{Stage, Stages};
 use crate::error::{Error, Result};
+use crate::frep::curvature::{curvature, Curvature};
+use crate::frep::Implicit;
 use crate::grid::{padded_box, Grid, GridSize};
 use crate::io::{self, vtkhdf};
 use crate::mesh::{self, MeshPiece, SlabGrid, TriMesh};
@@ -83,11 +87,23 @@ pub fn check_grid(comm: &dyn Comm, grid: &Grid) -> Result<()> {
     )
 }
 
+/// The names of the curvature arrays, in the VTKHDF file and the PLY mesh.
+pub const CURVATURE_ARRAYS: [&str; 2] = ["mean_curvature", "gaussian_curvature"];
+
+/// The curvatures at `points`, threaded: (mean, Gaussian).
+fn curvatures(solid: &dyn Implicit, points: &[[f64; 3]]) -> (Vec<f64>, Vec<f64>) {
+    use rayon::prelude::*;
+    let c: Vec<Curvature> = points.par_iter().map(|&p| curvature(solid, p)).collect();
+    (c.iter().map(|c| c.mean).collect(), c.iter().map(|c| c.gaussian).collect())
+}
+
 /// Evaluates `field` on `grid` in z-slabs, writes `PREFIX.hdf` in parallel and `PREFIX.ply` from
-/// rank 0, both under this run's temporary names (see [`io::staging`]). Collective.
+/// rank 0, both under this run's temporary names (see [`io::staging`]), with the curvatures of
+/// `curvature` (the same solid as `field`) when given. Collective.
 pub fn write_volume(
     comm: &dyn Comm,
     field: &dyn Field,
+    curvature: Option<&dyn Implicit>,
     grid: &Grid,
     prefix: &Path,
     stages: &mut Stages,
@@ -114,11 +130,23 @@ pub fn write_volume(
     // a non-finite value would make an unusable volume and mesh: refuse it with the cause
     super::finite::check_slab(comm, &values[..nx * ny * layers])?;
 
+    let node_curvature = curvature.map(|solid| {
+        stages.time(Stage::Evaluate, || {
+            let nodes: Vec<[f64; 3]> =
+                (0..nx * ny * layers).map(|q| grid.node(q % nx, (q / nx) % ny, k0 + q / (nx * ny))).collect();
+            curvatures(solid, &nodes)
+        })
+    });
     let hdf_path = output_path(prefix, ".hdf");
     stages.time(Stage::Write, || {
         // written under this run's temporary name; renamed with the other outputs at the end
         let tmp = io::staging::register(&hdf_path);
-        vtkhdf::write_image(comm, &tmp, grid, k0, layers, "f", &values[..nx * ny * layers])
+        let mut arrays: Vec<(&str, &[f64])> = vec![("f", &values[..nx * ny * layers])];
+        if let Some((mean, gauss)) = &node_curvature {
+            arrays.push((CURVATURE_ARRAYS[0], mean));
+            arrays.push((CURVATURE_ARRAYS[1], gauss));
+        }
+        vtkhdf::write_image_arrays(comm, &tmp, grid, k0, layers, &arrays)
     })?;
 
     let ply_path = output_path(prefix, ".ply");
@@ -132,7 +160,14 @@ pub fn write_volume(
         on_root(comm, || {
             let mesh: TriMesh = mesh::weld(&gathered.unwrap_or_default());
             counts = [mesh.triangles.len() as u64, mesh.vertices.len() as u64];
-            io::write_atomically(&ply_path, |tmp| mesh::write_ply(tmp, &mesh).map_err(|e| Error::io(tmp, &e)))
+            let at_vertices = curvature.map(|solid| curvatures(solid, &mesh.vertices));
+            let props: Vec<mesh::VertexProperty<'_>> = match &at_vertices {
+                Some((mean, gauss)) => vec![(CURVATURE_ARRAYS[0], mean), (CURVATURE_ARRAYS[1], gauss)],
+                None => Vec::new(),
+            };
+            io::write_atomically(&ply_path, |tmp| {
+                mesh::write_ply_with(tmp, &mesh, &props).map_err(|e| Error::io(tmp, &e))
+            })
         })
     })?;
     comm.sum_u64(&mut counts);

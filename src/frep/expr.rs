@@ -452,17 +452,6 @@ impl Implicit for Expr {
     }
 }
 
-impl Implicit for ContourModel {
-    fn value(&self, p: [f64; 3]) -> f64 {
-        self.eval(p)
-    }
-
-    /// The data's box widened by a tenth of its size on every side.
-    fn bounds(&self) -> Box3 {
-        widened((self.provenance.box_lo, self.provenance.box_hi))
-    }
-}
-
 impl Field for Expr {
     fn eval_layers(&self, grid: &Grid, k0: usize, layers: usize) -> Vec<f64> {
         self.layers(grid, k0, layers)

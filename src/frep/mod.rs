@@ -5,15 +5,20 @@
 //!
 //! Must not touch ranks or files: callers distribute the points they evaluate.
 
+pub mod curvature;
 pub mod expr;
 pub mod geom;
 pub mod morph;
 pub mod parse;
+pub mod raycast;
 
 pub use expr::Expr;
 pub use parse::Syntax;
 
-use crate::spline::Model;
+use crate::contour::ContourModel;
+use crate::spline::derivatives::model_jet;
+use crate::spline::point_eval::PointEvaluator;
+use crate::spline::{Model, Provenance};
 
 /// Step of the central differences of the default derivatives, relative to the size of the
 /// solid's box (small enough for second-order accuracy, large enough to stay above rounding).
@@ -74,6 +79,15 @@ fn diff_step<S: Implicit + ?Sized>(s: &S) -> f64 {
     DIFF_STEP * if size > 0.0 { size } else { 1.0 }
 }
 
+/// The data's bounding box widened by a tenth of its size on every side.
+fn padded_data_box(p: &Provenance) -> ([f64; 3], [f64; 3]) {
+    let (lo, hi) = (p.box_lo, p.box_hi);
+    let pad: [f64; 3] = std::array::from_fn(|d| 0.1 * (hi[d] - lo[d]).abs().max(f64::MIN_POSITIVE));
+    (std::array::from_fn(|d| lo[d] - pad[d]), std::array::from_fn(|d| hi[d] + pad[d]))
+}
+
+/// The plain sums over all centres: every kernel, but N terms per point whatever the kernel; see
+/// [`ModelSolid`] for a model prepared for many points.
 impl Implicit for Model {
     fn value(&self, p: [f64; 3]) -> f64 {
         self.eval(&p)
@@ -81,9 +95,66 @@ impl Implicit for Model {
 
     /// The data's bounding box widened by a tenth of its size on every side.
     fn bounds(&self) -> ([f64; 3], [f64; 3]) {
-        let (lo, hi) = (self.provenance.box_lo, self.provenance.box_hi);
-        let pad: Vec<f64> = (0..3).map(|d| 0.1 * (hi[d] - lo[d]).abs().max(f64::MIN_POSITIVE)).collect();
-        ([lo[0] - pad[0], lo[1] - pad[1], lo[2] - pad[2]], [hi[0] + pad[0], hi[1] + pad[1], hi[2] + pad[2]])
+        padded_data_box(&self.provenance)
+    }
+
+    /// Analytic: carrier, kernels, polynomials and normalisation differentiated term by term
+    /// ([`crate::spline::derivatives`]).
+    fn gradient(&self, p: [f64; 3]) -> [f64; 3] {
+        model_jet(self, &p).gradient
+    }
+
+    /// Analytic, as the gradient.
+    fn hessian(&self, p: [f64; 3]) -> [[f64; 3]; 3] {
+        model_jet(self, &p).hessian
+    }
+}
+
+/// A model prepared for evaluation at many single points ([`PointEvaluator`]): the same values
+/// and derivatives as [`Model`]'s (to rounding), at the cost of a vectorised sum for the Green's
+/// functions and of the support's neighbours for a Wendland kernel.
+#[derive(Debug, Clone)]
+pub struct ModelSolid {
+    eval: PointEvaluator,
+}
+
+impl ModelSolid {
+    pub fn new(model: Model) -> Self {
+        ModelSolid { eval: PointEvaluator::new(model) }
+    }
+
+    pub fn model(&self) -> &Model {
+        self.eval.model()
+    }
+}
+
+impl Implicit for ModelSolid {
+    fn value(&self, p: [f64; 3]) -> f64 {
+        self.eval.value(&p)
+    }
+
+    fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+        padded_data_box(&self.model().provenance)
+    }
+
+    fn gradient(&self, p: [f64; 3]) -> [f64; 3] {
+        self.eval.gradient(&p)
+    }
+
+    fn hessian(&self, p: [f64; 3]) -> [[f64; 3]; 3] {
+        self.eval.jet(&p).hessian
+    }
+}
+
+/// A solid reconstructed from contours; its derivatives are the finite-difference defaults.
+impl Implicit for ContourModel {
+    fn value(&self, p: [f64; 3]) -> f64 {
+        self.eval(p)
+    }
+
+    /// The contours' bounding box widened by a tenth of its size on every side.
+    fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+        padded_data_box(&self.provenance)
     }
 }
 

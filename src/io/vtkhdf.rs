@@ -12,9 +12,11 @@
 //! - a group `/VTKHDF/PointData` holding one dataset per array of node values. HDF5 lists
 //!   dimensions slowest first, so a scalar array over the grid has shape [nz, ny, nx]: x varies
 //!   fastest, the node order of [`Grid`]. Each rank writes the hyperslab of its layers
-//!   k0..k0+layers. The dataset also carries the string attribute `Attribute` = `Scalars`.
+//!   k0..k0+layers. The first dataset (f) also carries the string attribute `Attribute` =
+//!   `Scalars`, which makes it the active scalars.
 //!
-//! Only point data is written; there is no cell or field data.
+//! Several point arrays may be written side by side (f and, on request, the curvatures); there
+//! is no cell or field data.
 
 use std::path::Path;
 
@@ -26,13 +28,7 @@ use crate::grid::Grid;
 use crate::par::{agree, on_root, Comm};
 
 /// Writes `values` (this rank's layers k0..k0+layers of `grid`, x fastest) as the point array
-/// `name` of a VTKHDF ImageData file at `path`. Collective.
-///
-/// Every collective step (free space, create, metadata, slab write, close) agrees on its outcome
-/// across ranks before the next, so a failure on one rank (a full disk, say) never leaves the ranks
-/// in different collectives. After a failed step the file is truncated by rank 0 before it is
-/// closed, which gives back the space the metadata flush of the close needs, every rank closes it
-/// in the same order, and rank 0 removes it.
+/// `name` of a VTKHDF ImageData file at `path`. Collective. See [`write_image_arrays`].
 pub fn write_image(
     comm: &dyn Comm,
     path: &Path,
@@ -42,10 +38,31 @@ pub fn write_image(
     name: &str,
     values: &[f64],
 ) -> Result<()> {
+    write_image_arrays(comm, path, grid, k0, layers, &[(name, values)])
+}
+
+/// Writes point arrays (name, this rank's layers k0..k0+layers of `grid`, x fastest) of a VTKHDF
+/// ImageData file at `path`, one dataset each under `/VTKHDF/PointData`. Collective.
+///
+/// Every collective step (free space, create, metadata, slab write, close) agrees on its outcome
+/// across ranks before the next, so a failure on one rank (a full disk, say) never leaves the ranks
+/// in different collectives. After a failed step the file is truncated by rank 0 before it is
+/// closed, which gives back the space the metadata flush of the close needs, every rank closes it
+/// in the same order, and rank 0 removes it.
+pub fn write_image_arrays(
+    comm: &dyn Comm,
+    path: &Path,
+    grid: &Grid,
+    k0: usize,
+    layers: usize,
+    arrays: &[(&str, &[f64])],
+) -> Result<()> {
     let h5 = |e: hdf5::Error| Error::hdf5(path, e);
     let [nx, ny, nz] = grid.dims;
-    assert_eq!(values.len(), nx * ny * layers);
-    on_root(comm, || check_space(path, (nx * ny * nz * 8) as u64))?;
+    for (_, values) in arrays {
+        assert_eq!(values.len(), nx * ny * layers);
+    }
+    on_root(comm, || check_space(path, (nx * ny * nz * 8 * arrays.len()) as u64))?;
     let created = match comm.raw() {
         Some(world) => hdf5::File::with_options().with_fapl(|p| p.mpio(world, None)).create(path),
         None => hdf5::File::create(path),
@@ -58,14 +75,18 @@ pub fn write_image(
         }
     };
     let written = (|| {
-        let ds = agree(comm, metadata(&file, grid, name).map_err(h5))?;
-        let slab = if layers > 0 {
-            let view = ArrayView3::from_shape((layers, ny, nx), values).expect("slab shape");
-            ds.as_writer().write_slice(view, s![k0..k0 + layers, .., ..]).map_err(h5)
-        } else {
-            Ok(())
-        };
-        agree(comm, slab)
+        let names: Vec<&str> = arrays.iter().map(|(n, _)| *n).collect();
+        let sets = agree(comm, metadata(&file, grid, &names).map_err(h5))?;
+        for (ds, (_, values)) in sets.iter().zip(arrays) {
+            let slab = if layers > 0 {
+                let view = ArrayView3::from_shape((layers, ny, nx), values).expect("slab shape");
+                ds.as_writer().write_slice(view, s![k0..k0 + layers, .., ..]).map_err(h5)
+            } else {
+                Ok(())
+            };
+            agree(comm, slab)?;
+        }
+        Ok(())
     })();
     if written.is_err() && comm.rank() == 0 {
         // frees the space of the data written so far, so that the close can flush its metadata
@@ -81,8 +102,8 @@ pub fn write_image(
     result
 }
 
-/// The groups, attributes and (empty) dataset of the layout described above.
-fn metadata(file: &hdf5::File, grid: &Grid, name: &str) -> hdf5::Result<hdf5::Dataset> {
+/// The groups, attributes and (empty) datasets of the layout described above.
+fn metadata(file: &hdf5::File, grid: &Grid, names: &[&str]) -> hdf5::Result<Vec<hdf5::Dataset>> {
     let [nx, ny, nz] = grid.dims;
     let root = file.create_group("VTKHDF")?;
     root.new_attr_builder().with_data(&[1i64, 0]).create("Version")?;
@@ -95,10 +116,18 @@ fn metadata(file: &hdf5::File, grid: &Grid, name: &str) -> hdf5::Result<hdf5::Da
     let dir = [1.0f64, 0., 0., 0., 1., 0., 0., 0., 1.];
     root.new_attr_builder().with_data(&dir).create("Direction")?;
     let pd = root.create_group("PointData")?;
-    let ds = pd.new_dataset::<f64>().shape([nz, ny, nx]).create(name)?;
-    let sc = FixedAscii::<7>::from_ascii(b"Scalars").expect("ASCII literal");
-    ds.new_attr::<FixedAscii<7>>().create("Attribute")?.write_scalar(&sc)?;
-    Ok(ds)
+    let mut sets = Vec::with_capacity(names.len());
+    for (i, name) in names.iter().enumerate() {
+        let ds = pd.new_dataset::<f64>().shape([nz, ny, nx]).create(*name)?;
+        // only the first array is the active scalars: VTK drops an array marked Scalars when a
+        // later one takes that role
+        if i == 0 {
+            let sc = FixedAscii::<7>::from_ascii(b"Scalars").expect("ASCII literal");
+            ds.new_attr::<FixedAscii<7>>().create("Attribute")?.write_scalar(&sc)?;
+        }
+        sets.push(ds);
+    }
+    Ok(sets)
 }
 
 /// Refuses to start a write of `bytes` of data (plus 1 MiB of metadata) into the directory of

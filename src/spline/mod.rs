@@ -3,7 +3,8 @@
 //! R-functions ([`carrier`]), the bordered interpolation system and the spline it defines
 //! ([`system`]), its sparse form for compactly supported kernels ([`compact`], with the point
 //! octree of [`octree`]), fast evaluation on grid rows ([`evaluator`], [`compact_eval`]), clean-up
-//! of the data points before a fit ([`hygiene`]) and the solid f = f_c - U with its record
+//! of the data points before a fit ([`hygiene`]), analytic derivatives ([`derivatives`]),
+//! evaluation at single points ([`point_eval`]) and the solid f = f_c - U with its record
 //! ([`model`]).
 //!
 //! The method is that of Savchenko, Pasko, Okunev and Kunii, *Function representation of solids
@@ -19,11 +20,13 @@
 pub mod carrier;
 pub mod compact;
 pub mod compact_eval;
+pub mod derivatives;
 pub mod evaluator;
 pub mod hygiene;
 pub mod kernel;
 pub mod model;
 pub mod octree;
+pub mod point_eval;
 pub mod system;
 
 pub use carrier::Carrier;

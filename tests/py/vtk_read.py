@@ -1,5 +1,5 @@
 """Reads a volspline VTKHDF file with VTK's own vtkHDFReader and prints what VTK sees, one item per
-line: class, dims, origin, spacing, active scalars, then the point array `f` in VTK point-id order
+line: class, dims, origin, spacing, active scalars, the names of the point arrays, then the point array `f` in VTK point-id order
 (i + nx*(j + ny*k)), 17 significant digits."""
 import sys
 
@@ -23,4 +23,5 @@ print("dims", *img.GetDimensions())
 print("origin", *(repr(v) for v in img.GetOrigin()))
 print("spacing", *(repr(v) for v in img.GetSpacing()))
 print("scalars", pd.GetScalars().GetName() if pd.GetScalars() else "none")
+print("arrays", *sorted(pd.GetArrayName(i) for i in range(pd.GetNumberOfArrays())))
 print("f", *(repr(float(v)) for v in vtk_to_numpy(arr)))

@@ -11,11 +11,14 @@ use std::path::Path;
 use rayon::prelude::*;
 
 use super::preflight::{available_per_rank, check_prefix, dense_fit_bytes};
+use super::render::{preview_view, write_picture};
 use super::report::{run_provenance, Report};
 use super::stages::{Stage, Stages};
 use super::volume::{check_grid, output_path, throughput_line, write_volume};
 use crate::cli::{FitArgs, KernelChoice, Method};
 use crate::error::{Error, Result};
+use crate::frep::raycast::Colouring;
+use crate::frep::{Implicit, ModelSolid};
 use crate::grid::{padded_box, Grid};
 use crate::io::{self, model_file, points};
 use crate::par::{agree, on_root, Comm};
@@ -164,7 +167,13 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     stages.time(Stage::Write, || {
         on_root(comm, || io::write_atomically(&model_path, |tmp| model_file::write_model(tmp, &model)))
     })?;
-    let volume = write_volume(comm, &model, &grid, &a.out, &mut stages)?;
+    let solid = (a.grid.curvature || !a.no_preview).then(|| ModelSolid::new(model.clone()));
+    let curvature = solid.as_ref().filter(|_| a.grid.curvature).map(|s| s as &dyn Implicit);
+    let volume = write_volume(comm, &model, curvature, &grid, &a.out, &mut stages)?;
+    let preview = output_path(&a.out, ".png");
+    if let Some(s) = solid.as_ref().filter(|_| !a.no_preview) {
+        write_picture(comm, s, &preview_view(), Colouring::Shading, &preview, &mut stages)?;
+    }
 
     let mut r = Report::new("fit", &a.input);
     let method_name = if method == Method::Csrbf { "csrbf" } else { "dense" };
@@ -191,6 +200,9 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     r.figure("kernel_evals", grid.node_count() as f64 * volume.evals_per_node as f64);
     r.output(&model_path);
     volume.report(&mut r);
+    if !a.no_preview {
+        r.output(&preview);
+    }
     let nodes = grid.node_count();
     let per_node = volume.evals_per_node;
     r.finish(

@@ -1,0 +1,237 @@
+//! `volspline render`: a solid ray-cast into a PNG picture, and the previews `fit` and `contours`
+//! write. Every rank loads the solid; the lattice of the ray caster ([`crate::frep::raycast`]) is
+//! evaluated with its nodes dealt round the ranks and summed; the rows of pixels are dealt round
+//! the ranks (row j to rank j mod P) and threaded within; rank 0 gathers them, colours them and
+//! writes the PNG. A pixel's colour depends on its ray alone (and, for curvature colouring, on
+//! the picture's curvature scale, computed on rank 0 from every pixel), so any number of ranks
+//! and threads gives the same picture.
+
+use std::path::Path;
+
+use rayon::prelude::*;
+
+use super::report::Report;
+use super::stages::{Stage, Stages};
+use crate::cli::{RenderArgs, ViewArgs};
+use crate::error::{Error, Result};
+use crate::frep::curvature::curvature;
+use crate::frep::raycast::{
+    first_root, pixel_colour, shade, Axis, Camera, Colouring, Lattice, View, BACKGROUND,
+};
+use crate::frep::{Expr, Implicit, ModelSolid, Syntax};
+use crate::io::contour_model_file::{self, read_contour_model};
+use crate::io::h5::format_of;
+use crate::io::model_file::read_model;
+use crate::par::{agree, on_root, Comm};
+
+/// An RGB picture, rows from the top, 3 bytes per pixel.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Picture {
+    pub width: usize,
+    pub height: usize,
+    pub rgb: Vec<u8>,
+}
+
+/// The side of the square previews written by `fit` and `contours`.
+pub const PREVIEW_SIZE: usize = 256;
+
+/// The solid named on the command line: a model file of `fit` (evaluated at single points with
+/// [`ModelSolid`]) or of `contours`, or an FRep expression over models and carriers ([`Expr`]).
+pub fn load_solid(arg: &str) -> Result<Box<dyn Implicit>> {
+    let syntax = Syntax::parse(arg)?;
+    let Some(path) = syntax.as_model() else {
+        return Ok(Box::new(Expr::load(&syntax)?));
+    };
+    if format_of(path).is_ok_and(|f| f == contour_model_file::FORMAT) {
+        return Ok(Box::new(read_contour_model(path)?));
+    }
+    Ok(Box::new(ModelSolid::new(read_model(path)?)))
+}
+
+/// The view of the command-line options.
+pub fn view_of(v: &ViewArgs) -> View {
+    View {
+        azimuth: v.azimuth,
+        elevation: v.elevation,
+        distance: v.distance,
+        width: v.size.0,
+        height: v.size.1,
+        up: v.up,
+    }
+}
+
+/// The bounds of `solid`, refused unless finite with positive extent.
+fn checked_bounds(solid: &dyn Implicit) -> Result<([f64; 3], [f64; 3])> {
+    let (lo, hi) = solid.bounds();
+    if (0..3).all(|d| lo[d].is_finite() && hi[d].is_finite() && lo[d] < hi[d]) {
+        Ok((lo, hi))
+    } else {
+        Err(Error::Usage(format!("the solid's bounds {lo:?} .. {hi:?} are not a box with positive extent")))
+    }
+}
+
+/// One pixel as a rank computes it: hit (1) or not (0), light, specular, mean curvature.
+type Sample = [f64; 4];
+
+/// Ray-casts `solid` with `view`; the picture on rank 0, None elsewhere. Collective.
+pub fn render(
+    comm: &dyn Comm,
+    solid: &dyn Implicit,
+    view: &View,
+    colouring: Colouring,
+) -> Result<Option<Picture>> {
+    let bounds = agree(comm, checked_bounds(solid))?;
+    let (rank, size) = (comm.rank(), comm.size());
+    // the lattice: nodes dealt round the ranks, the others' left zero and the sum taken
+    let cells = Lattice::cells_for(bounds);
+    let nodes = (cells[0] + 1) * (cells[1] + 1) * (cells[2] + 1);
+    let mut values = vec![0.0; nodes];
+    values.par_iter_mut().enumerate().filter(|(q, _)| q % size == rank).for_each(|(q, v)| {
+        *v = solid.value(Lattice::node(bounds, cells, q));
+    });
+    comm.sum_f64(&mut values);
+    let lattice = Lattice::new(bounds, cells, &values);
+
+    let camera = Camera::frame(bounds, view);
+    let (w, h) = (view.width, view.height);
+    let rows: Vec<usize> = (rank..h).step_by(size).collect();
+    let mine: Vec<Sample> = rows
+        .par_iter()
+        .flat_map_iter(|&j| (0..w).map(move |i| (i, j)))
+        .map(|(i, j)| {
+            let d = camera.ray(i, j);
+            let Some(t) = first_root(solid, &lattice, camera.eye, d) else { return [0.0; 4] };
+            let x: [f64; 3] = std::array::from_fn(|a| camera.eye[a] + t * d[a]);
+            let (light, specular) = shade(&camera, solid.gradient(x), d);
+            let mean = match colouring {
+                Colouring::Curvature => curvature(solid, x).mean,
+                Colouring::Shading => f64::NAN,
+            };
+            [1.0, light, specular, mean]
+        })
+        .collect();
+    let gathered = comm.gather_values(0, &mine);
+    let Some(parts) = gathered else { return Ok(None) };
+    let mut samples = vec![[0.0; 4]; w * h];
+    for (r, part) in parts.iter().enumerate() {
+        for (n, j) in (r..h).step_by(size).enumerate() {
+            samples[j * w..(j + 1) * w].copy_from_slice(&part[n * w..(n + 1) * w]);
+        }
+    }
+    let scale = match colouring {
+        Colouring::Curvature => curvature_scale(&samples),
+        Colouring::Shading => f64::NAN,
+    };
+    let mut rgb = Vec::with_capacity(3 * w * h);
+    for s in &samples {
+        let c = if s[0] == 0.0 {
+            BACKGROUND
+        } else {
+            let curv = (colouring == Colouring::Curvature).then(|| s[3] / scale);
+            pixel_colour(s[1], s[2], curv)
+        };
+        rgb.extend_from_slice(&c);
+    }
+    Ok(Some(Picture { width: w, height: h, rgb }))
+}
+
+/// The 95th percentile of |mean curvature| over the pixels that hit (1 if none or all zero).
+fn curvature_scale(samples: &[Sample]) -> f64 {
+    let mut m: Vec<f64> =
+        samples.iter().filter(|s| s[0] != 0.0 && s[3].is_finite()).map(|s| s[3].abs()).collect();
+    if m.is_empty() {
+        return 1.0;
+    }
+    m.sort_unstable_by(f64::total_cmp);
+    let v = m[((m.len() - 1) as f64 * 0.95) as usize];
+    if v > 0.0 {
+        v
+    } else {
+        1.0
+    }
+}
+
+/// Writes `pic` as an 8-bit RGB PNG.
+pub fn write_png(path: &Path, pic: &Picture) -> Result<()> {
+    let io = |e: std::io::Error| Error::io(path, &e);
+    let png_err = |e: png::EncodingError| Error::Io { path: path.into(), reason: e.to_string() };
+    let file = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
+    let mut enc = png::Encoder::new(file, pic.width as u32, pic.height as u32);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    let mut writer = enc.write_header().map_err(png_err)?;
+    writer.write_image_data(&pic.rgb).map_err(png_err)?;
+    writer.finish().map_err(png_err)
+}
+
+/// Refuses an output path that is not a writable `.png` file name.
+fn check_png_path(path: &Path) -> Result<()> {
+    let text = path.to_string_lossy();
+    let is_png = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    if !is_png || path.is_dir() {
+        return Err(Error::Usage(format!("--out {text}: expected the name of a .png file")));
+    }
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        let e = std::io::Error::new(std::io::ErrorKind::NotFound, "the output directory does not exist");
+        return Err(Error::io(dir, &e));
+    }
+    Ok(())
+}
+
+/// Renders `solid` with `view` and writes it to `path` from rank 0 (staged with the run's other
+/// outputs), timing the render and write stages. Collective.
+pub fn write_picture(
+    comm: &dyn Comm,
+    solid: &dyn Implicit,
+    view: &View,
+    colouring: Colouring,
+    path: &Path,
+    stages: &mut Stages,
+) -> Result<()> {
+    let pic = stages.time(Stage::Render, || render(comm, solid, view, colouring))?;
+    stages.time(Stage::Write, || {
+        on_root(comm, || match &pic {
+            Some(p) => crate::io::write_atomically(path, |tmp| write_png(tmp, p)),
+            None => Ok(()),
+        })
+    })
+}
+
+/// The default view of a preview: from the upper front left, y up.
+pub fn preview_view() -> View {
+    View {
+        azimuth: 30.0,
+        elevation: 20.0,
+        distance: None,
+        width: PREVIEW_SIZE,
+        height: PREVIEW_SIZE,
+        up: Axis::Y,
+    }
+}
+
+/// Runs `volspline render`. Collective.
+pub fn run(a: &RenderArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
+    let mut stages = Stages::default();
+    agree(comm, if comm.rank() == 0 { check_png_path(&a.out) } else { Ok(()) })?;
+    let solid = stages.time(Stage::Read, || agree(comm, load_solid(&a.model)))?;
+    let view = view_of(&a.view);
+    write_picture(comm, solid.as_ref(), &view, a.view.color, &a.out, &mut stages)?;
+    let mut r = Report::new("render", Path::new(&a.model));
+    r.line(format!(
+        "{} x {} pixels, azimuth {} deg, elevation {} deg, colouring {:?}",
+        view.width, view.height, view.azimuth, view.elevation, a.view.color
+    ));
+    r.line(format!("ranks = {}, threads per rank = {threads}", comm.size()));
+    r.figure("model", &a.model);
+    r.figure("width", view.width);
+    r.figure("height", view.height);
+    r.figure("ranks", comm.size());
+    r.figure("threads", threads);
+    r.output(&a.out);
+    r.finish(comm, &stages, &|_| Vec::new(), a.timings.as_deref())?;
+    Ok(())
+}
