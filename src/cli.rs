@@ -86,8 +86,26 @@ pub struct FitArgs {
     /// Points closer than this fraction of the bounding-box diagonal are merged into one.
     #[arg(long, allow_hyphen_values = true, default_value = "1e-6", value_name = "F", value_parser = merge_tol)]
     pub merge_tol: f64,
+    /// What the spline is fitted to: auto (offsurface when there are enough points to estimate
+    /// normals, carrier below), offsurface (normals estimated and oriented from the points, and
+    /// constraints p +- delta n beside the surface added: clean solids from scans without
+    /// normals) or carrier (the data alone, the plain carrier method of the paper).
+    #[arg(long, default_value = "auto", value_name = "auto|offsurface|carrier", value_parser = surface)]
+    pub surface: Surface,
+    /// Off-surface points per data point for --surface offsurface: 2 (both sides of every point,
+    /// 3N rows), 1 (one side, alternating), below 1 (one side on a strided subset).
+    #[arg(long, allow_hyphen_values = true, default_value = "1", value_name = "F", value_parser = off_rate)]
+    pub off_points: f64,
     #[command(flatten)]
     pub grid: GridArgs,
+}
+
+/// What `fit` fits the spline to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Surface {
+    Auto,
+    OffSurface,
+    Carrier,
 }
 
 /// How `fit` builds the spline.
@@ -271,6 +289,22 @@ fn method(s: &str) -> Parsed<Method> {
         "dense" => Ok(Method::Dense),
         "csrbf" => Ok(Method::Csrbf),
         other => Err(format!("unknown method '{other}' (expected auto, dense or csrbf)")),
+    }
+}
+
+fn surface(s: &str) -> Parsed<Surface> {
+    match s {
+        "auto" => Ok(Surface::Auto),
+        "offsurface" => Ok(Surface::OffSurface),
+        "carrier" => Ok(Surface::Carrier),
+        other => Err(format!("unknown surface method '{other}' (expected auto, offsurface or carrier)")),
+    }
+}
+
+fn off_rate(s: &str) -> Parsed<f64> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v > 0.0 && v <= 2.0 => Ok(v),
+        _ => Err(format!("'{s}' is not a number of off-surface points per data point in (0, 2]")),
     }
 }
 

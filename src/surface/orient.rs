@@ -1,0 +1,370 @@
+//! Consistent orientation of unoriented normals: a spectral solution on the nearest-neighbour
+//! graph, a correction of whole patches by the dipole field, and the outward sign.
+//!
+//! # Spectral orientation
+//!
+//! On the graph joining each point to its 15 nearest neighbours, an edge (i, j) with d the unit
+//! vector from p_i to p_j asks for a relative sign by the dipole rule
+//!
+//! ```text
+//! v_ij = n_i . n_j - 3 (n_i . d)(n_j . d),      sigma_ij = sign(v_ij),
+//! w_ij = |v_ij| exp(-(|p_i - p_j| / 2h)^2),      h the median edge length.
+//! ```
+//!
+//! Two normals of one smooth sheet (n . d ~ 0) want the same sign; two points facing each other
+//! across a thin gap (n_i ~ n_j ~ d) give v = -2 and want opposite signs, as the outward normals
+//! of the two sides of a thin plate are. The signs s (s_i = +-1) minimise
+//! sum_edges w_ij (s_i - sigma_ij s_j)^2 = s^T L s with the signed graph Laplacian
+//! L_ii = sum_j w_ij, L_ij = -sigma_ij w_ij. Relaxed to real x with |x| = 1 the minimiser is the
+//! eigenvector of L's smallest eigenvalue (L is positive semidefinite; its smallest eigenvalue is
+//! 0 exactly when the wanted signs are consistent around every cycle); s = sign(x). It is found
+//! by inverse iteration, x <- (L + mu I)^-1 x with the sparse Cholesky factor of L + mu I
+//! (mu = 1e-6 times the mean degree, so L + mu I is positive definite and the wanted eigenvector
+//! is amplified by about (lambda_2 + mu) / (lambda_1 + mu) per step). Every connected component
+//! of the graph has its own null vector, so x is normalised per component.
+//!
+//! # Dipole correction
+//!
+//! The nearest-neighbour graph cannot tell which way two distant pieces of the surface face each
+//! other. The field of a dipole sheet can: with A_i the squared local spacing (an area) and o_i
+//! the oriented normals,
+//!
+//! ```text
+//! E(s) = sum_{i != j} s_i s_j W_ij,    W_ij = A_i A_j (3 (o_i . d)(o_j . d) - o_i . o_j) / r_ij^3,
+//! ```
+//!
+//! is the interaction energy of the dipoles A_i s_i o_i up to sign and is least for a consistently
+//! oriented closed surface (for neighbours on one sheet W_ij = -A_i A_j / r^3 < 0). Points are
+//! grouped into patches (edges whose ends are mutually tangent, |o . d| < 0.35 at both, with
+//! o_i . o_j > 0.9) and whole patches are flipped greedily while E decreases: with
+//! B_PQ = sum_{i in P, j in Q} W_ij, flipping P changes E by -4 t_P sum_{Q != P} B_PQ t_Q (t the
+//! patch signs), and the patch of the largest decrease is flipped until none decreases. B is
+//! summed from the dense W without storing it: each rank takes every size-th row of W (the
+//! row-cyclic split of the dense solvers) and the patch sums are added over ranks. Above
+//! [`DENSE_DIPOLE_LIMIT`] points (the compactly supported method's sizes) W is not formed: each
+//! patch becomes one dipole (area-weighted centroid and moment sum_P A_i o_i) and B is the dipole
+//! interaction of the patches. The [`MAX_PATCHES`] largest patches move; the rest stay as they are
+//! (dense: they are one fixed group that still acts on the others).
+//!
+//! # Outward sign
+//!
+//! For a closed surface S with outward normal n and any point c, the divergence theorem gives
+//! integral_S n . (x - c) dA = 3 vol > 0. The discrete sum sum_i A_i o_i . (p_i - c) (c the
+//! centroid of the points) is therefore made positive, per connected component after the
+//! spectral step and for the whole set after the dipole step (which only decides relative signs).
+
+use faer::Par;
+
+use super::normals::dist2;
+use crate::error::{Error, Result};
+use crate::linalg::sparse::{SparseCholesky, SpdSolve, SymCsr};
+use crate::par::{agree, Comm};
+
+/// Neighbours per point in the orientation graph.
+pub const GRAPH_NEIGHBOURS: usize = 15;
+/// Largest point count whose patch sums are taken from the dense point-to-point dipole field.
+pub const DENSE_DIPOLE_LIMIT: usize = 40_000;
+/// Largest number of patches the dipole correction moves.
+pub const MAX_PATCHES: usize = 1500;
+
+/// What the orientation did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Orientation {
+    /// Unit normals, consistently oriented and pointing outward.
+    pub normals: Vec<[f64; 3]>,
+    /// Connected components of the neighbour graph.
+    pub components: usize,
+    /// Patches of the dipole correction, how many moved and how many were flipped.
+    pub patches: usize,
+    pub movable: usize,
+    pub flipped: usize,
+    /// Whether the dipole sums came from the dense point field (false: patch dipoles).
+    pub dense_dipole: bool,
+}
+
+fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn unit_between(points: &[f64], i: usize, j: usize) -> ([f64; 3], f64) {
+    let d = [points[3 * j] - points[3 * i], points[3 * j + 1] - points[3 * i + 1], points[3 * j + 2] - points[3 * i + 2]];
+    let r = dot(&d, &d).sqrt();
+    if r > 0.0 {
+        ([d[0] / r, d[1] / r, d[2] / r], r)
+    } else {
+        ([0.0; 3], 0.0)
+    }
+}
+
+/// Union-find root with path halving.
+fn root(parent: &mut [usize], mut i: usize) -> usize {
+    while parent[i] != i {
+        parent[i] = parent[parent[i]];
+        i = parent[i];
+    }
+    i
+}
+
+/// Labels 0..count of the connected components of `edges` over `n` vertices, numbered in the
+/// order of their smallest vertex.
+fn components(n: usize, edges: impl Iterator<Item = (usize, usize)>) -> (Vec<usize>, usize) {
+    let mut parent: Vec<usize> = (0..n).collect();
+    for (a, b) in edges {
+        let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
+        if ra != rb {
+            parent[ra.max(rb)] = ra.min(rb);
+        }
+    }
+    let mut label = vec![usize::MAX; n];
+    let mut count = 0;
+    for i in 0..n {
+        let r = root(&mut parent, i);
+        if label[r] == usize::MAX {
+            label[r] = count;
+            count += 1;
+        }
+        label[i] = label[r];
+    }
+    (label, count)
+}
+
+/// The undirected edges (i < j) of the graph of the first `k` of each point's `kmax` neighbours.
+fn graph_edges(knn: &[usize], kmax: usize, k: usize) -> Vec<(usize, usize)> {
+    let mut e: Vec<(usize, usize)> = knn
+        .chunks_exact(kmax.max(1))
+        .enumerate()
+        .flat_map(|(i, row)| row[..k.min(kmax)].iter().map(move |&j| (i.min(j), i.max(j))))
+        .filter(|(a, b)| a != b)
+        .collect();
+    e.sort_unstable();
+    e.dedup();
+    e
+}
+
+/// Signs s_i (+-1) from the eigenvector of the smallest eigenvalue of the signed Laplacian (see
+/// the module doc), normalised per component `label`.
+fn spectral_signs(points: &[f64], normals: &[[f64; 3]], edges: &[(usize, usize)], label: &[usize], count: usize) -> Result<Vec<f64>> {
+    let n = normals.len();
+    let mut lengths: Vec<f64> = edges.iter().map(|&(i, j)| dist2(&points[3 * i..], &points[3 * j..]).sqrt()).collect();
+    let h = if lengths.is_empty() {
+        1.0
+    } else {
+        let mid = lengths.len() / 2;
+        *lengths.select_nth_unstable_by(mid, f64::total_cmp).1
+    };
+    let mut rows: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
+    let mut diag = vec![0.0; n];
+    for &(i, j) in edges {
+        let (d, r) = unit_between(points, i, j);
+        let v = dot(&normals[i], &normals[j]) - 3.0 * dot(&normals[i], &d) * dot(&normals[j], &d);
+        let w = v.abs() * (-(r / (2.0 * h)).powi(2)).exp();
+        diag[i] += w;
+        diag[j] += w;
+        rows[j].push((i, -v.signum() * w));
+    }
+    let mean = diag.iter().sum::<f64>() / n.max(1) as f64;
+    let mu = 1e-6 * if mean > 0.0 { mean } else { 1.0 };
+    let mut a = SymCsr { n, rows: (0..n).collect(), row_ptr: vec![0], ..Default::default() };
+    for (i, row) in rows.iter_mut().enumerate() {
+        row.sort_by_key(|e| e.0);
+        for &(j, v) in row.iter() {
+            a.cols.push(j);
+            a.vals.push(v);
+        }
+        a.cols.push(i);
+        a.vals.push(diag[i] + mu);
+        a.row_ptr.push(a.cols.len());
+    }
+    let chol = SparseCholesky::factor(&a, Par::Seq)?;
+    // a deterministic start with no special relation to the graph
+    let mut x: Vec<f64> = (0..n).map(|i| 1.0 + 0.5 * ((i as f64) * 0.618_033_988_75).fract()).collect();
+    let mut last: Vec<bool> = Vec::new();
+    let mut stable = 0;
+    for _ in 0..60 {
+        chol.solve_in_place(&mut x, 1)?;
+        let mut norms = vec![0.0; count];
+        for i in 0..n {
+            norms[label[i]] += x[i] * x[i];
+        }
+        if norms.iter().any(|v| !v.is_finite()) {
+            return Err(Error::Numerical("orientation: inverse iteration of the signed Laplacian diverged".into()));
+        }
+        for i in 0..n {
+            let s = norms[label[i]].sqrt();
+            x[i] = if s > 0.0 { x[i] / s } else { 1.0 };
+        }
+        let signs: Vec<bool> = x.iter().map(|&v| v >= 0.0).collect();
+        stable = if signs == last { stable + 1 } else { 0 };
+        last = signs;
+        if stable >= 3 {
+            break;
+        }
+    }
+    Ok(x.iter().map(|&v| if v >= 0.0 { 1.0 } else { -1.0 }).collect())
+}
+
+/// sum_i A_i o_i . (p_i - c) over the points of `members`.
+fn flux(points: &[f64], o: &[[f64; 3]], area: &[f64], c: &[f64; 3], members: impl Iterator<Item = usize>) -> f64 {
+    members
+        .map(|i| area[i] * dot(&o[i], &[points[3 * i] - c[0], points[3 * i + 1] - c[1], points[3 * i + 2] - c[2]]))
+        .sum()
+}
+
+/// The dipole interaction A_i A_j (3 (o_i.d)(o_j.d) - o_i.o_j) / r^3 of two oriented points.
+fn dipole(pi: &[f64], pj: &[f64], oi: &[f64; 3], oj: &[f64; 3], ai: f64, aj: f64) -> f64 {
+    let d = [pj[0] - pi[0], pj[1] - pi[1], pj[2] - pi[2]];
+    let r2 = dot(&d, &d);
+    if !(r2 > 0.0) {
+        return 0.0;
+    }
+    let r = r2.sqrt();
+    ai * aj * (3.0 * dot(oi, &d) * dot(oj, &d) / r2 - dot(oi, oj)) / (r2 * r)
+}
+
+/// The patch sums B ((m + 1) x (m + 1), row-major; index m is the fixed group) of the dense dipole
+/// field, each rank summing its row-cyclic rows. Collective.
+fn dense_patch_sums(comm: &dyn Comm, points: &[f64], o: &[[f64; 3]], area: &[f64], patch: &[usize], m: usize) -> Vec<f64> {
+    use rayon::prelude::*;
+    let n = o.len();
+    let width = m + 1;
+    let mine: Vec<usize> = (comm.rank()..n).step_by(comm.size()).collect();
+    let mut b = vec![0.0; width * width];
+    for block in mine.chunks(256) {
+        let rows: Vec<Vec<f64>> = block
+            .par_iter()
+            .map(|&i| {
+                let mut row = vec![0.0; width];
+                for j in (0..n).filter(|&j| j != i) {
+                    row[patch[j]] += dipole(&points[3 * i..], &points[3 * j..], &o[i], &o[j], area[i], area[j]);
+                }
+                row
+            })
+            .collect();
+        for (&i, row) in block.iter().zip(rows) {
+            let at = patch[i] * width;
+            for (slot, v) in b[at..at + width].iter_mut().zip(row) {
+                *slot += v;
+            }
+        }
+    }
+    comm.sum_f64(&mut b);
+    b
+}
+
+/// The patch sums from one dipole per patch (area-weighted centroid, summed moment).
+fn patch_dipole_sums(points: &[f64], o: &[[f64; 3]], area: &[f64], patch: &[usize], m: usize) -> Vec<f64> {
+    let width = m + 1;
+    let mut centre = vec![[0.0; 3]; m];
+    let mut moment = vec![[0.0; 3]; m];
+    let mut weight = vec![0.0; m];
+    for i in 0..o.len() {
+        let p = patch[i];
+        if p == m {
+            continue;
+        }
+        weight[p] += area[i];
+        for d in 0..3 {
+            centre[p][d] += area[i] * points[3 * i + d];
+            moment[p][d] += area[i] * o[i][d];
+        }
+    }
+    for p in 0..m {
+        for d in 0..3 {
+            centre[p][d] /= weight[p].max(f64::MIN_POSITIVE);
+        }
+    }
+    let mut b = vec![0.0; width * width];
+    for p in 0..m {
+        for q in (0..m).filter(|&q| q != p) {
+            b[p * width + q] = dipole(&centre[p], &centre[q], &moment[p], &moment[q], 1.0, 1.0);
+        }
+    }
+    b
+}
+
+/// Flips patches greedily while sum t_P t_Q B_PQ decreases; returns the patch signs (the fixed
+/// group m keeps +1).
+fn greedy_flips(b: &[f64], m: usize) -> Vec<f64> {
+    let width = m + 1;
+    let mut t = vec![1.0; width];
+    let mut g: Vec<f64> = (0..width).map(|p| (0..width).filter(|&q| q != p).map(|q| b[p * width + q]).sum()).collect();
+    for _ in 0..4 * m.max(1) {
+        // flipping P changes the energy by -4 t_P g_P: take the largest t_P g_P > 0
+        let best = (0..m).map(|p| (t[p] * g[p], p)).fold((0.0, usize::MAX), |a, c| if c.0 > a.0 { c } else { a });
+        if best.1 == usize::MAX {
+            break;
+        }
+        let p = best.1;
+        t[p] = -t[p];
+        for q in (0..width).filter(|&q| q != p) {
+            g[q] += 2.0 * t[p] * b[q * width + p];
+        }
+    }
+    t
+}
+
+/// Orients `normals` (unit, arbitrary signs) of `points` (3 values per point) consistently and
+/// outward, given each point's `kmax` nearest neighbours (`knn`, nearest first). Identical on
+/// every rank; the dense dipole sums are split over the ranks. Collective.
+pub fn orient(comm: &dyn Comm, points: &[f64], normals: &[[f64; 3]], knn: &[usize], kmax: usize) -> Result<Orientation> {
+    let n = normals.len();
+    let edges = graph_edges(knn, kmax, GRAPH_NEIGHBOURS);
+    let (label, count) = components(n, edges.iter().copied());
+    let signs = agree(comm, spectral_signs(points, normals, &edges, &label, count))?;
+    let mut o: Vec<[f64; 3]> = normals.iter().zip(&signs).map(|(v, s)| [v[0] * s, v[1] * s, v[2] * s]).collect();
+    // the area of a point: the squared distance to its 8th neighbour
+    let k8 = 8.min(kmax);
+    let area: Vec<f64> =
+        (0..n).map(|i| if k8 == 0 { 1.0 } else { dist2(&points[3 * i..], &points[3 * knn[i * kmax + k8 - 1]..]) }).collect();
+    let mut c = [0.0; 3];
+    for p in points.chunks_exact(3) {
+        for d in 0..3 {
+            c[d] += p[d] / n.max(1) as f64;
+        }
+    }
+    let mut per_component = vec![0.0; count];
+    for i in 0..n {
+        per_component[label[i]] += flux(points, &o, &area, &c, std::iter::once(i));
+    }
+    for i in 0..n {
+        if per_component[label[i]] < 0.0 {
+            o[i] = [-o[i][0], -o[i][1], -o[i][2]];
+        }
+    }
+    // patches: mutually tangent neighbours with nearly parallel oriented normals
+    let tangent = edges.iter().copied().filter(|&(i, j)| {
+        let (d, _) = unit_between(points, i, j);
+        dot(&o[i], &d).abs() < 0.35 && dot(&o[j], &d).abs() < 0.35 && dot(&o[i], &o[j]) > 0.9
+    });
+    let (raw, patches) = components(n, tangent);
+    let mut size = vec![0usize; patches];
+    for &p in &raw {
+        size[p] += 1;
+    }
+    let mut by_size: Vec<usize> = (0..patches).collect();
+    by_size.sort_by(|&a, &b| size[b].cmp(&size[a]).then(a.cmp(&b)));
+    let m = patches.min(MAX_PATCHES);
+    let mut rank_of = vec![m; patches];
+    for (r, &p) in by_size.iter().take(m).enumerate() {
+        rank_of[p] = r;
+    }
+    let patch: Vec<usize> = raw.iter().map(|&p| rank_of[p]).collect();
+    let dense_dipole = n <= DENSE_DIPOLE_LIMIT;
+    let b = if dense_dipole {
+        dense_patch_sums(comm, points, &o, &area, &patch, m)
+    } else {
+        patch_dipole_sums(points, &o, &area, &patch, m)
+    };
+    let t = greedy_flips(&b, m);
+    let flipped = t[..m].iter().filter(|&&v| v < 0.0).count();
+    for i in 0..n {
+        let s = t[patch[i]];
+        o[i] = [o[i][0] * s, o[i][1] * s, o[i][2] * s];
+    }
+    if flux(points, &o, &area, &c, 0..n) < 0.0 {
+        for v in o.iter_mut() {
+            *v = [-v[0], -v[1], -v[2]];
+        }
+    }
+    Ok(Orientation { normals: o, components: count, patches, movable: m, flipped, dense_dipole })
+}
