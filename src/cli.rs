@@ -93,8 +93,9 @@ pub struct FitArgs {
     #[arg(long, default_value = "auto", value_name = "auto|offsurface|carrier", value_parser = surface)]
     pub surface: Surface,
     /// Off-surface points per data point for --surface offsurface: 2 (both sides of every point,
-    /// 3N rows), 1 (one side, alternating), below 1 (one side on a strided subset).
-    #[arg(long, allow_hyphen_values = true, default_value = "1", value_name = "F", value_parser = off_rate)]
+    /// 3N rows), 1 (one side, alternating), below 1 (one side on a strided subset). The default
+    /// 0.4 keeps the dense factorisation within 1.4^3 = 2.7 times the plain method's.
+    #[arg(long, allow_hyphen_values = true, default_value = "0.4", value_name = "F", value_parser = off_rate)]
     pub off_points: f64,
     #[command(flatten)]
     pub grid: GridArgs,

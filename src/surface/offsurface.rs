@@ -62,11 +62,12 @@ fn sides(i: usize, per_point: f64) -> Vec<f64> {
     if per_point >= 2.0 {
         vec![1.0, -1.0]
     } else if per_point >= 1.0 {
-        let one = if i % 2 == 0 { 1.0 } else { -1.0 };
         if picked(i, per_point - 1.0) {
             vec![1.0, -1.0]
         } else {
-            vec![one]
+            // the index of this point among those not picked: alternate the side
+            let k = i - (i as f64 * (per_point - 1.0)).floor() as usize;
+            vec![if k % 2 == 0 { 1.0 } else { -1.0 }]
         }
     } else if picked(i, per_point) {
         // the index of this point among those picked: alternate the side
