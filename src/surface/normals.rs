@@ -38,11 +38,8 @@ pub fn nearest(tree: &Octree, points: &[f64], k: usize) -> Vec<usize> {
         let p = [points[3 * i], points[3 * i + 1], points[3 * i + 2]];
         let r = tree.kth_distance(p, k + 1, 1e-3);
         tree.within(p, r, found);
-        let mut near: Vec<(f64, usize)> = found
-            .iter()
-            .filter(|&&j| j != i)
-            .map(|&j| (dist2(&p, &points[3 * j..3 * j + 3]), j))
-            .collect();
+        let mut near: Vec<(f64, usize)> =
+            found.iter().filter(|&&j| j != i).map(|&j| (dist2(&p, &points[3 * j..3 * j + 3]), j)).collect();
         near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         for (slot, (_, j)) in row.iter_mut().zip(near) {
             *slot = j;
@@ -193,7 +190,9 @@ mod tests {
         let tree = Octree::new(&pts, 10);
         let knn = nearest(&tree, &pts, 20);
         let (normals, planarity) = pca_normals(&pts, &knn, 20);
-        let worst = (0..n).map(|i| (0..3).map(|d| normals[i][d] * pts[3 * i + d]).sum::<f64>().abs()).fold(1.0, f64::min);
+        let worst = (0..n)
+            .map(|i| (0..3).map(|d| normals[i][d] * pts[3 * i + d]).sum::<f64>().abs())
+            .fold(1.0, f64::min);
         assert!(worst > 0.99, "worst |n . radial| = {worst}");
         assert!(planarity.iter().all(|&p| p < 0.05));
     }

@@ -87,7 +87,11 @@ fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
 }
 
 fn unit_between(points: &[f64], i: usize, j: usize) -> ([f64; 3], f64) {
-    let d = [points[3 * j] - points[3 * i], points[3 * j + 1] - points[3 * i + 1], points[3 * j + 2] - points[3 * i + 2]];
+    let d = [
+        points[3 * j] - points[3 * i],
+        points[3 * j + 1] - points[3 * i + 1],
+        points[3 * j + 2] - points[3 * i + 2],
+    ];
     let r = dot(&d, &d).sqrt();
     if r > 0.0 {
         ([d[0] / r, d[1] / r, d[2] / r], r)
@@ -143,9 +147,16 @@ fn graph_edges(knn: &[usize], kmax: usize, k: usize) -> Vec<(usize, usize)> {
 
 /// Signs s_i (+-1) from the eigenvector of the smallest eigenvalue of the signed Laplacian (see
 /// the module doc), normalised per component `label`.
-fn spectral_signs(points: &[f64], normals: &[[f64; 3]], edges: &[(usize, usize)], label: &[usize], count: usize) -> Result<Vec<f64>> {
+fn spectral_signs(
+    points: &[f64],
+    normals: &[[f64; 3]],
+    edges: &[(usize, usize)],
+    label: &[usize],
+    count: usize,
+) -> Result<Vec<f64>> {
     let n = normals.len();
-    let mut lengths: Vec<f64> = edges.iter().map(|&(i, j)| dist2(&points[3 * i..], &points[3 * j..]).sqrt()).collect();
+    let mut lengths: Vec<f64> =
+        edges.iter().map(|&(i, j)| dist2(&points[3 * i..], &points[3 * j..]).sqrt()).collect();
     let h = if lengths.is_empty() {
         1.0
     } else {
@@ -187,7 +198,9 @@ fn spectral_signs(points: &[f64], normals: &[[f64; 3]], edges: &[(usize, usize)]
             norms[label[i]] += x[i] * x[i];
         }
         if norms.iter().any(|v| !v.is_finite()) {
-            return Err(Error::Numerical("orientation: inverse iteration of the signed Laplacian diverged".into()));
+            return Err(Error::Numerical(
+                "orientation: inverse iteration of the signed Laplacian diverged".into(),
+            ));
         }
         for i in 0..n {
             let s = norms[label[i]].sqrt();
@@ -204,9 +217,17 @@ fn spectral_signs(points: &[f64], normals: &[[f64; 3]], edges: &[(usize, usize)]
 }
 
 /// sum_i A_i o_i . (p_i - c) over the points of `members`.
-fn flux(points: &[f64], o: &[[f64; 3]], area: &[f64], c: &[f64; 3], members: impl Iterator<Item = usize>) -> f64 {
+fn flux(
+    points: &[f64],
+    o: &[[f64; 3]],
+    area: &[f64],
+    c: &[f64; 3],
+    members: impl Iterator<Item = usize>,
+) -> f64 {
     members
-        .map(|i| area[i] * dot(&o[i], &[points[3 * i] - c[0], points[3 * i + 1] - c[1], points[3 * i + 2] - c[2]]))
+        .map(|i| {
+            area[i] * dot(&o[i], &[points[3 * i] - c[0], points[3 * i + 1] - c[1], points[3 * i + 2] - c[2]])
+        })
         .sum()
 }
 
@@ -223,7 +244,14 @@ fn dipole(pi: &[f64], pj: &[f64], oi: &[f64; 3], oj: &[f64; 3], ai: f64, aj: f64
 
 /// The patch sums B ((m + 1) x (m + 1), row-major; index m is the fixed group) of the dense dipole
 /// field, each rank summing its row-cyclic rows. Collective.
-fn dense_patch_sums(comm: &dyn Comm, points: &[f64], o: &[[f64; 3]], area: &[f64], patch: &[usize], m: usize) -> Vec<f64> {
+fn dense_patch_sums(
+    comm: &dyn Comm,
+    points: &[f64],
+    o: &[[f64; 3]],
+    area: &[f64],
+    patch: &[usize],
+    m: usize,
+) -> Vec<f64> {
     use rayon::prelude::*;
     let n = o.len();
     let width = m + 1;
@@ -235,7 +263,8 @@ fn dense_patch_sums(comm: &dyn Comm, points: &[f64], o: &[[f64; 3]], area: &[f64
             .map(|&i| {
                 let mut row = vec![0.0; width];
                 for j in (0..n).filter(|&j| j != i) {
-                    row[patch[j]] += dipole(&points[3 * i..], &points[3 * j..], &o[i], &o[j], area[i], area[j]);
+                    row[patch[j]] +=
+                        dipole(&points[3 * i..], &points[3 * j..], &o[i], &o[j], area[i], area[j]);
                 }
                 row
             })
@@ -287,10 +316,12 @@ fn patch_dipole_sums(points: &[f64], o: &[[f64; 3]], area: &[f64], patch: &[usiz
 fn greedy_flips(b: &[f64], m: usize) -> Vec<f64> {
     let width = m + 1;
     let mut t = vec![1.0; width];
-    let mut g: Vec<f64> = (0..width).map(|p| (0..width).filter(|&q| q != p).map(|q| b[p * width + q]).sum()).collect();
+    let mut g: Vec<f64> =
+        (0..width).map(|p| (0..width).filter(|&q| q != p).map(|q| b[p * width + q]).sum()).collect();
     for _ in 0..4 * m.max(1) {
         // flipping P changes the energy by -4 t_P g_P: take the largest t_P g_P > 0
-        let best = (0..m).map(|p| (t[p] * g[p], p)).fold((0.0, usize::MAX), |a, c| if c.0 > a.0 { c } else { a });
+        let best =
+            (0..m).map(|p| (t[p] * g[p], p)).fold((0.0, usize::MAX), |a, c| if c.0 > a.0 { c } else { a });
         if best.1 == usize::MAX {
             break;
         }
@@ -306,16 +337,24 @@ fn greedy_flips(b: &[f64], m: usize) -> Vec<f64> {
 /// Orients `normals` (unit, arbitrary signs) of `points` (3 values per point) consistently and
 /// outward, given each point's `kmax` nearest neighbours (`knn`, nearest first). Identical on
 /// every rank; the dense dipole sums are split over the ranks. Collective.
-pub fn orient(comm: &dyn Comm, points: &[f64], normals: &[[f64; 3]], knn: &[usize], kmax: usize) -> Result<Orientation> {
+pub fn orient(
+    comm: &dyn Comm,
+    points: &[f64],
+    normals: &[[f64; 3]],
+    knn: &[usize],
+    kmax: usize,
+) -> Result<Orientation> {
     let n = normals.len();
     let edges = graph_edges(knn, kmax, GRAPH_NEIGHBOURS);
     let (label, count) = components(n, edges.iter().copied());
     let signs = agree(comm, spectral_signs(points, normals, &edges, &label, count))?;
-    let mut o: Vec<[f64; 3]> = normals.iter().zip(&signs).map(|(v, s)| [v[0] * s, v[1] * s, v[2] * s]).collect();
+    let mut o: Vec<[f64; 3]> =
+        normals.iter().zip(&signs).map(|(v, s)| [v[0] * s, v[1] * s, v[2] * s]).collect();
     // the area of a point: the squared distance to its 8th neighbour
     let k8 = 8.min(kmax);
-    let area: Vec<f64> =
-        (0..n).map(|i| if k8 == 0 { 1.0 } else { dist2(&points[3 * i..], &points[3 * knn[i * kmax + k8 - 1]..]) }).collect();
+    let area: Vec<f64> = (0..n)
+        .map(|i| if k8 == 0 { 1.0 } else { dist2(&points[3 * i..], &points[3 * knn[i * kmax + k8 - 1]..]) })
+        .collect();
     let mut c = [0.0; 3];
     for p in points.chunks_exact(3) {
         for d in 0..3 {
@@ -412,7 +451,10 @@ mod tests {
         // (thin legs, ears and horns); measured 0.996 and 0.943
         for (name, stride, bound) in [("bunny10k.obj", 2, 0.99), ("cow.obj", 1, 0.93)] {
             let (n, fraction, o) = agreement(name, stride);
-            println!("{name}: {n} points, {fraction:.4} agree with the mesh's normals, {o:?}", o = (o.components, o.patches, o.flipped));
+            println!(
+                "{name}: {n} points, {fraction:.4} agree with the mesh's normals, {o:?}",
+                o = (o.components, o.patches, o.flipped)
+            );
             assert!(fraction > bound, "{name}: only {fraction} of {n} normals agree with the truth");
         }
     }

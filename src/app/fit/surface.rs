@@ -56,7 +56,8 @@ pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<
     })?;
     let values = off_values(&off, &prep.points, &prep.carrier, &prep.norm);
     let scale = prep.norm.scale;
-    let delta = off.delta.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| (lo.min(d * scale), hi.max(d * scale)));
+    let delta =
+        off.delta.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| (lo.min(d * scale), hi.max(d * scale)));
     let summary = SurfaceSummary {
         off_points: off.side.len(),
         dropped: off.dropped,
