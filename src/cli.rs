@@ -386,7 +386,12 @@ mod tests {
         assert_eq!(a.leaf, 10);
         assert_eq!(a.grid.grid, GridSize::Longest(64));
         assert_eq!(a.merge_tol, 1e-6);
+        assert_eq!((a.surface, a.off_points), (Surface::Auto, 0.4));
         assert!(a.carrier.to_string().starts_with("ball:"));
+        let cli =
+            parse(&["fit", "a.xyz", "--out", "o", "--surface", "carrier", "--off-points", "2"]).unwrap();
+        let Command::Fit(a) = cli.command else { panic!("fit") };
+        assert_eq!((a.surface, a.off_points), (Surface::Carrier, 2.0));
     }
 
     #[test]
@@ -405,6 +410,10 @@ mod tests {
             &["fit", "a.xyz", "--out", "o", "--method", "sparse"],
             &["fit", "a.xyz", "--out", "o", "--support", "0"],
             &["fit", "a.xyz", "--out", "o", "--leaf", "0"],
+            &["fit", "a.xyz", "--out", "o", "--surface", "poisson"],
+            &["fit", "a.xyz", "--out", "o", "--off-points", "0"],
+            &["fit", "a.xyz", "--out", "o", "--off-points", "2.5"],
+            &["fit", "a.xyz", "--out", "o", "--off-points", "nan"],
         ] {
             let e = parse(bad).unwrap_err();
             assert_eq!(e.exit_code(), 2, "{bad:?}");

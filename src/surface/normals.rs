@@ -36,8 +36,16 @@ pub fn nearest(tree: &Octree, points: &[f64], k: usize) -> Vec<usize> {
     }
     out.par_chunks_mut(k).enumerate().for_each_init(Vec::new, |found, (i, row)| {
         let p = [points[3 * i], points[3 * i + 1], points[3 * i + 2]];
-        let r = tree.kth_distance(p, k + 1, 1e-3);
-        tree.within(p, r, found);
+        // the k-th distance, squared again, may round below the point's own squared distance:
+        // widen the search until it holds k other points
+        let mut r = tree.kth_distance(p, k + 1, 1e-3) * (1.0 + 1e-9);
+        loop {
+            tree.within(p, r, found);
+            if found.iter().filter(|&&j| j != i).count() >= k || !r.is_finite() {
+                break;
+            }
+            r = if r > 0.0 { 2.0 * r } else { f64::MIN_POSITIVE };
+        }
         let mut near: Vec<(f64, usize)> =
             found.iter().filter(|&&j| j != i).map(|&j| (dist2(&p, &points[3 * j..3 * j + 3]), j)).collect();
         near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
