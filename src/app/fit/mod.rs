@@ -1,5 +1,6 @@
 //! `volspline fit`: scattered points -> the solid. Rank 0 reads the points and every rank gets
-//! them; hygiene runs identically everywhere; the method (dense or compactly supported) is chosen
+//! them; hygiene runs identically everywhere; the surface method may add off-surface points
+//! ([`surface`]); the method (dense or compactly supported) is chosen
 //! and checked against the memory; the method fits the spline; |f| at the data is checked in
 //! parallel; rank 0 writes the model; the volume outputs follow.
 
@@ -238,15 +239,17 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>) -> String {
         None => "surface carrier: the spline interpolates the carrier at the data alone".to_string(),
         Some(s) => format!(
             "surface offsurface: {} off-surface points ({} dropped), delta {:.3e} to {:.3e}; orientation: {} graph \
-             components, {} patches, {} flipped by the {} dipole field",
+             components, {}",
             s.off_points,
             s.dropped,
             s.delta.0,
             s.delta.1,
             s.components,
-            s.patches,
-            s.flipped,
-            if s.dense_dipole { "dense" } else { "patch" }
+            if s.dense_dipole {
+                format!("{} patches, {} flipped by the dense dipole field", s.patches, s.flipped)
+            } else {
+                "no dipole correction (too many points)".to_string()
+            }
         ),
     }
 }
