@@ -7,6 +7,7 @@
 //!   shared volume outputs, the run report and what crosses ranks.
 //! - [`contour`]: solids from planar cross-sections (section splines, interpolation between
 //!   slices, orientation of non-parallel slices, plane families).
+//! - [`surface`]: surface points without normals -> oriented off-surface constraints.
 //! - [`spline`]: the mathematics (kernels, carriers, the bordered system, evaluation, hygiene,
 //!   the model); [`grid`]: the evaluation grid and its z-slabs.
 //! - [`linalg`]: serial dense oracles and the row-cyclic distributed solvers.
@@ -27,3 +28,4 @@ pub mod linalg;
 pub mod mesh;
 pub mod par;
 pub mod spline;
+pub mod surface;

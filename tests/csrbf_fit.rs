@@ -38,7 +38,17 @@ struct Run {
 fn fit(dir: &Path, input: &Path, name: &str, ranks: usize, extra: &[&str]) -> Run {
     let prefix = dir.join(name);
     let t = dir.join(format!("{name}.csv"));
-    let mut args = vec!["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--grid", "24"];
+    // the plain carrier system: the sizes and coefficients compared are those of the data alone
+    let mut args = vec![
+        "fit",
+        input.to_str().unwrap(),
+        "--out",
+        prefix.to_str().unwrap(),
+        "--grid",
+        "24",
+        "--surface",
+        "carrier",
+    ];
     args.extend_from_slice(&["--timings", t.to_str().unwrap()]);
     args.extend_from_slice(extra);
     common::run_ok(ranks, &args);

@@ -45,7 +45,7 @@ for n in $SIZES; do
         guard volspline "$p" "$n" || continue
         rm -f "$TMP/t.csv" "$TMP/o.ply" "$TMP/d.csv"
         t0=$(now)
-        if ! launch "$p" "$BIN" fit "$TMP/p.xyz" --out "$TMP/o" $METHOD_ARGS --grid "$GRID,$GRID,$GRID" \
+        if ! launch "$p" "$BIN" fit "$TMP/p.xyz" --out "$TMP/o" --surface carrier $METHOD_ARGS --grid "$GRID,$GRID,$GRID" \
             --threads "$THREADS" --timings "$TMP/t.csv" > "$TMP/log" 2>&1; then
             echo "volspline ranks=$p N=$n failed:" >> "$OUT/failed.txt"
             tail -20 "$TMP/log" | sed 's/^/    /' >> "$OUT/failed.txt"

@@ -9,6 +9,8 @@ use crate::par::Comm;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Stage {
     Read,
+    Normals,
+    Orient,
     Tree,
     Assemble,
     Factor,
@@ -22,8 +24,10 @@ pub enum Stage {
 }
 
 impl Stage {
-    pub const ALL: [Stage; 11] = [
+    pub const ALL: [Stage; 13] = [
         Stage::Read,
+        Stage::Normals,
+        Stage::Orient,
         Stage::Tree,
         Stage::Assemble,
         Stage::Factor,
@@ -39,6 +43,8 @@ impl Stage {
     pub fn name(self) -> &'static str {
         match self {
             Stage::Read => "read",
+            Stage::Normals => "normals",
+            Stage::Orient => "orient",
             Stage::Tree => "tree",
             Stage::Assemble => "assemble",
             Stage::Factor => "factor",

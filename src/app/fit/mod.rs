@@ -1,10 +1,12 @@
 //! `volspline fit`: scattered points -> the solid. Rank 0 reads the points and every rank gets
-//! them; hygiene runs identically everywhere; the method (dense or compactly supported) is chosen
+//! them; hygiene runs identically everywhere; the surface method may add off-surface points
+//! ([`surface`]); the method (dense or compactly supported) is chosen
 //! and checked against the memory; the method fits the spline; |f| at the data is checked in
 //! parallel; rank 0 writes the model; the volume outputs follow.
 
 pub mod compact;
 pub mod dense;
+pub mod surface;
 
 use std::path::Path;
 
@@ -122,12 +124,20 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     };
     let prep = prepare(&raw, &base, &a.carrier, a.merge_tol)?;
     let n = prep.values.len();
-    let (method, kernel, why) = choose(a, n, comm.size(), &prep.centres)?;
+    let run = Run { args: a, comm, threads };
+    let off = surface::with_off_surface(a.surface, n);
+    let constrained = if off { Some(surface::constrain(&run, &prep, &mut stages)?) } else { None };
+    // the spline's centres and values: the data's, with the off-surface points after them
+    let fit_prep = constrained.as_ref().map_or(&prep, |c| &c.0);
+    let summary = constrained.as_ref().map(|c| c.1.clone());
+    let rows = fit_prep.values.len();
+    let (method, kernel, why) = choose(a, rows, comm.size(), &fit_prep.centres)?;
     if comm.rank() == 0 {
         eprintln!(
-            "volspline fit: {points_read} points read from {}, {} duplicates merged, N = {n}, kernel {}, carrier {}",
+            "volspline fit: {points_read} points read from {}, {} duplicates merged, N = {n}{}, kernel {}, carrier {}",
             a.input.display(),
             prep.merged,
+            summary.as_ref().map_or(String::new(), |s| format!(" + {} off-surface points", s.off_points)),
             kernel.name(),
             prep.carrier
         );
@@ -136,16 +146,17 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let grid = Grid::covering(plo, phi, a.grid.grid)?;
     let fitted = match method {
         Method::Dense | Method::Auto => {
-            dense::check(comm, &kernel, n)?;
+            dense::check(comm, &kernel, rows)?;
             check_grid(comm, &grid)?;
-            dense::fit(&Run { args: a, comm, threads }, kernel, &prep, &mut stages)?
+            dense::fit(&run, kernel, fit_prep, &mut stages)?
         }
         Method::Csrbf => {
             check_grid(comm, &grid)?;
-            compact::fit(&Run { args: a, comm, threads }, kernel, &prep, &mut stages)?
+            compact::fit(&run, kernel, fit_prep, &mut stages)?
         }
     };
-    super::finite::check_fit(&fitted, &prep)?;
+    super::finite::check_fit(&fitted, fit_prep)?;
+    drop(constrained);
     let (rms, max_abs) = stages.time(Stage::Check, || at_points(comm, &fitted.spline, &prep));
     let Prepared { carrier, box_lo: lo, box_hi: hi, merged, .. } = prep;
     let model = Model {
@@ -181,6 +192,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         "N = {n} points ({points_read} read, {merged} duplicates merged), method {method_name} ({why}), kernel {}",
         kernel.name()
     ));
+    r.line(surface_line(summary.as_ref()));
     r.line(fitted.line.clone());
     r.line(format!("ranks = {}, threads per rank = {threads}", comm.size()));
     r.line(format!("relative residual |Mx - b|/|b| = {:.3e}", fitted.residual));
@@ -189,6 +201,16 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     r.figure("points", n);
     r.figure("method", method_name);
     r.figure("kernel", kernel.name());
+    r.figure("surface", surface::name(off));
+    if let Some(s) = &summary {
+        r.figure("off_points", s.off_points);
+        r.figure("off_dropped", s.dropped);
+        r.figure("delta_min", format!("{:e}", s.delta.0));
+        r.figure("delta_max", format!("{:e}", s.delta.1));
+        r.figure("orient_components", s.components);
+        r.figure("orient_patches", s.patches);
+        r.figure("orient_flipped", s.flipped);
+    }
     for (k, v) in &fitted.figures {
         r.figure(k, v);
     }
@@ -221,6 +243,27 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         a.grid.timings.as_deref(),
     )?;
     Ok(())
+}
+
+/// The report line of the surface method.
+fn surface_line(summary: Option<&surface::SurfaceSummary>) -> String {
+    match summary {
+        None => "surface carrier: the spline interpolates the carrier at the data alone".to_string(),
+        Some(s) => format!(
+            "surface offsurface: {} off-surface points ({} dropped), delta {:.3e} to {:.3e}; orientation: {} graph \
+             components, {}",
+            s.off_points,
+            s.dropped,
+            s.delta.0,
+            s.delta.1,
+            s.components,
+            if s.dense_dipole {
+                format!("{} patches, {} flipped by the dense dipole field", s.patches, s.flipped)
+            } else {
+                "no dipole correction (too many points)".to_string()
+            }
+        ),
+    }
 }
 
 /// RMS and maximum of |f| = |f_c - U| at the data points (zero for an exact interpolant), each

@@ -1,0 +1,61 @@
+//! Surface points without normals -> oriented off-surface constraints.
+//!
+//! A spline through value 0 at the data alone (the plain carrier method) is pinned down only on
+//! the data: between and beside the points its zero set wanders, and a scan that is open or
+//! concave grows sheets and bulges. Constraints beside the surface (Carr et al. 2001: points
+//! p +- delta n with values of the sign of the side) hold the zero set to the data, but need
+//! normals that point consistently outward. Scans rarely come with them, so they are made here:
+//! - [`normals`]: unoriented normals by local principal component analysis, each point taking
+//!   the most planar of several neighbourhood sizes;
+//! - [`orient`]: a consistent global orientation (the smallest eigenvector of a signed graph
+//!   Laplacian, corrected patch by patch by the dipole field) made outward by the divergence
+//!   theorem;
+//! - [`offsurface`]: the off points and the values the spline takes there.
+//!
+//! Everything works in the normalised coordinates of the spline's centres (the data's box
+//! centred, its half-diagonal 1) and is identical on every rank, except the dense dipole sums,
+//! which the ranks share.
+
+pub mod normals;
+pub mod offsurface;
+pub mod orient;
+
+pub use offsurface::{off_points, off_values, OffPoints, DELTA};
+pub use orient::{orient, Orientation};
+
+use crate::error::{Error, Result};
+use crate::par::Comm;
+use crate::spline::octree::Octree;
+
+/// Fewest points for which normals are estimated (the largest neighbourhood and the point).
+pub const MIN_POINTS: usize = 21;
+
+/// The octree, the nearest neighbours (`kmax` per point) and the unoriented normals of
+/// normalised `points` (3 values per point).
+pub struct Neighbourhoods {
+    pub tree: Octree,
+    pub knn: Vec<usize>,
+    pub kmax: usize,
+    pub normals: Vec<[f64; 3]>,
+}
+
+/// Nearest neighbours and unoriented PCA normals of `points`; needs [`MIN_POINTS`] points.
+pub fn neighbourhoods(points: &[f64]) -> Result<Neighbourhoods> {
+    let n = points.len() / 3;
+    if n < MIN_POINTS {
+        return Err(Error::Usage(format!(
+            "{n} points are too few to estimate normals for off-surface constraints (at least {MIN_POINTS}); \
+             use --surface carrier"
+        )));
+    }
+    let tree = Octree::new(points, 10);
+    let kmax = *normals::NEIGHBOURHOODS.iter().max().unwrap_or(&20);
+    let knn = normals::nearest(&tree, points, kmax);
+    let (normals, _) = normals::pca_normals(points, &knn, kmax);
+    Ok(Neighbourhoods { tree, knn, kmax, normals })
+}
+
+/// Oriented outward normals of `points` from their neighbourhoods. Collective.
+pub fn oriented(comm: &dyn Comm, points: &[f64], hoods: &Neighbourhoods) -> Result<Orientation> {
+    orient(comm, points, &hoods.normals, &hoods.knn, hoods.kmax)
+}
