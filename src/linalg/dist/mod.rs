@@ -12,12 +12,14 @@ mod cholesky;
 mod householder;
 mod layout;
 mod lu;
+mod scalar;
 mod solver;
 mod system;
 
 pub use cholesky::cholesky_solve;
 pub use householder::householder_solve;
 pub use layout::RowCyclic;
-pub use lu::lu_solve;
+pub use lu::{lu_factor, lu_solve};
+pub use scalar::Scalar;
 pub use solver::{solve, Job, Solved, SolverKind, AUTO_CHOLESKY_FROM};
 pub use system::{all_gather_rows, GatherBuffers, LocalRows};
