@@ -310,7 +310,10 @@ fn mixed(comm: &dyn Comm, k: &Kernel, prep: &Prepared, kind: SolverKind, panel: 
     let n = system_size(k, prep.values.len());
     let layout = RowCyclic::new(n, comm.size(), comm.rank());
     let rows_of = || assemble(k, &prep.centres, &prep.values, layout);
-    must(dist::solve_in(&Job::on(comm).panel(panel), kind, Precision::Mixed, rows_of(), rows_of), "mixed solve")
+    must(
+        dist::solve_in(&Job::on(comm).panel(panel), kind, Precision::Mixed, rows_of(), rows_of),
+        "mixed solve",
+    )
 }
 
 fn mixed_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {

@@ -65,7 +65,11 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
     let spline = Spline::from_solution(kernel, centres.clone(), &solved.x, prep.norm);
     let mixed = solved.mixed_fallback.is_none() && solved.refinement.is_some();
     let precision = if mixed { "mixed (f32 LU, f64 refinement)" } else { "f64" };
-    let mut line = format!("solver {} (dense, row-cyclic), panel {}, precision {precision}", solved.used.name(), solved.panel);
+    let mut line = format!(
+        "solver {} (dense, row-cyclic), panel {}, precision {precision}",
+        solved.used.name(),
+        solved.panel
+    );
     if let Some(r) = &solved.refinement {
         line.push_str(&format!("\n  refinement: {}", r.describe()));
     }

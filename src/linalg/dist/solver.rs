@@ -207,13 +207,27 @@ pub fn solve(
     let used = kind.resolve(rows.layout.n);
     let panel_of = |k: SolverKind| if job.panel > 0 { job.panel } else { k.default_panel() };
     match agree(comm, used.run(job, &mut rows)) {
-        Ok(x) => Ok(Solved { x, used, panel: panel_of(used), fallback: None, refinement: None, mixed_fallback: None }),
+        Ok(x) => Ok(Solved {
+            x,
+            used,
+            panel: panel_of(used),
+            fallback: None,
+            refinement: None,
+            mixed_fallback: None,
+        }),
         Err(e) if e.is_not_definite() => {
             drop(rows);
             let mut rows = reassemble();
             let x = agree(comm, SolverKind::Lu.run(job, &mut rows))?;
             let panel = panel_of(SolverKind::Lu);
-            Ok(Solved { x, used: SolverKind::Lu, panel, fallback: Some(e), refinement: None, mixed_fallback: None })
+            Ok(Solved {
+                x,
+                used: SolverKind::Lu,
+                panel,
+                fallback: Some(e),
+                refinement: None,
+                mixed_fallback: None,
+            })
         }
         Err(e) => Err(e),
     }
