@@ -188,7 +188,8 @@ impl<T: Scalar> LocalRows<T> {
         let local_moves = to(me);
         let local_buf = pack(&self.data, &local_moves);
         // (moves received, their values column-major)
-        let mut incoming: Vec<(Vec<(usize, usize)>, Vec<T>)> = Vec::new();
+        type Batch<T> = (Vec<(usize, usize)>, Vec<T>);
+        let mut incoming: Vec<Batch<T>> = Vec::new();
         for step in 1..p {
             let (dest, source) = ((me + step) % p, (me + p - step) % p);
             let out = to(dest);
