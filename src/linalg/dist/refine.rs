@@ -216,6 +216,54 @@ fn gmres(a: &dyn Fn(&[f64]) -> Vec<f64>, c: Vec<f64>, tol: f64, max_it: usize) -
 #[cfg(test)]
 mod tests {
     use super::*;
+    use faer::MatRef;
+
+    use crate::linalg::dist::RowCyclic;
+    use crate::par::Solo;
+
+    /// n x n unit upper triangular, entries above the diagonal -c (1 + u/10) with u in [0, 1)
+    /// (not representable in f32), rows in reversed order (so that LU pivots), right-hand side
+    /// M (1, ..., 1). kappa grows like (1 + c)^n.
+    fn graded(n: usize, c: f64) -> LocalRows {
+        let mut s = 7u64;
+        let mut u = move || {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut a = vec![vec![0.0; n]; n];
+        for (i, row) in a.iter_mut().enumerate() {
+            row[i] = 1.0;
+            for v in row.iter_mut().skip(i + 1) {
+                *v = -c * (1.0 + u() / 10.0);
+            }
+        }
+        let mut rows = LocalRows::zeros(RowCyclic::new(n, 1, 0), n + 1, 0);
+        for (l, row) in a.iter().rev().enumerate() {
+            for (j, v) in row.iter().enumerate() {
+                rows.set(l, j, *v);
+            }
+            rows.set(l, n, row.iter().sum());
+        }
+        rows
+    }
+
+    #[test]
+    fn classical_refinement_then_gmres_ir_as_the_condition_grows() {
+        for (c, gmres) in [(0.2, false), (0.5, true)] {
+            let m = graded(60, c);
+            let (x, r) = mixed_solve(&Job::on(&Solo).panel(16), &m).unwrap();
+            // kappa about 1e5: classical refinement alone; about 3e8 (> 1/eps32): it stalls at
+            // once and GMRES-IR takes over
+            assert!(r.converged && r.residual() < 1e-14 && r.history[0] > 1e-10, "c {c}: {r:?}");
+            assert_eq!(r.gmres > 0, gmres, "c {c}: {r:?}");
+            assert!(r.classical >= 1 && (gmres || r.classical >= 2), "c {c}: {r:?}");
+            // the f64 LU solution, to the forward error kappa eps64 both carry
+            let a = MatRef::from_column_major_slice(&m.data[..60 * 60], 60, 60);
+            let want = crate::linalg::dense::lu_solve(a, &m.data[60 * 60..]).unwrap();
+            let d = x.iter().zip(&want).map(|(p, q)| (p - q).abs()).fold(0.0, f64::max);
+            assert!(d < 1e-5, "c {c}: differs from the f64 LU by {d:e}");
+        }
+    }
 
     #[test]
     fn gmres_solves_a_small_nonsymmetric_system() {
