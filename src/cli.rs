@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use crate::frep::Syntax;
 use crate::frep::raycast::{Axis, Colouring};
 use crate::grid::{parse_bounds, GridSize};
-use crate::linalg::dist::SolverKind;
+use crate::linalg::dist::{Precision, SolverKind};
 use crate::spline::{Carrier, Kernel};
 
 /// volspline: reconstruct solids from scattered surface points as a volume spline f(x,y,z) with
@@ -89,6 +89,11 @@ pub struct FitArgs {
     /// message when a pivot is not positive), householder (QR) or lu (partial pivoting).
     #[arg(long, default_value = "auto", value_name = "auto|cholesky|householder|lu", value_parser = with(SolverKind::parse))]
     pub solver: SolverKind,
+    /// Working precision of the dense solve: f64, or mixed (LU in f32, refined in f64 to the
+    /// residual of an f64 solve, by classical refinement and then GMRES-IR; when that fails, the
+    /// --solver solve in f64, with a message).
+    #[arg(long, default_value = "f64", value_name = "f64|mixed", value_parser = with(Precision::parse))]
+    pub precision: Precision,
     /// Panel (block) width of the distributed solvers (0: automatic, 64 for householder, 128 for
     /// lu, 256 for cholesky).
     #[arg(long, allow_negative_numbers = true, default_value_t = 0, value_name = "NB")]
@@ -537,6 +542,7 @@ mod tests {
             parse(&["fit", "a.xyz", "--out", "o", "--solver", "lu", "--carrier", "ball:0,0,0,2"]).unwrap();
         let Command::Fit(a) = cli.command else { panic!("fit") };
         assert_eq!(a.solver, SolverKind::Lu);
+        assert_eq!(a.precision, Precision::F64);
         assert_eq!(a.kernel, KernelChoice::Auto);
         assert_eq!(a.method, Method::Auto);
         assert_eq!(a.leaf, 10);
@@ -554,6 +560,7 @@ mod tests {
     fn bad_values_are_usage_errors_before_anything_runs() {
         for bad in [
             &["fit", "a.xyz", "--out", "o", "--solver", "gauss"][..],
+            &["fit", "a.xyz", "--out", "o", "--precision", "half"][..],
             &["fit", "a.xyz", "--out", "o", "--carrier", "cube"],
             &["fit", "a.xyz", "--out", "o", "--margin", "-1"],
             &["fit", "a.xyz", "--out", "o", "--merge-tol", "0.5"],

@@ -1,5 +1,6 @@
 //! Library code that communicates, run on 2 and 3 MPI ranks against serial oracles: the typed
 //! collectives, the agreement on errors, the distributed solvers and the Cholesky -> LU fallback,
+//! the mixed-precision solve and its fallback to f64,
 //! the parallel VTKHDF writer, and the per-slice fits of `contours`.
 //!
 //! A target without the libtest harness (see `common::mpijob`): the checks run as jobs under
@@ -23,7 +24,7 @@ use volspline::error::{Error, Result};
 use volspline::grid::Grid;
 use volspline::io::vtkhdf::{read_image, write_image};
 use volspline::linalg::dense::{householder_solve, lu_solve};
-use volspline::linalg::dist::{self, Job, LocalRows, RowCyclic, SolverKind};
+use volspline::linalg::dist::{self, Job, LocalRows, Precision, RowCyclic, SolverKind};
 use volspline::par::mpi::World;
 use volspline::par::{self, Comm, Solo};
 use volspline::spline::hygiene::{prepare, Prepared};
@@ -73,13 +74,15 @@ fn child() {
         }
         comm.barrier();
     }
-    let checks: [(&str, Check); 8] = [
+    let checks: [(&str, Check); 10] = [
         ("typed collectives", typed_collectives),
         ("agree: one failing rank", agree_one_failing_rank),
         ("agree: two failing ranks, the lowest wins", agree_lowest_rank_wins),
         ("distributed solvers vs dense oracles", solvers_match_the_oracles),
         ("Cholesky -> LU fallback, 4 points", fallback_on_four_points),
         ("Cholesky -> LU fallback, indefinite block", fallback_on_an_indefinite_block),
+        ("mixed precision vs the dense LU oracle", mixed_matches_the_oracle),
+        ("mixed precision -> f64 fallback, near-coincident points", mixed_falls_back_to_f64),
         ("parallel VTKHDF write vs serial values", vtkhdf_slabs_read_back),
         ("contour slices vs one process", sections_match_solo),
     ];
@@ -300,6 +303,58 @@ fn fallback_on_an_indefinite_block(comm: &dyn Comm, log: &mut Log) {
     let b: Vec<f64> = (0..n).map(|i| a[(i, n)]).collect();
     let want = must(lu_solve(a.as_ref().subcols(0, n), &b), "the dense LU oracle");
     check_fallback(comm, log, &rows_of, n, &want, "indefinite block");
+}
+
+/// The solution of `solve_in` in mixed precision with `kind` for the f64 fallback.
+fn mixed(comm: &dyn Comm, k: &Kernel, prep: &Prepared, kind: SolverKind, panel: usize) -> dist::Solved {
+    let n = system_size(k, prep.values.len());
+    let layout = RowCyclic::new(n, comm.size(), comm.rank());
+    let rows_of = || assemble(k, &prep.centres, &prep.values, layout);
+    must(
+        dist::solve_in(&Job::on(comm).panel(panel), kind, Precision::Mixed, rows_of(), rows_of),
+        "mixed solve",
+    )
+}
+
+fn mixed_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
+    let k = Kernel::new(3, 2).unwrap();
+    let prep = bunny_system(&k);
+    let want = oracle(&prep, &k, lu_solve);
+    for panel in [7, 16, 64] {
+        let s = mixed(comm, &k, &prep, SolverKind::Cholesky, panel);
+        let what = format!("mixed, panel {panel}");
+        log.check(s.mixed_fallback.is_none() && s.used == SolverKind::Lu, || {
+            format!("{what}: fell back ({:?}), used {:?}", s.mixed_fallback, s.used)
+        });
+        let r = s.refinement.clone().unwrap_or_else(|| panic!("{what}: no refinement"));
+        // the f32 solution alone is 1e-7 off: at least one step, and the f64 residual at the end
+        log.check(r.converged && r.classical >= 1 && r.history[0] > 1e-9, || format!("{what}: {r:?}"));
+        log.check(r.residual() < 1e-13, || format!("{what}: residual {:e}", r.residual()));
+        log.close(&s.x, &want, 1e-9, || what.clone());
+        same_on_every_rank(comm, log, &s.x, &what);
+    }
+}
+
+fn mixed_falls_back_to_f64(comm: &dyn Comm, log: &mut Log) {
+    // every 4th bunny point again, 1e-5 of the box diagonal (25) away: rows that agree to 1e-5 are
+    // singular in f32 (pivot tolerance n eps32 max |a| = 4e-5), not in f64
+    let k = Kernel::new(3, 2).unwrap();
+    let mut raw = common::bunny_subset(20, 0);
+    let near: Vec<f64> = raw.chunks(3).step_by(4).flat_map(|p| [p[0] + 2.5e-4, p[1], p[2]]).collect();
+    raw.extend(near);
+    let prep = must(prepare(&raw, &k, &Carrier::AutoBall, 1e-12), "prepare the near-coincident points");
+    let want = oracle(&prep, &k, lu_solve);
+    for panel in [0, 16] {
+        let s = mixed(comm, &k, &prep, SolverKind::Lu, panel);
+        let what = format!("near-coincident, panel {panel}");
+        let why = s.mixed_fallback.clone().unwrap_or_default();
+        log.check(why.contains("single-precision factorisation failed") && why.contains("singular"), || {
+            format!("{what}: fallback message '{why}'")
+        });
+        log.check(s.used == SolverKind::Lu && s.refinement.is_none(), || format!("{what}: {s:?}"));
+        log.close(&s.x, &want, 1e-8, || what.clone());
+        same_on_every_rank(comm, log, &s.x, &what);
+    }
 }
 
 // ---------------------------------------------------------------------------------------------

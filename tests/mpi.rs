@@ -1,6 +1,7 @@
 //! The real binary under `mpirun -n 1`, `-n 2` and `-n 3 --oversubscribe` on bunny points: the
 //! model coefficients and the grid values agree with the serial oracle; `eval` reproduces `fit`;
-//! bad input fails cleanly on every rank count; the Cholesky solver falls back to LU on every rank.
+//! bad input fails cleanly on every rank count; the Cholesky solver falls back to LU on every rank;
+//! `--precision mixed` reaches the residual of f64, or falls back to f64 with its message.
 
 mod common;
 
@@ -252,4 +253,66 @@ fn help_documents_every_option_with_its_default() {
     for needle in ["--bounds", "--grid", "--out"] {
         assert!(out.contains(needle), "eval --help lacks '{needle}':\n{out}");
     }
+}
+
+#[test]
+fn mixed_precision_reaches_the_f64_residual_or_falls_back() {
+    let dir = common::temp_dir("mixed");
+    // 2000 bunny points: a system of 2004 rows
+    let bunny: Vec<f64> = common::bunny_subset(2, 0).into_iter().take(6000).collect();
+    // the same with every 4th point again 1e-5 of the box diagonal (25) away: singular in f32
+    let mut near = bunny.clone();
+    near.extend(bunny.chunks(3).step_by(4).flat_map(|p| [p[0] + 2.5e-4, p[1], p[2]]));
+    let fit = |name: &str, pts: &[f64], ranks: usize, precision: &str| {
+        let input = dir.join(format!("{name}.xyz"));
+        common::write_xyz(&input, pts);
+        let out = dir.join(format!("{name}-{precision}-{ranks}"));
+        let csv = dir.join(format!("{name}-{precision}-{ranks}.csv"));
+        let args = [
+            "fit",
+            input.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--solver",
+            "lu",
+            "--precision",
+            precision,
+            "--merge-tol",
+            "1e-12",
+            "--grid",
+            "8",
+            "--timings",
+            csv.to_str().unwrap(),
+        ];
+        let text = common::run_ok(ranks, &args);
+        let rec = std::fs::read_to_string(&csv).unwrap();
+        let get = move |k: &str| {
+            rec.lines().find_map(|l| l.strip_prefix(&format!("{k},"))).unwrap_or("").to_string()
+        };
+        (text, get("residual").parse::<f64>().unwrap(), get)
+    };
+    let (_, f64_residual, _) = fit("bunny", &bunny, 1, "f64");
+    assert!(f64_residual < 1e-13, "f64 residual {f64_residual:e}");
+    for ranks in [1, 2] {
+        let (text, residual, get) = fit("bunny", &bunny, ranks, "mixed");
+        assert_eq!(get("precision"), "mixed", "{text}");
+        assert_eq!(get("precision_fallback"), "false", "{text}");
+        assert!(get("refinement_classical").parse::<usize>().unwrap() >= 1, "{text}");
+        assert!(
+            text.contains("precision mixed (f32 LU, f64 refinement)") && text.contains("refinement: "),
+            "{text}"
+        );
+        // the f64 path's residual, to within the rounding of the residual itself
+        assert!(residual < 3.0 * f64_residual, "{ranks} ranks: mixed {residual:e}, f64 {f64_residual:e}");
+    }
+    let (_, near_f64, _) = fit("near", &near, 2, "f64");
+    let (text, residual, get) = fit("near", &near, 2, "mixed");
+    assert_eq!(get("precision"), "f64", "{text}");
+    assert_eq!(get("precision_fallback"), "true", "{text}");
+    assert!(
+        text.contains("precision mixed fell back to f64: the single-precision factorisation failed"),
+        "{text}"
+    );
+    assert!(text.contains("volspline: precision mixed: "), "the message on stderr: {text}");
+    assert_eq!(residual, near_f64, "the fallback is the f64 solve");
 }

@@ -51,6 +51,11 @@ pub trait Comm {
     /// length the caller knows). Point-to-point; `dest` must at the same time receive from this
     /// rank and `source` send to it (a shift or a pairwise exchange), so nothing deadlocks.
     fn shift_f64(&self, dest: usize, source: usize, send: &[f64], recv: &mut [f64]);
+    /// [`Comm::all_gather_f64`] of single-precision values (the factors of a mixed-precision
+    /// solve travel at half the bytes).
+    fn all_gather_f32(&self, send: &[f32], counts: &[usize], recv: &mut [f32]);
+    /// [`Comm::shift_f64`] of single-precision values.
+    fn shift_f32(&self, dest: usize, source: usize, send: &[f32], recv: &mut [f32]);
     /// The communicator handle for collective file access (MPI-IO), where there is one.
     fn raw(&self) -> Option<RawComm> {
         None

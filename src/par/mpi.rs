@@ -67,6 +67,26 @@ impl MpiComm {
             self.comm.all_reduce_into(&send[..], buf, op);
         }
     }
+
+    fn all_gather<T: Equivalence + Copy>(&self, send: &[T], counts: &[usize], recv: &mut [T]) {
+        if self.size == 1 {
+            recv.copy_from_slice(send);
+            return;
+        }
+        let (c, d) = displacements(counts);
+        let mut part = PartitionMut::new(recv, c, d);
+        self.comm.all_gather_varcount_into(send, &mut part);
+    }
+
+    fn shift<T: Equivalence + Copy>(&self, dest: usize, source: usize, send: &[T], recv: &mut [T]) {
+        if dest == self.rank && source == self.rank {
+            recv.copy_from_slice(send);
+            return;
+        }
+        let d = self.comm.process_at_rank(dest as i32);
+        let s = self.comm.process_at_rank(source as i32);
+        mpi::point_to_point::send_receive_into(send, &d, recv, &s);
+    }
 }
 
 fn displacements(counts: &[usize]) -> (Vec<Count>, Vec<Count>) {
@@ -117,13 +137,10 @@ impl Comm for MpiComm {
         }
     }
     fn all_gather_f64(&self, send: &[f64], counts: &[usize], recv: &mut [f64]) {
-        if self.size == 1 {
-            recv.copy_from_slice(send);
-            return;
-        }
-        let (c, d) = displacements(counts);
-        let mut part = PartitionMut::new(recv, c, d);
-        self.comm.all_gather_varcount_into(send, &mut part);
+        self.all_gather(send, counts, recv);
+    }
+    fn all_gather_f32(&self, send: &[f32], counts: &[usize], recv: &mut [f32]) {
+        self.all_gather(send, counts, recv);
     }
     fn gather_bytes(&self, root: usize, send: &[u8]) -> Option<Vec<Vec<u8>>> {
         if self.size == 1 {
@@ -152,13 +169,10 @@ impl Comm for MpiComm {
         }
     }
     fn shift_f64(&self, dest: usize, source: usize, send: &[f64], recv: &mut [f64]) {
-        if dest == self.rank && source == self.rank {
-            recv.copy_from_slice(send);
-            return;
-        }
-        let d = self.comm.process_at_rank(dest as i32);
-        let s = self.comm.process_at_rank(source as i32);
-        mpi::point_to_point::send_receive_into(send, &d, recv, &s);
+        self.shift(dest, source, send, recv);
+    }
+    fn shift_f32(&self, dest: usize, source: usize, send: &[f32], recv: &mut [f32]) {
+        self.shift(dest, source, send, recv);
     }
     fn raw(&self) -> Option<RawComm> {
         Some(self.comm.as_raw())

@@ -44,8 +44,11 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
     let solved = stages.time(Stage::Solve, || {
         let report = |d, t| progress.update(d, t);
         let job = Job::on(comm).panel(a.panel).par(Par::rayon(threads)).progress(&report);
-        dist::solve(&job, a.solver, rows, || assemble(&kernel, centres, values, layout))
+        dist::solve_in(&job, a.solver, a.precision, rows, || assemble(&kernel, centres, values, layout))
     })?;
+    if let (Some(why), 0) = (&solved.mixed_fallback, comm.rank()) {
+        eprintln!("volspline: precision mixed: {why}; solved in f64 with {}", solved.used.name());
+    }
     if let (Some(why), 0) = (&solved.fallback, comm.rank()) {
         eprintln!("volspline: cholesky: {}; fell back to LU", why.root());
     }
@@ -60,15 +63,34 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
         }
     });
     let spline = Spline::from_solution(kernel, centres.clone(), &solved.x, prep.norm);
+    let mixed = solved.mixed_fallback.is_none() && solved.refinement.is_some();
+    let precision = if mixed { "mixed (f32 LU, f64 refinement)" } else { "f64" };
+    let mut line = format!(
+        "solver {} (dense, row-cyclic), panel {}, precision {precision}",
+        solved.used.name(),
+        solved.panel
+    );
+    if let Some(r) = &solved.refinement {
+        line.push_str(&format!("\n  refinement: {}", r.describe()));
+    }
+    if let Some(why) = &solved.mixed_fallback {
+        line.push_str(&format!("\n  precision mixed fell back to f64: {why}"));
+    }
+    let refinement = solved.refinement.as_ref();
     Ok(Fitted {
         spline,
-        solver: solved.used.name().to_string(),
+        solver: if mixed { "lu (mixed)".to_string() } else { solved.used.name().to_string() },
         residual,
-        line: format!("solver {} (dense, row-cyclic), panel {}", solved.used.name(), solved.panel),
+        line,
         figures: vec![
             ("solver".into(), solved.used.name().into()),
             ("panel".into(), solved.panel.to_string()),
             ("system_size".into(), layout.n.to_string()),
+            ("precision".into(), if mixed { "mixed" } else { "f64" }.into()),
+            ("refinement_classical".into(), refinement.map_or(0, |r| r.classical).to_string()),
+            ("refinement_gmres".into(), refinement.map_or(0, |r| r.gmres).to_string()),
+            ("refinement_gmres_iterations".into(), refinement.map_or(0, |r| r.gmres_iterations).to_string()),
+            ("precision_fallback".into(), solved.mixed_fallback.is_some().to_string()),
         ],
     })
 }

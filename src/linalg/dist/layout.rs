@@ -83,7 +83,7 @@ impl RowCyclic {
 
     /// Puts the rows g0..g1, `w` values each, from rank order (rank 0's rows of the range in
     /// local order, then rank 1's, ..., as an all-gather delivers them) into global order.
-    pub fn to_global_order(&self, gathered: &[f64], g0: usize, g1: usize, w: usize, out: &mut [f64]) {
+    pub fn to_global_order<T: Copy>(&self, gathered: &[T], g0: usize, g1: usize, w: usize, out: &mut [T]) {
         debug_assert!(gathered.len() == (g1 - g0) * w && out.len() == gathered.len());
         let p = self.ranks;
         let mut off = 0;

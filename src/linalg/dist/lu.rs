@@ -27,6 +27,7 @@ use faer::reborrow::Reborrow;
 use faer::{Accum, MatMut, MatRef, Par};
 
 use super::backsub::back_substitute;
+use super::scalar::Scalar;
 use super::solver::Job;
 use super::system::{GatherBuffers, LocalRows};
 use crate::error::{Error, Result};
@@ -36,11 +37,23 @@ use crate::par::Comm;
 /// solution on every rank. Collective. `rows` is overwritten by U (and the multipliers of L, not
 /// row-interchanged) and L^-1 P b. `par` is the parallelism of the local trailing-update GEMMs.
 pub fn lu_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>> {
+    let tol = rows.singular_tol(job.comm);
+    lu_factor(job, rows)?;
+    back_substitute(job.comm, rows, job.panel.max(1), tol)
+}
+
+/// Factors the distributed matrix in `rows` in its own precision (the right-hand side column is
+/// carried along and ends as L^-1 P b) and returns the row interchanges (j, p), in the order
+/// applied: panel by panel, j ascending. Collective. Column j of L is left where the
+/// interchanges of its own panel put it: the later panels' interchanges reach only the columns
+/// right of their panel.
+pub fn lu_factor<T: Scalar>(job: &Job<'_>, rows: &mut LocalRows<T>) -> Result<Vec<(usize, usize)>> {
     let Job { comm, panel, par, progress } = *job;
     let (lay, cols, nb) = (rows.layout, rows.cols, panel.max(1));
     let n = lay.n;
     let tol = rows.singular_tol(comm);
     let mut bufs = GatherBuffers::default();
+    let mut all_swaps = Vec::with_capacity(n);
     let mut k = 0;
     while k < n {
         let kb = nb.min(n - k);
@@ -50,10 +63,11 @@ pub fn lu_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>> {
         factor_panel(comm, rows, k, k + kb, (k, k + kb), tol, &mut swaps, &mut bufs)?;
         rows.permute_rows(comm, &swaps, k + kb, cols);
         eliminate_block(comm, rows, k, k + kb, cols, par, &mut bufs);
+        all_swaps.extend_from_slice(&swaps);
         k += kb;
         progress(k, n);
     }
-    back_substitute(comm, rows, nb, tol)
+    Ok(all_swaps)
 }
 
 /// Columns at most this wide are factored column by column; wider ones recursively.
@@ -62,15 +76,15 @@ const LEAF: usize = 8;
 /// LU of the panel columns a..b (rows a..n), recursively: the left half, its block elimination
 /// on the right half (a GEMM), then the right half. Swaps whole rows.
 #[allow(clippy::too_many_arguments)]
-fn factor_panel(
+fn factor_panel<T: Scalar>(
     comm: &dyn Comm,
-    rows: &mut LocalRows,
+    rows: &mut LocalRows<T>,
     a: usize,
     b: usize,
     panel: (usize, usize),
     tol: f64,
     swaps: &mut Vec<(usize, usize)>,
-    bufs: &mut GatherBuffers,
+    bufs: &mut GatherBuffers<T>,
 ) -> Result<()> {
     if b - a <= LEAF {
         return factor_columns(comm, rows, a, b - a, panel, tol, swaps);
@@ -84,14 +98,14 @@ fn factor_panel(
 /// Given the factored columns a..m (L11\U11 in rows a..m, L21 below), computes
 /// U12 = L11^-1 A12 for columns m..c1 from the gathered block row (redundantly on every rank),
 /// stores it in the owners' rows and updates this rank's rows below: A22 -= L21 U12.
-fn eliminate_block(
+fn eliminate_block<T: Scalar>(
     comm: &dyn Comm,
-    rows: &mut LocalRows,
+    rows: &mut LocalRows<T>,
     a: usize,
     m: usize,
     c1: usize,
     par: Par,
-    bufs: &mut GatherBuffers,
+    bufs: &mut GatherBuffers<T>,
 ) {
     let lay = rows.layout;
     let (w, rest) = (m - a, c1 - m);
@@ -101,8 +115,8 @@ fn eliminate_block(
     rows.gather_rows_with(comm, a, m, a, c1, bufs);
     let brow = &bufs.out;
     let width = c1 - a;
-    let l11 = faer::Mat::<f64>::from_fn(w, w, |i, j| brow[i * width + j]);
-    let mut u12 = faer::Mat::<f64>::from_fn(w, rest, |i, j| brow[i * width + w + j]);
+    let l11 = faer::Mat::<T>::from_fn(w, w, |i, j| brow[i * width + j]);
+    let mut u12 = faer::Mat::<T>::from_fn(w, rest, |i, j| brow[i * width + w + j]);
     solve_unit_lower_triangular_in_place(l11.as_ref(), u12.as_mut(), Par::Seq);
     let (o0, o1) = (lay.first_local_from(a), lay.first_local_from(m));
     for j in 0..rest {
@@ -115,17 +129,17 @@ fn eliminate_block(
     if t0 < lc {
         let sub = rows.view_mut().submatrix_mut(t0, a, lc - t0, width);
         let (left, right) = sub.split_at_col_mut(w);
-        let l21: MatRef<'_, f64> = left.rb();
-        let a22: MatMut<'_, f64> = right;
-        matmul(a22, Accum::Add, l21, u12.as_ref(), -1.0, par);
+        let l21: MatRef<'_, T> = left.rb();
+        let a22: MatMut<'_, T> = right;
+        matmul(a22, Accum::Add, l21, u12.as_ref(), T::of(-1.0), par);
     }
 }
 
 /// Unblocked LU of the columns k..k+kb (rows k..n); row interchanges are applied to the panel
 /// columns `panel.0..panel.1` and recorded in `swaps`.
-fn factor_columns(
+fn factor_columns<T: Scalar>(
     comm: &dyn Comm,
-    rows: &mut LocalRows,
+    rows: &mut LocalRows<T>,
     k: usize,
     kb: usize,
     panel: (usize, usize),
@@ -138,34 +152,37 @@ fn factor_columns(
     // each candidate travels with its row's leaf part (columns j..k+kb), so that the pivot row
     // is known everywhere after one all-gather per column, without a broadcast
     let stride = 2 + kb;
-    let mut mine = vec![0.0; stride];
-    let mut cand = vec![0.0; stride * ranks];
+    // (the global row index travels in T too: exact in f32 up to 2^24 rows)
+    let zero = T::of(0.0);
+    let mut mine = vec![zero; stride];
+    let mut cand = vec![zero; stride * ranks];
     let counts = vec![stride; ranks];
-    let mut pivot_row = vec![0.0; kb];
+    let mut pivot_row = vec![zero; kb];
+    let tol_t = T::of(tol);
     for j in k..k + kb {
         let width = k + kb - j;
         // this rank's candidate: largest |a| in column j at or below row j (lowest row on ties)
-        let mut best = (-1.0f64, usize::MAX);
+        let mut best = (T::of(-1.0), usize::MAX);
         for l in lay.first_local_from(j)..lc {
-            let v = rows.get(l, j).abs();
+            let v = rows.get(l, j).magnitude();
             if v > best.0 {
                 best = (v, l);
             }
         }
-        mine.iter_mut().for_each(|v| *v = 0.0);
+        mine.iter_mut().for_each(|v| *v = zero);
         mine[0] = best.0;
-        mine[1] = if best.1 == usize::MAX { f64::INFINITY } else { lay.global(best.1) as f64 };
+        mine[1] = T::of(if best.1 == usize::MAX { f64::INFINITY } else { lay.global(best.1) as f64 });
         if best.1 != usize::MAX {
             rows.read_row(best.1, j, k + kb, &mut mine[2..2 + width]);
         }
-        comm.all_gather_f64(&mine, &counts, &mut cand);
-        let mut piv = (-1.0f64, f64::INFINITY, 0usize);
+        T::all_gather(comm, &mine, &counts, &mut cand);
+        let mut piv = (T::of(-1.0), T::of(f64::INFINITY), 0usize);
         for (r, c) in cand.chunks(stride).enumerate() {
             if c[0] > piv.0 || (c[0] == piv.0 && c[1] < piv.1) {
                 piv = (c[0], c[1], r);
             }
         }
-        if !(piv.0 > tol) {
+        if !(piv.0 > tol_t) {
             return Err(Error::Numerical(format!(
                 "the system is singular to working precision: no pivot above {tol:.3e} in column {j} of {}",
                 lay.n
@@ -173,21 +190,22 @@ fn factor_columns(
         }
         let from = piv.2 * stride + 2;
         pivot_row[..width].copy_from_slice(&cand[from..from + width]);
-        rows.swap_rows(comm, j, piv.1 as usize, panel.0, panel.1);
-        swaps.push((j, piv.1 as usize));
+        let prow = piv.1.f64() as usize;
+        rows.swap_rows(comm, j, prow, panel.0, panel.1);
+        swaps.push((j, prow));
         let d = pivot_row[0];
         let l0 = lay.first_local_from(j + 1);
         let ld = lc;
         // column j below the pivot becomes L; the panel columns right of it get the rank-1 update
         let (left, right) = rows.data.split_at_mut((j + 1) * ld);
         let lcol = &mut left[j * ld + l0..j * ld + lc];
-        let inv = 1.0 / d;
+        let inv = T::of(1.0) / d;
         lcol.iter_mut().for_each(|v| *v *= inv);
         for (t, col) in right.chunks_exact_mut(ld).take(k + kb - j - 1).enumerate() {
             let u = pivot_row[t + 1];
-            if u != 0.0 {
+            if u != zero {
                 for (a, l) in col[l0..lc].iter_mut().zip(lcol.iter()) {
-                    *a -= l * u;
+                    *a -= *l * u;
                 }
             }
         }

@@ -2,6 +2,9 @@
 //! lives on rank g mod p, every rank holds its rows with the right-hand side as the last column,
 //! and no solver ever gathers the matrix. Blocked Householder QR, LU with partial pivoting and the
 //! projected Cholesky; [`solve`] chooses among them and falls back from Cholesky to LU.
+//! [`solve_in`] adds the mixed-precision solve: LU in f32 (the factorisations are generic over
+//! [`Scalar`]), refined in f64 by classical refinement and GMRES-IR ([`mixed_solve`]), with a
+//! fallback to f64 when the refinement does not reach the accuracy of an f64 solve.
 //!
 //! Every solver takes the panel width nb and a `faer::Par`. The panel kernels and the
 //! collectives are serial; the `Par` goes to the local GEMMs and triangular solves of the
@@ -12,12 +15,17 @@ mod cholesky;
 mod householder;
 mod layout;
 mod lu;
+mod mixed;
+mod refine;
+mod scalar;
 mod solver;
 mod system;
 
 pub use cholesky::cholesky_solve;
 pub use householder::householder_solve;
 pub use layout::RowCyclic;
-pub use lu::lu_solve;
-pub use solver::{solve, Job, Solved, SolverKind, AUTO_CHOLESKY_FROM};
+pub use lu::{lu_factor, lu_solve};
+pub use refine::{mixed_solve, Refinement};
+pub use scalar::Scalar;
+pub use solver::{solve, solve_in, Job, Precision, Solved, SolverKind, AUTO_CHOLESKY_FROM};
 pub use system::{all_gather_rows, GatherBuffers, LocalRows};

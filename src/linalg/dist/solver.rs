@@ -1,10 +1,11 @@
 //! The choice of distributed solver: the `auto` policy by system size, default panel widths, and
 //! the fallback from the projected Cholesky to LU when the projected block turns out not definite
-//! to working precision. One entry point, [`solve`], for every command.
+//! to working precision; the mixed-precision solve and its fallback to f64. One entry point,
+//! [`solve_in`] ([`solve`] in f64), for every command.
 
 use faer::Par;
 
-use super::{cholesky_solve, householder_solve, lu_solve, LocalRows};
+use super::{cholesky_solve, householder_solve, lu_solve, mixed_solve, LocalRows, Refinement};
 use crate::error::{Error, Result};
 use crate::par::{agree, Comm};
 
@@ -113,6 +114,33 @@ impl SolverKind {
     }
 }
 
+/// The working precision of a dense solve.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Precision {
+    /// Factor and solve in f64 with the chosen solver.
+    F64,
+    /// Factor by LU in f32, refine in f64 (classical, then GMRES-IR) to the accuracy of an f64
+    /// solve; when that fails, solve again in f64 with the chosen solver.
+    Mixed,
+}
+
+impl Precision {
+    pub fn parse(name: &str) -> Result<Self> {
+        match name {
+            "f64" | "double" => Ok(Precision::F64),
+            "mixed" => Ok(Precision::Mixed),
+            other => Err(Error::Usage(format!("unknown precision '{other}' (expected f64 or mixed)"))),
+        }
+    }
+
+    pub fn name(&self) -> &'static str {
+        match self {
+            Precision::F64 => "f64",
+            Precision::Mixed => "mixed",
+        }
+    }
+}
+
 /// A solution and how it was obtained.
 #[derive(Debug, Clone)]
 pub struct Solved {
@@ -124,6 +152,42 @@ pub struct Solved {
     pub panel: usize,
     /// Why Cholesky fell back to LU, if it did.
     pub fallback: Option<Error>,
+    /// The refinement of a mixed-precision solve (None in f64 or when the f32 factorisation
+    /// failed).
+    pub refinement: Option<Refinement>,
+    /// Why a mixed-precision solve fell back to f64, if it did.
+    pub mixed_fallback: Option<String>,
+}
+
+/// Solves the distributed system `rows` in `precision`: [`solve`] with `kind` in f64; in mixed
+/// precision by the f32 LU and refinement (`rows` is kept for the residuals), and, when the f32
+/// factorisation fails or the refinement does not reach the accuracy of an f64 solve, by
+/// [`solve`] with `kind` on the same rows, with the reason in `mixed_fallback`. Collective; every
+/// rank returns the same outcome.
+pub fn solve_in(
+    job: &Job<'_>,
+    kind: SolverKind,
+    precision: Precision,
+    rows: LocalRows,
+    reassemble: impl FnOnce() -> LocalRows,
+) -> Result<Solved> {
+    if precision == Precision::F64 {
+        return solve(job, kind, rows, reassemble);
+    }
+    let panel = if job.panel > 0 { job.panel } else { SolverKind::Lu.default_panel() };
+    let (refinement, why) = match agree(job.comm, mixed_solve(&Job { panel, ..*job }, &rows)) {
+        Ok((x, r)) if r.converged => {
+            let used = SolverKind::Lu;
+            return Ok(Solved { x, used, panel, fallback: None, refinement: Some(r), mixed_fallback: None });
+        }
+        Ok((_, r)) => {
+            let why = format!("the refinement did not converge ({})", r.describe());
+            (Some(r), why)
+        }
+        Err(e) => (None, format!("the single-precision factorisation failed: {}", e.root())),
+    };
+    let solved = solve(job, kind, rows, reassemble)?;
+    Ok(Solved { refinement, mixed_fallback: Some(why), ..solved })
 }
 
 /// Solves the distributed system `rows` (right-hand side in the last column) with `kind`, and
@@ -143,12 +207,27 @@ pub fn solve(
     let used = kind.resolve(rows.layout.n);
     let panel_of = |k: SolverKind| if job.panel > 0 { job.panel } else { k.default_panel() };
     match agree(comm, used.run(job, &mut rows)) {
-        Ok(x) => Ok(Solved { x, used, panel: panel_of(used), fallback: None }),
+        Ok(x) => Ok(Solved {
+            x,
+            used,
+            panel: panel_of(used),
+            fallback: None,
+            refinement: None,
+            mixed_fallback: None,
+        }),
         Err(e) if e.is_not_definite() => {
             drop(rows);
             let mut rows = reassemble();
             let x = agree(comm, SolverKind::Lu.run(job, &mut rows))?;
-            Ok(Solved { x, used: SolverKind::Lu, panel: panel_of(SolverKind::Lu), fallback: Some(e) })
+            let panel = panel_of(SolverKind::Lu);
+            Ok(Solved {
+                x,
+                used: SolverKind::Lu,
+                panel,
+                fallback: Some(e),
+                refinement: None,
+                mixed_fallback: None,
+            })
         }
         Err(e) => Err(e),
     }

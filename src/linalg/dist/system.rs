@@ -6,23 +6,31 @@ use std::ops::Range;
 use faer::{MatMut, MatRef};
 
 use super::layout::RowCyclic;
+use super::scalar::Scalar;
 use crate::par::Comm;
 
 /// This rank's rows of the global (n x cols) matrix, column-major with leading dimension equal to
-/// the local row count. Column `cols - 1` is the right-hand side.
+/// the local row count. Column `cols - 1` is the right-hand side. The entries are f64, or f32 for
+/// the factorisation of a mixed-precision solve.
 #[derive(Debug, Clone)]
-pub struct LocalRows {
+pub struct LocalRows<T = f64> {
     pub layout: RowCyclic,
     pub cols: usize,
     /// k: the last k rows and the k columns before the right-hand side are the polynomial border
     /// [P; 0] of the spline system (0 for a general matrix).
     pub border: usize,
-    pub data: Vec<f64>,
+    pub data: Vec<T>,
 }
 
-impl LocalRows {
+impl<T: Scalar> LocalRows<T> {
     pub fn zeros(layout: RowCyclic, cols: usize, border: usize) -> Self {
-        LocalRows { layout, cols, border, data: vec![0.0; layout.local_count() * cols] }
+        LocalRows { layout, cols, border, data: vec![T::of(0.0); layout.local_count() * cols] }
+    }
+
+    /// The same rows rounded to another precision.
+    pub fn convert<U: Scalar>(&self) -> LocalRows<U> {
+        let data = self.data.iter().map(|v| U::of(v.f64())).collect();
+        LocalRows { layout: self.layout, cols: self.cols, border: self.border, data }
     }
 
     /// Local row count (the leading dimension).
@@ -32,27 +40,27 @@ impl LocalRows {
     }
 
     #[inline]
-    pub fn get(&self, l: usize, c: usize) -> f64 {
+    pub fn get(&self, l: usize, c: usize) -> T {
         self.data[l + c * self.ld()]
     }
 
     #[inline]
-    pub fn set(&mut self, l: usize, c: usize, v: f64) {
+    pub fn set(&mut self, l: usize, c: usize, v: T) {
         let ld = self.ld();
         self.data[l + c * ld] = v;
     }
 
-    pub fn view(&self) -> MatRef<'_, f64> {
+    pub fn view(&self) -> MatRef<'_, T> {
         MatRef::from_column_major_slice(&self.data, self.ld(), self.cols)
     }
 
-    pub fn view_mut(&mut self) -> MatMut<'_, f64> {
+    pub fn view_mut(&mut self) -> MatMut<'_, T> {
         let ld = self.ld();
         MatMut::from_column_major_slice_mut(&mut self.data, ld, self.cols)
     }
 
     /// Copies local row l, columns c0..c1, into `out`.
-    pub fn read_row(&self, l: usize, c0: usize, c1: usize, out: &mut [f64]) {
+    pub fn read_row(&self, l: usize, c0: usize, c1: usize, out: &mut [T]) {
         let ld = self.ld();
         for (o, c) in out.iter_mut().zip(c0..c1) {
             *o = self.data[l + c * ld];
@@ -60,28 +68,29 @@ impl LocalRows {
     }
 
     /// Writes `src` into local row l, columns c0..c1.
-    pub fn write_row(&mut self, l: usize, c0: usize, src: &[f64]) {
+    pub fn write_row(&mut self, l: usize, c0: usize, src: &[T]) {
         let ld = self.ld();
         for (c, v) in (c0..).zip(src) {
             self.data[l + c * ld] = *v;
         }
     }
 
-    /// The size below which an elimination treats a pivot as zero: n eps max |a_ij|. Collective.
+    /// The size below which an elimination treats a pivot as zero: n eps max |a_ij|, eps the unit
+    /// roundoff of the entries' type. Collective.
     pub fn singular_tol(&self, comm: &dyn Comm) -> f64 {
-        self.max_abs(comm) * f64::EPSILON * self.layout.n as f64
+        self.max_abs(comm) * T::EPSILON * self.layout.n as f64
     }
 
     /// Largest |entry| of the global matrix (all columns but the right-hand side). Collective.
     pub fn max_abs(&self, comm: &dyn Comm) -> f64 {
         let n = self.ld() * (self.cols - 1);
-        let mut m = [self.data[..n].iter().fold(0.0f64, |a, v| a.max(v.abs()))];
+        let mut m = [self.data[..n].iter().fold(0.0f64, |a, v| a.max(v.f64().abs()))];
         comm.max_f64(&mut m);
         m[0]
     }
 
     /// The global rows g0..g1, columns c0..c1, on every rank, row-major. Collective.
-    pub fn gather_rows(&self, comm: &dyn Comm, g0: usize, g1: usize, c0: usize, c1: usize) -> Vec<f64> {
+    pub fn gather_rows(&self, comm: &dyn Comm, g0: usize, g1: usize, c0: usize, c1: usize) -> Vec<T> {
         let mut bufs = GatherBuffers::default();
         self.gather_rows_with(comm, g0, g1, c0, c1, &mut bufs);
         bufs.out
@@ -97,7 +106,7 @@ impl LocalRows {
         g1: usize,
         c0: usize,
         c1: usize,
-        bufs: &mut GatherBuffers,
+        bufs: &mut GatherBuffers<T>,
     ) {
         let lay = self.layout;
         let w = c1 - c0;
@@ -105,7 +114,7 @@ impl LocalRows {
         let ld = self.ld();
         let send = &mut bufs.send;
         send.clear();
-        send.resize((l1 - l0) * w, 0.0);
+        send.resize((l1 - l0) * w, T::of(0.0));
         // column by column through the local matrix (contiguous), row-major into the buffer
         for c in c0..c1 {
             for (t, v) in self.data[l0 + c * ld..l1 + c * ld].iter().enumerate() {
@@ -132,10 +141,10 @@ impl LocalRows {
             }
         } else if oa == me || ob == me {
             let (mine, partner) = if oa == me { (lay.local(a), ob) } else { (lay.local(b), oa) };
-            let mut send = vec![0.0; c1 - c0];
+            let mut send = vec![T::of(0.0); c1 - c0];
             self.read_row(mine, c0, c1, &mut send);
-            let mut recv = vec![0.0; c1 - c0];
-            comm.shift_f64(partner, partner, &send, &mut recv);
+            let mut recv = vec![T::of(0.0); c1 - c0];
+            T::shift(comm, partner, partner, &send, &mut recv);
             self.write_row(mine, c0, &recv);
         }
     }
@@ -161,8 +170,8 @@ impl LocalRows {
         let ld = self.ld();
         let w = c1 - c0;
         // read every source first (rows may be both source and destination), column by column
-        let pack = |data: &[f64], list: &[(usize, usize)]| -> Vec<f64> {
-            let mut buf = vec![0.0; list.len() * w];
+        let pack = |data: &[T], list: &[(usize, usize)]| -> Vec<T> {
+            let mut buf = vec![T::of(0.0); list.len() * w];
             for c in c0..c1 {
                 for (t, &(_, s)) in list.iter().enumerate() {
                     buf[(c - c0) * list.len() + t] = data[lay.local(s) + c * ld];
@@ -179,16 +188,16 @@ impl LocalRows {
         let local_moves = to(me);
         let local_buf = pack(&self.data, &local_moves);
         // (moves received, their values column-major)
-        type Batch = (Vec<(usize, usize)>, Vec<f64>);
-        let mut incoming: Vec<Batch> = Vec::new();
+        type Batch<T> = (Vec<(usize, usize)>, Vec<T>);
+        let mut incoming: Vec<Batch<T>> = Vec::new();
         for step in 1..p {
             let (dest, source) = ((me + step) % p, (me + p - step) % p);
             let out = to(dest);
             let inn = from(source);
             let send = pack(&self.data, &out);
-            let mut recv = vec![0.0; inn.len() * w];
+            let mut recv = vec![T::of(0.0); inn.len() * w];
             // always sent, even empty: the partner's receive is posted regardless
-            comm.shift_f64(dest, source, &send, &mut recv);
+            T::shift(comm, dest, source, &send, &mut recv);
             incoming.push((inn, recv));
         }
         incoming.push((local_moves, local_buf));
@@ -203,43 +212,49 @@ impl LocalRows {
 }
 
 /// Buffers reused by [`LocalRows::gather_rows_with`].
-#[derive(Debug, Default)]
-pub struct GatherBuffers {
-    send: Vec<f64>,
-    recv: Vec<f64>,
+#[derive(Debug)]
+pub struct GatherBuffers<T = f64> {
+    send: Vec<T>,
+    recv: Vec<T>,
     /// The gathered rows, row-major in global order.
-    pub out: Vec<f64>,
+    pub out: Vec<T>,
+}
+
+impl<T> Default for GatherBuffers<T> {
+    fn default() -> Self {
+        GatherBuffers { send: Vec::new(), recv: Vec::new(), out: Vec::new() }
+    }
 }
 
 /// Every rank's rows g0..g1 of a row-cyclic block, `w` values per row: `send` holds this rank's
 /// rows of the range in local order, row-major; the result holds all of them in global order on
 /// every rank. Collective.
-pub fn all_gather_rows(
+pub fn all_gather_rows<T: Scalar>(
     comm: &dyn Comm,
     lay: RowCyclic,
-    send: &[f64],
+    send: &[T],
     rows: Range<usize>,
     w: usize,
-) -> Vec<f64> {
+) -> Vec<T> {
     let (mut recv, mut out) = (Vec::new(), Vec::new());
     all_gather_rows_into(comm, lay, send, (rows.start, rows.end, w), &mut recv, &mut out);
     out
 }
 
 /// [`all_gather_rows`] of rows g0..g1 of width w, into reused buffers.
-fn all_gather_rows_into(
+fn all_gather_rows_into<T: Scalar>(
     comm: &dyn Comm,
     lay: RowCyclic,
-    send: &[f64],
+    send: &[T],
     (g0, g1, w): (usize, usize, usize),
-    recv: &mut Vec<f64>,
-    out: &mut Vec<f64>,
+    recv: &mut Vec<T>,
+    out: &mut Vec<T>,
 ) {
     let counts: Vec<usize> = (0..lay.ranks).map(|r| lay.count_in_on(r, g0, g1) * w).collect();
     recv.clear();
-    recv.resize((g1 - g0) * w, 0.0);
-    comm.all_gather_f64(send, &counts, recv);
+    recv.resize((g1 - g0) * w, T::of(0.0));
+    T::all_gather(comm, send, &counts, recv);
     out.clear();
-    out.resize((g1 - g0) * w, 0.0);
+    out.resize((g1 - g0) * w, T::of(0.0));
     lay.to_global_order(recv, g0, g1, w, out);
 }

@@ -1,0 +1,180 @@
+//! The single-precision LU factors of a mixed-precision solve, applied in double precision.
+//!
+//! The matrix M (order n, f64, row-cyclic) is rounded to f32 and factored by the row-cyclic LU
+//! (`lu`), P M' = L U with M' = fl32(M): the same flops as the f64 factorisation at twice the
+//! GEMM rate and half the bytes on the wire. The factorisation leaves column j of L where the
+//! interchanges of its own panel put it; here the interchanges of the later panels are applied to
+//! it afterwards (one pass per panel over its columns), so that the stored L is the L of
+//! P M' = L U with P the product of all the interchanges.
+//!
+//! A solve with the factors, z = U^-1 L^-1 P r, takes r and returns z replicated on every rank and
+//! computes in f64 with the f32 entries read and widened on the fly: the factors are only an
+//! approximate inverse, but rounding the right-hand side and the intermediate vectors to f32 would
+//! add a relative error of 6e-8 to every correction on top of that. Both triangular solves go panel
+//! by panel (the panels of the factorisation): for a panel of rows k..k+b the owners' current
+//! entries of y are all-gathered (b values), the diagonal block (gathered once, after the
+//! factorisation) is solved redundantly on every rank, and each rank updates its own rows of y
+//! below the panel (forward, with L21) or above it (backward, with U12) from its own rows of the
+//! factors. Two small all-gathers per panel; n^2 / p multiply-adds per rank.
+//!
+//! The residual of the refinement, r = b - M x, is computed from the f64 rows that each rank
+//! keeps: each rank its own rows (one GEMV), then one all-gather of the n values. Every vector of
+//! the refinement is thus replicated and identical on every rank, and every decision taken from
+//! it (norms, stopping rules) is the same everywhere without a further collective.
+
+use faer::linalg::matmul::matmul;
+use faer::{Accum, MatMut, MatRef, Par};
+
+use super::lu::lu_factor;
+use super::solver::Job;
+use super::system::{all_gather_rows, LocalRows};
+use crate::error::Result;
+use crate::par::Comm;
+
+/// The f32 LU factors P M' = L U of a row-cyclic matrix, L row-interchanged.
+pub struct Factors {
+    rows: LocalRows<f32>,
+    swaps: Vec<(usize, usize)>,
+    /// Panel boundaries 0 = p_0 < p_1 < ... < p_m = n.
+    panels: Vec<usize>,
+    /// Per panel, its diagonal block of L\U (row-major, widened to f64), on every rank.
+    diag: Vec<Vec<f64>>,
+}
+
+impl Factors {
+    /// Rounds the matrix of `m` (all columns but the right-hand side) to f32 and factors it.
+    /// Collective; a pivot below n eps32 max |m_ij| is an error (the same on every rank).
+    pub fn new(job: &Job<'_>, m: &LocalRows) -> Result<Factors> {
+        let comm = job.comm;
+        let lay = m.layout;
+        let n = lay.n;
+        // the right-hand side column comes along (the factors act on residuals, not on it)
+        let mut rows: LocalRows<f32> = m.convert();
+        let nb = job.panel.max(1);
+        let swaps = lu_factor(job, &mut rows)?;
+        let panels: Vec<usize> = (0..n).step_by(nb).chain([n]).collect();
+        // L row-interchanged: the interchanges of the later panels reach each panel's columns
+        for w in panels.windows(2) {
+            let later = &swaps[w[1].min(swaps.len())..];
+            rows.permute_rows(comm, later, w[0], w[1]);
+        }
+        let diag = panels
+            .windows(2)
+            .map(|w| rows.gather_rows(comm, w[0], w[1], w[0], w[1]).iter().map(|&v| v as f64).collect())
+            .collect();
+        Ok(Factors { rows, swaps, panels, diag })
+    }
+
+    /// z = U^-1 L^-1 P r for the replicated r; z replicated. Collective.
+    pub fn apply(&self, comm: &dyn Comm, r: &[f64]) -> Vec<f64> {
+        let lay = self.rows.layout;
+        let (n, ld) = (lay.n, self.rows.ld());
+        let data = &self.rows.data;
+        let mut y = r.to_vec();
+        for &(a, b) in &self.swaps {
+            y.swap(a, b);
+        }
+        // this rank's entries of y, updated as the panels pass
+        let mut own: Vec<f64> = (0..ld).map(|l| y[lay.global(l)]).collect();
+        let gather = |own: &[f64], g0: usize, g1: usize| -> Vec<f64> {
+            let (l0, l1) = (lay.first_local_from(g0), lay.first_local_from(g1));
+            all_gather_rows(comm, lay, &own[l0..l1], g0..g1, 1)
+        };
+        // forward: L y = P r, unit lower triangular
+        for (w, d) in self.panels.windows(2).zip(&self.diag) {
+            let (k0, k1) = (w[0], w[1]);
+            let b = k1 - k0;
+            let mut yp = gather(&own, k0, k1);
+            for i in 0..b {
+                let s: f64 = (0..i).map(|j| d[i * b + j] * yp[j]).sum();
+                yp[i] -= s;
+            }
+            for l in lay.first_local_from(k0)..lay.first_local_from(k1) {
+                own[l] = yp[lay.global(l) - k0];
+            }
+            let t0 = lay.first_local_from(k1);
+            for (j, yj) in yp.iter().enumerate() {
+                let col = &data[(k0 + j) * ld..(k0 + j + 1) * ld];
+                for (o, &c) in own[t0..].iter_mut().zip(&col[t0..]) {
+                    *o -= c as f64 * yj;
+                }
+            }
+        }
+        // backward: U z = y
+        let mut z = vec![0.0; n];
+        for (w, d) in self.panels.windows(2).zip(&self.diag).rev() {
+            let (k0, k1) = (w[0], w[1]);
+            let b = k1 - k0;
+            let mut zb = gather(&own, k0, k1);
+            for i in (0..b).rev() {
+                let s: f64 = (i + 1..b).map(|j| d[i * b + j] * zb[j]).sum();
+                zb[i] = (zb[i] - s) / d[i * b + i];
+            }
+            let above = lay.first_local_from(k0);
+            for (j, zj) in zb.iter().enumerate() {
+                let col = &data[(k0 + j) * ld..(k0 + j) * ld + above];
+                for (o, &c) in own[..above].iter_mut().zip(col) {
+                    *o -= c as f64 * zj;
+                }
+            }
+            z[k0..k1].copy_from_slice(&zb);
+        }
+        z
+    }
+}
+
+/// The f64 matrix a refinement computes its residuals with: this rank's rows of M, and the
+/// norms the stopping rules need.
+pub struct Operator<'a> {
+    rows: &'a LocalRows,
+    par: Par,
+    /// ||M||_inf over all rows (the right-hand side excluded).
+    pub norm_inf: f64,
+}
+
+impl<'a> Operator<'a> {
+    /// Collective (one maximum over the ranks).
+    pub fn new(comm: &dyn Comm, rows: &'a LocalRows, par: Par) -> Self {
+        let (ld, n) = (rows.ld(), rows.layout.n);
+        let mut sums = vec![0.0f64; ld];
+        for c in 0..n {
+            for (s, v) in sums.iter_mut().zip(&rows.data[c * ld..(c + 1) * ld]) {
+                *s += v.abs();
+            }
+        }
+        let mut m = [sums.iter().fold(0.0f64, |a, &s| a.max(s))];
+        comm.max_f64(&mut m);
+        Operator { rows, par, norm_inf: m[0] }
+    }
+
+    /// The right-hand side, replicated. Collective.
+    pub fn rhs(&self, comm: &dyn Comm) -> Vec<f64> {
+        let (lay, ld) = (self.rows.layout, self.rows.ld());
+        let b = &self.rows.data[lay.n * ld..(lay.n + 1) * ld];
+        all_gather_rows(comm, lay, b, 0..lay.n, 1)
+    }
+
+    /// b - M x, replicated. Collective.
+    pub fn residual(&self, comm: &dyn Comm, x: &[f64]) -> Vec<f64> {
+        self.combine(comm, 1.0, -1.0, x)
+    }
+
+    /// M x, replicated. Collective.
+    pub fn product(&self, comm: &dyn Comm, x: &[f64]) -> Vec<f64> {
+        self.combine(comm, 0.0, 1.0, x)
+    }
+
+    /// alpha b + beta M x, replicated. Collective.
+    fn combine(&self, comm: &dyn Comm, alpha: f64, beta: f64, x: &[f64]) -> Vec<f64> {
+        let (lay, ld) = (self.rows.layout, self.rows.ld());
+        let n = lay.n;
+        let mut own: Vec<f64> = self.rows.data[n * ld..(n + 1) * ld].iter().map(|b| alpha * b).collect();
+        if ld > 0 {
+            let m = MatRef::from_column_major_slice(&self.rows.data[..n * ld], ld, n);
+            let xv = MatRef::from_column_major_slice(x, n, 1);
+            let dst = MatMut::from_column_major_slice_mut(&mut own, ld, 1);
+            matmul(dst, Accum::Add, m, xv, beta, self.par);
+        }
+        all_gather_rows(comm, lay, &own, 0..n, 1)
+    }
+}

@@ -1,0 +1,68 @@
+//! The working precisions of the distributed factorisations: f64 for every solver, f32 for the
+//! factorisation of a mixed-precision solve (see `mixed`). The trait adds to faer's `RealField`
+//! what the row-cyclic code needs: conversions to and from f64 and the collectives that move
+//! values of the type between ranks.
+
+use faer::traits::RealField;
+
+use crate::par::Comm;
+
+/// A real type a row-cyclic matrix may hold: f32 or f64.
+pub trait Scalar: RealField + Copy + Send + Sync + std::ops::Neg<Output = Self> {
+    /// The unit roundoff of the type, as an f64.
+    const EPSILON: f64;
+    /// The value nearest to `v`.
+    fn of(v: f64) -> Self;
+    /// The value as an f64 (exact).
+    fn f64(self) -> f64;
+    /// |self|.
+    fn magnitude(self) -> Self;
+    /// [`Comm::all_gather_f64`] for this type.
+    fn all_gather(comm: &dyn Comm, send: &[Self], counts: &[usize], recv: &mut [Self]);
+    /// [`Comm::shift_f64`] for this type.
+    fn shift(comm: &dyn Comm, dest: usize, source: usize, send: &[Self], recv: &mut [Self]);
+}
+
+impl Scalar for f64 {
+    const EPSILON: f64 = f64::EPSILON;
+    #[inline]
+    fn of(v: f64) -> Self {
+        v
+    }
+    #[inline]
+    fn f64(self) -> f64 {
+        self
+    }
+    #[inline]
+    fn magnitude(self) -> Self {
+        self.abs()
+    }
+    fn all_gather(comm: &dyn Comm, send: &[Self], counts: &[usize], recv: &mut [Self]) {
+        comm.all_gather_f64(send, counts, recv);
+    }
+    fn shift(comm: &dyn Comm, dest: usize, source: usize, send: &[Self], recv: &mut [Self]) {
+        comm.shift_f64(dest, source, send, recv);
+    }
+}
+
+impl Scalar for f32 {
+    const EPSILON: f64 = f32::EPSILON as f64;
+    #[inline]
+    fn of(v: f64) -> Self {
+        v as f32
+    }
+    #[inline]
+    fn f64(self) -> f64 {
+        self as f64
+    }
+    #[inline]
+    fn magnitude(self) -> Self {
+        self.abs()
+    }
+    fn all_gather(comm: &dyn Comm, send: &[Self], counts: &[usize], recv: &mut [Self]) {
+        comm.all_gather_f32(send, counts, recv);
+    }
+    fn shift(comm: &dyn Comm, dest: usize, source: usize, send: &[Self], recv: &mut [Self]) {
+        comm.shift_f32(dest, source, send, recv);
+    }
+}
