@@ -252,6 +252,12 @@ pub(crate) fn monomial(e: &[u8; 3], x: &[f64]) -> f64 {
 
 /// Sum over the rows `rows` (global indices) of (row . x - b)^2 and of b^2, re-assembling each row on the fly so
 /// that no copy of the matrix is kept. The caller sums over ranks.
+///
+/// Both sums are of the residual and right-hand side scaled by the power of two 2^-e nearest below
+/// 1 / max |b| (the same on every rank, since every rank holds all of b): the scaling is exact, so the
+/// ratio of the sums is the relative residual unchanged, and the squares stay finite for values up
+/// to the largest finite number (data at 1e100 have carrier values near 1e200, whose squares
+/// would overflow).
 pub fn residual_parts(
     kernel: &Kernel,
     centres: &[f64],
@@ -262,6 +268,7 @@ pub fn residual_parts(
     let dim = kernel.dim();
     let n = values.len();
     let monomials = kernel.monomials();
+    let scale = power_of_two_below_inverse(values.iter().fold(0.0f64, |m, v| m.max(v.abs())));
     rows.par_iter()
         .map(|&g| {
             let (dot, b) = if g < n {
@@ -281,9 +288,22 @@ pub fn residual_parts(
                 let s: f64 = (0..n).map(|j| monomial(e, &centres[j * dim..(j + 1) * dim]) * x[j]).sum();
                 (s, 0.0)
             };
-            [(dot - b) * (dot - b), b * b]
+            let (r, b) = ((dot - b) * scale, b * scale);
+            [r * r, b * b]
         })
         .reduce(|| [0.0, 0.0], |a, b| [a[0] + b[0], a[1] + b[1]])
+}
+
+/// 2^-e with 2^e <= m < 2^(e+1) for a positive finite m (1 otherwise): multiplying by it is exact
+/// and brings m into [1, 2).
+pub(crate) fn power_of_two_below_inverse(m: f64) -> f64 {
+    if m > 0.0 && m.is_finite() {
+        let e = m.log2().floor() as i32;
+        // 2^-e in two steps, so that neither factor leaves the normal range
+        2f64.powi(-e / 2) * 2f64.powi(-e + e / 2)
+    } else {
+        1.0
+    }
 }
 
 impl Spline {

@@ -19,6 +19,7 @@ use crate::par::{agree, Comm};
 use crate::spline::compact::{assemble_lower, poly_block};
 use crate::spline::hygiene::Prepared;
 use crate::spline::octree::Octree;
+use crate::spline::system::power_of_two_below_inverse;
 use crate::spline::{Kernel, Spline};
 
 /// Factor entries per stored entry of A assumed before the factorisation: the fill measured on
@@ -211,6 +212,8 @@ fn residual(
     let n = values.len();
     let k = kernel.poly_count();
     let support = kernel.is_compact().expect("compact");
+    // exact power-of-two scaling keeps the squares finite for carrier values near 1e200
+    let scale = power_of_two_below_inverse(values.iter().fold(0.0f64, |m, v| m.max(v.abs())));
     let [sq, bb] = rows
         .par_iter()
         .map_init(Vec::new, |found, &i| {
@@ -224,14 +227,14 @@ fn residual(
                 })
                 .sum();
             s += (0..k).map(|l| p[i + l * n] * x[n + l]).sum::<f64>();
-            let d = s - values[i];
-            [d * d, values[i] * values[i]]
+            let (d, b) = ((s - values[i]) * scale, values[i] * scale);
+            [d * d, b * b]
         })
         .reduce(|| [0.0, 0.0], |a, b| [a[0] + b[0], a[1] + b[1]]);
     let mut parts = [sq, bb];
     if comm.rank() == 0 {
         for l in 0..k {
-            let t: f64 = (0..n).map(|i| p[i + l * n] * x[i]).sum();
+            let t: f64 = (0..n).map(|i| p[i + l * n] * x[i]).sum::<f64>() * scale;
             parts[0] += t * t;
         }
     }

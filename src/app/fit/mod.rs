@@ -26,6 +26,7 @@ use crate::io::{self, model_file, points};
 use crate::par::{agree, on_root, Comm};
 use crate::spline::compact::{default_support, DEFAULT_NEIGHBOURS};
 use crate::spline::hygiene::{prepare, Prepared};
+use crate::spline::system::power_of_two_below_inverse;
 use crate::spline::{Evaluator, Kernel, Model, Provenance, Spline};
 
 pub use dense::assemble;
@@ -270,6 +271,8 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>) -> String {
 /// rank taking every P-th point with the blocked evaluator. Collective.
 fn at_points(comm: &dyn Comm, spline: &Spline, prep: &Prepared) -> (f64, f64) {
     let ev = Evaluator::new(spline);
+    // squares of the scaled differences, so that carrier values near 1e200 do not overflow them
+    let scale = power_of_two_below_inverse(prep.values.iter().fold(0.0f64, |m, v| m.max(v.abs())));
     let mine: Vec<&[f64]> = prep.points.chunks_exact(3).skip(comm.rank()).step_by(comm.size()).collect();
     let (sq, max) = mine
         .par_iter()
@@ -277,12 +280,12 @@ fn at_points(comm: &dyn Comm, spline: &Spline, prep: &Prepared) -> (f64, f64) {
             let mut u = [0.0];
             ev.eval_row(&p[..1], p[1], p[2], &mut u);
             let d = (prep.carrier.eval(p) - u[0]).abs();
-            (d * d, d)
+            ((d * scale) * (d * scale), d)
         })
         .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1.max(b.1)));
     let mut s = [sq];
     comm.sum_f64(&mut s);
     let mut m = [max];
     comm.max_f64(&mut m);
-    ((s[0] / prep.values.len().max(1) as f64).sqrt(), m[0])
+    ((s[0] / prep.values.len().max(1) as f64).sqrt() / scale, m[0])
 }
