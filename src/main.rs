@@ -77,9 +77,14 @@ mod interrupts {
             }
             let name = if sig == libc::SIGINT { "SIGINT" } else { "SIGTERM" };
             let temps = staging::pending_temps();
-            let removed = staging::discard_all();
+            let (removed, renamed) = staging::discard_all();
+            let replaced = if renamed == 0 {
+                "no output was replaced".to_string()
+            } else {
+                format!("the {renamed} output(s) of this run had already been renamed into place, complete")
+            };
             eprintln!(
-                "volspline: interrupted by {name}; removed {removed} temporary file(s){}; no output was replaced",
+                "volspline: interrupted by {name}; removed {removed} temporary file(s){}; {replaced}",
                 if temps.is_empty() { String::new() } else { format!(" ({})", temps[0].display()) }
             );
             // SAFETY: ends the process at once, without running exit handlers that could touch MPI

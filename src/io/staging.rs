@@ -21,9 +21,13 @@ struct Registry {
     run_id: String,
     /// (final name, temporary name) of every output written so far and not yet committed.
     pending: Vec<(PathBuf, PathBuf)>,
+    /// Outputs renamed into place by this run (a signal after the commit must not claim that
+    /// nothing was replaced).
+    renamed: usize,
 }
 
-static REGISTRY: Mutex<Registry> = Mutex::new(Registry { run_id: String::new(), pending: Vec::new() });
+static REGISTRY: Mutex<Registry> =
+    Mutex::new(Registry { run_id: String::new(), pending: Vec::new(), renamed: 0 });
 
 fn registry() -> std::sync::MutexGuard<'static, Registry> {
     REGISTRY.lock().unwrap_or_else(|p| p.into_inner())
@@ -50,6 +54,7 @@ pub fn begin(run_id: &str) {
     let mut r = registry();
     r.run_id = run_id.to_string();
     r.pending.clear();
+    r.renamed = 0;
 }
 
 /// The temporary name of `path` in this run: `.NAME.RUNID.partial` beside it.
@@ -95,12 +100,14 @@ pub fn pending_temps() -> Vec<PathBuf> {
 }
 
 /// Removes the temporary files of this run (errors ignored: a file may already be gone) and
-/// forgets them. Returns how many were removed.
-pub fn discard_all() -> usize {
+/// forgets them. Returns how many were removed and how many outputs this run had already renamed
+/// into place. Waits for a commit in progress ([`commit_all`] holds the registry throughout its
+/// renames), so the answer describes a whole set: either no output was replaced, or all were.
+pub fn discard_all() -> (usize, usize) {
     let mut r = registry();
     let removed = r.pending.iter().filter(|(_, t)| std::fs::remove_file(t).is_ok()).count();
     r.pending.clear();
-    removed
+    (removed, r.renamed)
 }
 
 /// Forgets the pending outputs without touching them (the ranks that do not rename).
@@ -112,7 +119,10 @@ pub fn forget_all() {
 /// output directory, so that two runs committing at once cannot interleave their renames. On a
 /// failure the remaining temporaries are removed.
 pub fn commit_all() -> Result<()> {
-    let pending = std::mem::take(&mut registry().pending);
+    // the registry stays locked until the last rename, so that a signal arriving meanwhile waits
+    // for the set to be complete before it reports (see `discard_all`)
+    let mut r = registry();
+    let pending = std::mem::take(&mut r.pending);
     let mut dirs: Vec<PathBuf> = pending.iter().map(|(f, _)| parent_dir(f)).collect();
     dirs.sort();
     dirs.dedup();
@@ -122,6 +132,9 @@ pub fn commit_all() -> Result<()> {
     for (path, tmp) in &pending {
         if result.is_ok() {
             result = std::fs::rename(tmp, path).map_err(|e| Error::io(path, &e));
+            if result.is_ok() {
+                r.renamed += 1;
+            }
         }
         if result.is_err() {
             let _ = std::fs::remove_file(tmp);
@@ -158,5 +171,20 @@ mod tests {
         assert!(is_special(Path::new("/dev/null")));
         assert!(is_special(Path::new("/dev/stdout")));
         assert!(!is_special(Path::new("/nonexistent/x")));
+        // in the same test: the registry is process-wide, and tests run side by side
+
+        // a signal after the commit learns that the set was renamed
+        let dir = std::env::temp_dir().join(format!("volspline-staging-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let out = dir.join("a.txt");
+        begin("r2");
+        stage(&out, |tmp| std::fs::write(tmp, "new").map_err(|e| Error::io(tmp, &e))).unwrap();
+        assert_eq!(discard_all(), (1, 0), "before the commit: removed, nothing replaced");
+        assert!(!out.exists());
+        stage(&out, |tmp| std::fs::write(tmp, "new").map_err(|e| Error::io(tmp, &e))).unwrap();
+        commit_all().unwrap();
+        assert_eq!(discard_all(), (0, 1), "after the commit: nothing to remove, one output replaced");
+        assert_eq!(std::fs::read_to_string(&out).unwrap(), "new");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }
