@@ -8,7 +8,8 @@
 //! The registry of pending temporaries is process-wide so that the signal handler of the binary can
 //! remove them when the job is interrupted ([`pending_temps`]). A target that exists and is not a
 //! regular file (a symbolic link such as `/dev/stdout`, a pipe, a device node) is never renamed
-//! over: it is written directly.
+//! over: it is written directly; a symbolic link to a regular file is followed, and its target is
+//! replaced atomically like any other output ([`output_target`]).
 
 use std::fs::File;
 use std::os::fd::AsRawFd;
@@ -72,8 +73,25 @@ pub fn is_special(path: &Path) -> bool {
     std::fs::symlink_metadata(path).is_ok_and(|m| !m.is_file())
 }
 
-/// Registers `path` as an output of this run and returns the temporary name to write it under.
+/// Where an output named `path` goes: a symbolic link to an existing regular file (neither under
+/// `/dev` nor `/proc`) is followed, so that the new file replaces the link's target atomically, in
+/// the target's directory, and the link stays a link; any other path is itself.
+pub fn output_target(path: &Path) -> PathBuf {
+    let is_link = std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink());
+    let system = |p: &Path| p.starts_with("/dev") || p.starts_with("/proc");
+    if !is_link || system(path) {
+        return path.to_path_buf();
+    }
+    match std::fs::canonicalize(path) {
+        Ok(t) if !system(&t) && std::fs::metadata(&t).is_ok_and(|m| m.is_file()) => t,
+        _ => path.to_path_buf(),
+    }
+}
+
+/// Registers `path` (through [`output_target`]) as an output of this run and returns the temporary
+/// name to write it under.
 pub fn register(path: &Path) -> PathBuf {
+    let path = &output_target(path);
     let tmp = temp_path(path);
     let mut r = registry();
     if !r.pending.iter().any(|(f, _)| f == path) {
@@ -85,7 +103,7 @@ pub fn register(path: &Path) -> PathBuf {
 /// Writes the output `path` of this run: `write` fills its temporary file, which waits for
 /// [`commit_all`]; on failure it is removed at once. A special target is written directly.
 pub fn stage(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    if is_special(path) {
+    if is_special(&output_target(path)) {
         return write(path);
     }
     let tmp = register(path);
@@ -185,6 +203,17 @@ mod tests {
         commit_all().unwrap();
         assert_eq!(discard_all(), (0, 1), "after the commit: nothing to remove, one output replaced");
         assert_eq!(std::fs::read_to_string(&out).unwrap(), "new");
+
+        // an output that is a link to a regular file: the target is replaced, the link stays
+        let target = dir.join("t.txt");
+        std::fs::write(&target, "old").unwrap();
+        let link = dir.join("l.txt");
+        std::os::unix::fs::symlink(&target, &link).unwrap();
+        stage(&link, |tmp| std::fs::write(tmp, "via link").map_err(|e| Error::io(tmp, &e))).unwrap();
+        assert_eq!(std::fs::read_to_string(&target).unwrap(), "old", "nothing replaced before the commit");
+        commit_all().unwrap();
+        assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
+        assert_eq!(std::fs::read_to_string(&target).unwrap(), "via link");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
