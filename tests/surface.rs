@@ -151,6 +151,7 @@ fn offsurface_fits_on_one_two_and_three_ranks_match_the_serial_oracle() {
     let oracle = Model {
         carrier: prep.carrier.clone(),
         spline: solve_serial(&prep, &k, SolverKind::Householder),
+        coarse: Vec::new(),
         provenance: Default::default(),
     };
     for ranks in [1, 2, 3] {
