@@ -291,4 +291,46 @@ mod tests {
         assert!(err.contains("version 4"), "{err}");
         std::fs::remove_file(&path).unwrap();
     }
+
+    #[test]
+    fn levels_round_trip_and_a_bad_level_shape_is_refused() {
+        let path = temp("levels");
+        let mut m = model(Kernel::wendland("wendland2", 0.2).unwrap());
+        let mut coarse = model(Kernel::new(3, 2).unwrap()).spline;
+        coarse.weights.push(0.5);
+        coarse.centres.extend_from_slice(&[0.3, 0.3, 0.3]);
+        m.coarse = vec![coarse];
+        write_model(&path, &m).unwrap();
+        assert_eq!(read_model(&path).unwrap(), m);
+        {
+            let f = hdf5::File::open(&path).unwrap();
+            assert_eq!(Attrs { file: &f, path: &path }.int("format_version").unwrap(), 3);
+        }
+        // one weight fewer than centres in the coarse level
+        {
+            let f = hdf5::File::open_rw(&path).unwrap();
+            f.unlink("coarse0_weights").unwrap();
+            f.new_dataset_builder().with_data(&[1.0, 2.0, 3.0, 4.0]).create("coarse0_weights").unwrap();
+        }
+        let err = read_model(&path).unwrap_err().to_string();
+        assert!(err.contains("coarse0_weights"), "{err}");
+        // a level count beyond the levels stored
+        {
+            let f = hdf5::File::open_rw(&path).unwrap();
+            f.unlink("coarse0_weights").unwrap();
+            f.new_dataset_builder().with_data(&[1.5, -2.0, 0.25, 3.0, 0.5]).create("coarse0_weights").unwrap();
+            f.delete_attr("coarse_levels").unwrap();
+            Attrs { file: &f, path: &path }.put_int("coarse_levels", 2).unwrap();
+        }
+        let err = read_model(&path).unwrap_err().to_string();
+        assert!(err.contains("coarse1_"), "{err}");
+        {
+            let f = hdf5::File::open_rw(&path).unwrap();
+            f.delete_attr("coarse_levels").unwrap();
+            Attrs { file: &f, path: &path }.put_int("coarse_levels", -1).unwrap();
+        }
+        let err = read_model(&path).unwrap_err().to_string();
+        assert!(err.contains("coarse_levels is -1"), "{err}");
+        std::fs::remove_file(&path).unwrap();
+    }
 }

@@ -343,7 +343,11 @@ mod tests {
             Kernel::wendland("wendland2", 0.15).unwrap(),
             Kernel::wendland("wendland4", 0.3).unwrap(),
         ] {
-            let model = bunny_model(kernel);
+            let mut model = bunny_model(kernel);
+            if kernel.is_compact().is_some() {
+                // two levels: a Green's-function level under the compactly supported one
+                model.coarse = vec![bunny_model(Kernel::new(3, 2).unwrap()).spline];
+            }
             let ev = PointEvaluator::new(model.clone());
             // points near the data (centres mapped back to the caller's coordinates) and away
             let sp = &model.spline;
