@@ -65,7 +65,16 @@ fn two_levels_put_the_surface_on_the_bunny_on_one_and_two_ranks() {
         let p = dir.join(format!("l{ranks}"));
         let text = common::run_ok(
             ranks,
-            &["fit", input.to_str().unwrap(), "--out", p.to_str().unwrap(), "--method", "csrbf", "--grid", "64"],
+            &[
+                "fit",
+                input.to_str().unwrap(),
+                "--out",
+                p.to_str().unwrap(),
+                "--method",
+                "csrbf",
+                "--grid",
+                "64",
+            ],
         );
         assert!(text.contains("two levels: level 0 dense (kernel r"), "{text}");
         let model = read_model(&dir.join(format!("l{ranks}.model.h5"))).unwrap();

@@ -88,7 +88,10 @@ fn write_level(a: &Attrs<'_>, prefix: &str, sp: &Spline) -> Result<()> {
     }
     let arr2 = |v: &[f64], cols: usize| ndarray::Array2::from_shape_vec((v.len() / cols, cols), v.to_vec());
     let name = |n: &str| format!("{prefix}{n}");
-    f.new_dataset_builder().with_data(&arr2(&caller, dim).expect("shape")).create(&*name("centres")).map_err(h5)?;
+    f.new_dataset_builder()
+        .with_data(&arr2(&caller, dim).expect("shape"))
+        .create(&*name("centres"))
+        .map_err(h5)?;
     f.new_dataset_builder()
         .with_data(&arr2(&sp.centres, dim).expect("shape"))
         .create(&*name("centres_normalised"))
@@ -318,7 +321,10 @@ mod tests {
         {
             let f = hdf5::File::open_rw(&path).unwrap();
             f.unlink("coarse0_weights").unwrap();
-            f.new_dataset_builder().with_data(&[1.5, -2.0, 0.25, 3.0, 0.5]).create("coarse0_weights").unwrap();
+            f.new_dataset_builder()
+                .with_data(&[1.5, -2.0, 0.25, 3.0, 0.5])
+                .create("coarse0_weights")
+                .unwrap();
             f.delete_attr("coarse_levels").unwrap();
             Attrs { file: &f, path: &path }.put_int("coarse_levels", 2).unwrap();
         }

@@ -46,8 +46,8 @@ impl Level {
             (3, 3, None) => Some(Form::R3),
             _ => None,
         };
-        let tree =
-            (k.is_compact().is_some() && k.dim() == 3).then(|| Octree::new(&spline.centres, DEFAULT_LEAF_CAPACITY));
+        let tree = (k.is_compact().is_some() && k.dim() == 3)
+            .then(|| Octree::new(&spline.centres, DEFAULT_LEAF_CAPACITY));
         let n = spline.len();
         let padded = if form.is_some() { n.div_ceil(LANES) * LANES } else { 0 };
         // padding: zero weights at the origin, which add exactly 0.0 to every sum

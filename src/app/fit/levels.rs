@@ -79,7 +79,8 @@ pub fn even_subsample(centres: &[f64], target: usize) -> Vec<usize> {
 
 /// `prep` restricted to the points `keep` (the same carrier, normalisation and box).
 fn restrict(prep: &Prepared, keep: &[usize]) -> Prepared {
-    let pick = |v: &[f64]| -> Vec<f64> { keep.iter().flat_map(|&i| v[3 * i..3 * i + 3].iter().copied()).collect() };
+    let pick =
+        |v: &[f64]| -> Vec<f64> { keep.iter().flat_map(|&i| v[3 * i..3 * i + 3].iter().copied()).collect() };
     Prepared {
         points: pick(&prep.points),
         centres: pick(&prep.centres),
@@ -149,7 +150,11 @@ pub fn fit(
          off-surface points ({rows} rows, residual {:.3e}) in {coarse_seconds:.3} s; level 1 compactly \
          supported through all points on top of it (support about {DEFAULT_NEIGHBOURS} neighbours unless \
          --support): {}",
-        level0.solver, keep.len(), summary.off_points, level0.residual, level1.line
+        level0.solver,
+        keep.len(),
+        summary.off_points,
+        level0.residual,
+        level1.line
     );
     Ok((
         Fitted {

@@ -134,8 +134,10 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let grid = Grid::covering(plo, phi, a.grid.grid)?;
     // the compactly supported method with off-surface constraints fits two levels: a dense
     // off-surface fit of a subsample, and the Wendland spline through all points on top of it
-    // (levels.rs); the choice on the data alone is a lower bound of the one with off points
-    let two_level = off && choose(a, n, comm.size(), &prep.centres)?.0 == Method::Csrbf;
+    // (levels.rs). The choice is made for the most rows the off points can add (the choice is
+    // monotone in the rows), so a dense choice below holds once they are known
+    let most_rows = n + (a.off_points * n as f64).ceil() as usize;
+    let two_level = off && choose(a, most_rows, comm.size(), &prep.centres)?.0 == Method::Csrbf;
     let (fitted, summary, method, kernel, why) = if two_level {
         let (method, kernel, why) = choose(a, n, comm.size(), &prep.centres)?;
         if comm.rank() == 0 {
