@@ -1,8 +1,8 @@
 //! The two-level compactly supported fit (`--method csrbf` with off-surface constraints): 12,000
 //! points sampled uniformly over the bunny's surface, level 0 a dense off-surface fit of 2,000 of
 //! them, level 1 the Wendland spline through all of them on top. The mesh lies on the bunny (the
-//! plain method grows the carrier's spherical shell where no kernel reaches), and 1 and 2 ranks
-//! give the same model.
+//! plain method grows the carrier's spherical shell where no kernel reaches), 1 and 2 ranks
+//! give the same model, and `eval` of the model file gives the same volume.
 
 mod common;
 
@@ -111,4 +111,15 @@ fn two_levels_put_the_surface_on_the_bunny_on_one_and_two_ranks() {
     }
     let dv = common::rel_diff(&volumes[1], &volumes[0]);
     assert!(dv < 1e-8, "2 ranks vs 1: grid values differ by {dv:e}");
+    // eval of the saved two-level model gives the fit's volume, and reports its levels
+    let model = dir.join("l1.model.h5");
+    let again = dir.join("again");
+    let text = common::run_ok(
+        2,
+        &["eval", model.to_str().unwrap(), "--out", again.to_str().unwrap(), "--grid", "64"],
+    );
+    assert!(text.contains("on coarse levels r ("), "{text}");
+    let (_, v) = read_image(&dir.join("again.hdf"), "f").unwrap();
+    let d = common::rel_diff(&v, &volumes[0]);
+    assert!(d < 1e-12, "eval of the model file vs the fit's volume: {d:e}");
 }
