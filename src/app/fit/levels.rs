@@ -34,9 +34,6 @@ use crate::spline::compact::DEFAULT_NEIGHBOURS;
 use crate::spline::hygiene::Prepared;
 use crate::spline::{Evaluator, Kernel, Spline};
 
-/// Points of the level-0 subsample when `--coarse-points` is not given.
-pub const DEFAULT_COARSE_POINTS: usize = 2000;
-
 /// The indices (ascending) of at most `target` points of `centres` (3 values per point), one per
 /// occupied lattice cell, the one nearest the cell's centre; all of them when there are no more
 /// than `target`. Deterministic: the same on every rank.
