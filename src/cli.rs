@@ -115,6 +115,11 @@ pub struct FitArgs {
     /// 0.4 keeps the dense factorisation within 1.4^3 = 2.7 times the plain method's.
     #[arg(long, allow_hyphen_values = true, default_value = "0.4", value_name = "F", value_parser = off_rate)]
     pub off_points: f64,
+    /// Points of level 0 of the two-level compactly supported fit (--method csrbf with --surface
+    /// auto or offsurface): a dense off-surface fit of this many points chosen evenly over space,
+    /// the carrier of the Wendland spline through all points.
+    #[arg(long, default_value = "2000", value_name = "N", value_parser = coarse_points)]
+    pub coarse_points: usize,
     #[command(flatten)]
     pub grid: GridArgs,
 }
@@ -408,6 +413,13 @@ fn off_rate(s: &str) -> Parsed<f64> {
     match s.trim().parse::<f64>() {
         Ok(v) if v > 0.0 && v <= 2.0 => Ok(v),
         _ => Err(format!("'{s}' is not a number of off-surface points per data point in (0, 2]")),
+    }
+}
+
+fn coarse_points(s: &str) -> Parsed<usize> {
+    match s.trim().parse::<usize>() {
+        Ok(k) if (50..=100_000).contains(&k) => Ok(k),
+        _ => Err(format!("'{s}' is not a number of level-0 points from 50 to 100000")),
     }
 }
 

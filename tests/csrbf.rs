@@ -69,6 +69,7 @@ fn the_sparse_system_is_the_dense_system_and_its_spline_interpolates() {
         let model = Model {
             carrier: prep.carrier.clone(),
             spline: Spline::from_solution(kernel, centres.clone(), &x, prep.norm),
+            coarse: Vec::new(),
             provenance: Provenance::default(),
         };
         let scale = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));

@@ -21,7 +21,7 @@ fn solve_dist(prep: &Prepared, kernel: &Kernel, solver: SolverKind, panel: usize
 }
 
 fn model(prep: &Prepared, spline: Spline) -> Model {
-    Model { carrier: prep.carrier.clone(), spline, provenance: Provenance::default() }
+    Model::single(prep.carrier.clone(), spline, Provenance::default())
 }
 
 /// The ball for m = 2; for m = 3 a ball is a quadratic that the spline reproduces exactly (f = 0),

@@ -29,6 +29,7 @@ fn distributed_runs_match_the_serial_oracle() {
         let oracle = Model {
             carrier: prep.carrier.clone(),
             spline: solve_serial(&prep, &k, solver),
+            coarse: Vec::new(),
             provenance: Default::default(),
         };
         for ranks in [1, 2, 3] {

@@ -1,13 +1,16 @@
 """Distances from points to a triangle mesh, for the accuracy of a reconstruction.
 
-  python3 distance.py MESH.ply POINTS.xyz [--chunk C]
+  python3 distance.py MESH.ply POINTS.xyz [--chunk C] [--diagonal-of XYZ]
 
 MESH is a PLY file (ascii or binary_little_endian; the vertex element's x, y, z of any numeric
 type, faces as a `list` of vertex indices, polygons split into fans), as volspline writes it, or a
 Wavefront .obj. POINTS holds x y z per line. Prints `key,value` lines (the format of volspline's
 --timings files): points, triangles, diagonal (of the bounding box of POINTS), the mean, 95th
 percentile and maximum of the distances as a percentage of that diagonal (dist_mean_pct,
-dist_p95_pct, dist_max_pct), and seconds.
+dist_p95_pct, dist_max_pct), the percentage of points farther than 2 % of it (dist_beyond2_pct),
+and seconds. POINTS may also be a mesh (.ply or .obj): its vertices,
+for the distance from a reconstruction to the true surface; --diagonal-of takes the diagonal from
+another point file (the data's, so that spurious surface far out does not enlarge it).
 
 The distance of each point is exact (to rounding): candidates come from a k-d tree of triangle
 centroids. With d the exact distance to the nearest candidate so far, rho the largest distance of
@@ -208,16 +211,24 @@ def main():
     ap.add_argument("mesh")
     ap.add_argument("points")
     ap.add_argument("--chunk", type=int, default=100_000, help="point-triangle pairs per numpy batch")
+    ap.add_argument("--diagonal-of", help="point file whose bounding box gives the diagonal")
     args = ap.parse_args()
     t0 = time.perf_counter()
     verts, faces = read_mesh(args.mesh)
-    pts = np.fromfile(args.points, sep=" ").reshape(-1, 3)
+    if args.points.endswith((".ply", ".obj")):
+        pts = read_mesh(args.points)[0]
+    else:
+        pts = np.fromfile(args.points, sep=" ").reshape(-1, 3)
     if len(faces) == 0:
         sys.exit(f"distance: {args.mesh} has no triangles")
-    diag = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
+    if len(pts) == 0:
+        sys.exit(f"distance: {args.points} has no points")
+    box = np.fromfile(args.diagonal_of, sep=" ").reshape(-1, 3) if args.diagonal_of else pts
+    diag = float(np.linalg.norm(box.max(axis=0) - box.min(axis=0)))
     d = 100 * distances(verts, faces, pts, args.chunk) / diag
     print(f"points,{len(pts)}\ntriangles,{len(faces)}\ndiagonal,{diag:.9g}")
     print(f"dist_mean_pct,{d.mean():.6g}\ndist_p95_pct,{np.percentile(d, 95):.6g}\ndist_max_pct,{d.max():.6g}")
+    print(f"dist_beyond2_pct,{100 * np.mean(d > 2):.6g}")
     print(f"seconds,{time.perf_counter() - t0:.3f}")
 
 

@@ -57,8 +57,19 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         let solid = a.grid.curvature.then(|| ModelSolid::new(model.clone()));
         let curvature = solid.as_ref().map(|s| s as &dyn Implicit);
         let volume = write_volume(comm, &model, curvature, &grid, &a.out, &mut stages)?;
-        let n = model.spline.len();
-        r.line(format!("N = {n} centres, kernel {}, carrier {}", model.spline.kernel.name(), model.carrier));
+        let n = model.centre_count();
+        let levels = if model.coarse.is_empty() {
+            String::new()
+        } else {
+            let coarse: Vec<String> =
+                model.coarse.iter().map(|s| format!("{} ({} centres)", s.kernel.name(), s.len())).collect();
+            format!(" on coarse levels {}", coarse.join(", "))
+        };
+        r.line(format!(
+            "N = {n} centres, kernel {}{levels}, carrier {}",
+            model.spline.kernel.name(),
+            model.carrier
+        ));
         r.figure("points", n);
         per_node = volume.evals_per_node;
         r.figure("kernel_evals", grid.node_count() as f64 * per_node as f64);

@@ -25,8 +25,9 @@ fn reach(v: &[f64]) -> f64 {
 /// naming the carrier's values at the data and the data's coordinates. Identical on every rank
 /// (the solution and the residual are).
 pub fn check_fit(fitted: &Fitted, prep: &Prepared) -> Result<()> {
-    let s = &fitted.spline;
-    let solution_ok = s.weights.iter().chain(&s.poly).all(|v| v.is_finite());
+    let solution_ok = std::iter::once(&fitted.spline)
+        .chain(&fitted.coarse)
+        .all(|s| s.weights.iter().chain(&s.poly).all(|v| v.is_finite()));
     if solution_ok && fitted.residual.is_finite() {
         return Ok(());
     }
@@ -118,6 +119,7 @@ mod tests {
                 poly: vec![0.0; 4],
                 norm: Normalisation { centre: [0.0; 3], scale: 1.0 },
             },
+            coarse: Vec::new(),
             provenance: Provenance::default(),
         }
     }

@@ -11,6 +11,7 @@ pub enum Stage {
     Read,
     Normals,
     Orient,
+    Coarse,
     Tree,
     Assemble,
     Factor,
@@ -24,10 +25,11 @@ pub enum Stage {
 }
 
 impl Stage {
-    pub const ALL: [Stage; 13] = [
+    pub const ALL: [Stage; 14] = [
         Stage::Read,
         Stage::Normals,
         Stage::Orient,
+        Stage::Coarse,
         Stage::Tree,
         Stage::Assemble,
         Stage::Factor,
@@ -45,6 +47,7 @@ impl Stage {
             Stage::Read => "read",
             Stage::Normals => "normals",
             Stage::Orient => "orient",
+            Stage::Coarse => "coarse",
             Stage::Tree => "tree",
             Stage::Assemble => "assemble",
             Stage::Factor => "factor",

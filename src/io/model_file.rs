@@ -17,6 +17,12 @@
 //! A file without `kernel_compact` holds a Green's-function kernel, as every version 1 file does.
 //! Models with a compactly supported kernel are written as version 2 so that a reader that knows
 //! only version 1 refuses them instead of taking them for a Green's-function spline.
+//!
+//! Version 3 adds coarse levels (f = f_c - U_0 - ... - U_L, see [`crate::spline::model`]): the
+//! attribute `coarse_levels` (L) and, for each coarse level l = 0..L-1 in order of evaluation, the
+//! kernel attributes and the datasets above with the prefix `coarse{l}_` (`coarse0_kernel`,
+//! `coarse0_weights`, ...). The unprefixed ones are the finest level. All levels share the
+//! normalisation. A file without `coarse_levels` is a model of one level.
 
 use std::path::Path;
 
@@ -35,22 +41,45 @@ pub fn write_model(path: &Path, model: &Model) -> Result<()> {
     let f = hdf5::File::create(path).map_err(h5)?;
     let a = Attrs { file: &f, path };
     let sp = &model.spline;
-    let dim = sp.kernel.dim();
     a.put_str("format", FORMAT)?;
-    let compact = sp.kernel.wendland_part();
-    a.put_int("format_version", if compact.is_some() { 2 } else { 1 })?;
-    a.put_int("kernel_dim", dim as i64)?;
-    a.put_int("kernel_order", sp.kernel.order() as i64)?;
-    a.put_str("kernel", &sp.kernel.name())?;
-    if let Some(w) = compact {
-        a.put_str("kernel_compact", w.kind.name())?;
-        a.put_f64s("kernel_support", &[w.support])?;
-    }
+    let compact = model.levels().any(|s| s.kernel.is_compact().is_some());
+    let version = if !model.coarse.is_empty() {
+        3
+    } else if compact {
+        2
+    } else {
+        1
+    };
+    a.put_int("format_version", version)?;
     a.put_str("carrier", &model.carrier.to_string())?;
     a.put_f64s("normalisation_centre", &sp.norm.centre)?;
     a.put_f64s("normalisation_scale", &[sp.norm.scale])?;
     a.put_provenance(&model.provenance)?;
+    if !model.coarse.is_empty() {
+        a.put_int("coarse_levels", model.coarse.len() as i64)?;
+    }
+    for (l, s) in model.coarse.iter().enumerate() {
+        if s.norm != sp.norm {
+            return Err(Error::Numerical("the levels of a model must share one normalisation".into()));
+        }
+        write_level(&a, &format!("coarse{l}_"), s)?;
+    }
+    write_level(&a, "", sp)?;
+    f.close().map_err(h5)
+}
 
+/// One spline's kernel attributes and datasets, their names prefixed with `prefix`.
+fn write_level(a: &Attrs<'_>, prefix: &str, sp: &Spline) -> Result<()> {
+    let h5 = |e: hdf5::Error| Error::hdf5(a.path, e);
+    let f = a.file;
+    let dim = sp.kernel.dim();
+    a.put_int(&format!("{prefix}kernel_dim"), dim as i64)?;
+    a.put_int(&format!("{prefix}kernel_order"), sp.kernel.order() as i64)?;
+    a.put_str(&format!("{prefix}kernel"), &sp.kernel.name())?;
+    if let Some(w) = sp.kernel.wendland_part() {
+        a.put_str(&format!("{prefix}kernel_compact"), w.kind.name())?;
+        a.put_f64s(&format!("{prefix}kernel_support"), &[w.support])?;
+    }
     let mut caller = vec![0.0; sp.centres.len()];
     for (c, pn) in caller.chunks_exact_mut(dim).zip(sp.centres.chunks_exact(dim)) {
         for d in 0..dim {
@@ -58,43 +87,33 @@ pub fn write_model(path: &Path, model: &Model) -> Result<()> {
         }
     }
     let arr2 = |v: &[f64], cols: usize| ndarray::Array2::from_shape_vec((v.len() / cols, cols), v.to_vec());
-    f.new_dataset_builder().with_data(&arr2(&caller, dim).expect("shape")).create("centres").map_err(h5)?;
+    let name = |n: &str| format!("{prefix}{n}");
+    f.new_dataset_builder()
+        .with_data(&arr2(&caller, dim).expect("shape"))
+        .create(&*name("centres"))
+        .map_err(h5)?;
     f.new_dataset_builder()
         .with_data(&arr2(&sp.centres, dim).expect("shape"))
-        .create("centres_normalised")
+        .create(&*name("centres_normalised"))
         .map_err(h5)?;
-    f.new_dataset_builder().with_data(&sp.weights).create("weights").map_err(h5)?;
-    f.new_dataset_builder().with_data(&sp.poly).create("poly_coefficients").map_err(h5)?;
+    f.new_dataset_builder().with_data(&sp.weights).create(&*name("weights")).map_err(h5)?;
+    f.new_dataset_builder().with_data(&sp.poly).create(&*name("poly_coefficients")).map_err(h5)?;
     let exps: Vec<i64> = sp.kernel.monomials().iter().flat_map(|e| e.map(|x| x as i64)).collect();
     f.new_dataset_builder()
         .with_data(&ndarray::Array2::from_shape_vec((exps.len() / 3, 3), exps).expect("shape"))
-        .create("poly_exponents")
+        .create(&*name("poly_exponents"))
         .map_err(h5)?;
-    f.close().map_err(h5)
+    Ok(())
 }
+
+/// Most coarse levels a model file may declare (the fit writes one).
+pub const MAX_COARSE_LEVELS: i64 = 16;
 
 /// Reads a model written by [`write_model`], checking its format and consistency.
 pub fn read_model(path: &Path) -> Result<Model> {
     let f = open(path)?;
     let a = Attrs { file: &f, path };
-    let (dim, order) = (a.int("kernel_dim")?, a.int("kernel_order")?);
-    let kernel = if f.attr("kernel_compact").is_ok() {
-        let support = a.f64s("kernel_support")?;
-        if support.len() != 1 || (dim, order) != (3, 2) {
-            return Err(a.bad("malformed compactly supported kernel"));
-        }
-        Kernel::wendland(&a.str("kernel_compact")?, support[0])
-    } else if dim == 3 && (order == 2 || order == 3) {
-        Kernel::new(3, order as usize)
-    } else {
-        return Err(a.bad(format!(
-            "kernel_dim {dim} and kernel_order {order} are not a kernel of this format (dimension 3, \
-             order 2 for r or 3 for r3)"
-        )));
-    }
-    .map_err(|e| a.bad(e.to_string()))?;
-    let dim = kernel.dim();
-    let carrier = Carrier::parse(&a.str("carrier")?, dim).map_err(|e| a.bad(e.to_string()))?;
+    let carrier = Carrier::parse(&a.str("carrier")?, 3).map_err(|e| a.bad(e.to_string()))?;
     if !carrier.is_resolved() {
         return Err(a.bad(format!("carrier '{carrier}': a stored ball must give its centre and radius")));
     }
@@ -107,17 +126,51 @@ pub fn read_model(path: &Path) -> Result<Model> {
         );
     }
     let norm = Normalisation { centre: [centre[0], centre[1], centre[2]], scale: scale[0] };
-    let n = a.expect_shape("centres_normalised", &[None, Some(3)])?[0];
-    if n == 0 {
-        return Err(a.bad("the model has no centres"));
+    let levels = if f.attr("coarse_levels").is_ok() { a.int("coarse_levels")? } else { 0 };
+    if !(0..=MAX_COARSE_LEVELS).contains(&levels) {
+        return Err(a.bad(format!("coarse_levels is {levels}, not a count from 0 to {MAX_COARSE_LEVELS}")));
     }
-    a.expect_shape("weights", &[Some(n)])?;
-    a.expect_shape("poly_coefficients", &[Some(kernel.poly_count())])?;
-    let centres = a.dataset_f64("centres_normalised")?;
-    let weights = a.dataset_f64("weights")?;
-    let poly = a.dataset_f64("poly_coefficients")?;
+    let coarse =
+        (0..levels).map(|l| read_level(&a, &format!("coarse{l}_"), norm)).collect::<Result<Vec<Spline>>>()?;
+    let spline = read_level(&a, "", norm)?;
+    let provenance = a.provenance()?;
+    Ok(Model { carrier, spline, coarse, provenance })
+}
+
+/// One spline stored by [`write_level`] under `prefix`, checked.
+fn read_level(a: &Attrs<'_>, prefix: &str, norm: Normalisation) -> Result<Spline> {
+    let f = a.file;
+    let name = |n: &str| format!("{prefix}{n}");
+    let level = if prefix.is_empty() { String::new() } else { format!("level '{prefix}': ") };
+    let bad = |why: String| a.bad(format!("{level}{why}"));
+    let (dim, order) = (a.int(&name("kernel_dim"))?, a.int(&name("kernel_order"))?);
+    let kernel = if f.attr(&name("kernel_compact")).is_ok() {
+        let support = a.f64s(&name("kernel_support"))?;
+        if support.len() != 1 || (dim, order) != (3, 2) {
+            return Err(bad("malformed compactly supported kernel".into()));
+        }
+        Kernel::wendland(&a.str(&name("kernel_compact"))?, support[0])
+    } else if dim == 3 && (order == 2 || order == 3) {
+        Kernel::new(3, order as usize)
+    } else {
+        return Err(bad(format!(
+            "kernel_dim {dim} and kernel_order {order} are not a kernel of this format (dimension 3, \
+             order 2 for r or 3 for r3)"
+        )));
+    }
+    .map_err(|e| bad(e.to_string()))?;
+    let dim = kernel.dim();
+    let n = a.expect_shape(&name("centres_normalised"), &[None, Some(3)])?[0];
+    if n == 0 {
+        return Err(bad("the model has no centres".into()));
+    }
+    a.expect_shape(&name("weights"), &[Some(n)])?;
+    a.expect_shape(&name("poly_coefficients"), &[Some(kernel.poly_count())])?;
+    let centres = a.dataset_f64(&name("centres_normalised"))?;
+    let weights = a.dataset_f64(&name("weights"))?;
+    let poly = a.dataset_f64(&name("poly_coefficients"))?;
     if centres.len() != weights.len() * dim || poly.len() != kernel.poly_count() {
-        return Err(a.bad(format!(
+        return Err(bad(format!(
             "inconsistent sizes: {} centre values, {} weights, {} polynomial coefficients for kernel {}",
             centres.len(),
             weights.len(),
@@ -126,11 +179,10 @@ pub fn read_model(path: &Path) -> Result<Model> {
         )));
     }
     if centres.iter().chain(&weights).chain(&poly).any(|v| !v.is_finite()) {
-        return Err(a.bad("the model holds non-finite numbers"));
+        return Err(bad("the model holds non-finite numbers".into()));
     }
-    check_magnitudes(&a, &centres, &weights, &poly)?;
-    let provenance = a.provenance()?;
-    Ok(Model { carrier, spline: Spline { kernel, centres, weights, poly, norm }, provenance })
+    check_magnitudes(a, &centres, &weights, &poly)?;
+    Ok(Spline { kernel, centres, weights, poly, norm })
 }
 
 /// The normalised centres lie in the unit ball (the data's box is scaled to half-diagonal 1):
@@ -156,15 +208,15 @@ pub(crate) fn check_magnitudes(a: &Attrs<'_>, centres: &[f64], weights: &[f64], 
     Ok(())
 }
 
-/// Opens a model file after checking its `format` and that its `format_version` is 1 or 2.
+/// Opens a model file after checking its `format` and that its `format_version` is 1, 2 or 3.
 fn open(path: &Path) -> Result<hdf5::File> {
     if format_of(path)? != FORMAT {
         return Err(Error::input(path, "", format!("not a volspline model (format is not '{FORMAT}')")));
     }
     let file = hdf5::File::open(path).map_err(|e| Error::hdf5(path, e))?;
     let version = Attrs { file: &file, path }.int("format_version")?;
-    if !(1..=2).contains(&version) {
-        let why = format!("volspline model format version {version} is not supported (expected 1 or 2)");
+    if !(1..=3).contains(&version) {
+        let why = format!("volspline model format version {version} is not supported (expected 1, 2 or 3)");
         return Err(Error::input(path, "", why));
     }
     Ok(file)
@@ -186,6 +238,7 @@ mod tests {
                 poly: (0..kernel.poly_count()).map(|i| 0.1 * (i + 1) as f64).collect(),
                 norm: Normalisation { centre: [1.0, 2.0, 3.0], scale: 4.5 },
             },
+            coarse: Vec::new(),
             provenance: Provenance { box_lo: [-1.0; 3], box_hi: [1.0; 3], ..Default::default() },
         }
     }
@@ -235,10 +288,55 @@ mod tests {
         {
             let f = hdf5::File::open_rw(&path).unwrap();
             f.delete_attr("format_version").unwrap();
-            Attrs { file: &f, path: &path }.put_int("format_version", 3).unwrap();
+            Attrs { file: &f, path: &path }.put_int("format_version", 4).unwrap();
         }
         let err = read_model(&path).unwrap_err().to_string();
-        assert!(err.contains("version 3"), "{err}");
+        assert!(err.contains("version 4"), "{err}");
+        std::fs::remove_file(&path).unwrap();
+    }
+
+    #[test]
+    fn levels_round_trip_and_a_bad_level_shape_is_refused() {
+        let path = temp("levels");
+        let mut m = model(Kernel::wendland("wendland2", 0.2).unwrap());
+        let mut coarse = model(Kernel::new(3, 2).unwrap()).spline;
+        coarse.weights.push(0.5);
+        coarse.centres.extend_from_slice(&[0.3, 0.3, 0.3]);
+        m.coarse = vec![coarse];
+        write_model(&path, &m).unwrap();
+        assert_eq!(read_model(&path).unwrap(), m);
+        {
+            let f = hdf5::File::open(&path).unwrap();
+            assert_eq!(Attrs { file: &f, path: &path }.int("format_version").unwrap(), 3);
+        }
+        // one weight fewer than centres in the coarse level
+        {
+            let f = hdf5::File::open_rw(&path).unwrap();
+            f.unlink("coarse0_weights").unwrap();
+            f.new_dataset_builder().with_data(&[1.0, 2.0, 3.0, 4.0]).create("coarse0_weights").unwrap();
+        }
+        let err = read_model(&path).unwrap_err().to_string();
+        assert!(err.contains("coarse0_weights"), "{err}");
+        // a level count beyond the levels stored
+        {
+            let f = hdf5::File::open_rw(&path).unwrap();
+            f.unlink("coarse0_weights").unwrap();
+            f.new_dataset_builder()
+                .with_data(&[1.5, -2.0, 0.25, 3.0, 0.5])
+                .create("coarse0_weights")
+                .unwrap();
+            f.delete_attr("coarse_levels").unwrap();
+            Attrs { file: &f, path: &path }.put_int("coarse_levels", 2).unwrap();
+        }
+        let err = read_model(&path).unwrap_err().to_string();
+        assert!(err.contains("coarse1_"), "{err}");
+        {
+            let f = hdf5::File::open_rw(&path).unwrap();
+            f.delete_attr("coarse_levels").unwrap();
+            Attrs { file: &f, path: &path }.put_int("coarse_levels", -1).unwrap();
+        }
+        let err = read_model(&path).unwrap_err().to_string();
+        assert!(err.contains("coarse_levels is -1"), "{err}");
         std::fs::remove_file(&path).unwrap();
     }
 }

@@ -222,6 +222,7 @@ mod tests {
         let model = Model {
             carrier: Carrier::parse("ball:0,0,0,2", 3).unwrap(),
             spline: sp,
+            coarse: Vec::new(),
             provenance: Provenance::default(),
         };
         let grid = Grid::covering([-2.0, -2.2, -1.7], [2.2, 1.8, 2.3], GridSize::Longest(24)).unwrap();

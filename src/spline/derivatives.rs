@@ -264,10 +264,10 @@ pub fn r_function_jet(f1: &Jet, f2: &Jet, sign: f64) -> Jet {
     out
 }
 
-/// The jet of f = f_c - U at `x`, summing over every centre (see
+/// The jet of f = f_c - U at `x` (every level's U in turn), summing over every centre (see
 /// [`crate::spline::point_eval::PointEvaluator`] for the fast form).
 pub fn model_jet(model: &Model, x: &[f64; 3]) -> Jet {
-    carrier_jet(&model.carrier, x).combine(1.0, &spline_jet(&model.spline, x), -1.0)
+    model.levels().fold(carrier_jet(&model.carrier, x), |f, s| f.combine(1.0, &spline_jet(s, x), -1.0))
 }
 
 #[cfg(test)]

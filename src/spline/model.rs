@@ -30,6 +30,22 @@
 //! conditions cancel its growth), so U tends to its linear part, while a ball carrier falls off
 //! like -|x|^2. Hence f = f_c - U -> -infinity far away: the far field is outside, as it must be
 //! for a bounded solid (with U - f_c it would be inside).
+//!
+//! # Levels
+//!
+//! The carrier idea applies recursively: the carrier of a fit may itself be a reconstructed solid.
+//! A model holds the splines U_0, ..., U_L (`coarse` then `spline`, coarsest first) and
+//!
+//! ```text
+//! f(x) = f_c(x) - U_0(x) - U_1(x) - ... - U_L(x).
+//! ```
+//!
+//! The two-level fit of the compactly supported method ([`crate::app::fit`]) takes U_0 as a dense
+//! fit of a subsample (with off-surface constraints), so f_0 = f_c - U_0 is already a clean solid
+//! that decides the sign away from the data, and U_1, a Wendland spline through all points,
+//! interpolates the remainder r_i = f_0(P_i) - t_i: beyond its support U_1 = its linear part,
+//! which only shifts and tilts f_0 slightly instead of exposing the carrier's sphere. A model of
+//! one level (`coarse` empty) is the plain method. Every evaluation sums the levels in this order.
 
 use rayon::prelude::*;
 
@@ -67,19 +83,37 @@ pub trait Field: Sync {
     fn kernel_evals_per_node(&self) -> usize;
 }
 
-/// f(x) = f_c(x) - U(x).
+/// f(x) = f_c(x) - sum of the coarse levels' U_l(x) - U(x) (see "Levels" above).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Model {
     pub carrier: Carrier,
+    /// The finest level, the one that interpolates the data.
     pub spline: Spline,
+    /// Coarser levels, coarsest first, subtracted before `spline`; empty for the plain method.
+    pub coarse: Vec<Spline>,
     pub provenance: Provenance,
 }
 
 impl Model {
+    /// A model of one level, f = f_c - U.
+    pub fn single(carrier: Carrier, spline: Spline, provenance: Provenance) -> Model {
+        Model { carrier, spline, coarse: Vec::new(), provenance }
+    }
+
+    /// Every level in the order of evaluation: the coarse ones, then `spline`.
+    pub fn levels(&self) -> impl Iterator<Item = &Spline> {
+        self.coarse.iter().chain(std::iter::once(&self.spline))
+    }
+
+    /// Centres over all levels.
+    pub fn centre_count(&self) -> usize {
+        self.levels().map(Spline::len).sum()
+    }
+
     /// f at a point in the caller's coordinates.
     #[inline]
     pub fn eval(&self, x: &[f64]) -> f64 {
-        self.carrier.eval(x) - self.spline.eval(x)
+        self.levels().fold(self.carrier.eval(x), |f, s| f - s.eval(x))
     }
 }
 
@@ -87,15 +121,21 @@ impl Field for Model {
     /// Threaded over rows of nodes with the blocked evaluator.
     fn eval_layers(&self, grid: &Grid, k0: usize, layers: usize) -> Vec<f64> {
         let [nx, ny, _] = grid.dims;
-        let ev = Evaluator::new(&self.spline);
+        let evs: Vec<Evaluator> = self.levels().map(Evaluator::new).collect();
         let xs: Vec<f64> = (0..nx).map(|i| grid.node(i, 0, 0)[0]).collect();
         let mut out = vec![0.0; nx * ny * layers];
         out.par_chunks_mut(nx.max(1)).enumerate().for_each(|(row, vals)| {
             let (j, k) = (row % ny, k0 + row / ny);
             let p = grid.node(0, j, k);
-            ev.eval_row(&xs, p[1], p[2], vals);
             for (v, &x) in vals.iter_mut().zip(&xs) {
-                *v = self.carrier.eval(&[x, p[1], p[2]]) - *v;
+                *v = self.carrier.eval(&[x, p[1], p[2]]);
+            }
+            let mut u = vec![0.0; vals.len()];
+            for ev in &evs {
+                ev.eval_row(&xs, p[1], p[2], &mut u);
+                for (v, w) in vals.iter_mut().zip(&u) {
+                    *v -= w;
+                }
             }
         });
         out
@@ -103,11 +143,14 @@ impl Field for Model {
 
     /// N for the Green's functions; for a compactly supported kernel the mean number of centres
     /// within the support of a centre (measured on up to 1000 of them): the cost of a node near the
-    /// data, where the work is (nodes farther than R from every centre cost none).
+    /// data, where the work is (nodes farther than R from every centre cost none). Summed over the
+    /// levels.
     fn kernel_evals_per_node(&self) -> usize {
-        match CompactRows::new(&self.spline) {
-            Some(c) => c.mean_neighbours(1000).round() as usize,
-            None => self.spline.len(),
-        }
+        self.levels()
+            .map(|s| match CompactRows::new(s) {
+                Some(c) => c.mean_neighbours(1000).round() as usize,
+                None => s.len(),
+            })
+            .sum()
     }
 }

@@ -13,7 +13,7 @@ use crate::spline::derivatives::{
     add_radial_term, carrier_jet, denormalise, polynomial_jet, spline_jet, Jet,
 };
 use crate::spline::octree::{Octree, DEFAULT_LEAF_CAPACITY};
-use crate::spline::Model;
+use crate::spline::{Model, Spline};
 
 const LANES: usize = 8;
 
@@ -26,10 +26,10 @@ enum Form {
     R3,
 }
 
-/// A model prepared for evaluation at single points (it owns a copy of what it needs).
+/// One level of a model prepared for evaluation at single points (it owns a copy of its spline).
 #[derive(Debug, Clone)]
-pub struct PointEvaluator {
-    model: Model,
+struct Level {
+    spline: Spline,
     form: Option<Form>,
     cx: Vec<f64>,
     cy: Vec<f64>,
@@ -38,47 +38,42 @@ pub struct PointEvaluator {
     tree: Option<Octree>,
 }
 
-impl PointEvaluator {
-    pub fn new(model: Model) -> Self {
-        let k = model.spline.kernel;
+impl Level {
+    fn new(spline: &Spline) -> Self {
+        let k = spline.kernel;
         let form = match (k.dim(), k.order(), k.is_compact()) {
             (3, 2, None) => Some(Form::R1),
             (3, 3, None) => Some(Form::R3),
             _ => None,
         };
         let tree = (k.is_compact().is_some() && k.dim() == 3)
-            .then(|| Octree::new(&model.spline.centres, DEFAULT_LEAF_CAPACITY));
-        let n = model.spline.len();
+            .then(|| Octree::new(&spline.centres, DEFAULT_LEAF_CAPACITY));
+        let n = spline.len();
         let padded = if form.is_some() { n.div_ceil(LANES) * LANES } else { 0 };
         // padding: zero weights at the origin, which add exactly 0.0 to every sum
         let (mut cx, mut cy, mut cz, mut w) =
             (vec![0.0; padded], vec![0.0; padded], vec![0.0; padded], vec![0.0; padded]);
         if form.is_some() {
-            for (i, p) in model.spline.centres.chunks_exact(3).enumerate() {
+            for (i, p) in spline.centres.chunks_exact(3).enumerate() {
                 cx[i] = p[0];
                 cy[i] = p[1];
                 cz[i] = p[2];
             }
-            w[..n].copy_from_slice(&model.spline.weights);
+            w[..n].copy_from_slice(&spline.weights);
         }
-        PointEvaluator { model, form, cx, cy, cz, w, tree }
-    }
-
-    /// The model evaluated.
-    pub fn model(&self) -> &Model {
-        &self.model
+        Level { spline: spline.clone(), form, cx, cy, cz, w, tree }
     }
 
     fn normalised(&self, x: &[f64; 3]) -> [f64; 3] {
         let mut xn = [0.0; 3];
-        self.model.spline.norm.apply(x, &mut xn);
+        self.spline.norm.apply(x, &mut xn);
         xn
     }
 
-    /// f at `x` (caller's coordinates).
-    pub fn value(&self, x: &[f64; 3]) -> f64 {
-        let sp = &self.model.spline;
-        let u = match (self.form, &self.tree) {
+    /// U at `x` (caller's coordinates).
+    fn value(&self, x: &[f64; 3]) -> f64 {
+        let sp = &self.spline;
+        match (self.form, &self.tree) {
             (Some(form), _) => {
                 let xn = self.normalised(x);
                 let s = radial_value(form, xn, &self.cx, &self.cy, &self.cz, &self.w);
@@ -99,14 +94,13 @@ impl PointEvaluator {
                 s + polynomial_value(sp, &xn)
             }
             (None, None) => sp.eval(x),
-        };
-        self.model.carrier.eval(x) - u
+        }
     }
 
-    /// f at `x` with its gradient and Hessian.
-    pub fn jet(&self, x: &[f64; 3]) -> Jet {
-        let sp = &self.model.spline;
-        let u = match (self.form, &self.tree) {
+    /// U at `x` with its gradient and Hessian (caller's coordinates).
+    fn jet(&self, x: &[f64; 3]) -> Jet {
+        let sp = &self.spline;
+        match (self.form, &self.tree) {
             (Some(form), _) => {
                 let xn = self.normalised(x);
                 let radial = radial_jet(form, xn, &self.cx, &self.cy, &self.cz, &self.w);
@@ -130,19 +124,57 @@ impl PointEvaluator {
                 denormalise(jet, sp.norm.scale)
             }
             (None, None) => spline_jet(sp, x),
-        };
-        carrier_jet(&self.model.carrier, x).combine(1.0, &u, -1.0)
+        }
+    }
+
+    /// grad U at `x`: the first-order part of [`Level::jet`], at a third of its cost for the
+    /// Green's functions.
+    fn gradient(&self, x: &[f64; 3]) -> [f64; 3] {
+        let Some(form) = self.form else { return self.jet(x).gradient };
+        let sp = &self.spline;
+        let xn = self.normalised(x);
+        let g = radial_gradient(form, xn, &self.cx, &self.cy, &self.cz, &self.w);
+        let poly = polynomial_jet(sp, &xn);
+        std::array::from_fn(|i| (g[i] + poly.gradient[i]) / sp.norm.scale)
+    }
+}
+
+/// A model prepared for evaluation at single points (it owns a copy of what it needs); its levels
+/// are subtracted from the carrier in the model's order.
+#[derive(Debug, Clone)]
+pub struct PointEvaluator {
+    model: Model,
+    levels: Vec<Level>,
+}
+
+impl PointEvaluator {
+    pub fn new(model: Model) -> Self {
+        let levels = model.levels().map(Level::new).collect();
+        PointEvaluator { model, levels }
+    }
+
+    /// The model evaluated.
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// f at `x` (caller's coordinates).
+    pub fn value(&self, x: &[f64; 3]) -> f64 {
+        self.levels.iter().fold(self.model.carrier.eval(x), |f, l| f - l.value(x))
+    }
+
+    /// f at `x` with its gradient and Hessian.
+    pub fn jet(&self, x: &[f64; 3]) -> Jet {
+        self.levels.iter().fold(carrier_jet(&self.model.carrier, x), |f, l| f.combine(1.0, &l.jet(x), -1.0))
     }
 
     /// grad f at `x`: the first-order part of [`PointEvaluator::jet`], at a third of its cost.
     pub fn gradient(&self, x: &[f64; 3]) -> [f64; 3] {
-        let Some(form) = self.form else { return self.jet(x).gradient };
-        let sp = &self.model.spline;
-        let xn = self.normalised(x);
-        let g = radial_gradient(form, xn, &self.cx, &self.cy, &self.cz, &self.w);
-        let poly = polynomial_jet(sp, &xn);
         let c = carrier_jet(&self.model.carrier, x);
-        std::array::from_fn(|i| c.gradient[i] - (g[i] + poly.gradient[i]) / sp.norm.scale)
+        self.levels.iter().fold(c.gradient, |g, l| {
+            let u = l.gradient(x);
+            std::array::from_fn(|i| g[i] - u[i])
+        })
     }
 }
 
@@ -298,6 +330,7 @@ mod tests {
         Model {
             carrier: Carrier::parse("ellipsoid:0.1,-0.2,0.3,2,1.5,1", 3).unwrap(),
             spline: Spline { kernel, centres, weights, poly, norm },
+            coarse: Vec::new(),
             provenance: Provenance::default(),
         }
     }
@@ -310,7 +343,11 @@ mod tests {
             Kernel::wendland("wendland2", 0.15).unwrap(),
             Kernel::wendland("wendland4", 0.3).unwrap(),
         ] {
-            let model = bunny_model(kernel);
+            let mut model = bunny_model(kernel);
+            if kernel.is_compact().is_some() {
+                // two levels: a Green's-function level under the compactly supported one
+                model.coarse = vec![bunny_model(Kernel::new(3, 2).unwrap()).spline];
+            }
             let ev = PointEvaluator::new(model.clone());
             // points near the data (centres mapped back to the caller's coordinates) and away
             let sp = &model.spline;

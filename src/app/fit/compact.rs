@@ -112,6 +112,7 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
     let full = (n as f64) * (n as f64);
     Ok(Fitted {
         spline,
+        coarse: Vec::new(),
         solver: format!("csrbf {}", name(solver)),
         residual,
         line: format!(

@@ -79,6 +79,7 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
     let refinement = solved.refinement.as_ref();
     Ok(Fitted {
         spline,
+        coarse: Vec::new(),
         solver: if mixed { "lu (mixed)".to_string() } else { solved.used.name().to_string() },
         residual,
         line,

@@ -6,6 +6,7 @@
 
 pub mod compact;
 pub mod dense;
+pub mod levels;
 pub mod surface;
 
 use std::path::Path;
@@ -41,7 +42,10 @@ pub struct Run<'a> {
 
 /// What a method produced.
 pub struct Fitted {
+    /// The finest level (the only one of a single-level fit).
     pub spline: Spline,
+    /// Coarser levels, coarsest first (see [`levels`]).
+    pub coarse: Vec<Spline>,
     /// The solver, as the model file records it.
     pub solver: String,
     /// ||M x - b|| / ||b|| of the whole bordered system.
@@ -127,42 +131,69 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let n = prep.values.len();
     let run = Run { args: a, comm, threads };
     let off = surface::with_off_surface(a.surface, n);
-    let constrained = if off { Some(surface::constrain(&run, &prep, &mut stages)?) } else { None };
-    // the spline's centres and values: the data's, with the off-surface points after them
-    let fit_prep = constrained.as_ref().map_or(&prep, |c| &c.0);
-    let summary = constrained.as_ref().map(|c| c.1.clone());
-    let rows = fit_prep.values.len();
-    let (method, kernel, why) = choose(a, rows, comm.size(), &fit_prep.centres)?;
-    if comm.rank() == 0 {
-        eprintln!(
-            "volspline fit: {points_read} points read from {}, {} duplicates merged, N = {n}{}, kernel {}, carrier {}",
-            a.input.display(),
-            prep.merged,
-            summary.as_ref().map_or(String::new(), |s| format!(" + {} off-surface points", s.off_points)),
-            kernel.name(),
-            prep.carrier
-        );
-    }
     let (plo, phi) = padded_box(&prep.box_lo, &prep.box_hi, a.grid.margin);
     let grid = Grid::covering(plo, phi, a.grid.grid)?;
-    let fitted = match method {
-        Method::Dense | Method::Auto => {
-            dense::check(comm, &kernel, rows)?;
-            check_grid(comm, &grid)?;
-            dense::fit(&run, kernel, fit_prep, &mut stages)?
+    // the compactly supported method with off-surface constraints fits two levels: a dense
+    // off-surface fit of a subsample, and the Wendland spline through all points on top of it
+    // (levels.rs). The choice is made for the most rows the off points can add (the choice is
+    // monotone in the rows), so a dense choice below holds once they are known
+    let most_rows = n + (a.off_points * n as f64).ceil() as usize;
+    let two_level = off && choose(a, most_rows, comm.size(), &prep.centres)?.0 == Method::Csrbf;
+    let (fitted, summary, method, kernel, why) = if two_level {
+        let (method, kernel, why) = choose(a, n, comm.size(), &prep.centres)?;
+        if comm.rank() == 0 {
+            eprintln!(
+                "volspline fit: {points_read} points read from {}, {} duplicates merged, N = {n}, two levels: \
+                 dense r on up to {} of them, then kernel {}, carrier {}",
+                a.input.display(),
+                prep.merged,
+                a.coarse_points,
+                kernel.name(),
+                prep.carrier
+            );
         }
-        Method::Csrbf => {
-            check_grid(comm, &grid)?;
-            compact::fit(&run, kernel, fit_prep, &mut stages)?
+        check_grid(comm, &grid)?;
+        let (fitted, summary) = levels::fit(&run, kernel, &prep, a.coarse_points, &mut stages)?;
+        super::finite::check_fit(&fitted, &prep)?;
+        (fitted, Some(summary), method, kernel, why)
+    } else {
+        let constrained = if off { Some(surface::constrain(&run, &prep, &mut stages)?) } else { None };
+        // the spline's centres and values: the data's, with the off-surface points after them
+        let fit_prep = constrained.as_ref().map_or(&prep, |c| &c.0);
+        let summary = constrained.as_ref().map(|c| c.1.clone());
+        let rows = fit_prep.values.len();
+        let (method, kernel, why) = choose(a, rows, comm.size(), &fit_prep.centres)?;
+        if comm.rank() == 0 {
+            eprintln!(
+                "volspline fit: {points_read} points read from {}, {} duplicates merged, N = {n}{}, kernel {}, carrier {}",
+                a.input.display(),
+                prep.merged,
+                summary.as_ref().map_or(String::new(), |s| format!(" + {} off-surface points", s.off_points)),
+                kernel.name(),
+                prep.carrier
+            );
         }
+        let fitted = match method {
+            Method::Dense | Method::Auto => {
+                dense::check(comm, &kernel, rows)?;
+                check_grid(comm, &grid)?;
+                dense::fit(&run, kernel, fit_prep, &mut stages)?
+            }
+            Method::Csrbf => {
+                check_grid(comm, &grid)?;
+                compact::fit(&run, kernel, fit_prep, &mut stages)?
+            }
+        };
+        super::finite::check_fit(&fitted, fit_prep)?;
+        (fitted, summary, method, kernel, why)
     };
-    super::finite::check_fit(&fitted, fit_prep)?;
-    drop(constrained);
-    let (rms, max_abs) = stages.time(Stage::Check, || at_points(comm, &fitted.spline, &prep));
+    let levels: Vec<&Spline> = fitted.coarse.iter().chain(std::iter::once(&fitted.spline)).collect();
+    let (rms, max_abs) = stages.time(Stage::Check, || at_points(comm, &levels, &prep));
     let Prepared { carrier, box_lo: lo, box_hi: hi, merged, .. } = prep;
     let model = Model {
         carrier,
         spline: fitted.spline,
+        coarse: fitted.coarse,
         provenance: Provenance {
             input: a.input.display().to_string(),
             box_lo: [lo[0], lo[1], lo[2]],
@@ -193,7 +224,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         "N = {n} points ({points_read} read, {merged} duplicates merged), method {method_name} ({why}), kernel {}",
         kernel.name()
     ));
-    r.line(surface_line(summary.as_ref()));
+    r.line(surface_line(summary.as_ref(), two_level));
     r.line(fitted.line.clone());
     r.line(format!("ranks = {}, threads per rank = {threads}", comm.size()));
     r.line(format!("relative residual |Mx - b|/|b| = {:.3e}", fitted.residual));
@@ -203,6 +234,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     r.figure("method", method_name);
     r.figure("kernel", kernel.name());
     r.figure("surface", surface::name(off));
+    r.figure("levels", if two_level { 2 } else { 1 });
     if let Some(s) = &summary {
         r.figure("off_points", s.off_points);
         r.figure("off_dropped", s.dropped);
@@ -247,12 +279,13 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
 }
 
 /// The report line of the surface method.
-fn surface_line(summary: Option<&surface::SurfaceSummary>) -> String {
+fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> String {
     match summary {
         None => "surface carrier: the spline interpolates the carrier at the data alone".to_string(),
         Some(s) => format!(
-            "surface offsurface: {} off-surface points ({} dropped), delta {:.3e} to {:.3e}; orientation: {} graph \
+            "surface offsurface{}: {} off-surface points ({} dropped), delta {:.3e} to {:.3e}; orientation: {} graph \
              components, {}",
+            if two_level { " (level 0)" } else { "" },
             s.off_points,
             s.dropped,
             s.delta.0,
@@ -267,19 +300,22 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>) -> String {
     }
 }
 
-/// RMS and maximum of |f| = |f_c - U| at the data points (zero for an exact interpolant), each
-/// rank taking every P-th point with the blocked evaluator. Collective.
-fn at_points(comm: &dyn Comm, spline: &Spline, prep: &Prepared) -> (f64, f64) {
-    let ev = Evaluator::new(spline);
+/// RMS and maximum of |f| = |f_c - sum of the levels' U| at the data points (zero for an exact
+/// interpolant), each rank taking every P-th point with the blocked evaluator. Collective.
+fn at_points(comm: &dyn Comm, levels: &[&Spline], prep: &Prepared) -> (f64, f64) {
+    let evs: Vec<Evaluator> = levels.iter().map(|s| Evaluator::new(s)).collect();
     // squares of the scaled differences, so that carrier values near 1e200 do not overflow them
     let scale = power_of_two_below_inverse(prep.values.iter().fold(0.0f64, |m, v| m.max(v.abs())));
     let mine: Vec<&[f64]> = prep.points.chunks_exact(3).skip(comm.rank()).step_by(comm.size()).collect();
     let (sq, max) = mine
         .par_iter()
         .map(|p| {
-            let mut u = [0.0];
-            ev.eval_row(&p[..1], p[1], p[2], &mut u);
-            let d = (prep.carrier.eval(p) - u[0]).abs();
+            let f = evs.iter().fold(prep.carrier.eval(p), |f, ev| {
+                let mut u = [0.0];
+                ev.eval_row(&p[..1], p[1], p[2], &mut u);
+                f - u[0]
+            });
+            let d = f.abs();
             ((d * scale) * (d * scale), d)
         })
         .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1.max(b.1)));
