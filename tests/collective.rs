@@ -74,11 +74,12 @@ fn child() {
         }
         comm.barrier();
     }
-    let checks: [(&str, Check); 10] = [
+    let checks: [(&str, Check); 11] = [
         ("typed collectives", typed_collectives),
         ("agree: one failing rank", agree_one_failing_rank),
         ("agree: two failing ranks, the lowest wins", agree_lowest_rank_wins),
         ("distributed solvers vs dense oracles", solvers_match_the_oracles),
+        ("LU with and without look-ahead vs the dense oracle", lookahead_matches_the_oracle),
         ("Cholesky -> LU fallback, 4 points", fallback_on_four_points),
         ("Cholesky -> LU fallback, indefinite block", fallback_on_an_indefinite_block),
         ("mixed precision vs the dense LU oracle", mixed_matches_the_oracle),
@@ -226,6 +227,33 @@ fn solvers_match_the_oracles(comm: &dyn Comm, log: &mut Log) {
             let what = format!("{} panel {panel}", kind.name());
             log.close(&x, want, 1e-9, || what.clone());
             same_on_every_rank(comm, log, &x, &what);
+        }
+    }
+}
+
+/// The LU with look-ahead (the trailing update in pieces inside the next panel's pivot searches:
+/// about 1000 rows, so that a panel's update takes several pieces) and without, against the
+/// dense LU oracle; both factor in f64 and in f32 (the factorisation of a mixed-precision solve).
+fn lookahead_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
+    let k = Kernel::new(3, 2).unwrap();
+    let prep =
+        must(prepare(&common::bunny_subset(5, 2), &k, &Carrier::AutoBall, 1e-6), "prepare the bunny points");
+    let n = system_size(&k, prep.values.len());
+    let want = oracle(&prep, &k, lu_solve);
+    let layout = RowCyclic::new(n, comm.size(), comm.rank());
+    for lookahead in [true, false] {
+        for panel in [7, 16, 64] {
+            let job = Job::on(comm).panel(panel).lookahead(lookahead);
+            let mut rows = assemble(&k, &prep.centres, &prep.values, layout);
+            let x = must(SolverKind::Lu.run(&job, &mut rows), "lu");
+            let what = format!("lu panel {panel} n {n} look-ahead {lookahead}");
+            log.close(&x, &want, 1e-9, || what.clone());
+            same_on_every_rank(comm, log, &x, &what);
+            // the f32 factors, refined in f64 to the f64 accuracy
+            let rows = assemble(&k, &prep.centres, &prep.values, layout);
+            let (x, r) = must(dist::mixed_solve(&job, &rows), "mixed lu");
+            log.check(r.converged, || format!("{what}: mixed refinement {}", r.describe()));
+            log.close(&x, &want, 1e-7, || format!("{what} (f32 factors)"));
         }
     }
 }

@@ -9,8 +9,8 @@ use crate::app::preflight::{check_memory, dense_fit_bytes};
 use crate::app::progress::Progress;
 use crate::app::stages::{Stage, Stages};
 use crate::error::Result;
-use crate::linalg::dist::{self, Job, LocalRows, RowCyclic};
-use crate::par::Comm;
+use crate::linalg::dist::{self, Job, LocalRows, RowCyclic, SolverKind};
+use crate::par::{Comm, Timed};
 use crate::spline::hygiene::Prepared;
 use crate::spline::{fill_rows, residual_parts, Kernel, Spline};
 
@@ -41,11 +41,16 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
     let layout = RowCyclic::new(values.len() + kernel.poly_count(), comm.size(), comm.rank());
     let rows = stages.time(Stage::Assemble, || assemble(&kernel, centres, values, layout));
     let progress = Progress::new("solve", comm);
+    let timed = Timed::new(comm);
     let solved = stages.time(Stage::Solve, || {
         let report = |d, t| progress.update(d, t);
-        let job = Job::on(comm).panel(a.panel).par(Par::rayon(threads)).progress(&report);
+        let job =
+            Job::on(&timed).panel(a.panel).par(Par::rayon(threads)).progress(&report).lookahead(a.lookahead);
         dist::solve_in(&job, a.solver, a.precision, rows, || assemble(&kernel, centres, values, layout))
-    })?;
+    });
+    stages.add(Stage::CommWait, timed.seconds());
+    let calls = timed.calls();
+    let solved = solved?;
     if let (Some(why), 0) = (&solved.mixed_fallback, comm.rank()) {
         eprintln!("volspline: precision mixed: {why}; solved in f64 with {}", solved.used.name());
     }
@@ -65,8 +70,16 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
     let spline = Spline::from_solution(kernel, centres.clone(), &solved.x, prep.norm);
     let mixed = solved.mixed_fallback.is_none() && solved.refinement.is_some();
     let precision = if mixed { "mixed (f32 LU, f64 refinement)" } else { "f64" };
+    let lu = solved.used == SolverKind::Lu || mixed;
+    let lookahead = if !lu {
+        ""
+    } else if a.lookahead {
+        ", look-ahead on"
+    } else {
+        ", look-ahead off"
+    };
     let mut line = format!(
-        "solver {} (dense, row-cyclic), panel {}, precision {precision}",
+        "solver {} (dense, row-cyclic), panel {}{lookahead}, precision {precision}",
         solved.used.name(),
         solved.panel
     );
@@ -85,6 +98,8 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
         figures: vec![
             ("solver".into(), solved.used.name().into()),
             ("panel".into(), solved.panel.to_string()),
+            ("lookahead".into(), (lu && a.lookahead).to_string()),
+            ("comm_calls".into(), calls.to_string()),
             ("system_size".into(), layout.n.to_string()),
             ("precision".into(), if mixed { "mixed" } else { "f64" }.into()),
             ("refinement_classical".into(), refinement.map_or(0, |r| r.classical).to_string()),
