@@ -22,7 +22,7 @@ mod timed;
 mod wire;
 
 pub use solo::Solo;
-pub use timed::Timed;
+pub use timed::{CallKind, Timed};
 pub use wire::{Reader, Wire};
 
 use crate::error::{Error, Result};

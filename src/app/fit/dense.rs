@@ -10,7 +10,7 @@ use crate::app::progress::Progress;
 use crate::app::stages::{Stage, Stages};
 use crate::error::Result;
 use crate::linalg::dist::{self, Job, LocalRows, RowCyclic, SolverKind};
-use crate::par::{Comm, Timed};
+use crate::par::{CallKind, Comm, Timed};
 use crate::spline::hygiene::Prepared;
 use crate::spline::{fill_rows, residual_parts, Kernel, Spline};
 
@@ -50,6 +50,9 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
     });
     stages.add(Stage::CommWait, timed.seconds());
     let calls = timed.calls();
+    // the slowest rank's wait in each kind of call
+    let mut by_kind: Vec<f64> = CallKind::ALL.iter().map(|&k| timed.seconds_in(k)).collect();
+    comm.max_f64(&mut by_kind);
     let solved = solved?;
     if let (Some(why), 0) = (&solved.mixed_fallback, comm.rank()) {
         eprintln!("volspline: precision mixed: {why}; solved in f64 with {}", solved.used.name());
@@ -83,6 +86,9 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
         solved.used.name(),
         solved.panel
     );
+    let kinds: Vec<String> =
+        CallKind::ALL.iter().zip(&by_kind).map(|(k, s)| format!("{} {s:.3} s", k.name())).collect();
+    line.push_str(&format!("\n  comm wait by kind (max over ranks): {}", kinds.join(", ")));
     if let Some(r) = &solved.refinement {
         line.push_str(&format!("\n  refinement: {}", r.describe()));
     }
@@ -95,7 +101,7 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
         solver: if mixed { "lu (mixed)".to_string() } else { solved.used.name().to_string() },
         residual,
         line,
-        figures: vec![
+        figures: [
             ("solver".into(), solved.used.name().into()),
             ("panel".into(), solved.panel.to_string()),
             ("lookahead".into(), (lu && a.lookahead).to_string()),
@@ -106,6 +112,14 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
             ("refinement_gmres".into(), refinement.map_or(0, |r| r.gmres).to_string()),
             ("refinement_gmres_iterations".into(), refinement.map_or(0, |r| r.gmres_iterations).to_string()),
             ("precision_fallback".into(), solved.mixed_fallback.is_some().to_string()),
-        ],
+        ]
+        .into_iter()
+        .chain(
+            CallKind::ALL
+                .iter()
+                .zip(&by_kind)
+                .map(|(k, s)| (format!("comm_wait_{}_max_s", k.name()), format!("{s:.6}"))),
+        )
+        .collect(),
     })
 }
