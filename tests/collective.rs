@@ -139,6 +139,29 @@ fn typed_collectives(comm: &dyn Comm, log: &mut Log) {
     let mut recv = vec![f64::NAN; want.len()];
     comm.all_gather_f64(&send, &counts, &mut recv);
     log.check(recv == want, || format!("all_gather_f64: {recv:?}, expected {want:?}"));
+    // the same, non-blocking, with work while in flight (through the timing adapter): the work
+    // runs at least once, at most until it says it is done, and the values arrive all the same
+    let timed = par::Timed::new(comm);
+    for pieces in [0usize, 1, 5] {
+        let (mut recv, mut recv32) = (vec![f64::NAN; want.len()], vec![f32::NAN; want.len()]);
+        let mut ran = 0;
+        let mut work = || {
+            ran += 1;
+            ran < pieces
+        };
+        timed.all_gather_f64_while(&send, &counts, &mut recv, &mut work);
+        log.check(recv == want, || {
+            format!("all_gather_f64_while ({pieces} pieces): {recv:?}, expected {want:?}")
+        });
+        log.check(ran >= 1 && ran <= pieces.max(1), || {
+            format!("all_gather_f64_while: work ran {ran} times of {pieces}")
+        });
+        let send32: Vec<f32> = send.iter().map(|&v| v as f32).collect();
+        timed.all_gather_f32_while(&send32, &counts, &mut recv32, &mut || false);
+        let want32: Vec<f32> = want.iter().map(|&v| v as f32).collect();
+        log.check(recv32 == want32, || format!("all_gather_f32_while: {recv32:?}, expected {want32:?}"));
+    }
+    log.check(timed.calls() == 6, || format!("Timed counted {} calls, expected 6", timed.calls()));
     // the ring, both ways
     for step in [1, p - 1] {
         let (dest, source) = ((r + step) % p, (r + p - step) % p);
