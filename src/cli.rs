@@ -98,6 +98,10 @@ pub struct FitArgs {
     /// lu, 256 for cholesky).
     #[arg(long, allow_negative_numbers = true, default_value_t = 0, value_name = "NB")]
     pub panel: usize,
+    /// Look-ahead of the LU solver: on (each panel's trailing update runs while the next panel's
+    /// pivot searches are in flight) or off (update, then the next panel).
+    #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
+    pub lookahead: bool,
     /// Points closer than this fraction of the bounding-box diagonal are merged into one.
     #[arg(long, allow_hyphen_values = true, default_value = "1e-6", value_name = "F", value_parser = merge_tol)]
     pub merge_tol: f64,
@@ -375,6 +379,14 @@ fn reason<T>(r: Result<T>) -> Parsed<T> {
     })
 }
 
+fn on_off(s: &str) -> Parsed<bool> {
+    match s {
+        "on" => Ok(true),
+        "off" => Ok(false),
+        other => Err(format!("expected on or off, not '{other}'")),
+    }
+}
+
 fn carrier_3d(s: &str) -> Parsed<Carrier> {
     reason(Carrier::parse(s, 3))
 }
@@ -555,6 +567,7 @@ mod tests {
         let Command::Fit(a) = cli.command else { panic!("fit") };
         assert_eq!(a.solver, SolverKind::Lu);
         assert_eq!(a.precision, Precision::F64);
+        assert!(a.lookahead);
         assert_eq!(a.kernel, KernelChoice::Auto);
         assert_eq!(a.method, Method::Auto);
         assert_eq!(a.leaf, 10);
@@ -573,6 +586,7 @@ mod tests {
         for bad in [
             &["fit", "a.xyz", "--out", "o", "--solver", "gauss"][..],
             &["fit", "a.xyz", "--out", "o", "--precision", "half"][..],
+            &["fit", "a.xyz", "--out", "o", "--lookahead", "yes"][..],
             &["fit", "a.xyz", "--out", "o", "--carrier", "cube"],
             &["fit", "a.xyz", "--out", "o", "--margin", "-1"],
             &["fit", "a.xyz", "--out", "o", "--merge-tol", "0.5"],

@@ -74,11 +74,12 @@ fn child() {
         }
         comm.barrier();
     }
-    let checks: [(&str, Check); 10] = [
+    let checks: [(&str, Check); 11] = [
         ("typed collectives", typed_collectives),
         ("agree: one failing rank", agree_one_failing_rank),
         ("agree: two failing ranks, the lowest wins", agree_lowest_rank_wins),
         ("distributed solvers vs dense oracles", solvers_match_the_oracles),
+        ("LU with and without look-ahead vs the dense oracle", lookahead_matches_the_oracle),
         ("Cholesky -> LU fallback, 4 points", fallback_on_four_points),
         ("Cholesky -> LU fallback, indefinite block", fallback_on_an_indefinite_block),
         ("mixed precision vs the dense LU oracle", mixed_matches_the_oracle),
@@ -138,6 +139,29 @@ fn typed_collectives(comm: &dyn Comm, log: &mut Log) {
     let mut recv = vec![f64::NAN; want.len()];
     comm.all_gather_f64(&send, &counts, &mut recv);
     log.check(recv == want, || format!("all_gather_f64: {recv:?}, expected {want:?}"));
+    // the same, non-blocking, with work while in flight (through the timing adapter): the work
+    // runs at least once, at most until it says it is done, and the values arrive all the same
+    let timed = par::Timed::new(comm);
+    for pieces in [0usize, 1, 5] {
+        let (mut recv, mut recv32) = (vec![f64::NAN; want.len()], vec![f32::NAN; want.len()]);
+        let mut ran = 0;
+        let mut work = || {
+            ran += 1;
+            ran < pieces
+        };
+        timed.all_gather_f64_while(&send, &counts, &mut recv, &mut work);
+        log.check(recv == want, || {
+            format!("all_gather_f64_while ({pieces} pieces): {recv:?}, expected {want:?}")
+        });
+        log.check(ran >= 1 && ran <= pieces.max(1), || {
+            format!("all_gather_f64_while: work ran {ran} times of {pieces}")
+        });
+        let send32: Vec<f32> = send.iter().map(|&v| v as f32).collect();
+        timed.all_gather_f32_while(&send32, &counts, &mut recv32, &mut || false);
+        let want32: Vec<f32> = want.iter().map(|&v| v as f32).collect();
+        log.check(recv32 == want32, || format!("all_gather_f32_while: {recv32:?}, expected {want32:?}"));
+    }
+    log.check(timed.calls() == 6, || format!("Timed counted {} calls, expected 6", timed.calls()));
     // the ring, both ways
     for step in [1, p - 1] {
         let (dest, source) = ((r + step) % p, (r + p - step) % p);
@@ -226,6 +250,33 @@ fn solvers_match_the_oracles(comm: &dyn Comm, log: &mut Log) {
             let what = format!("{} panel {panel}", kind.name());
             log.close(&x, want, 1e-9, || what.clone());
             same_on_every_rank(comm, log, &x, &what);
+        }
+    }
+}
+
+/// The LU with look-ahead (the trailing update in pieces inside the next panel's pivot searches:
+/// about 1000 rows, so that a panel's update takes several pieces) and without, against the
+/// dense LU oracle; both factor in f64 and in f32 (the factorisation of a mixed-precision solve).
+fn lookahead_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
+    let k = Kernel::new(3, 2).unwrap();
+    let prep =
+        must(prepare(&common::bunny_subset(5, 2), &k, &Carrier::AutoBall, 1e-6), "prepare the bunny points");
+    let n = system_size(&k, prep.values.len());
+    let want = oracle(&prep, &k, lu_solve);
+    let layout = RowCyclic::new(n, comm.size(), comm.rank());
+    for lookahead in [true, false] {
+        for panel in [7, 16, 64] {
+            let job = Job::on(comm).panel(panel).lookahead(lookahead);
+            let mut rows = assemble(&k, &prep.centres, &prep.values, layout);
+            let x = must(SolverKind::Lu.run(&job, &mut rows), "lu");
+            let what = format!("lu panel {panel} n {n} look-ahead {lookahead}");
+            log.close(&x, &want, 1e-9, || what.clone());
+            same_on_every_rank(comm, log, &x, &what);
+            // the f32 factors, refined in f64 to the f64 accuracy
+            let rows = assemble(&k, &prep.centres, &prep.values, layout);
+            let (x, r) = must(dist::mixed_solve(&job, &rows), "mixed lu");
+            log.check(r.converged, || format!("{what}: mixed refinement {}", r.describe()));
+            log.close(&x, &want, 1e-7, || format!("{what} (f32 factors)"));
         }
     }
 }

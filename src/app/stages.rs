@@ -22,10 +22,12 @@ pub enum Stage {
     Write,
     Slice,
     Render,
+    /// Time spent in communication calls (inside the other stages, not added to the total).
+    CommWait,
 }
 
 impl Stage {
-    pub const ALL: [Stage; 14] = [
+    pub const ALL: [Stage; 15] = [
         Stage::Read,
         Stage::Normals,
         Stage::Orient,
@@ -40,6 +42,7 @@ impl Stage {
         Stage::Write,
         Stage::Slice,
         Stage::Render,
+        Stage::CommWait,
     ];
 
     pub fn name(self) -> &'static str {
@@ -58,6 +61,7 @@ impl Stage {
             Stage::Write => "write",
             Stage::Slice => "slice",
             Stage::Render => "render",
+            Stage::CommWait => "comm_wait",
         }
     }
 }
@@ -120,16 +124,20 @@ impl StageTimes {
         self.0.iter().find(|t| t.stage == stage).map_or(0.0, |t| t.max)
     }
 
-    /// The stage table as printed.
+    /// The stage table as printed; the time spent waiting in communication, part of the other
+    /// stages, follows the total.
     pub fn table(&self) -> String {
         let mut s = String::from("  stage          min [s]     max [s]\n");
         let mut total = (0.0, 0.0);
-        for t in &self.0 {
+        for t in self.0.iter().filter(|t| t.stage != Stage::CommWait) {
             s.push_str(&format!("  {:<12} {:>9.3}   {:>9.3}\n", t.stage.name(), t.min, t.max));
             total.0 += t.min;
             total.1 += t.max;
         }
         s.push_str(&format!("  {:<12} {:>9.3}   {:>9.3}\n", "total", total.0, total.1));
+        for t in self.0.iter().filter(|t| t.stage == Stage::CommWait) {
+            s.push_str(&format!("  {:<12} {:>9.3}   {:>9.3}   (of solve)\n", "comm wait", t.min, t.max));
+        }
         s
     }
 
@@ -155,5 +163,11 @@ mod tests {
         assert_eq!(t.max(Stage::Solve), 2.0);
         assert_eq!(t.max(Stage::Mesh), 0.0);
         assert!(t.table().contains("total            2.250"));
+        s.add(Stage::CommWait, 0.75);
+        let t = s.summarise(&Solo);
+        assert_eq!(t.max(Stage::CommWait), 0.75);
+        let table = t.table();
+        assert!(table.contains("total            2.250"), "{table}");
+        assert!(table.contains("comm wait        0.750"), "{table}");
     }
 }

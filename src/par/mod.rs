@@ -7,6 +7,9 @@
 //! else sees ranks through this trait, so the solvers and commands are the same code in unit tests,
 //! on one process and under `mpirun`.
 //!
+//! [`Timed`] wraps any [`Comm`] and adds up the time its calls spend waiting: the "comm wait" of
+//! the stage table.
+//!
 //! The failure protocol: a stage whose local step can fail on some ranks calls [`agree`] before the
 //! next collective. Every rank then returns the same outcome: `Ok` everywhere, or the error of the
 //! lowest failing rank, carried to the others as [`Error::Remote`] with the original error (its kind
@@ -15,9 +18,11 @@
 
 pub mod mpi;
 mod solo;
+mod timed;
 mod wire;
 
 pub use solo::Solo;
+pub use timed::{CallKind, Timed};
 pub use wire::{Reader, Wire};
 
 use crate::error::{Error, Result};
@@ -56,6 +61,31 @@ pub trait Comm {
     fn all_gather_f32(&self, send: &[f32], counts: &[usize], recv: &mut [f32]);
     /// [`Comm::shift_f64`] of single-precision values.
     fn shift_f32(&self, dest: usize, source: usize, send: &[f32], recv: &mut [f32]);
+    /// [`Comm::all_gather_f64`] that calls `work` while the messages are in flight (a look-ahead
+    /// factorisation puts its trailing update there): once before waiting, and again as long as
+    /// the gather has not completed and `work` returned true (it has more to do). `work` must not
+    /// communicate. Without non-blocking collectives, `work` runs once and the gather follows.
+    fn all_gather_f64_while(
+        &self,
+        send: &[f64],
+        counts: &[usize],
+        recv: &mut [f64],
+        work: &mut dyn FnMut() -> bool,
+    ) {
+        work();
+        self.all_gather_f64(send, counts, recv);
+    }
+    /// [`Comm::all_gather_f64_while`] of single-precision values.
+    fn all_gather_f32_while(
+        &self,
+        send: &[f32],
+        counts: &[usize],
+        recv: &mut [f32],
+        work: &mut dyn FnMut() -> bool,
+    ) {
+        work();
+        self.all_gather_f32(send, counts, recv);
+    }
     /// The communicator handle for collective file access (MPI-IO), where there is one.
     fn raw(&self) -> Option<RawComm> {
         None

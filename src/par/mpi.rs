@@ -78,6 +78,36 @@ impl MpiComm {
         self.comm.all_gather_varcount_into(send, &mut part);
     }
 
+    /// The all-gather as MPI_Iallgatherv, with `work` run while it is in flight (see
+    /// [`Comm::all_gather_f64_while`]); MPI_Test between the pieces of work drives its progress.
+    fn all_gather_while<T: Equivalence + Copy>(
+        &self,
+        send: &[T],
+        counts: &[usize],
+        recv: &mut [T],
+        work: &mut dyn FnMut() -> bool,
+    ) {
+        if self.size == 1 {
+            recv.copy_from_slice(send);
+            work();
+            return;
+        }
+        let (c, d) = displacements(counts);
+        let mut part = PartitionMut::new(recv, c, d);
+        mpi::request::scope(|scope| {
+            let mut req = self.comm.immediate_all_gather_varcount_into(scope, send, &mut part);
+            let mut more = work();
+            while more {
+                match req.test() {
+                    Ok(_) => return,
+                    Err(pending) => req = pending,
+                }
+                more = work();
+            }
+            req.wait_without_status();
+        });
+    }
+
     fn shift<T: Equivalence + Copy>(&self, dest: usize, source: usize, send: &[T], recv: &mut [T]) {
         if dest == self.rank && source == self.rank {
             recv.copy_from_slice(send);
@@ -173,6 +203,24 @@ impl Comm for MpiComm {
     }
     fn shift_f32(&self, dest: usize, source: usize, send: &[f32], recv: &mut [f32]) {
         self.shift(dest, source, send, recv);
+    }
+    fn all_gather_f64_while(
+        &self,
+        send: &[f64],
+        counts: &[usize],
+        recv: &mut [f64],
+        work: &mut dyn FnMut() -> bool,
+    ) {
+        self.all_gather_while(send, counts, recv, work);
+    }
+    fn all_gather_f32_while(
+        &self,
+        send: &[f32],
+        counts: &[usize],
+        recv: &mut [f32],
+        work: &mut dyn FnMut() -> bool,
+    ) {
+        self.all_gather_while(send, counts, recv, work);
     }
     fn raw(&self) -> Option<RawComm> {
         Some(self.comm.as_raw())

@@ -9,8 +9,8 @@ use crate::app::preflight::{check_memory, dense_fit_bytes};
 use crate::app::progress::Progress;
 use crate::app::stages::{Stage, Stages};
 use crate::error::Result;
-use crate::linalg::dist::{self, Job, LocalRows, RowCyclic};
-use crate::par::Comm;
+use crate::linalg::dist::{self, Job, LocalRows, RowCyclic, SolverKind};
+use crate::par::{CallKind, Comm, Timed};
 use crate::spline::hygiene::Prepared;
 use crate::spline::{fill_rows, residual_parts, Kernel, Spline};
 
@@ -41,11 +41,19 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
     let layout = RowCyclic::new(values.len() + kernel.poly_count(), comm.size(), comm.rank());
     let rows = stages.time(Stage::Assemble, || assemble(&kernel, centres, values, layout));
     let progress = Progress::new("solve", comm);
+    let timed = Timed::new(comm);
     let solved = stages.time(Stage::Solve, || {
         let report = |d, t| progress.update(d, t);
-        let job = Job::on(comm).panel(a.panel).par(Par::rayon(threads)).progress(&report);
+        let job =
+            Job::on(&timed).panel(a.panel).par(Par::rayon(threads)).progress(&report).lookahead(a.lookahead);
         dist::solve_in(&job, a.solver, a.precision, rows, || assemble(&kernel, centres, values, layout))
-    })?;
+    });
+    stages.add(Stage::CommWait, timed.seconds());
+    let calls = timed.calls();
+    // the slowest rank's wait in each kind of call
+    let mut by_kind: Vec<f64> = CallKind::ALL.iter().map(|&k| timed.seconds_in(k)).collect();
+    comm.max_f64(&mut by_kind);
+    let solved = solved?;
     if let (Some(why), 0) = (&solved.mixed_fallback, comm.rank()) {
         eprintln!("volspline: precision mixed: {why}; solved in f64 with {}", solved.used.name());
     }
@@ -65,11 +73,22 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
     let spline = Spline::from_solution(kernel, centres.clone(), &solved.x, prep.norm);
     let mixed = solved.mixed_fallback.is_none() && solved.refinement.is_some();
     let precision = if mixed { "mixed (f32 LU, f64 refinement)" } else { "f64" };
+    let lu = solved.used == SolverKind::Lu || mixed;
+    let lookahead = if !lu {
+        ""
+    } else if a.lookahead {
+        ", look-ahead on"
+    } else {
+        ", look-ahead off"
+    };
     let mut line = format!(
-        "solver {} (dense, row-cyclic), panel {}, precision {precision}",
+        "solver {} (dense, row-cyclic), panel {}{lookahead}, precision {precision}",
         solved.used.name(),
         solved.panel
     );
+    let kinds: Vec<String> =
+        CallKind::ALL.iter().zip(&by_kind).map(|(k, s)| format!("{} {s:.3} s", k.name())).collect();
+    line.push_str(&format!("\n  comm wait by kind (max over ranks): {}", kinds.join(", ")));
     if let Some(r) = &solved.refinement {
         line.push_str(&format!("\n  refinement: {}", r.describe()));
     }
@@ -83,15 +102,25 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
         solver: if mixed { "lu (mixed)".to_string() } else { solved.used.name().to_string() },
         residual,
         line,
-        figures: vec![
+        figures: [
             ("solver".into(), solved.used.name().into()),
             ("panel".into(), solved.panel.to_string()),
+            ("lookahead".into(), (lu && a.lookahead).to_string()),
+            ("comm_calls".into(), calls.to_string()),
             ("system_size".into(), layout.n.to_string()),
             ("precision".into(), if mixed { "mixed" } else { "f64" }.into()),
             ("refinement_classical".into(), refinement.map_or(0, |r| r.classical).to_string()),
             ("refinement_gmres".into(), refinement.map_or(0, |r| r.gmres).to_string()),
             ("refinement_gmres_iterations".into(), refinement.map_or(0, |r| r.gmres_iterations).to_string()),
             ("precision_fallback".into(), solved.mixed_fallback.is_some().to_string()),
-        ],
+        ]
+        .into_iter()
+        .chain(
+            CallKind::ALL
+                .iter()
+                .zip(&by_kind)
+                .map(|(k, s)| (format!("comm_wait_{}_max_s", k.name()), format!("{s:.6}"))),
+        )
+        .collect(),
     })
 }

@@ -63,7 +63,7 @@ const ROW_CHUNK: usize = 96;
 /// caller should fall back to LU on a freshly assembled system: `rows` is overwritten. `par` is
 /// the parallelism of the local GEMMs and triangular solves.
 pub fn cholesky_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>> {
-    let Job { comm, panel, par, progress } = *job;
+    let Job { comm, panel, par, progress, .. } = *job;
     let lay = rows.layout;
     let k = rows.border;
     let n = lay.n - k;

@@ -31,7 +31,7 @@ use crate::par::Comm;
 /// solution on every rank. Collective. `rows` is overwritten by R, the reflectors and Q^T b.
 /// `par` is the parallelism of the local trailing-update GEMMs.
 pub fn householder_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>> {
-    let Job { comm, panel, par, progress } = *job;
+    let Job { comm, panel, par, progress, .. } = *job;
     let (lay, cols, nb) = (rows.layout, rows.cols, panel.max(1));
     let n = lay.n;
     let tol = rows.singular_tol(comm);

@@ -20,6 +20,20 @@
 //! broadcast; a swap is a message between the two owners. Per panel, the block row [A11 A12] is
 //! all-gathered, every rank solves for U12 redundantly (cheap: nb rows) and updates its own rows
 //! of A22 with one local GEMM, which carries almost all the flops. The matrix is never gathered.
+//!
+//! Look-ahead: the panel factorisation is a chain of small collectives (nb all-gathers of pivot
+//! candidates, each waiting for every rank), and on the row-cyclic layout every rank takes part
+//! in every one of them, so no rank can factor the next panel alone while the others update.
+//! What can overlap is a rank's own trailing update with the messages of the pivot searches. At
+//! step k the update A22 -= L21 U12 is split by columns: the columns of panel k+1 are updated
+//! first (a narrow GEMM), panel k+1 is factored at once, and the remaining columns are updated
+//! in pieces, one started while each pivot all-gather of panel k+1 is in flight (a non-blocking
+//! all-gather, tested between pieces), the leftover after the panel. This is exact, not an
+//! approximation: panel k+1's interchanges touch only its own columns (the other columns get
+//! them afterwards, in one pass), and L21 of step k lives in columns left of panel k+1, which
+//! nothing in panel k+1 writes, so the update of a column of A22 gives the same values whenever it
+//! runs before that pass. The waits of the pivot searches (latency, and ranks arriving at
+//! different times) are then filled with GEMM work instead of idling.
 
 use faer::linalg::matmul::matmul;
 use faer::linalg::triangular_solve::solve_unit_lower_triangular_in_place;
@@ -46,35 +60,60 @@ pub fn lu_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>> {
 /// carried along and ends as L^-1 P b) and returns the row interchanges (j, p), in the order
 /// applied: panel by panel, j ascending. Collective. Column j of L is left where the
 /// interchanges of its own panel put it: the later panels' interchanges reach only the columns
-/// right of their panel.
+/// right of their panel. With `job.lookahead`, the trailing update of each panel runs in the
+/// pivot searches of the next one (see the module documentation); the factors are the same.
 pub fn lu_factor<T: Scalar>(job: &Job<'_>, rows: &mut LocalRows<T>) -> Result<Vec<(usize, usize)>> {
-    let Job { comm, panel, par, progress } = *job;
+    let Job { comm, panel, par, progress, lookahead } = *job;
+    // on one rank there are no messages to overlap with
+    let lookahead = lookahead && comm.size() > 1;
     let (lay, cols, nb) = (rows.layout, rows.cols, panel.max(1));
     let n = lay.n;
     let tol = rows.singular_tol(comm);
     let mut bufs = GatherBuffers::default();
     let mut all_swaps = Vec::with_capacity(n);
-    let mut k = 0;
-    while k < n {
-        let kb = nb.min(n - k);
-        // the panel's interchanges are applied to the panel at once and to the columns right of
-        // it afterwards, in one pass; columns left of it hold L, which nothing reads again
-        let mut swaps = Vec::with_capacity(kb);
-        factor_panel(comm, rows, k, k + kb, (k, k + kb), tol, &mut swaps, &mut bufs)?;
-        rows.permute_rows(comm, &swaps, k + kb, cols);
-        eliminate_block(comm, rows, k, k + kb, cols, par, &mut bufs);
-        all_swaps.extend_from_slice(&swaps);
-        k += kb;
-        progress(k, n);
+    if n == 0 {
+        return Ok(all_swaps);
     }
-    Ok(all_swaps)
+    let (mut k, mut kb) = (0, nb.min(n));
+    // the panel's interchanges are applied to the panel at once and to the columns right of it
+    // afterwards, in one pass; columns left of it hold L, which nothing reads again
+    let mut swaps = Vec::with_capacity(nb);
+    factor_panel(comm, rows, 0, kb, (0, kb), tol, &mut swaps, &mut bufs, &mut Trailing::none())?;
+    loop {
+        let end = k + kb;
+        rows.permute_rows(comm, &swaps, end, cols);
+        all_swaps.append(&mut swaps);
+        let mut rest = Trailing::of(comm, rows, (k, end, cols), par, &mut bufs);
+        progress(end, n);
+        if end == n {
+            rest.finish(rows);
+            return Ok(all_swaps);
+        }
+        let next = (end, end + nb.min(n - end));
+        if lookahead {
+            // the next panel's columns first, the rest in the windows of its pivot searches
+            rest.apply(rows, next.0, next.1);
+            rest.spread(next.1, next.1 - next.0);
+        } else {
+            rest.finish(rows);
+        }
+        factor_panel(comm, rows, next.0, next.1, next, tol, &mut swaps, &mut bufs, &mut rest)?;
+        rest.finish(rows);
+        (k, kb) = (next.0, next.1 - next.0);
+    }
 }
 
 /// Columns at most this wide are factored column by column; wider ones recursively.
 const LEAF: usize = 8;
 
+/// The narrowest piece of a trailing update run in one window of a pivot search: every piece
+/// reads all of L21 again, so narrow pieces lose the GEMM's speed (on one rank, pieces of 32
+/// columns took 10 % longer than one GEMM at N = 4000, pieces of 1024 the same time).
+const MIN_PIECE: usize = 256;
+
 /// LU of the panel columns a..b (rows a..n), recursively: the left half, its block elimination
-/// on the right half (a GEMM), then the right half. Swaps whole rows.
+/// on the right half (a GEMM), then the right half. Swaps whole rows. `work` is the pending
+/// trailing update of the previous panel, advanced while the pivot searches are in flight.
 #[allow(clippy::too_many_arguments)]
 fn factor_panel<T: Scalar>(
     comm: &dyn Comm,
@@ -85,58 +124,128 @@ fn factor_panel<T: Scalar>(
     tol: f64,
     swaps: &mut Vec<(usize, usize)>,
     bufs: &mut GatherBuffers<T>,
+    work: &mut Trailing<T>,
 ) -> Result<()> {
     if b - a <= LEAF {
-        return factor_columns(comm, rows, a, b - a, panel, tol, swaps);
+        return factor_columns(comm, rows, a, b - a, panel, tol, swaps, work);
     }
     let m = a + (b - a) / 2;
-    factor_panel(comm, rows, a, m, panel, tol, swaps, bufs)?;
-    eliminate_block(comm, rows, a, m, b, Par::Seq, bufs);
-    factor_panel(comm, rows, m, b, panel, tol, swaps, bufs)
+    factor_panel(comm, rows, a, m, panel, tol, swaps, bufs, work)?;
+    Trailing::of(comm, rows, (a, m, b), Par::Seq, bufs).finish(rows);
+    factor_panel(comm, rows, m, b, panel, tol, swaps, bufs, work)
 }
 
-/// Given the factored columns a..m (L11\U11 in rows a..m, L21 below), computes
-/// U12 = L11^-1 A12 for columns m..c1 from the gathered block row (redundantly on every rank),
-/// stores it in the owners' rows and updates this rank's rows below: A22 -= L21 U12.
-fn eliminate_block<T: Scalar>(
-    comm: &dyn Comm,
-    rows: &mut LocalRows<T>,
+/// The block elimination of the factored columns a..m on the columns m..c1: U12 = L11^-1 A12
+/// (stored) and the update A22 -= L21 U12 of this rank's rows below m, column by column range,
+/// with the columns `next..c1` still to do. `overlap`: the pieces run in the windows of the
+/// pivot searches (decided alike on every rank: a blocking and a non-blocking all-gather do not
+/// match, while how many pieces a window takes depends on the timing of each rank).
+struct Trailing<T> {
     a: usize,
     m: usize,
+    u12: faer::Mat<T>,
+    next: usize,
     c1: usize,
+    piece: usize,
     par: Par,
-    bufs: &mut GatherBuffers<T>,
-) {
-    let lay = rows.layout;
-    let (w, rest) = (m - a, c1 - m);
-    if rest == 0 {
-        return;
-    }
-    rows.gather_rows_with(comm, a, m, a, c1, bufs);
-    let brow = &bufs.out;
-    let width = c1 - a;
-    let l11 = faer::Mat::<T>::from_fn(w, w, |i, j| brow[i * width + j]);
-    let mut u12 = faer::Mat::<T>::from_fn(w, rest, |i, j| brow[i * width + w + j]);
-    solve_unit_lower_triangular_in_place(l11.as_ref(), u12.as_mut(), Par::Seq);
-    let (o0, o1) = (lay.first_local_from(a), lay.first_local_from(m));
-    for j in 0..rest {
-        for l in o0..o1 {
-            rows.set(l, m + j, u12[(lay.global(l) - a, j)]);
+    overlap: bool,
+}
+
+impl<T: Scalar> Trailing<T> {
+    /// Nothing to do.
+    fn none() -> Self {
+        Trailing {
+            a: 0,
+            m: 0,
+            u12: faer::Mat::new(),
+            next: 0,
+            c1: 0,
+            piece: 1,
+            par: Par::Seq,
+            overlap: false,
         }
     }
-    let t0 = lay.first_local_from(m);
-    let lc = rows.ld();
-    if t0 < lc {
-        let sub = rows.view_mut().submatrix_mut(t0, a, lc - t0, width);
+
+    /// Computes U12 for columns m..c1 from the gathered block row (redundantly on every rank)
+    /// and stores it in the owners' rows; the update of A22 is left to do. Collective.
+    fn of(
+        comm: &dyn Comm,
+        rows: &mut LocalRows<T>,
+        (a, m, c1): (usize, usize, usize),
+        par: Par,
+        bufs: &mut GatherBuffers<T>,
+    ) -> Self {
+        let lay = rows.layout;
+        let (w, rest) = (m - a, c1 - m);
+        if rest == 0 {
+            return Trailing::none();
+        }
+        rows.gather_rows_with(comm, a, m, a, c1, bufs);
+        let brow = &bufs.out;
+        let width = c1 - a;
+        let l11 = faer::Mat::<T>::from_fn(w, w, |i, j| brow[i * width + j]);
+        let mut u12 = faer::Mat::<T>::from_fn(w, rest, |i, j| brow[i * width + w + j]);
+        solve_unit_lower_triangular_in_place(l11.as_ref(), u12.as_mut(), Par::Seq);
+        let (o0, o1) = (lay.first_local_from(a), lay.first_local_from(m));
+        for j in 0..rest {
+            for l in o0..o1 {
+                rows.set(l, m + j, u12[(lay.global(l) - a, j)]);
+            }
+        }
+        Trailing { a, m, u12, next: m, c1, piece: rest, par, overlap: false }
+    }
+
+    /// Applies the update to the columns c0..c1 (one local GEMM).
+    fn apply(&self, rows: &mut LocalRows<T>, c0: usize, c1: usize) {
+        let t0 = rows.layout.first_local_from(self.m);
+        let lc = rows.ld();
+        if c0 >= c1 || t0 >= lc {
+            return;
+        }
+        let (a, w) = (self.a, self.m - self.a);
+        let sub = rows.view_mut().submatrix_mut(t0, a, lc - t0, c1 - a);
         let (left, right) = sub.split_at_col_mut(w);
         let l21: MatRef<'_, T> = left.rb();
-        let a22: MatMut<'_, T> = right;
-        matmul(a22, Accum::Add, l21, u12.as_ref(), T::of(-1.0), par);
+        let a22: MatMut<'_, T> = right.subcols_mut(c0 - self.m, c1 - c0);
+        let u12 = self.u12.as_ref().subcols(c0 - self.m, c1 - c0);
+        matmul(a22, Accum::Add, l21, u12, T::of(-1.0), self.par);
+    }
+
+    /// Leaves the columns from c0 on to do, in `windows` pieces of equal width (at least
+    /// `MIN_PIECE` columns each), to run in the windows of the pivot searches.
+    fn spread(&mut self, c0: usize, windows: usize) {
+        self.overlap = true;
+        self.next = c0.min(self.c1);
+        self.piece = (self.c1 - self.next).div_ceil(windows.max(1)).max(MIN_PIECE);
+    }
+
+    /// Whether the whole update is done.
+    fn done(&self) -> bool {
+        self.next >= self.c1
+    }
+
+    /// Applies the next piece; true while pieces remain.
+    fn step(&mut self, rows: &mut LocalRows<T>) -> bool {
+        if self.done() {
+            return false;
+        }
+        let end = (self.next + self.piece).min(self.c1);
+        self.apply(rows, self.next, end);
+        self.next = end;
+        !self.done()
+    }
+
+    /// Applies what remains.
+    fn finish(&mut self, rows: &mut LocalRows<T>) {
+        self.apply(rows, self.next, self.c1);
+        self.next = self.c1;
     }
 }
 
 /// Unblocked LU of the columns k..k+kb (rows k..n); row interchanges are applied to the panel
-/// columns `panel.0..panel.1` and recorded in `swaps`.
+/// columns `panel.0..panel.1` and recorded in `swaps`. Pieces of `work` run while each pivot
+/// search is in flight.
+#[allow(clippy::too_many_arguments)]
 fn factor_columns<T: Scalar>(
     comm: &dyn Comm,
     rows: &mut LocalRows<T>,
@@ -145,6 +254,7 @@ fn factor_columns<T: Scalar>(
     panel: (usize, usize),
     tol: f64,
     swaps: &mut Vec<(usize, usize)>,
+    work: &mut Trailing<T>,
 ) -> Result<()> {
     let lay = rows.layout;
     let lc = rows.ld();
@@ -175,7 +285,11 @@ fn factor_columns<T: Scalar>(
         if best.1 != usize::MAX {
             rows.read_row(best.1, j, k + kb, &mut mine[2..2 + width]);
         }
-        T::all_gather(comm, &mine, &counts, &mut cand);
+        if !work.overlap {
+            T::all_gather(comm, &mine, &counts, &mut cand);
+        } else {
+            T::all_gather_while(comm, &mine, &counts, &mut cand, &mut || work.step(rows));
+        }
         let mut piv = (T::of(-1.0), T::of(f64::INFINITY), 0usize);
         for (r, c) in cand.chunks(stride).enumerate() {
             if c[0] > piv.0 || (c[0] == piv.0 && c[1] < piv.1) {

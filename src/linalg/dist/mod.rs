@@ -27,5 +27,5 @@ pub use layout::RowCyclic;
 pub use lu::{lu_factor, lu_solve};
 pub use refine::{mixed_solve, Refinement};
 pub use scalar::Scalar;
-pub use solver::{solve, solve_in, Job, Precision, Solved, SolverKind, AUTO_CHOLESKY_FROM};
+pub use solver::{solve, solve_in, Job, Precision, Solved, SolverKind, AUTO_CHOLESKY_FROM, LOOKAHEAD};
 pub use system::{all_gather_rows, GatherBuffers, LocalRows};

@@ -21,6 +21,14 @@ pub trait Scalar: RealField + Copy + Send + Sync + std::ops::Neg<Output = Self> 
     fn all_gather(comm: &dyn Comm, send: &[Self], counts: &[usize], recv: &mut [Self]);
     /// [`Comm::shift_f64`] for this type.
     fn shift(comm: &dyn Comm, dest: usize, source: usize, send: &[Self], recv: &mut [Self]);
+    /// [`Comm::all_gather_f64_while`] for this type.
+    fn all_gather_while(
+        comm: &dyn Comm,
+        send: &[Self],
+        counts: &[usize],
+        recv: &mut [Self],
+        work: &mut dyn FnMut() -> bool,
+    );
 }
 
 impl Scalar for f64 {
@@ -43,6 +51,15 @@ impl Scalar for f64 {
     fn shift(comm: &dyn Comm, dest: usize, source: usize, send: &[Self], recv: &mut [Self]) {
         comm.shift_f64(dest, source, send, recv);
     }
+    fn all_gather_while(
+        comm: &dyn Comm,
+        send: &[Self],
+        counts: &[usize],
+        recv: &mut [Self],
+        work: &mut dyn FnMut() -> bool,
+    ) {
+        comm.all_gather_f64_while(send, counts, recv, work);
+    }
 }
 
 impl Scalar for f32 {
@@ -64,5 +81,14 @@ impl Scalar for f32 {
     }
     fn shift(comm: &dyn Comm, dest: usize, source: usize, send: &[Self], recv: &mut [Self]) {
         comm.shift_f32(dest, source, send, recv);
+    }
+    fn all_gather_while(
+        comm: &dyn Comm,
+        send: &[Self],
+        counts: &[usize],
+        recv: &mut [Self],
+        work: &mut dyn FnMut() -> bool,
+    ) {
+        comm.all_gather_f32_while(send, counts, recv, work);
     }
 }

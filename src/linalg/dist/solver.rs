@@ -10,21 +10,31 @@ use crate::error::{Error, Result};
 use crate::par::{agree, Comm};
 
 /// The context of a distributed solve: the ranks, the panel width (0: the solver's default), the
-/// parallelism of each rank's local kernels (GEMMs, triangular solves) and where progress goes.
+/// parallelism of each rank's local kernels (GEMMs, triangular solves), where progress goes, and
+/// whether the LU overlaps its trailing updates with the next panel's pivot searches.
 #[derive(Clone, Copy)]
 pub struct Job<'a> {
     pub comm: &'a dyn Comm,
     pub panel: usize,
     pub par: Par,
     pub progress: &'a dyn Fn(usize, usize),
+    pub lookahead: bool,
 }
 
 fn silent(_: usize, _: usize) {}
 
+/// Whether the LU looks ahead by default.
+pub const LOOKAHEAD: bool = true;
+
 impl<'a> Job<'a> {
-    /// A solve on `comm` with the default panel, sequential local kernels and no progress.
+    /// A solve on `comm` with the default panel, sequential local kernels, no progress and the
+    /// default look-ahead ([`LOOKAHEAD`]).
     pub fn on(comm: &'a dyn Comm) -> Self {
-        Job { comm, panel: 0, par: Par::Seq, progress: &silent }
+        Job { comm, panel: 0, par: Par::Seq, progress: &silent, lookahead: LOOKAHEAD }
+    }
+
+    pub fn lookahead(self, lookahead: bool) -> Self {
+        Job { lookahead, ..self }
     }
 
     pub fn panel(self, panel: usize) -> Self {
