@@ -44,7 +44,7 @@
 
 use faer::linalg::matmul::matmul;
 use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
-use faer::reborrow::{Reborrow, ReborrowMut};
+use faer::reborrow::Reborrow;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 
 use super::scalar::Scalar;
@@ -258,17 +258,19 @@ pub(super) fn project_into<T: Scalar>(
     let n = right.ncols();
     let ld = src.ld();
     let la = left.nrows();
-    let mut tmp = Mat::<f64>::zeros(la, COL_CHUNK.min(n));
+    let mut tmp = vec![0.0f64; la * COL_CHUNK.min(n)];
     let mut c0 = 0;
     while c0 < n {
         let w = COL_CHUNK.min(n - c0);
-        let mut t = tmp.as_mut().subcols_mut(0, w);
-        let a = MatRef::from_column_major_slice_with_stride(&src.data[c0 * ld..], la, w, ld);
-        t.copy_from(a);
-        matmul(t.rb_mut(), Accum::Add, left.as_ref(), right.as_ref().subcols(c0, w), -1.0, par);
+        let t = &mut tmp[..la * w];
+        for c in 0..w {
+            t[c * la..(c + 1) * la].copy_from_slice(&src.data[(c0 + c) * ld..(c0 + c) * ld + la]);
+        }
+        let tm = MatMut::from_column_major_slice_mut(t, la, w);
+        matmul(tm, Accum::Add, left.as_ref(), right.as_ref().subcols(c0, w), -1.0, par);
         for c in 0..w {
             let to = &mut dst.data[(c0 + c) * ld..(c0 + c) * ld + la];
-            to.iter_mut().enumerate().for_each(|(l, v)| *v = T::of(t[(l, c)]));
+            to.iter_mut().zip(&t[c * la..(c + 1) * la]).for_each(|(d, v)| *d = T::of(*v));
         }
         c0 += w;
     }
