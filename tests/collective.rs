@@ -378,14 +378,17 @@ fn mixed_cholesky_falls_back_to_f64(comm: &dyn Comm, log: &mut Log) {
         let s = mixed(comm, &k, &prep, SolverKind::Cholesky, panel);
         let what = format!("near-coincident, Cholesky, panel {panel}");
         let why = s.mixed_fallback.clone().unwrap_or_default();
-        log.check(why.contains("single-precision projected Cholesky failed") && why.contains("not positive"), || {
-            format!("{what}: fallback message '{why}'")
-        });
+        log.check(
+            why.contains("single-precision projected Cholesky failed") && why.contains("not positive"),
+            || format!("{what}: fallback message '{why}'"),
+        );
         log.check(s.refinement.is_none(), || format!("{what}: {s:?}"));
         // the f64 solve with the same solver, and the dense LU to kappa eps64 (about 1e-6 here)
         let n = system_size(&k, prep.values.len());
-        let rows_of = || assemble(&k, &prep.centres, &prep.values, RowCyclic::new(n, comm.size(), comm.rank()));
-        let f64_solve = must(dist::solve(&Job::on(comm).panel(panel), SolverKind::Cholesky, rows_of(), rows_of), "f64");
+        let rows_of =
+            || assemble(&k, &prep.centres, &prep.values, RowCyclic::new(n, comm.size(), comm.rank()));
+        let f64_solve =
+            must(dist::solve(&Job::on(comm).panel(panel), SolverKind::Cholesky, rows_of(), rows_of), "f64");
         log.check(s.x == f64_solve.x && s.used == f64_solve.used, || format!("{what}: not the f64 solve"));
         log.close(&s.x, &want, 1e-5, || what.clone());
         same_on_every_rank(comm, log, &s.x, &what);

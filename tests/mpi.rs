@@ -308,7 +308,10 @@ fn mixed_precision_reaches_the_f64_residual_or_falls_back() {
                 "{text}"
             );
             // the f64 path's residual, to within the rounding of the residual itself
-            assert!(residual < 3.0 * f64_residual, "{solver}, {ranks} ranks: mixed {residual:e}, f64 {f64_residual:e}");
+            assert!(
+                residual < 3.0 * f64_residual,
+                "{solver}, {ranks} ranks: mixed {residual:e}, f64 {f64_residual:e}"
+            );
         }
     }
     let (_, near_f64, _) = fit("near", &near, 2, "f64", "lu");

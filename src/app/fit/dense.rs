@@ -64,7 +64,8 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
     });
     let spline = Spline::from_solution(kernel, centres.clone(), &solved.x, prep.norm);
     let mixed = solved.mixed_fallback.is_none() && solved.refinement.is_some();
-    let precision = if mixed { format!("mixed (f32 {}, f64 refinement)", solved.used.name()) } else { "f64".into() };
+    let precision =
+        if mixed { format!("mixed (f32 {}, f64 refinement)", solved.used.name()) } else { "f64".into() };
     let mut line = format!(
         "solver {} (dense, row-cyclic), panel {}, precision {precision}",
         solved.used.name(),
@@ -79,7 +80,11 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
     let refinement = solved.refinement.as_ref();
     Ok(Fitted {
         spline,
-        solver: if mixed { format!("{} (mixed)", solved.used.name()) } else { solved.used.name().to_string() },
+        solver: if mixed {
+            format!("{} (mixed)", solved.used.name())
+        } else {
+            solved.used.name().to_string()
+        },
         residual,
         line,
         figures: vec![

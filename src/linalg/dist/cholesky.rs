@@ -172,7 +172,9 @@ impl Border {
         let border = Border { k, n, qr, taus };
         let r = border.r();
         if (0..k).any(|j| !(r[(j, j)].abs() > 0.0)) {
-            return Err(Error::Numerical(format!("the polynomial block has rank < {k}: points not unisolvent")));
+            return Err(Error::Numerical(format!(
+                "the polynomial block has rank < {k}: points not unisolvent"
+            )));
         }
         Ok(border)
     }
@@ -290,7 +292,12 @@ pub(super) fn project_into<T: Scalar>(
 /// right-hand side when s < 0, and overwrites the lower triangle with L, s B = L L^T, the strict
 /// upper triangle with zeros. Returns s. Collective; `Error::NotDefinite` when a pivot is not
 /// positive (on every rank that reached it: callers agree on the outcome).
-pub(super) fn factor_projected<T: Scalar>(job: &Job<'_>, rows: &mut LocalRows<T>, k: usize, n: usize) -> Result<f64> {
+pub(super) fn factor_projected<T: Scalar>(
+    job: &Job<'_>,
+    rows: &mut LocalRows<T>,
+    k: usize,
+    n: usize,
+) -> Result<f64> {
     let Job { comm, panel, par, progress } = *job;
     let lay = rows.layout;
     let nb = panel.max(1);

@@ -125,9 +125,8 @@ impl<T: Scalar> Approximate for CholeskyFactors<T> {
             let (k0, k1) = (w[0], w[1]);
             let b = k1 - k0;
             let below = lay.first_local_from(k1);
-            let mut sums: Vec<f64> = (k0..k1)
-                .map(|c| (below..la).map(|l| col(c)[l].f64() * x[lay.global(l)]).sum())
-                .collect();
+            let mut sums: Vec<f64> =
+                (k0..k1).map(|c| (below..la).map(|l| col(c)[l].f64() * x[lay.global(l)]).sum()).collect();
             comm.sum_f64(&mut sums);
             for i in (0..b).rev() {
                 let s: f64 = (i + 1..b).map(|j| d[j * b + i] * x[k0 + j]).sum();
@@ -135,7 +134,8 @@ impl<T: Scalar> Approximate for CholeskyFactors<T> {
             }
         }
         // R c = y[..k] - W[..k, ..] [alpha; mu]
-        let t: Vec<f64> = (0..k).map(|i| y[i] - (0..n).map(|j| self.top[i * n + j] * x[j]).sum::<f64>()).collect();
+        let t: Vec<f64> =
+            (0..k).map(|i| y[i] - (0..n).map(|j| self.top[i * n + j] * x[j]).sum::<f64>()).collect();
         let mut c = vec![0.0; k];
         for i in (0..k).rev() {
             let s: f64 = (i + 1..k).map(|j| rt[(i, j)] * c[j]).sum();
@@ -191,7 +191,11 @@ mod tests {
             assert!(err(&exact) < 1e-10, "f64 factors, panel {panel}: error {:e}", err(&exact));
             // in f32 an approximate inverse, off by about kappa eps32 (1e-6 here), not exact
             let approx = CholeskyFactors::<f32>::new(&job, &m).unwrap().apply(&Solo, &b);
-            assert!(err(&approx) < 1e-4 && err(&approx) > 1e-9, "f32 factors, panel {panel}: error {:e}", err(&approx));
+            assert!(
+                err(&approx) < 1e-4 && err(&approx) > 1e-9,
+                "f32 factors, panel {panel}: error {:e}",
+                err(&approx)
+            );
         }
     }
 }

@@ -1,6 +1,10 @@
 //! Mixed-precision solve: factor in f32, refine in f64 (classical iterative refinement, then
 //! GMRES-IR when it stalls), and say so when neither reaches the accuracy of an f64 solve.
 //!
+//! The f32 factors are those of LU (P M = L U, `mixed`) or, for a bordered spline system whose
+//! f64 solver would be the projected Cholesky, of the projected Cholesky (`mixed_cholesky`); both
+//! act as an approximate inverse of the whole f64 matrix M, written U^-1 L^-1 P below.
+//!
 //! # Classical refinement
 //!
 //! With the f32 factors as an approximate inverse, x_0 = U^-1 L^-1 P b and
