@@ -89,9 +89,10 @@ pub struct FitArgs {
     /// message when a pivot is not positive), householder (QR) or lu (partial pivoting).
     #[arg(long, default_value = "auto", value_name = "auto|cholesky|householder|lu", value_parser = with(SolverKind::parse))]
     pub solver: SolverKind,
-    /// Working precision of the dense solve: f64, or mixed (LU in f32, refined in f64 to the
-    /// residual of an f64 solve, by classical refinement and then GMRES-IR; when that fails, the
-    /// --solver solve in f64, with a message).
+    /// Working precision of the dense solve: f64, or mixed (factored in f32: the projected
+    /// Cholesky where --solver gives cholesky for the size, LU otherwise; refined in f64 to the
+    /// residual of an f64 solve, by classical refinement and then GMRES-IR; when the f32
+    /// factorisation or the refinement fails, the --solver solve in f64, with a message).
     #[arg(long, default_value = "f64", value_name = "f64|mixed", value_parser = with(Precision::parse))]
     pub precision: Precision,
     /// Panel (block) width of the distributed solvers (0: automatic, 64 for householder, 128 for

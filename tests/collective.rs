@@ -74,7 +74,7 @@ fn child() {
         }
         comm.barrier();
     }
-    let checks: [(&str, Check); 11] = [
+    let checks: [(&str, Check); 12] = [
         ("typed collectives", typed_collectives),
         ("agree: one failing rank", agree_one_failing_rank),
         ("agree: two failing ranks, the lowest wins", agree_lowest_rank_wins),
@@ -84,6 +84,7 @@ fn child() {
         ("Cholesky -> LU fallback, indefinite block", fallback_on_an_indefinite_block),
         ("mixed precision vs the dense LU oracle", mixed_matches_the_oracle),
         ("mixed precision -> f64 fallback, near-coincident points", mixed_falls_back_to_f64),
+        ("mixed Cholesky -> f64 fallback, coincident to f32", mixed_cholesky_falls_back_to_f64),
         ("parallel VTKHDF write vs serial values", vtkhdf_slabs_read_back),
         ("contour slices vs one process", sections_match_solo),
     ];
@@ -274,7 +275,7 @@ fn lookahead_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
             same_on_every_rank(comm, log, &x, &what);
             // the f32 factors, refined in f64 to the f64 accuracy
             let rows = assemble(&k, &prep.centres, &prep.values, layout);
-            let (x, r) = must(dist::mixed_solve(&job, &rows), "mixed lu");
+            let (x, r) = must(dist::mixed_solve(&job, &rows, SolverKind::Lu), "mixed lu");
             log.check(r.converged, || format!("{what}: mixed refinement {}", r.describe()));
             log.close(&x, &want, 1e-7, || format!("{what} (f32 factors)"));
         }
@@ -371,10 +372,17 @@ fn mixed_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
     let k = Kernel::new(3, 2).unwrap();
     let prep = bunny_system(&k);
     let want = oracle(&prep, &k, lu_solve);
-    for panel in [7, 16, 64] {
-        let s = mixed(comm, &k, &prep, SolverKind::Cholesky, panel);
-        let what = format!("mixed, panel {panel}");
-        log.check(s.mixed_fallback.is_none() && s.used == SolverKind::Lu, || {
+    // the f32 projected Cholesky where the f64 solver would be Cholesky, the f32 LU otherwise
+    for (kind, factor, panel) in [
+        (SolverKind::Cholesky, SolverKind::Cholesky, 7),
+        (SolverKind::Cholesky, SolverKind::Cholesky, 16),
+        (SolverKind::Cholesky, SolverKind::Cholesky, 64),
+        (SolverKind::Lu, SolverKind::Lu, 16),
+        (SolverKind::Householder, SolverKind::Lu, 64),
+    ] {
+        let s = mixed(comm, &k, &prep, kind, panel);
+        let what = format!("mixed for {}, panel {panel}", kind.name());
+        log.check(s.mixed_fallback.is_none() && s.used == factor, || {
             format!("{what}: fell back ({:?}), used {:?}", s.mixed_fallback, s.used)
         });
         let r = s.refinement.clone().unwrap_or_else(|| panic!("{what}: no refinement"));
@@ -404,6 +412,36 @@ fn mixed_falls_back_to_f64(comm: &dyn Comm, log: &mut Log) {
         });
         log.check(s.used == SolverKind::Lu && s.refinement.is_none(), || format!("{what}: {s:?}"));
         log.close(&s.x, &want, 1e-8, || what.clone());
+        same_on_every_rank(comm, log, &s.x, &what);
+    }
+}
+
+fn mixed_cholesky_falls_back_to_f64(comm: &dyn Comm, log: &mut Log) {
+    // every 4th bunny point again, 1e-8 of the box diagonal away: the projected block is
+    // definite in f64 (barely), but its rounding to f32 is not
+    let k = Kernel::new(3, 2).unwrap();
+    let mut raw = common::bunny_subset(20, 0);
+    let near: Vec<f64> = raw.chunks(3).step_by(4).flat_map(|p| [p[0] + 2.5e-7, p[1], p[2]]).collect();
+    raw.extend(near);
+    let prep = must(prepare(&raw, &k, &Carrier::AutoBall, 1e-12), "prepare the near-coincident points");
+    let want = oracle(&prep, &k, lu_solve);
+    for panel in [0, 16] {
+        let s = mixed(comm, &k, &prep, SolverKind::Cholesky, panel);
+        let what = format!("near-coincident, Cholesky, panel {panel}");
+        let why = s.mixed_fallback.clone().unwrap_or_default();
+        log.check(
+            why.contains("single-precision projected Cholesky failed") && why.contains("not positive"),
+            || format!("{what}: fallback message '{why}'"),
+        );
+        log.check(s.refinement.is_none(), || format!("{what}: {s:?}"));
+        // the f64 solve with the same solver, and the dense LU to kappa eps64 (about 1e-6 here)
+        let n = system_size(&k, prep.values.len());
+        let rows_of =
+            || assemble(&k, &prep.centres, &prep.values, RowCyclic::new(n, comm.size(), comm.rank()));
+        let f64_solve =
+            must(dist::solve(&Job::on(comm).panel(panel), SolverKind::Cholesky, rows_of(), rows_of), "f64");
+        log.check(s.x == f64_solve.x && s.used == f64_solve.used, || format!("{what}: not the f64 solve"));
+        log.close(&s.x, &want, 1e-5, || what.clone());
         same_on_every_rank(comm, log, &s.x, &what);
     }
 }

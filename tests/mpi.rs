@@ -264,18 +264,18 @@ fn mixed_precision_reaches_the_f64_residual_or_falls_back() {
     // the same with every 4th point again 1e-5 of the box diagonal (25) away: singular in f32
     let mut near = bunny.clone();
     near.extend(bunny.chunks(3).step_by(4).flat_map(|p| [p[0] + 2.5e-4, p[1], p[2]]));
-    let fit = |name: &str, pts: &[f64], ranks: usize, precision: &str| {
+    let fit = |name: &str, pts: &[f64], ranks: usize, precision: &str, solver: &str| {
         let input = dir.join(format!("{name}.xyz"));
         common::write_xyz(&input, pts);
-        let out = dir.join(format!("{name}-{precision}-{ranks}"));
-        let csv = dir.join(format!("{name}-{precision}-{ranks}.csv"));
+        let out = dir.join(format!("{name}-{precision}-{solver}-{ranks}"));
+        let csv = dir.join(format!("{name}-{precision}-{solver}-{ranks}.csv"));
         let args = [
             "fit",
             input.to_str().unwrap(),
             "--out",
             out.to_str().unwrap(),
             "--solver",
-            "lu",
+            solver,
             "--precision",
             precision,
             "--merge-tol",
@@ -292,22 +292,31 @@ fn mixed_precision_reaches_the_f64_residual_or_falls_back() {
         };
         (text, get("residual").parse::<f64>().unwrap(), get)
     };
-    let (_, f64_residual, _) = fit("bunny", &bunny, 1, "f64");
-    assert!(f64_residual < 1e-13, "f64 residual {f64_residual:e}");
-    for ranks in [1, 2] {
-        let (text, residual, get) = fit("bunny", &bunny, ranks, "mixed");
-        assert_eq!(get("precision"), "mixed", "{text}");
-        assert_eq!(get("precision_fallback"), "false", "{text}");
-        assert!(get("refinement_classical").parse::<usize>().unwrap() >= 1, "{text}");
-        assert!(
-            text.contains("precision mixed (f32 LU, f64 refinement)") && text.contains("refinement: "),
-            "{text}"
-        );
-        // the f64 path's residual, to within the rounding of the residual itself
-        assert!(residual < 3.0 * f64_residual, "{ranks} ranks: mixed {residual:e}, f64 {f64_residual:e}");
+    // the default solver (auto: the projected Cholesky at 2004 rows) factors in f32 by the
+    // projected Cholesky, --solver lu by LU
+    for (solver, factor) in [("auto", "cholesky"), ("lu", "lu")] {
+        let (_, f64_residual, _) = fit("bunny", &bunny, 1, "f64", solver);
+        assert!(f64_residual < 1e-13, "{solver}: f64 residual {f64_residual:e}");
+        for ranks in [1, 2] {
+            let (text, residual, get) = fit("bunny", &bunny, ranks, "mixed", solver);
+            assert_eq!(get("precision"), "mixed", "{text}");
+            assert_eq!(get("solver"), factor, "{text}");
+            assert_eq!(get("precision_fallback"), "false", "{text}");
+            assert!(get("refinement_classical").parse::<usize>().unwrap() >= 1, "{text}");
+            assert!(
+                text.contains(&format!("precision mixed (f32 {factor}, f64 refinement)"))
+                    && text.contains("refinement: "),
+                "{text}"
+            );
+            // the f64 path's residual, to within the rounding of the residual itself
+            assert!(
+                residual < 3.0 * f64_residual,
+                "{solver}, {ranks} ranks: mixed {residual:e}, f64 {f64_residual:e}"
+            );
+        }
     }
-    let (_, near_f64, _) = fit("near", &near, 2, "f64");
-    let (text, residual, get) = fit("near", &near, 2, "mixed");
+    let (_, near_f64, _) = fit("near", &near, 2, "f64", "lu");
+    let (text, residual, get) = fit("near", &near, 2, "mixed", "lu");
     assert_eq!(get("precision"), "f64", "{text}");
     assert_eq!(get("precision_fallback"), "true", "{text}");
     assert!(

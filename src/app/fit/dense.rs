@@ -9,7 +9,7 @@ use crate::app::preflight::{check_memory, dense_fit_bytes};
 use crate::app::progress::Progress;
 use crate::app::stages::{Stage, Stages};
 use crate::error::Result;
-use crate::linalg::dist::{self, Job, LocalRows, RowCyclic, SolverKind};
+use crate::linalg::dist::{self, Job, LocalRows, Precision, RowCyclic, SolverKind};
 use crate::par::{CallKind, Comm, Timed};
 use crate::spline::hygiene::Prepared;
 use crate::spline::{fill_rows, residual_parts, Kernel, Spline};
@@ -24,11 +24,11 @@ pub fn assemble(kernel: &Kernel, centres: &[f64], values: &[f64], layout: RowCyc
 }
 
 /// Refuses a dense system that does not fit in the ranks' memory. Collective.
-pub fn check(comm: &dyn Comm, kernel: &Kernel, n: usize) -> Result<()> {
+pub fn check(comm: &dyn Comm, kernel: &Kernel, n: usize, precision: Precision) -> Result<()> {
     let system = n + kernel.poly_count();
     check_memory(
         comm,
-        dense_fit_bytes(system, comm.size()),
+        dense_fit_bytes(system, comm.size(), precision),
         &format!("the dense system of {system} rows ({n} points)"),
         "use --method csrbf (compactly supported, sparse), more ranks or nodes (the rows are split over all ranks) or fewer points",
     )
@@ -72,8 +72,9 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
     });
     let spline = Spline::from_solution(kernel, centres.clone(), &solved.x, prep.norm);
     let mixed = solved.mixed_fallback.is_none() && solved.refinement.is_some();
-    let precision = if mixed { "mixed (f32 LU, f64 refinement)" } else { "f64" };
-    let lu = solved.used == SolverKind::Lu || mixed;
+    let precision =
+        if mixed { format!("mixed (f32 {}, f64 refinement)", solved.used.name()) } else { "f64".into() };
+    let lu = solved.used == SolverKind::Lu;
     let lookahead = if !lu {
         ""
     } else if a.lookahead {
@@ -99,7 +100,11 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
     Ok(Fitted {
         spline,
         coarse: Vec::new(),
-        solver: if mixed { "lu (mixed)".to_string() } else { solved.used.name().to_string() },
+        solver: if mixed {
+            format!("{} (mixed)", solved.used.name())
+        } else {
+            solved.used.name().to_string()
+        },
         residual,
         line,
         figures: [

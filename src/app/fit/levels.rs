@@ -126,7 +126,7 @@ pub fn fit(
     let (constrained, summary) = constrain(run, &sub, &mut inner)?;
     let rows = constrained.values.len();
     let r = Kernel::new(3, 2)?;
-    dense::check(run.comm, &r, rows)?;
+    dense::check(run.comm, &r, rows, run.args.precision)?;
     let level0 = dense::fit(run, r, &constrained, &mut inner)?;
     crate::app::finite::check_fit(&level0, &constrained)?;
     let u0 = eval_everywhere(run.comm, &level0.spline, &prep.points);

@@ -99,7 +99,7 @@ fn choose(a: &FitArgs, n: usize, ranks: usize, centres: &[f64]) -> Result<(Metho
         (Method::Csrbf, KernelChoice::Auto) => Ok((Method::Csrbf, wendland(a, 1, centres)?, asked())),
         (Method::Auto, KernelChoice::Auto) => {
             let system = (n + 4) as f64;
-            let bytes = dense_fit_bytes(n + 4, ranks);
+            let bytes = dense_fit_bytes(n + 4, ranks, a.precision);
             let seconds = system.powi(3) / 3.0 / (DENSE_FLOPS_PER_RANK * ranks as f64);
             let room = available_per_rank().map_or(f64::INFINITY, |(b, _)| b);
             if bytes <= room && seconds <= DENSE_SECONDS {
@@ -175,7 +175,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         }
         let fitted = match method {
             Method::Dense | Method::Auto => {
-                dense::check(comm, &kernel, rows)?;
+                dense::check(comm, &kernel, rows, a.precision)?;
                 check_grid(comm, &grid)?;
                 dense::fit(&run, kernel, fit_prep, &mut stages)?
             }

@@ -47,6 +47,7 @@ use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
 use faer::reborrow::Reborrow;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 
+use super::scalar::Scalar;
 use super::solver::Job;
 use super::system::{all_gather_rows, GatherBuffers, LocalRows};
 use crate::error::{Error, Result};
@@ -57,92 +58,31 @@ use crate::par::Comm;
 /// closely, large enough for BLAS-3 speed.
 const ROW_CHUNK: usize = 96;
 
+/// Columns rounded per GEMM when the projection of an f64 matrix is written to a narrower type.
+const COL_CHUNK: usize = 256;
+
 /// Solves the bordered system in `rows` (its polynomial border of width `rows.border` >= 1 and
 /// its right-hand side as the last column). Returns the solution on every rank, or
 /// `Error::NotDefinite` (on every rank) when a pivot of B is not positive, in which case the
 /// caller should fall back to LU on a freshly assembled system: `rows` is overwritten. `par` is
 /// the parallelism of the local GEMMs and triangular solves.
 pub fn cholesky_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>> {
-    let Job { comm, panel, par, progress, .. } = *job;
+    let Job { comm, panel, par, .. } = *job;
     let lay = rows.layout;
-    let k = rows.border;
-    let n = lay.n - k;
-    assert!(k >= 1, "the projected Cholesky needs a polynomial border");
-    if n <= k {
-        return Err(Error::NotDefinite(format!("{n} centres leave no definite block")));
-    }
+    let border = Border::new(comm, rows)?;
+    let (k, n) = (border.k, border.n);
     let nb = panel.max(1);
     let ld = rows.ld();
     let rhs = rows.cols - 1;
     let la = lay.first_local_from(n); // this rank's rows of A are local 0..la
     let gl: Vec<usize> = (0..la).map(|l| lay.global(l)).collect();
+    let r = border.r();
 
-    // P^T (the border rows, row-major) is P column-major: its QR on every rank, R above the
-    // diagonal, the reflectors below
-    let mut qr = rows.gather_rows(comm, n, n + k, 0, n);
-    let taus = qr_in_place(&mut qr, n, k);
-    let r = MatRef::from_column_major_slice(&qr, n, k);
-    if (0..k).any(|j| !(r[(j, j)].abs() > 0.0)) {
-        return Err(Error::Numerical(format!("the polynomial block has rank < {k}: points not unisolvent")));
-    }
-    project(comm, rows, explicit_v(r, k).as_ref(), &taus, n, la, par);
-
-    // B = rows/columns k..n: make it positive definite (sign of any diagonal entry)
-    let mut d0 = [if lay.owner(k) == lay.rank { rows.get(lay.local(k), k) } else { 0.0 }];
-    comm.broadcast_f64(lay.owner(k), &mut d0);
-    let sign = if d0[0] < 0.0 { -1.0 } else { 1.0 };
-    let b0 = lay.first_local_from(k);
-    if sign < 0.0 {
-        for c in (k..n).chain([rhs]) {
-            rows.data[c * ld + b0..c * ld + la].iter_mut().for_each(|a| *a = -*a);
-        }
-    }
-
-    // blocked right-looking Cholesky of B, lower triangle, in place
-    let mut bufs = GatherBuffers::default();
-    let mut p0 = k;
-    while p0 < n {
-        let pb = nb.min(n - p0);
-        let d = rows.gather_rows(comm, p0, p0 + pb, p0, p0 + pb);
-        let l11 = cholesky_small(&d, pb).ok_or_else(|| {
-            Error::NotDefinite(format!(
-                "a pivot of the projected block is not positive near row {p0} of {n} \
-                 (the kernel is not conditionally definite on these points to working precision)"
-            ))
-        })?;
-        for l in lay.first_local_from(p0)..lay.first_local_from(p0 + pb) {
-            let i = lay.global(l) - p0;
-            for c in 0..pb {
-                rows.set(l, p0 + c, if c <= i { l11[(i, c)] } else { 0.0 });
-            }
-        }
-        let t0 = lay.first_local_from(p0 + pb);
-        if p0 + pb < n {
-            // L21 = B21 L11^-T, i.e. L11 L21^T = B21^T
-            // (solved on a column-major copy of B21^T: faer's blocked path wants unit row stride)
-            {
-                let mut b21 = rows.view_mut().submatrix_mut(t0, p0, la - t0, pb);
-                let mut bt = b21.rb().transpose().to_owned();
-                solve_lower_triangular_in_place(l11.as_ref(), bt.as_mut(), par);
-                b21.copy_from(bt.transpose());
-            }
-            // every rank needs all of L21 for its rows of B22 -= L21 L21^T
-            let rest = n - p0 - pb;
-            rows.gather_rows_with(comm, p0 + pb, n, p0, p0 + pb, &mut bufs);
-            let lt = MatRef::from_column_major_slice(&bufs.out, pb, rest);
-            let mut a = t0;
-            while a < la {
-                let b = (a + ROW_CHUNK).min(la);
-                let ncols = lay.global(b - 1) + 1 - (p0 + pb);
-                let m = rows.view_mut().submatrix_mut(a, 0, b - a, p0 + pb + ncols);
-                let (left, right) = m.split_at_col_mut(p0 + pb);
-                matmul(right, Accum::Add, left.rb().subcols(p0, pb), lt.subcols(0, ncols), -1.0, par);
-                a = b;
-            }
-        }
-        p0 += pb;
-        progress(p0, n);
-    }
+    let (left, right) = border.projection(comm, rows, par);
+    let a = MatMut::from_column_major_slice_with_stride_mut(&mut rows.data, la, n, ld);
+    matmul(a, Accum::Add, left.as_ref(), right.as_ref(), -1.0, par);
+    border.project_rhs(comm, rows);
+    factor_projected(job, rows, k, n)?;
 
     // forward substitution L z = y (y: the right-hand side rows k..n)
     let mut z = vec![0.0; n];
@@ -188,9 +128,7 @@ pub fn cholesky_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>> {
     // lambda = Q [0; mu]
     let mut lambda = mu.clone();
     lambda[..k].iter_mut().for_each(|x| *x = 0.0);
-    for j in (0..k).rev() {
-        apply(taus[j], &qr[j * n + j + 1..(j + 1) * n], &mut lambda[j..]);
-    }
+    border.q(&mut lambda);
     // R c = (Q^T r)_1 - (Q^T A Q)[0..k, k..n] mu, from the owners of rows 0..k
     let mut t = vec![0.0; k];
     for i in 0..k {
@@ -209,58 +147,230 @@ pub fn cholesky_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>> {
     Ok(lambda)
 }
 
-/// A <- Q^T A Q and y <- Q^T y with Q = H_1 ... H_k = I - V T V^T, in two passes over the local
-/// rows: X = A V (A is symmetric, so V^T A = X^T), then the symmetric rank-2k update
-/// A -= Y V^T + V Y^T with Y = X T - V T^T (V^T X) T / 2. One all-gather of X (N x k).
-fn project(
-    comm: &dyn Comm,
-    rows: &mut LocalRows,
-    v: MatRef<'_, f64>,
-    taus: &[f64],
-    n: usize,
-    la: usize,
+/// The Householder QR P = Q [R; 0] of the polynomial block, on every rank: R above the diagonal
+/// of the first k columns of `qr` (column-major, n rows), the tails of the reflectors below.
+pub(super) struct Border {
+    pub k: usize,
+    /// The number of centres (rows of A).
+    pub n: usize,
+    qr: Vec<f64>,
+    taus: Vec<f64>,
+}
+
+impl Border {
+    /// Gathers P^T (the border rows, row-major, which is P column-major) and factors it.
+    /// Collective; the errors are the same on every rank.
+    pub fn new<T: Scalar>(comm: &dyn Comm, rows: &LocalRows<T>) -> Result<Border> {
+        let k = rows.border;
+        let n = rows.layout.n - k;
+        assert!(k >= 1, "the projected Cholesky needs a polynomial border");
+        if n <= k {
+            return Err(Error::NotDefinite(format!("{n} centres leave no definite block")));
+        }
+        let mut qr: Vec<f64> = rows.gather_rows(comm, n, n + k, 0, n).iter().map(|v| v.f64()).collect();
+        let taus = qr_in_place(&mut qr, n, k);
+        let border = Border { k, n, qr, taus };
+        let r = border.r();
+        if (0..k).any(|j| !(r[(j, j)].abs() > 0.0)) {
+            return Err(Error::Numerical(format!(
+                "the polynomial block has rank < {k}: points not unisolvent"
+            )));
+        }
+        Ok(border)
+    }
+
+    /// R (the upper triangle of the k x k block; the strict lower triangle holds reflectors).
+    pub fn r(&self) -> MatRef<'_, f64> {
+        MatRef::from_column_major_slice(&self.qr, self.n, self.k).subrows(0, self.k)
+    }
+
+    /// y <- H_j y for y = the entries j..n of a vector.
+    pub fn reflect(&self, j: usize, y: &mut [f64]) {
+        apply(self.taus[j], &self.qr[j * self.n + j + 1..(j + 1) * self.n], y);
+    }
+
+    /// Q^T y for a replicated vector y of length n.
+    pub fn q_transpose(&self, y: &mut [f64]) {
+        for j in 0..self.k {
+            self.reflect(j, &mut y[j..]);
+        }
+    }
+
+    /// Q y for a replicated vector y of length n.
+    pub fn q(&self, y: &mut [f64]) {
+        for j in (0..self.k).rev() {
+            self.reflect(j, &mut y[j..]);
+        }
+    }
+
+    /// The factors of Q^T A Q = A - [Y V] [V^T; Y^T] for this rank's rows of A (`left`, local
+    /// rows x 2k) and all columns (`right`, 2k x n), with Q = H_1 ... H_k = I - V T V^T: X = A V
+    /// (A is symmetric, so V^T A = X^T) and Y = X T - V T^T (V^T X) T / 2. One all-gather of X
+    /// (n x k). Reads `rows`, changes nothing.
+    pub fn projection(&self, comm: &dyn Comm, rows: &LocalRows, par: Par) -> (Mat<f64>, Mat<f64>) {
+        let (k, n) = (self.k, self.n);
+        let lay = rows.layout;
+        let la = lay.first_local_from(n);
+        let v = explicit_v(MatRef::from_column_major_slice(&self.qr, n, k), k);
+        let t = wy_t(&self.taus, (v.transpose() * &v).as_ref());
+        // X = A V on this rank's rows, then all of X on every rank
+        let mut x_loc = Mat::<f64>::zeros(la, k);
+        let a = MatRef::from_column_major_slice_with_stride(&rows.data, la, n, rows.ld());
+        matmul(x_loc.as_mut(), Accum::Replace, a, v.as_ref(), 1.0, par);
+        let send: Vec<f64> =
+            (0..la).flat_map(|l| (0..k).map(move |j| (l, j))).map(|(l, j)| x_loc[(l, j)]).collect();
+        let x_rows = all_gather_rows(comm, lay, &send, 0..n, k);
+        let x = Mat::<f64>::from_fn(n, k, |i, j| x_rows[i * k + j]);
+        let z = v.transpose() * &x;
+        let y = &x * &t - (&v * (t.transpose() * &z * &t)) * 0.5;
+        let left = Mat::<f64>::from_fn(la, 2 * k, |l, j| {
+            let g = lay.global(l);
+            if j < k {
+                y[(g, j)]
+            } else {
+                v[(g, j - k)]
+            }
+        });
+        let right = Mat::<f64>::from_fn(2 * k, n, |j, c| if j < k { v[(c, j)] } else { y[(c, j - k)] });
+        (left, right)
+    }
+
+    /// y <- Q^T y on the right-hand side column of `rows` (rows 0..n). Collective.
+    pub fn project_rhs(&self, comm: &dyn Comm, rows: &mut LocalRows) {
+        let lay = rows.layout;
+        let (ld, rhs) = (rows.ld(), rows.cols - 1);
+        let la = lay.first_local_from(self.n);
+        let mut y = all_gather_rows(comm, lay, &rows.data[rhs * ld..rhs * ld + la], 0..self.n, 1);
+        self.q_transpose(&mut y);
+        for l in 0..la {
+            rows.data[rhs * ld + l] = y[lay.global(l)];
+        }
+    }
+}
+
+/// Writes the projection Q^T A Q of the f64 rows `src` (`left`, `right` from
+/// [`Border::projection`]) into `dst`, rounded to its type, a block of columns at a time; the
+/// border rows and columns are rounded as they are. The right-hand side is not projected.
+pub(super) fn project_into<T: Scalar>(
+    src: &LocalRows,
+    dst: &mut LocalRows<T>,
+    (left, right): (&Mat<f64>, &Mat<f64>),
     par: Par,
 ) {
+    let n = right.ncols();
+    let ld = src.ld();
+    let la = left.nrows();
+    let mut tmp = vec![0.0f64; la * COL_CHUNK.min(n)];
+    let mut c0 = 0;
+    while c0 < n {
+        let w = COL_CHUNK.min(n - c0);
+        let t = &mut tmp[..la * w];
+        for c in 0..w {
+            t[c * la..(c + 1) * la].copy_from_slice(&src.data[(c0 + c) * ld..(c0 + c) * ld + la]);
+        }
+        let tm = MatMut::from_column_major_slice_mut(t, la, w);
+        matmul(tm, Accum::Add, left.as_ref(), right.as_ref().subcols(c0, w), -1.0, par);
+        for c in 0..w {
+            let to = &mut dst.data[(c0 + c) * ld..(c0 + c) * ld + la];
+            to.iter_mut().zip(&t[c * la..(c + 1) * la]).for_each(|(d, v)| *d = T::of(*v));
+        }
+        c0 += w;
+    }
+    // the border rows of every column, and the border and right-hand side columns
+    for c in 0..n {
+        for l in la..ld {
+            dst.data[c * ld + l] = T::of(src.data[c * ld + l]);
+        }
+    }
+    for (d, s) in dst.data[n * ld..].iter_mut().zip(&src.data[n * ld..]) {
+        *d = T::of(*s);
+    }
+}
+
+/// Factors the projected block B (rows and columns k..n of `rows`, which hold Q^T A Q) in place:
+/// reads the sign s off its first diagonal entry, negates rows k..n of columns k..n and of the
+/// right-hand side when s < 0, and overwrites the lower triangle with L, s B = L L^T, the strict
+/// upper triangle with zeros. Returns s. Collective; `Error::NotDefinite` when a pivot is not
+/// positive (on every rank that reached it: callers agree on the outcome).
+pub(super) fn factor_projected<T: Scalar>(
+    job: &Job<'_>,
+    rows: &mut LocalRows<T>,
+    k: usize,
+    n: usize,
+) -> Result<f64> {
+    let Job { comm, panel, par, progress, .. } = *job;
     let lay = rows.layout;
-    let k = v.ncols();
+    let nb = panel.max(1);
     let ld = rows.ld();
     let rhs = rows.cols - 1;
-    let gl: Vec<usize> = (0..la).map(|l| lay.global(l)).collect();
-    let t = wy_t(taus, (v.transpose() * v).as_ref());
-    // X = A V on this rank's rows, then all of X on every rank
-    let mut x_loc = Mat::<f64>::zeros(la, k);
-    let a = MatRef::from_column_major_slice_with_stride(&rows.data, la, n, ld);
-    matmul(x_loc.as_mut(), Accum::Replace, a, v, 1.0, par);
-    let send: Vec<f64> =
-        (0..la).flat_map(|l| (0..k).map(move |j| (l, j))).map(|(l, j)| x_loc[(l, j)]).collect();
-    let x_rows = all_gather_rows(comm, lay, &send, 0..n, k);
-    let x = Mat::<f64>::from_fn(n, k, |i, j| x_rows[i * k + j]);
-    let z = v.transpose() * &x;
-    let y = &x * &t - (v * (t.transpose() * &z * &t)) * 0.5;
-    // A -= [Y_loc V_loc] [V^T; Y^T]
-    let left = Mat::<f64>::from_fn(la, 2 * k, |l, j| if j < k { y[(gl[l], j)] } else { v[(gl[l], j - k)] });
-    let right = Mat::<f64>::from_fn(2 * k, n, |j, c| if j < k { v[(c, j)] } else { y[(c, j - k)] });
-    let a = MatMut::from_column_major_slice_with_stride_mut(&mut rows.data, la, n, ld);
-    matmul(a, Accum::Add, left.as_ref(), right.as_ref(), -1.0, par);
-    // y <- Q^T y = y - V T^T V^T y on the right-hand side column
-    let mut ry = vec![0.0; la];
-    ry.copy_from_slice(&rows.data[rhs * ld..rhs * ld + la]);
-    let y_all = all_gather_rows(comm, lay, &ry, 0..n, 1);
-    let vty: Vec<f64> = (0..k).map(|j| (0..n).map(|i| v[(i, j)] * y_all[i]).sum()).collect();
-    let coef: Vec<f64> = (0..k).map(|j| (0..k).map(|i| t[(i, j)] * vty[i]).sum()).collect();
-    for l in 0..la {
-        let g = gl[l];
-        rows.data[rhs * ld + l] -= (0..k).map(|j| v[(g, j)] * coef[j]).sum::<f64>();
+    let la = lay.first_local_from(n);
+    // B = rows/columns k..n: make it positive definite (sign of any diagonal entry)
+    let mut d0 = [if lay.owner(k) == lay.rank { rows.get(lay.local(k), k).f64() } else { 0.0 }];
+    comm.broadcast_f64(lay.owner(k), &mut d0);
+    let sign = if d0[0] < 0.0 { -1.0 } else { 1.0 };
+    let b0 = lay.first_local_from(k);
+    if sign < 0.0 {
+        for c in (k..n).chain([rhs]) {
+            rows.data[c * ld + b0..c * ld + la].iter_mut().for_each(|a| *a = -*a);
+        }
     }
+
+    // blocked right-looking Cholesky of B, lower triangle, in place
+    let mut bufs = GatherBuffers::default();
+    let mut p0 = k;
+    while p0 < n {
+        let pb = nb.min(n - p0);
+        let d = rows.gather_rows(comm, p0, p0 + pb, p0, p0 + pb);
+        let l11 = cholesky_small(&d, pb).ok_or_else(|| {
+            Error::NotDefinite(format!(
+                "a pivot of the projected block is not positive near row {p0} of {n} \
+                 (the kernel is not conditionally definite on these points to working precision)"
+            ))
+        })?;
+        for l in lay.first_local_from(p0)..lay.first_local_from(p0 + pb) {
+            let i = lay.global(l) - p0;
+            for c in 0..pb {
+                rows.set(l, p0 + c, if c <= i { l11[(i, c)] } else { T::of(0.0) });
+            }
+        }
+        let t0 = lay.first_local_from(p0 + pb);
+        if p0 + pb < n {
+            // L21 = B21 L11^-T, i.e. L11 L21^T = B21^T
+            // (solved on a column-major copy of B21^T: faer's blocked path wants unit row stride)
+            {
+                let mut b21 = rows.view_mut().submatrix_mut(t0, p0, la - t0, pb);
+                let mut bt = b21.rb().transpose().to_owned();
+                solve_lower_triangular_in_place(l11.as_ref(), bt.as_mut(), par);
+                b21.copy_from(bt.transpose());
+            }
+            // every rank needs all of L21 for its rows of B22 -= L21 L21^T
+            let rest = n - p0 - pb;
+            rows.gather_rows_with(comm, p0 + pb, n, p0, p0 + pb, &mut bufs);
+            let lt = MatRef::from_column_major_slice(&bufs.out, pb, rest);
+            let mut a = t0;
+            while a < la {
+                let b = (a + ROW_CHUNK).min(la);
+                let ncols = lay.global(b - 1) + 1 - (p0 + pb);
+                let m = rows.view_mut().submatrix_mut(a, 0, b - a, p0 + pb + ncols);
+                let (left, right) = m.split_at_col_mut(p0 + pb);
+                matmul(right, Accum::Add, left.rb().subcols(p0, pb), lt.subcols(0, ncols), T::of(-1.0), par);
+                a = b;
+            }
+        }
+        p0 += pb;
+        progress(p0, n);
+    }
+    Ok(sign)
 }
 
 /// Cholesky of a small symmetric matrix (row-major, lower triangle used) by faer's blocked kernel;
 /// None unless every pivot is positive.
-fn cholesky_small(d: &[f64], m: usize) -> Option<Mat<f64>> {
+fn cholesky_small<T: Scalar>(d: &[T], m: usize) -> Option<Mat<T>> {
     use faer::dyn_stack::{MemBuffer, MemStack};
     use faer::linalg::cholesky::llt::factor::{cholesky_in_place, cholesky_in_place_scratch};
-    let mut l = Mat::<f64>::from_fn(m, m, |i, j| if j <= i { d[i * m + j] } else { 0.0 });
-    let mut mem = MemBuffer::new(cholesky_in_place_scratch::<f64>(m, Par::Seq, Default::default()));
+    let zero = T::of(0.0);
+    let mut l = Mat::<T>::from_fn(m, m, |i, j| if j <= i { d[i * m + j] } else { zero });
+    let mut mem = MemBuffer::new(cholesky_in_place_scratch::<T>(m, Par::Seq, Default::default()));
     let ok = cholesky_in_place(
         l.as_mut(),
         Default::default(),
@@ -274,9 +384,9 @@ fn cholesky_small(d: &[f64], m: usize) -> Option<Mat<f64>> {
     // faer leaves the strict upper triangle as it was: zero it, and reject non-finite factors
     for j in 0..m {
         for i in 0..j {
-            l[(i, j)] = 0.0;
+            l[(i, j)] = zero;
         }
-        if !(l[(j, j)] > 0.0) || (j..m).any(|i| !l[(i, j)].is_finite()) {
+        if !(l[(j, j)] > zero) || (j..m).any(|i| !l[(i, j)].f64().is_finite()) {
             return None;
         }
     }

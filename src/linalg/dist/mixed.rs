@@ -31,6 +31,13 @@ use super::system::{all_gather_rows, LocalRows};
 use crate::error::Result;
 use crate::par::Comm;
 
+/// An approximate inverse of the f64 system, from factors of lower precision: what a refinement
+/// needs of them.
+pub trait Approximate {
+    /// z ~ M^-1 r for the replicated r; z replicated. Collective.
+    fn apply(&self, comm: &dyn Comm, r: &[f64]) -> Vec<f64>;
+}
+
 /// The f32 LU factors P M' = L U of a row-cyclic matrix, L row-interchanged.
 pub struct Factors {
     rows: LocalRows<f32>,
@@ -64,9 +71,11 @@ impl Factors {
             .collect();
         Ok(Factors { rows, swaps, panels, diag })
     }
+}
 
-    /// z = U^-1 L^-1 P r for the replicated r; z replicated. Collective.
-    pub fn apply(&self, comm: &dyn Comm, r: &[f64]) -> Vec<f64> {
+impl Approximate for Factors {
+    /// z = U^-1 L^-1 P r.
+    fn apply(&self, comm: &dyn Comm, r: &[f64]) -> Vec<f64> {
         let lay = self.rows.layout;
         let (n, ld) = (lay.n, self.rows.ld());
         let data = &self.rows.data;

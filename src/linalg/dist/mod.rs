@@ -2,9 +2,10 @@
 //! lives on rank g mod p, every rank holds its rows with the right-hand side as the last column,
 //! and no solver ever gathers the matrix. Blocked Householder QR, LU with partial pivoting and the
 //! projected Cholesky; [`solve`] chooses among them and falls back from Cholesky to LU.
-//! [`solve_in`] adds the mixed-precision solve: LU in f32 (the factorisations are generic over
-//! [`Scalar`]), refined in f64 by classical refinement and GMRES-IR ([`mixed_solve`]), with a
-//! fallback to f64 when the refinement does not reach the accuracy of an f64 solve.
+//! [`solve_in`] adds the mixed-precision solve: the projected Cholesky or LU in f32 (the
+//! factorisations are generic over [`Scalar`]), refined in f64 against the whole bordered system
+//! by classical refinement and GMRES-IR ([`mixed_solve`]), with a fallback to f64 when the f32
+//! factorisation fails or the refinement does not reach the accuracy of an f64 solve.
 //!
 //! Every solver takes the panel width nb and a `faer::Par`. The panel kernels and the
 //! collectives are serial; the `Par` goes to the local GEMMs and triangular solves of the
@@ -16,6 +17,7 @@ mod householder;
 mod layout;
 mod lu;
 mod mixed;
+mod mixed_cholesky;
 mod refine;
 mod scalar;
 mod solver;

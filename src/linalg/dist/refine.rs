@@ -1,6 +1,10 @@
 //! Mixed-precision solve: factor in f32, refine in f64 (classical iterative refinement, then
 //! GMRES-IR when it stalls), and say so when neither reaches the accuracy of an f64 solve.
 //!
+//! The f32 factors are those of LU (P M = L U, `mixed`) or, for a bordered spline system whose
+//! f64 solver would be the projected Cholesky, of the projected Cholesky (`mixed_cholesky`); both
+//! act as an approximate inverse of the whole f64 matrix M, written U^-1 L^-1 P below.
+//!
 //! # Classical refinement
 //!
 //! With the f32 factors as an approximate inverse, x_0 = U^-1 L^-1 P b and
@@ -35,8 +39,9 @@
 //!
 //! A solve that has not converged after GMRES-IR is reported as such; the caller factors in f64.
 
-use super::mixed::{Factors, Operator};
-use super::solver::Job;
+use super::mixed::{Approximate, Factors, Operator};
+use super::mixed_cholesky::CholeskyFactors;
+use super::solver::{Job, SolverKind};
 use super::system::LocalRows;
 use crate::error::Result;
 
@@ -83,13 +88,23 @@ impl Refinement {
 }
 
 /// Solves the distributed system `m` (f64 rows, right-hand side in the last column, left
-/// unchanged) by the f32 LU of `m` and refinement in f64. Collective; every rank returns the same.
-/// An error is a failed f32 factorisation (a pivot below n eps32 max |m_ij|); a solution that the
-/// stopping rule did not accept comes back with `converged` false.
-pub fn mixed_solve(job: &Job<'_>, m: &LocalRows) -> Result<(Vec<f64>, Refinement)> {
+/// unchanged) by an f32 factorisation of `m` and refinement in f64: the projected Cholesky when
+/// `kind` is `Cholesky` (`m` a bordered spline system), LU otherwise. Collective; every rank
+/// returns the same. An error is a failed f32 factorisation (an LU pivot below n eps32
+/// max |m_ij|, `Error::NotDefinite` from the Cholesky); a solution that the stopping rule did not
+/// accept comes back with `converged` false.
+pub fn mixed_solve(job: &Job<'_>, m: &LocalRows, kind: SolverKind) -> Result<(Vec<f64>, Refinement)> {
+    let factors: Box<dyn Approximate> = match kind {
+        SolverKind::Cholesky => Box::new(CholeskyFactors::<f32>::new(job, m)?),
+        _ => Box::new(Factors::new(job, m)?),
+    };
+    refine(job, m, factors.as_ref())
+}
+
+/// Refines the solution of `m` with the approximate inverse `factors`.
+fn refine(job: &Job<'_>, m: &LocalRows, factors: &dyn Approximate) -> Result<(Vec<f64>, Refinement)> {
     let comm = job.comm;
     let n = m.layout.n;
-    let factors = Factors::new(job, m)?;
     let op = Operator::new(comm, m, job.par);
     let b = op.rhs(comm);
     let bnorm = norm2(&b).max(f64::MIN_POSITIVE);
@@ -251,7 +266,7 @@ mod tests {
     fn classical_refinement_then_gmres_ir_as_the_condition_grows() {
         for (c, gmres) in [(0.2, false), (0.5, true)] {
             let m = graded(60, c);
-            let (x, r) = mixed_solve(&Job::on(&Solo).panel(16), &m).unwrap();
+            let (x, r) = mixed_solve(&Job::on(&Solo).panel(16), &m, SolverKind::Lu).unwrap();
             // kappa about 1e5: classical refinement alone; about 3e8 (> 1/eps32): it stalls at
             // once and GMRES-IR takes over
             assert!(r.converged && r.residual() < 1e-14 && r.history[0] > 1e-10, "c {c}: {r:?}");

@@ -129,8 +129,9 @@ impl SolverKind {
 pub enum Precision {
     /// Factor and solve in f64 with the chosen solver.
     F64,
-    /// Factor by LU in f32, refine in f64 (classical, then GMRES-IR) to the accuracy of an f64
-    /// solve; when that fails, solve again in f64 with the chosen solver.
+    /// Factor in f32 (the projected Cholesky where the f64 choice is Cholesky, LU otherwise),
+    /// refine in f64 (classical, then GMRES-IR) to the accuracy of an f64 solve; when that fails,
+    /// solve again in f64 with the chosen solver.
     Mixed,
 }
 
@@ -156,7 +157,8 @@ impl Precision {
 pub struct Solved {
     /// The whole solution, on every rank.
     pub x: Vec<f64>,
-    /// The solver that produced it (Cholesky may have fallen back to LU).
+    /// The solver that produced it (Cholesky may have fallen back to LU); in mixed precision
+    /// without fallback, the f32 factorisation (Cholesky or LU).
     pub used: SolverKind,
     /// The panel width it used.
     pub panel: usize,
@@ -170,10 +172,11 @@ pub struct Solved {
 }
 
 /// Solves the distributed system `rows` in `precision`: [`solve`] with `kind` in f64; in mixed
-/// precision by the f32 LU and refinement (`rows` is kept for the residuals), and, when the f32
-/// factorisation fails or the refinement does not reach the accuracy of an f64 solve, by
-/// [`solve`] with `kind` on the same rows, with the reason in `mixed_fallback`. Collective; every
-/// rank returns the same outcome.
+/// precision by an f32 factorisation and refinement in f64 (`rows` is kept for the residuals):
+/// the projected Cholesky where `kind` resolves to it for the size, LU otherwise. When the f32
+/// factorisation fails (a projected block not definite in f32, a singular LU) or the refinement
+/// does not reach the accuracy of an f64 solve, by [`solve`] with `kind` on the same rows, with
+/// the reason in `mixed_fallback`. Collective; every rank returns the same outcome.
 pub fn solve_in(
     job: &Job<'_>,
     kind: SolverKind,
@@ -184,15 +187,22 @@ pub fn solve_in(
     if precision == Precision::F64 {
         return solve(job, kind, rows, reassemble);
     }
-    let panel = if job.panel > 0 { job.panel } else { SolverKind::Lu.default_panel() };
-    let (refinement, why) = match agree(job.comm, mixed_solve(&Job { panel, ..*job }, &rows)) {
+    let factor = match kind.resolve(rows.layout.n) {
+        SolverKind::Cholesky if rows.border > 0 => SolverKind::Cholesky,
+        _ => SolverKind::Lu,
+    };
+    let panel = if job.panel > 0 { job.panel } else { factor.default_panel() };
+    let (refinement, why) = match agree(job.comm, mixed_solve(&Job { panel, ..*job }, &rows, factor)) {
         Ok((x, r)) if r.converged => {
-            let used = SolverKind::Lu;
+            let used = factor;
             return Ok(Solved { x, used, panel, fallback: None, refinement: Some(r), mixed_fallback: None });
         }
         Ok((_, r)) => {
             let why = format!("the refinement did not converge ({})", r.describe());
             (Some(r), why)
+        }
+        Err(e) if e.is_not_definite() => {
+            (None, format!("the single-precision projected Cholesky failed: {}", e.root()))
         }
         Err(e) => (None, format!("the single-precision factorisation failed: {}", e.root())),
     };
