@@ -126,10 +126,10 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let n = prep.values.len();
     let run = Run { args: a, comm, threads };
     let off = surface::with_off_surface(a.surface, n);
-    let constrained = if off { Some(surface::constrain(&run, &prep, &mut stages)?) } else { None };
+    let mut constrained = if off { Some(surface::constrain(&run, &prep, &mut stages)?) } else { None };
     // the spline's centres and values: the data's, with the off-surface points after them
-    let fit_prep = constrained.as_ref().map_or(&prep, |c| &c.0);
-    let summary = constrained.as_ref().map(|c| c.1.clone());
+    let fit_prep = constrained.as_ref().map_or(&prep, |c| &c.prep);
+    let first_summary = constrained.as_ref().map(|c| c.summary.clone());
     let rows = fit_prep.values.len();
     let (method, kernel, why) = choose(a, rows, comm.size(), &fit_prep.centres)?;
     if comm.rank() == 0 {
@@ -137,24 +137,31 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             "volspline fit: {points_read} points read from {}, {} duplicates merged, N = {n}{}, kernel {}, carrier {}",
             a.input.display(),
             prep.merged,
-            summary.as_ref().map_or(String::new(), |s| format!(" + {} off-surface points", s.off_points)),
+            first_summary.as_ref().map_or(String::new(), |s| format!(" + {} off-surface points", s.off_points)),
             kernel.name(),
             prep.carrier
         );
     }
     let (plo, phi) = padded_box(&prep.box_lo, &prep.box_hi, a.grid.margin);
     let grid = Grid::covering(plo, phi, a.grid.grid)?;
-    let fitted = match method {
+    if method != Method::Csrbf {
+        dense::check(comm, &kernel, rows)?;
+    }
+    check_grid(comm, &grid)?;
+    // the second fit against spurious blobs has more rows: checked again
+    let mut fit_with = |p: &Prepared, stages: &mut Stages| match method {
         Method::Dense | Method::Auto => {
-            dense::check(comm, &kernel, rows)?;
-            check_grid(comm, &grid)?;
-            dense::fit(&run, kernel, fit_prep, &mut stages)?
+            dense::check(comm, &kernel, p.values.len())?;
+            dense::fit(&run, kernel, p, stages)
         }
-        Method::Csrbf => {
-            check_grid(comm, &grid)?;
-            compact::fit(&run, kernel, fit_prep, &mut stages)?
-        }
+        Method::Csrbf => compact::fit(&run, kernel, p, stages),
     };
+    let mut fitted = fit_with(fit_prep, &mut stages)?;
+    if let Some(c) = constrained.as_mut() {
+        fitted = surface::clear_blobs(&run, &prep, c, fitted, &mut stages, &mut fit_with)?;
+    }
+    let fit_prep = constrained.as_ref().map_or(&prep, |c| &c.prep);
+    let summary = constrained.as_ref().map(|c| c.summary.clone());
     super::finite::check_fit(&fitted, fit_prep)?;
     drop(constrained);
     let (rms, max_abs) = stages.time(Stage::Check, || at_points(comm, &fitted.spline, &prep));
@@ -210,6 +217,8 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         r.figure("orient_components", s.components);
         r.figure("orient_patches", s.patches);
         r.figure("orient_flipped", s.flipped);
+        r.figure("blob_points", s.blob_points);
+        r.figure("blob_regions", s.blob_regions);
     }
     for (k, v) in &fitted.figures {
         r.figure(k, v);
@@ -261,8 +270,15 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>) -> String {
                 format!("{} patches, {} flipped by the dense dipole field", s.patches, s.flipped)
             } else {
                 "no dipole correction (too many points)".to_string()
-            }
-        ),
+            },
+        ) + &if s.blob_points > 0 {
+            format!(
+                "; blobs: {} constraint points ({} regions away from the data), fitted twice",
+                s.blob_points, s.blob_regions
+            )
+        } else {
+            "; blobs: none".to_string()
+        },
     }
 }
 
