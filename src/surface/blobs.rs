@@ -38,6 +38,7 @@ use rayon::prelude::*;
 
 use super::normals::dist2;
 use super::offsurface::carrier_slope;
+use crate::grid::padded_box;
 use crate::par::Comm;
 use crate::spline::carrier::Carrier;
 use crate::spline::octree::Octree;
@@ -65,6 +66,17 @@ pub struct Lattice {
 }
 
 impl Lattice {
+    /// The lattice of a fit: the data's box lo..hi (caller's coordinates) grown by `margin`
+    /// times its longest side, in the normalised coordinates of `norm`, [`NODES`] along the
+    /// longest side.
+    pub fn of_fit(lo: &[f64], hi: &[f64], margin: f64, norm: &Normalisation) -> Lattice {
+        let (plo, phi) = padded_box(lo, hi, margin);
+        let (mut a, mut b) = ([0.0; 3], [0.0; 3]);
+        norm.apply(&plo, &mut a);
+        norm.apply(&phi, &mut b);
+        Lattice::new(a, b, NODES)
+    }
+
     /// The lattice over lo..hi with `nodes` nodes along the longest side (at least 2).
     pub fn new(lo: [f64; 3], hi: [f64; 3], nodes: usize) -> Lattice {
         let longest = (0..3).map(|d| hi[d] - lo[d]).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
@@ -240,4 +252,80 @@ pub fn blob_values(blobs: &Blobs, raw: &[f64], carrier: &Carrier, norm: &Normali
             carrier.eval(&q) + g * blobs.distance[k] * norm.scale
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::par::Solo;
+
+    /// Points of the unit sphere (a Fibonacci spiral) and their outward normals.
+    fn sphere(n: usize) -> (Vec<f64>, Vec<[f64; 3]>) {
+        let (mut pts, mut normals) = (Vec::new(), Vec::new());
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        for i in 0..n {
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+            let r = (1.0 - z * z).sqrt();
+            let t = golden * i as f64;
+            let p = [r * t.cos(), r * t.sin(), z];
+            pts.extend_from_slice(&p);
+            normals.push(p);
+        }
+        (pts, normals)
+    }
+
+    fn count_within(blobs: &Blobs, c: [f64; 3], r: f64) -> usize {
+        blobs.centres.chunks_exact(3).filter(|q| dist2(&c, q) <= r * r).count()
+    }
+
+    #[test]
+    fn a_detached_blob_and_a_bulge_are_found_and_the_solid_is_left_alone() {
+        let (pts, normals) = sphere(400);
+        let tree = Octree::new(&pts, 10);
+        let lattice = Lattice::new([-2.0; 3], [2.0; 3], 33);
+        // inside the sphere, a detached ball at (1.6, 0, 0) and a bulge reaching out of the
+        // sphere towards -z down to z = -1.7 (a ball of radius 0.5 at (0, 0, -1.2))
+        let ball = |q: &[f64; 3], c: [f64; 3], r: f64| r - dist2(q, &c).sqrt();
+        let values: Vec<f64> = (0..lattice.len())
+            .map(|i| {
+                let q = lattice.node(i);
+                let f = 1.0 - dist2(&q, &[0.0; 3]).sqrt();
+                f.max(ball(&q, [1.6, 0.0, 0.0], 0.25)).max(ball(&q, [0.0, 0.0, -1.2], 0.5))
+            })
+            .collect();
+        let blobs = find(&lattice, &values, &pts, &normals, &tree);
+        assert_eq!(blobs.regions, 1, "one region comes nowhere near the data");
+        // h = 0.125: the detached ball's nodes all count; of the bulge those beyond the clearance
+        let detached = count_within(&blobs, [1.6, 0.0, 0.0], 0.25);
+        let bulge = count_within(&blobs, [0.0, 0.0, -1.2], 0.5);
+        assert!(detached >= 10, "{detached} nodes of the detached ball");
+        assert!(bulge >= 1, "{bulge} nodes of the bulge");
+        assert_eq!(detached + bulge, blobs.source.len(), "no node of the sphere itself");
+        for (k, q) in blobs.centres.chunks_exact(3).enumerate() {
+            assert!(dist2(q, &[0.0; 3]).sqrt() > 1.0 + 0.5 * CLEARANCE * lattice.h, "blob point {k} at {q:?}");
+            let d = dist2(q, &pts[3 * blobs.source[k]..]).sqrt();
+            assert!((d - blobs.distance[k]).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn sampling_on_one_rank_matches_the_model() {
+        let (pts, _) = sphere(60);
+        let norm = Normalisation { centre: [0.1, 0.2, 0.3], scale: 2.0 };
+        let mut centres = vec![0.0; pts.len()];
+        for (c, p) in centres.chunks_exact_mut(3).zip(pts.chunks_exact(3)) {
+            norm.apply(p, c);
+        }
+        let weights: Vec<f64> = (0..60).map(|i| (i as f64 * 0.37).sin()).collect();
+        let kernel = crate::spline::Kernel::new(3, 2).unwrap();
+        let spline = Spline { kernel, centres, weights, poly: vec![0.1, 0.2, -0.3, 0.4], norm };
+        let carrier = Carrier::AutoBall.resolve(&[-1.0; 3], &[1.0; 3]);
+        let lattice = Lattice::new([-0.8; 3], [0.8; 3], 7);
+        let values = sample(&Solo, &lattice, &carrier, &spline);
+        for (i, v) in values.iter().enumerate() {
+            let q: Vec<f64> = lattice.node(i).iter().zip(&norm.centre).map(|(x, c)| c + norm.scale * x).collect();
+            let want = carrier.eval(&q) - spline.eval(&q);
+            assert!((v - want).abs() < 1e-12 * want.abs().max(1.0), "node {i}: {v} vs {want}");
+        }
+    }
 }

@@ -8,10 +8,9 @@ use super::{Fitted, Run};
 use crate::app::stages::{Stage, Stages};
 use crate::cli::Surface;
 use crate::error::Result;
-use crate::grid::padded_box;
 use crate::par::{agree, Comm};
 use crate::spline::hygiene::Prepared;
-use crate::surface::blobs::{blob_values, find, sample, Lattice, NODES};
+use crate::surface::blobs::{blob_values, find, sample, Lattice};
 use crate::surface::{self, neighbourhoods, off_points, off_values, Neighbourhoods};
 
 /// Fewest points for which `--surface auto` adds off-surface constraints.
@@ -105,11 +104,7 @@ pub fn clear_blobs(
     refit: &mut dyn FnMut(&Prepared, &mut Stages) -> Result<Fitted>,
 ) -> Result<Fitted> {
     let norm = data.norm;
-    let (plo, phi) = padded_box(&data.box_lo, &data.box_hi, run.args.grid.margin);
-    let (mut lo, mut hi) = ([0.0; 3], [0.0; 3]);
-    norm.apply(&plo, &mut lo);
-    norm.apply(&phi, &mut hi);
-    let lattice = Lattice::new(lo, hi, NODES);
+    let lattice = Lattice::of_fit(&data.box_lo, &data.box_hi, run.args.grid.margin, &norm);
     let blobs = stages.time(Stage::Orient, || {
         let values = sample(run.comm, &lattice, &data.carrier, &first.spline);
         find(&lattice, &values, &data.centres, &c.normals, &c.hoods.tree)
