@@ -180,13 +180,16 @@ pub fn find(lattice: &Lattice, values: &[f64], points: &[f64], normals: &[[f64; 
             let q = lattice.node(i);
             let r = tree.kth_distance(q, VOTERS.min(n), h);
             tree.within(q, r, found);
-            let mut near: Vec<(f64, usize)> = found.iter().map(|&j| (dist2(&q, &points[3 * j..]), j)).collect();
+            let mut near: Vec<(f64, usize)> =
+                found.iter().map(|&j| (dist2(&q, &points[3 * j..]), j)).collect();
             near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
             near.truncate(VOTERS.min(n));
             let (d2, nearest) = *near.first()?;
             let outside = near
                 .iter()
-                .filter(|&&(_, j)| (0..3).map(|d| (q[d] - points[3 * j + d]) * normals[j][d]).sum::<f64>() > 0.0)
+                .filter(|&&(_, j)| {
+                    (0..3).map(|d| (q[d] - points[3 * j + d]) * normals[j][d]).sum::<f64>() > 0.0
+                })
                 .count();
             let voted = outside as f64 >= AGREE * near.len() as f64;
             Some((d2.sqrt(), nearest, voted))
@@ -246,7 +249,8 @@ pub fn blob_values(blobs: &Blobs, raw: &[f64], carrier: &Carrier, norm: &Normali
     (0..blobs.source.len())
         .into_par_iter()
         .map(|k| {
-            let q: Vec<f64> = (0..3).map(|d| norm.centre[d] + norm.scale * blobs.centres[3 * k + d]).collect();
+            let q: Vec<f64> =
+                (0..3).map(|d| norm.centre[d] + norm.scale * blobs.centres[3 * k + d]).collect();
             let s = blobs.source[k];
             let g = carrier_slope(carrier, &raw[3 * s..3 * s + 3], h);
             carrier.eval(&q) + g * blobs.distance[k] * norm.scale
@@ -302,7 +306,10 @@ mod tests {
         assert!(bulge >= 1, "{bulge} nodes of the bulge");
         assert_eq!(detached + bulge, blobs.source.len(), "no node of the sphere itself");
         for (k, q) in blobs.centres.chunks_exact(3).enumerate() {
-            assert!(dist2(q, &[0.0; 3]).sqrt() > 1.0 + 0.5 * CLEARANCE * lattice.h, "blob point {k} at {q:?}");
+            assert!(
+                dist2(q, &[0.0; 3]).sqrt() > 1.0 + 0.5 * CLEARANCE * lattice.h,
+                "blob point {k} at {q:?}"
+            );
             let d = dist2(q, &pts[3 * blobs.source[k]..]).sqrt();
             assert!((d - blobs.distance[k]).abs() < 1e-12);
         }
@@ -323,7 +330,8 @@ mod tests {
         let lattice = Lattice::new([-0.8; 3], [0.8; 3], 7);
         let values = sample(&Solo, &lattice, &carrier, &spline);
         for (i, v) in values.iter().enumerate() {
-            let q: Vec<f64> = lattice.node(i).iter().zip(&norm.centre).map(|(x, c)| c + norm.scale * x).collect();
+            let q: Vec<f64> =
+                lattice.node(i).iter().zip(&norm.centre).map(|(x, c)| c + norm.scale * x).collect();
             let want = carrier.eval(&q) - spline.eval(&q);
             assert!((v - want).abs() < 1e-12 * want.abs().max(1.0), "node {i}: {v} vs {want}");
         }
