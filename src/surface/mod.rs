@@ -10,12 +10,15 @@
 //! - [`orient`]: a consistent global orientation (the smallest eigenvector of a signed graph
 //!   Laplacian, corrected patch by patch by the dipole field) made outward by the divergence
 //!   theorem;
-//! - [`offsurface`]: the off points and the values the spline takes there.
+//! - [`offsurface`]: the off points and the values the spline takes there;
+//! - [`blobs`]: after a first fit, the regions it makes inside with no data to support them,
+//!   pinned outside by further points for a second fit.
 //!
 //! Everything works in the normalised coordinates of the spline's centres (the data's box
 //! centred, its half-diagonal 1) and is identical on every rank, except the dense dipole sums,
 //! which the ranks share.
 
+pub mod blobs;
 pub mod normals;
 pub mod offsurface;
 pub mod orient;

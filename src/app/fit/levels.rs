@@ -25,7 +25,7 @@
 use std::collections::HashMap;
 use std::time::Instant;
 
-use super::surface::{constrain, SurfaceSummary};
+use super::surface::{clear_blobs, constrain, SurfaceSummary};
 use super::{dense, Fitted, Run};
 use crate::app::stages::{Stage, Stages};
 use crate::error::Result;
@@ -123,12 +123,19 @@ pub fn fit(
     let mut inner = Stages::default();
     let keep = even_subsample(&prep.centres, coarse_points);
     let sub = restrict(prep, &keep);
-    let (constrained, summary) = constrain(run, &sub, &mut inner)?;
-    let rows = constrained.values.len();
+    let mut constrained = constrain(run, &sub, &mut inner)?;
     let r = Kernel::new(3, 2)?;
-    dense::check(run.comm, &r, rows, run.args.precision)?;
-    let level0 = dense::fit(run, r, &constrained, &mut inner)?;
-    crate::app::finite::check_fit(&level0, &constrained)?;
+    let mut refit = |p: &Prepared, st: &mut Stages| {
+        dense::check(run.comm, &r, p.values.len(), run.args.precision)?;
+        dense::fit(run, r, p, st)
+    };
+    let first = refit(&constrained.prep, &mut inner)?;
+    // level 0 decides the sign away from the data: its spurious blobs are cleared like a
+    // single-level fit's
+    let level0 = clear_blobs(run, &sub, &mut constrained, first, &mut inner, &mut refit)?;
+    crate::app::finite::check_fit(&level0, &constrained.prep)?;
+    let rows = constrained.prep.values.len();
+    let summary = constrained.summary.clone();
     let u0 = eval_everywhere(run.comm, &level0.spline, &prep.points);
     let mut top = prep.clone();
     for (v, u) in top.values.iter_mut().zip(&u0) {

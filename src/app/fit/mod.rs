@@ -157,10 +157,10 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         super::finite::check_fit(&fitted, &prep)?;
         (fitted, Some(summary), method, kernel, why)
     } else {
-        let constrained = if off { Some(surface::constrain(&run, &prep, &mut stages)?) } else { None };
+        let mut constrained = if off { Some(surface::constrain(&run, &prep, &mut stages)?) } else { None };
         // the spline's centres and values: the data's, with the off-surface points after them
-        let fit_prep = constrained.as_ref().map_or(&prep, |c| &c.0);
-        let summary = constrained.as_ref().map(|c| c.1.clone());
+        let fit_prep = constrained.as_ref().map_or(&prep, |c| &c.prep);
+        let first_summary = constrained.as_ref().map(|c| c.summary.clone());
         let rows = fit_prep.values.len();
         let (method, kernel, why) = choose(a, rows, comm.size(), &fit_prep.centres)?;
         if comm.rank() == 0 {
@@ -168,22 +168,29 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
                 "volspline fit: {points_read} points read from {}, {} duplicates merged, N = {n}{}, kernel {}, carrier {}",
                 a.input.display(),
                 prep.merged,
-                summary.as_ref().map_or(String::new(), |s| format!(" + {} off-surface points", s.off_points)),
+                first_summary.as_ref().map_or(String::new(), |s| format!(" + {} off-surface points", s.off_points)),
                 kernel.name(),
                 prep.carrier
             );
         }
-        let fitted = match method {
+        if method != Method::Csrbf {
+            dense::check(comm, &kernel, rows, a.precision)?;
+        }
+        check_grid(comm, &grid)?;
+        // the second fit against spurious blobs has more rows: checked again
+        let mut fit_with = |p: &Prepared, stages: &mut Stages| match method {
             Method::Dense | Method::Auto => {
-                dense::check(comm, &kernel, rows, a.precision)?;
-                check_grid(comm, &grid)?;
-                dense::fit(&run, kernel, fit_prep, &mut stages)?
+                dense::check(comm, &kernel, p.values.len(), a.precision)?;
+                dense::fit(&run, kernel, p, stages)
             }
-            Method::Csrbf => {
-                check_grid(comm, &grid)?;
-                compact::fit(&run, kernel, fit_prep, &mut stages)?
-            }
+            Method::Csrbf => compact::fit(&run, kernel, p, stages),
         };
+        let mut fitted = fit_with(fit_prep, &mut stages)?;
+        if let Some(c) = constrained.as_mut() {
+            fitted = surface::clear_blobs(&run, &prep, c, fitted, &mut stages, &mut fit_with)?;
+        }
+        let fit_prep = constrained.as_ref().map_or(&prep, |c| &c.prep);
+        let summary = constrained.as_ref().map(|c| c.summary.clone());
         super::finite::check_fit(&fitted, fit_prep)?;
         (fitted, summary, method, kernel, why)
     };
@@ -243,6 +250,8 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         r.figure("orient_components", s.components);
         r.figure("orient_patches", s.patches);
         r.figure("orient_flipped", s.flipped);
+        r.figure("blob_points", s.blob_points);
+        r.figure("blob_regions", s.blob_regions);
     }
     for (k, v) in &fitted.figures {
         r.figure(k, v);
@@ -295,8 +304,15 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
                 format!("{} patches, {} flipped by the dense dipole field", s.patches, s.flipped)
             } else {
                 "no dipole correction (too many points)".to_string()
-            }
-        ),
+            },
+        ) + &if s.blob_points > 0 {
+            format!(
+                "; blobs: {} constraint points ({} regions away from the data), fitted twice",
+                s.blob_points, s.blob_regions
+            )
+        } else {
+            "; blobs: none".to_string()
+        },
     }
 }
 

@@ -1,14 +1,17 @@
 //! The surface method of `fit`: the data alone (the plain carrier method), or the data with
 //! off-surface constraints from estimated and oriented normals ([`crate::surface`]), which enter
-//! the dense and the compactly supported systems as further centres.
+//! the dense and the compactly supported systems as further centres; after the first fit,
+//! regions it makes positive with no data to support them are pinned negative and the spline is
+//! fitted once more ([`crate::surface::blobs`]).
 
-use super::Run;
+use super::{Fitted, Run};
 use crate::app::stages::{Stage, Stages};
 use crate::cli::Surface;
 use crate::error::Result;
 use crate::par::{agree, Comm};
 use crate::spline::hygiene::Prepared;
-use crate::surface::{self, neighbourhoods, off_points, off_values};
+use crate::surface::blobs::{blob_values, find, sample, Lattice};
+use crate::surface::{self, neighbourhoods, off_points, off_values, Neighbourhoods};
 
 /// Fewest points for which `--surface auto` adds off-surface constraints.
 pub const AUTO_MIN_POINTS: usize = 50;
@@ -24,6 +27,19 @@ pub struct SurfaceSummary {
     pub patches: usize,
     pub flipped: usize,
     pub dense_dipole: bool,
+    /// Constraint points added by the second fit against spurious blobs (0: no second fit).
+    pub blob_points: usize,
+    /// Positive regions of the first fit that came nowhere near the data.
+    pub blob_regions: usize,
+}
+
+/// The constrained points of a fit and what the blob search needs of the surface step.
+pub struct Constrained {
+    /// The data followed by the off-surface points (and, after [`clear_blobs`], the blob points).
+    pub prep: Prepared,
+    pub summary: SurfaceSummary,
+    hoods: Neighbourhoods,
+    normals: Vec<[f64; 3]>,
 }
 
 /// The method `surface` resolves to for `n` points (true: off-surface constraints).
@@ -46,7 +62,7 @@ pub fn name(off: bool) -> &'static str {
 
 /// `prep` with the off-surface points appended to its centres and values (its data points are
 /// left as they are) and what was done. Collective.
-pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<(Prepared, SurfaceSummary)> {
+pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<Constrained> {
     let comm: &dyn Comm = run.comm;
     let hoods = stages.time(Stage::Normals, || agree(comm, neighbourhoods(&prep.centres)))?;
     let (orientation, off) = stages.time(Stage::Orient, || -> Result<_> {
@@ -66,9 +82,41 @@ pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<
         patches: orientation.patches,
         flipped: orientation.flipped,
         dense_dipole: orientation.dense_dipole,
+        blob_points: 0,
+        blob_regions: 0,
     };
     let mut out = prep.clone();
     out.centres.extend_from_slice(&off.centres);
     out.values.extend_from_slice(&values);
-    Ok((out, summary))
+    Ok(Constrained { prep: out, summary, hoods, normals: orientation.normals })
+}
+
+/// The fit `first` of `c.prep`, or, where it is positive in regions no data supports (see
+/// [`crate::surface::blobs`]), the fit `refit` makes of `c.prep` with constraint points there
+/// appended (`c` is updated). `data` is the data alone; the lattice covers its box grown by
+/// the grid's margin. The search is timed as part of the orientation stage. Collective.
+pub fn clear_blobs(
+    run: &Run<'_>,
+    data: &Prepared,
+    c: &mut Constrained,
+    first: Fitted,
+    stages: &mut Stages,
+    refit: &mut dyn FnMut(&Prepared, &mut Stages) -> Result<Fitted>,
+) -> Result<Fitted> {
+    let norm = data.norm;
+    let lattice = Lattice::of_fit(&data.box_lo, &data.box_hi, run.args.grid.margin, &norm);
+    let blobs = stages.time(Stage::Orient, || {
+        let values = sample(run.comm, &lattice, &data.carrier, &first.spline);
+        find(&lattice, &values, &data.centres, &c.normals, &c.hoods.tree)
+    });
+    c.summary.blob_regions = blobs.regions;
+    if blobs.source.is_empty() {
+        return Ok(first);
+    }
+    drop(first);
+    let values = blob_values(&blobs, &data.points, &data.carrier, &norm);
+    c.prep.centres.extend_from_slice(&blobs.centres);
+    c.prep.values.extend_from_slice(&values);
+    c.summary.blob_points = blobs.source.len();
+    refit(&c.prep, stages)
 }

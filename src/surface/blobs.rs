@@ -1,0 +1,339 @@
+//! Spurious blobs: regions where a fit is positive (inside) although no data says so, found on a
+//! coarse lattice and pinned negative by further constraint points for a second fit.
+//!
+//! # Why they appear
+//!
+//! The solid is f = f_c - U: the carrier f_c (a ball around the data by default) is positive in
+//! a large region, and the spline U cancels it only where constraints hold it, at the data and
+//! at the off-surface points a distance delta beside it. In empty space inside the carrier, away
+//! from both, nothing asks U to cancel f_c, and f stays positive there: closed blobs in the gaps
+//! between the legs of an animal, beside its horns or under its belly, or bulges of the solid
+//! that grow far beyond the reach of the off points. More off points do not reach them (they
+//! stay within delta of the data), and a tighter carrier is worse (its gradient is steeper).
+//!
+//! # The rule
+//!
+//! After the first fit, f is sampled on a lattice of [`NODES`] nodes along the longest side of
+//! the data's padded box (cheap next to the fit: N kernel sums per node). A node with f > 0 is
+//! spurious when either
+//! 1. its connected region of positive nodes (six-neighbour lattice connectivity) comes nowhere
+//!    near the data: no node of the region lies within one lattice cell diagonal of a data point.
+//!    A true part of the solid is bounded by the surface, so its positive nodes reach the data;
+//!    a region that does not is a blob whatever the normals say; or
+//! 2. it lies farther than [`CLEARANCE`] lattice spacings from every data point and its
+//!    [`VOTERS`] nearest data points p_j with outward normals n_j agree, by a fraction of at
+//!    least [`AGREE`], that it is outside: (q - p_j) . n_j > 0. Inside a solid every nearby point
+//!    of the surface faces away from q; outside, towards it. Near the data (within the clearance)
+//!    the off points already decide, and a vote there is at the mercy of single normals; where
+//!    the voters disagree (a misoriented patch, a thin part) nothing is added.
+//!
+//! Each spurious node q becomes a constraint point with the target t(q) = -g d, d the distance
+//! to the nearest data point and g = |grad f_c| at that point: the value a field with the
+//! carrier's slope takes at distance d outside the surface, continuing the off points' targets
+//! -g delta outward. The spline interpolates r = f_c(q) - t there, as at the off points. At most
+//! [`MAX_SHARE`] of the data's count are added (evenly strided otherwise), so the second system
+//! stays close to the first.
+
+use rayon::prelude::*;
+
+use super::normals::dist2;
+use super::offsurface::carrier_slope;
+use crate::grid::padded_box;
+use crate::par::Comm;
+use crate::spline::carrier::Carrier;
+use crate::spline::octree::Octree;
+use crate::spline::{Evaluator, Normalisation, Spline};
+
+/// Lattice nodes along the longest side of the box.
+pub const NODES: usize = 32;
+/// Nearest data points that vote on the side of a node.
+pub const VOTERS: usize = 10;
+/// Fraction of the voters that must find a node outside.
+pub const AGREE: f64 = 0.8;
+/// Distance from the data, in lattice spacings, below which a node is left to the off points.
+pub const CLEARANCE: f64 = 2.0;
+/// Most blob points, as a fraction of the data points (at least [`MIN_CAP`]).
+pub const MAX_SHARE: f64 = 0.25;
+/// Blob points allowed whatever the data's count.
+pub const MIN_CAP: usize = 64;
+
+/// A regular lattice of nodes in normalised coordinates, x fastest.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Lattice {
+    pub lo: [f64; 3],
+    pub h: f64,
+    pub dims: [usize; 3],
+}
+
+impl Lattice {
+    /// The lattice of a fit: the data's box lo..hi (caller's coordinates) grown by `margin`
+    /// times its longest side, in the normalised coordinates of `norm`, [`NODES`] along the
+    /// longest side.
+    pub fn of_fit(lo: &[f64], hi: &[f64], margin: f64, norm: &Normalisation) -> Lattice {
+        let (plo, phi) = padded_box(lo, hi, margin);
+        let (mut a, mut b) = ([0.0; 3], [0.0; 3]);
+        norm.apply(&plo, &mut a);
+        norm.apply(&phi, &mut b);
+        Lattice::new(a, b, NODES)
+    }
+
+    /// The lattice over lo..hi with `nodes` nodes along the longest side (at least 2).
+    pub fn new(lo: [f64; 3], hi: [f64; 3], nodes: usize) -> Lattice {
+        let longest = (0..3).map(|d| hi[d] - lo[d]).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+        let h = longest / (nodes.max(2) - 1) as f64;
+        let dims = [0, 1, 2].map(|d| (((hi[d] - lo[d]) / h).ceil() as usize + 1).max(2));
+        Lattice { lo, h, dims }
+    }
+
+    pub fn len(&self) -> usize {
+        self.dims.iter().product()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Node `i` (x fastest).
+    pub fn node(&self, i: usize) -> [f64; 3] {
+        let [nx, ny, _] = self.dims;
+        let idx = [i % nx, (i / nx) % ny, i / (nx * ny)];
+        [0, 1, 2].map(|d| self.lo[d] + idx[d] as f64 * self.h)
+    }
+
+    /// The six lattice neighbours of node `i` that exist.
+    fn neighbours(&self, i: usize, out: &mut Vec<usize>) {
+        out.clear();
+        let [nx, ny, nz] = self.dims;
+        let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
+        if x > 0 {
+            out.push(i - 1);
+        }
+        if x + 1 < nx {
+            out.push(i + 1);
+        }
+        if y > 0 {
+            out.push(i - nx);
+        }
+        if y + 1 < ny {
+            out.push(i + nx);
+        }
+        if z > 0 {
+            out.push(i - nx * ny);
+        }
+        if z + 1 < nz {
+            out.push(i + nx * ny);
+        }
+    }
+}
+
+/// f = f_c - U at every node of `lattice`, the rows of nodes dealt round-robin over the ranks
+/// and summed: every rank gets the same values, bit for bit, whatever the number of ranks (each
+/// value is computed by one rank and the others add zeros). Collective.
+pub fn sample(comm: &dyn Comm, lattice: &Lattice, carrier: &Carrier, spline: &Spline) -> Vec<f64> {
+    let [nx, ny, nz] = lattice.dims;
+    let norm = &spline.norm;
+    let ev = Evaluator::new(spline);
+    let xs: Vec<f64> = (0..nx).map(|i| norm.centre[0] + norm.scale * lattice.node(i)[0]).collect();
+    let mut values = vec![0.0; lattice.len()];
+    let (rank, size) = (comm.rank(), comm.size());
+    values.par_chunks_mut(nx).enumerate().filter(|(row, _)| row % size == rank).for_each(|(row, out)| {
+        let p = lattice.node(row * nx);
+        let (y, z) = (norm.centre[1] + norm.scale * p[1], norm.centre[2] + norm.scale * p[2]);
+        ev.eval_row(&xs, y, z, out);
+        for (v, &x) in out.iter_mut().zip(&xs) {
+            *v = carrier.eval(&[x, y, z]) - *v;
+        }
+    });
+    debug_assert_eq!(values.len(), nx * ny * nz);
+    comm.sum_f64(&mut values);
+    values
+}
+
+/// The spurious nodes of a sampled fit.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Blobs {
+    /// 3 values per blob point, normalised.
+    pub centres: Vec<f64>,
+    /// Distance to the nearest data point (normalised).
+    pub distance: Vec<f64>,
+    /// The nearest data point.
+    pub source: Vec<usize>,
+    /// Positive regions that come nowhere near the data.
+    pub regions: usize,
+    /// Spurious nodes found (before the cap).
+    pub found: usize,
+}
+
+/// The spurious nodes (see the module doc) of the fit whose `values` were sampled on `lattice`,
+/// for data `points` (normalised, the tree `tree` over them) with outward unit `normals`.
+pub fn find(lattice: &Lattice, values: &[f64], points: &[f64], normals: &[[f64; 3]], tree: &Octree) -> Blobs {
+    let n = normals.len();
+    let h = lattice.h;
+    let positive: Vec<bool> = values.iter().map(|&v| v > 0.0).collect();
+    // distance to the nearest data point and the outside vote of every positive node
+    let judged: Vec<Option<(f64, usize, bool)>> = (0..lattice.len())
+        .into_par_iter()
+        .map_init(Vec::new, |found, i| {
+            if !positive[i] {
+                return None;
+            }
+            let q = lattice.node(i);
+            let r = tree.kth_distance(q, VOTERS.min(n), h);
+            tree.within(q, r, found);
+            let mut near: Vec<(f64, usize)> =
+                found.iter().map(|&j| (dist2(&q, &points[3 * j..]), j)).collect();
+            near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            near.truncate(VOTERS.min(n));
+            let (d2, nearest) = *near.first()?;
+            let outside = near
+                .iter()
+                .filter(|&&(_, j)| {
+                    (0..3).map(|d| (q[d] - points[3 * j + d]) * normals[j][d]).sum::<f64>() > 0.0
+                })
+                .count();
+            let voted = outside as f64 >= AGREE * near.len() as f64;
+            Some((d2.sqrt(), nearest, voted))
+        })
+        .collect();
+    // regions of positive nodes; a region is supported when one of its nodes is within a cell
+    // diagonal of the data
+    let reach = h * 3f64.sqrt();
+    let mut region = vec![usize::MAX; lattice.len()];
+    let mut supported = Vec::new();
+    let (mut stack, mut adj) = (Vec::new(), Vec::new());
+    for start in 0..lattice.len() {
+        if !positive[start] || region[start] != usize::MAX {
+            continue;
+        }
+        let id = supported.len();
+        let mut near_data = false;
+        region[start] = id;
+        stack.push(start);
+        while let Some(i) = stack.pop() {
+            near_data |= judged[i].is_some_and(|(d, _, _)| d <= reach);
+            lattice.neighbours(i, &mut adj);
+            for &j in &adj {
+                if positive[j] && region[j] == usize::MAX {
+                    region[j] = id;
+                    stack.push(j);
+                }
+            }
+        }
+        supported.push(near_data);
+    }
+    let mut blobs = Blobs { regions: supported.iter().filter(|&&s| !s).count(), ..Default::default() };
+    for (i, j) in judged.iter().enumerate() {
+        let Some((d, nearest, voted)) = *j else { continue };
+        let spurious = !supported[region[i]] || (d > CLEARANCE * h && voted);
+        if spurious {
+            blobs.centres.extend_from_slice(&lattice.node(i));
+            blobs.distance.push(d);
+            blobs.source.push(nearest);
+        }
+    }
+    blobs.found = blobs.source.len();
+    let cap = ((MAX_SHARE * n as f64) as usize).max(MIN_CAP);
+    if blobs.found > cap {
+        let keep: Vec<usize> = (0..cap).map(|k| k * blobs.found / cap).collect();
+        blobs.centres = keep.iter().flat_map(|&k| blobs.centres[3 * k..3 * k + 3].to_vec()).collect();
+        blobs.distance = keep.iter().map(|&k| blobs.distance[k]).collect();
+        blobs.source = keep.iter().map(|&k| blobs.source[k]).collect();
+    }
+    blobs
+}
+
+/// The spline's values r = f_c(q) - t at the blob points, t = -g d in the caller's units (see the
+/// module doc), for data `raw` (caller's coordinates, 3 per point).
+pub fn blob_values(blobs: &Blobs, raw: &[f64], carrier: &Carrier, norm: &Normalisation) -> Vec<f64> {
+    let h = 1e-6 * norm.scale;
+    (0..blobs.source.len())
+        .into_par_iter()
+        .map(|k| {
+            let q: Vec<f64> =
+                (0..3).map(|d| norm.centre[d] + norm.scale * blobs.centres[3 * k + d]).collect();
+            let s = blobs.source[k];
+            let g = carrier_slope(carrier, &raw[3 * s..3 * s + 3], h);
+            carrier.eval(&q) + g * blobs.distance[k] * norm.scale
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::par::Solo;
+
+    /// Points of the unit sphere (a Fibonacci spiral) and their outward normals.
+    fn sphere(n: usize) -> (Vec<f64>, Vec<[f64; 3]>) {
+        let (mut pts, mut normals) = (Vec::new(), Vec::new());
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        for i in 0..n {
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+            let r = (1.0 - z * z).sqrt();
+            let t = golden * i as f64;
+            let p = [r * t.cos(), r * t.sin(), z];
+            pts.extend_from_slice(&p);
+            normals.push(p);
+        }
+        (pts, normals)
+    }
+
+    fn count_within(blobs: &Blobs, c: [f64; 3], r: f64) -> usize {
+        blobs.centres.chunks_exact(3).filter(|q| dist2(&c, q) <= r * r).count()
+    }
+
+    #[test]
+    fn a_detached_blob_and_a_bulge_are_found_and_the_solid_is_left_alone() {
+        let (pts, normals) = sphere(400);
+        let tree = Octree::new(&pts, 10);
+        let lattice = Lattice::new([-2.0; 3], [2.0; 3], 33);
+        // inside the sphere, a detached ball at (1.6, 0, 0) and a bulge reaching out of the
+        // sphere towards -z down to z = -1.7 (a ball of radius 0.5 at (0, 0, -1.2))
+        let ball = |q: &[f64; 3], c: [f64; 3], r: f64| r - dist2(q, &c).sqrt();
+        let values: Vec<f64> = (0..lattice.len())
+            .map(|i| {
+                let q = lattice.node(i);
+                let f = 1.0 - dist2(&q, &[0.0; 3]).sqrt();
+                f.max(ball(&q, [1.6, 0.0, 0.0], 0.25)).max(ball(&q, [0.0, 0.0, -1.2], 0.5))
+            })
+            .collect();
+        let blobs = find(&lattice, &values, &pts, &normals, &tree);
+        assert_eq!(blobs.regions, 1, "one region comes nowhere near the data");
+        // h = 0.125: the detached ball's nodes all count; of the bulge those beyond the clearance
+        let detached = count_within(&blobs, [1.6, 0.0, 0.0], 0.25);
+        let bulge = count_within(&blobs, [0.0, 0.0, -1.2], 0.5);
+        assert!(detached >= 10, "{detached} nodes of the detached ball");
+        assert!(bulge >= 1, "{bulge} nodes of the bulge");
+        assert_eq!(detached + bulge, blobs.source.len(), "no node of the sphere itself");
+        for (k, q) in blobs.centres.chunks_exact(3).enumerate() {
+            assert!(
+                dist2(q, &[0.0; 3]).sqrt() > 1.0 + 0.5 * CLEARANCE * lattice.h,
+                "blob point {k} at {q:?}"
+            );
+            let d = dist2(q, &pts[3 * blobs.source[k]..]).sqrt();
+            assert!((d - blobs.distance[k]).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn sampling_on_one_rank_matches_the_model() {
+        let (pts, _) = sphere(60);
+        let norm = Normalisation { centre: [0.1, 0.2, 0.3], scale: 2.0 };
+        let mut centres = vec![0.0; pts.len()];
+        for (c, p) in centres.chunks_exact_mut(3).zip(pts.chunks_exact(3)) {
+            norm.apply(p, c);
+        }
+        let weights: Vec<f64> = (0..60).map(|i| (i as f64 * 0.37).sin()).collect();
+        let kernel = crate::spline::Kernel::new(3, 2).unwrap();
+        let spline = Spline { kernel, centres, weights, poly: vec![0.1, 0.2, -0.3, 0.4], norm };
+        let carrier = Carrier::AutoBall.resolve(&[-1.0; 3], &[1.0; 3]);
+        let lattice = Lattice::new([-0.8; 3], [0.8; 3], 7);
+        let values = sample(&Solo, &lattice, &carrier, &spline);
+        for (i, v) in values.iter().enumerate() {
+            let q: Vec<f64> =
+                lattice.node(i).iter().zip(&norm.centre).map(|(x, c)| c + norm.scale * x).collect();
+            let want = carrier.eval(&q) - spline.eval(&q);
+            assert!((v - want).abs() < 1e-12 * want.abs().max(1.0), "node {i}: {v} vs {want}");
+        }
+    }
+}
