@@ -62,30 +62,54 @@ fn triangles(out: &std::process::Output) -> usize {
 }
 
 /// Data at 1e100 (carrier values near 1e200, whose squares overflow) and at 1e-100 are fitted as at
-/// 1: the residual and the check at the data are taken of exactly scaled values, and the surface
-/// has the same triangles, for both methods.
+/// 1: the residual and the check at the data are taken of exactly scaled values. The plain method's
+/// surface has exactly the same triangles at every scale, for both methods; the default
+/// off-surface fit decides where to add blob constraints by the sign of f at lattice nodes, which
+/// rounding can tip, so its triangle count is compared to within 5 %.
 #[test]
 fn large_and_small_scales_fit_like_unit_scale() {
-    for method in ["dense", "csrbf"] {
+    for (method, surface, tolerance) in [
+        ("dense", "carrier", 0.0),
+        ("csrbf", "carrier", 0.0),
+        ("dense", "auto", 0.05),
+        ("csrbf", "auto", 0.05),
+    ] {
         let mut counts = Vec::new();
         for scale in [1.0, 1e100, 1e-100] {
-            let dir = temp_dir(&format!("hardening-fit-{method}-{scale:e}"));
+            let dir = temp_dir(&format!("hardening-fit-{method}-{surface}-{scale:e}"));
             let input = dir.join("points.xyz");
             write_xyz(&input, &scaled_bunny(scale));
-            let out =
-                run(0, &["fit", s(&input), "--out", s(&dir.join("out")), "--grid", "16", "--method", method]);
-            assert!(out.status.success(), "{method} at {scale:e}: {}", text(&out));
+            let prefix = dir.join("out");
+            let args = [
+                "fit",
+                s(&input),
+                "--out",
+                s(&prefix),
+                "--grid",
+                "16",
+                "--method",
+                method,
+                "--surface",
+                surface,
+            ];
+            let out = run(0, &args);
+            let what = format!("{method} --surface {surface} at {scale:e}");
+            assert!(out.status.success(), "{what}: {}", text(&out));
             let t = text(&out);
             let residual: f64 = t
                 .lines()
                 .find_map(|l| l.split("|Mx - b|/|b| = ").nth(1))
                 .and_then(|v| v.trim().parse().ok())
                 .unwrap_or_else(|| panic!("no residual: {t}"));
-            assert!(residual < 1e-10, "{method} at {scale:e}: residual {residual}");
+            assert!(residual < 1e-10, "{what}: residual {residual}");
             assert!(!t.contains("rms inf") && !t.contains("NaN"), "{t}");
             counts.push(triangles(&out));
         }
-        assert!(counts[0] > 0 && counts.iter().all(|&c| c == counts[0]), "{method}: {counts:?}");
+        let c0 = counts[0] as f64;
+        assert!(
+            c0 > 0.0 && counts.iter().all(|&c| (c as f64 - c0).abs() <= tolerance * c0),
+            "{method} --surface {surface}: {counts:?}"
+        );
     }
 }
 
