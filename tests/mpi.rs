@@ -102,8 +102,11 @@ fn eval_reproduces_the_fit_grid_and_mesh_exactly() {
     let rec = std::fs::read_to_string(&csv).unwrap();
     let get = |k: &str| rec.lines().find_map(|l| l.strip_prefix(&format!("{k},"))).map(String::from);
     assert_eq!(get("ranks").as_deref(), Some("2"));
-    // 505 points, 202 off-surface points (the default 0.4 per point) and 4 polynomial terms
-    assert_eq!(get("system_size").as_deref(), Some("711"));
+    // 505 points, 202 off-surface points (the default 0.4 per point), the constraint points of the
+    // second fit against spurious blobs, and 4 polynomial terms
+    let blobs: usize = get("blob_points").unwrap().parse().unwrap();
+    assert!(blobs > 0 && blobs <= 505 / 4 + 64, "{blobs} blob points");
+    assert_eq!(get("system_size"), Some((711 + blobs).to_string()));
     assert_eq!(get("solver").as_deref(), Some("householder")); // auto, below 1000 rows
     assert!(get("residual").unwrap().parse::<f64>().unwrap() < 1e-10);
     assert!(get("stage_solve_max_s").unwrap().parse::<f64>().unwrap() > 0.0);
