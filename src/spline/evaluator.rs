@@ -36,6 +36,23 @@ pub struct Evaluator<'a> {
     compact: Option<CompactRows>,
 }
 
+/// The centres (x, y and z apart) and weights of a 3D spline, padded to whole lanes of `lanes`
+/// with zero weights at the origin, which add exactly 0.0 to every sum: the layout of the
+/// vectorised radial sums, here and in [`crate::spline::point_eval`].
+pub(crate) fn padded_lanes(spline: &Spline, lanes: usize) -> [Vec<f64>; 4] {
+    let n = spline.len();
+    let padded = n.div_ceil(lanes) * lanes;
+    let (mut cx, mut cy, mut cz, mut w) =
+        (vec![0.0; padded], vec![0.0; padded], vec![0.0; padded], vec![0.0; padded]);
+    for (i, p) in spline.centres.chunks_exact(3).enumerate() {
+        cx[i] = p[0];
+        cy[i] = p[1];
+        cz[i] = p[2];
+    }
+    w[..n].copy_from_slice(&spline.weights);
+    [cx, cy, cz, w]
+}
+
 impl<'a> Evaluator<'a> {
     pub fn new(spline: &'a Spline) -> Self {
         let k = spline.kernel;
@@ -45,19 +62,7 @@ impl<'a> Evaluator<'a> {
             (3, 3, None) => Some(Form::R3),
             _ => None,
         };
-        let n = spline.len();
-        // padded to whole lanes with zero weights at the origin: they add exactly 0.0
-        let padded = n.div_ceil(LANES) * LANES;
-        let (mut cx, mut cy, mut cz, mut w) =
-            (vec![0.0; padded], vec![0.0; padded], vec![0.0; padded], vec![0.0; padded]);
-        if form.is_some() {
-            for (i, p) in spline.centres.chunks_exact(3).enumerate() {
-                cx[i] = p[0];
-                cy[i] = p[1];
-                cz[i] = p[2];
-            }
-            w[..n].copy_from_slice(&spline.weights);
-        }
+        let [cx, cy, cz, w] = if form.is_some() { padded_lanes(spline, LANES) } else { Default::default() };
         Evaluator { spline, form, cx, cy, cz, w, compact }
     }
 

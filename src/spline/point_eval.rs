@@ -12,6 +12,7 @@
 use crate::spline::derivatives::{
     add_radial_term, carrier_jet, denormalise, polynomial_jet, spline_jet, Jet,
 };
+use crate::spline::evaluator::padded_lanes;
 use crate::spline::octree::{Octree, DEFAULT_LEAF_CAPACITY};
 use crate::spline::{Model, Spline};
 
@@ -48,19 +49,7 @@ impl Level {
         };
         let tree = (k.is_compact().is_some() && k.dim() == 3)
             .then(|| Octree::new(&spline.centres, DEFAULT_LEAF_CAPACITY));
-        let n = spline.len();
-        let padded = if form.is_some() { n.div_ceil(LANES) * LANES } else { 0 };
-        // padding: zero weights at the origin, which add exactly 0.0 to every sum
-        let (mut cx, mut cy, mut cz, mut w) =
-            (vec![0.0; padded], vec![0.0; padded], vec![0.0; padded], vec![0.0; padded]);
-        if form.is_some() {
-            for (i, p) in spline.centres.chunks_exact(3).enumerate() {
-                cx[i] = p[0];
-                cy[i] = p[1];
-                cz[i] = p[2];
-            }
-            w[..n].copy_from_slice(&spline.weights);
-        }
+        let [cx, cy, cz, w] = if form.is_some() { padded_lanes(spline, LANES) } else { Default::default() };
         Level { spline: spline.clone(), form, cx, cy, cz, w, tree }
     }
 
