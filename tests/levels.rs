@@ -10,41 +10,8 @@ use std::path::Path;
 
 use volspline::io::model_file::read_model;
 use volspline::io::vtkhdf::read_image;
-use volspline::mesh::{connected_components, point_mesh_distances, TriMesh};
+use volspline::mesh::{connected_components, point_mesh_distances};
 use volspline::spline::Model;
-
-/// `n` points uniform over the area of `mesh` (a triangle chosen with probability proportional
-/// to its area, then a uniform point in it), from a fixed linear congruential stream.
-fn surface_samples(mesh: &TriMesh, n: usize) -> Vec<f64> {
-    let mut s = 17u64;
-    let mut unit = || {
-        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (s >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let corner = |t: &[u32; 3], k: usize| mesh.vertices[t[k] as usize];
-    let mut cdf = Vec::with_capacity(mesh.triangles.len());
-    let mut total = 0.0;
-    for t in &mesh.triangles {
-        let (a, b, c) = (corner(t, 0), corner(t, 1), corner(t, 2));
-        let (u, v) = ([0, 1, 2].map(|d| b[d] - a[d]), [0, 1, 2].map(|d| c[d] - a[d]));
-        let x = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
-        total += 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
-        cdf.push(total);
-    }
-    (0..n)
-        .flat_map(|_| {
-            let pick = unit() * total;
-            let i = cdf.partition_point(|&c| c < pick).min(cdf.len() - 1);
-            let t = &mesh.triangles[i];
-            let (mut u, mut w) = (unit(), unit());
-            if u + w > 1.0 {
-                (u, w) = (1.0 - u, 1.0 - w);
-            }
-            let (a, b, c) = (corner(t, 0), corner(t, 1), corner(t, 2));
-            [0, 1, 2].map(|d| a[d] + u * (b[d] - a[d]) + w * (c[d] - a[d]))
-        })
-        .collect()
-}
 
 fn coefficients(s: &volspline::spline::Spline) -> Vec<f64> {
     [s.weights.clone(), s.poly.clone()].concat()
@@ -54,7 +21,7 @@ fn coefficients(s: &volspline::spline::Spline) -> Vec<f64> {
 fn two_levels_put_the_surface_on_the_bunny_on_one_and_two_ranks() {
     let dir = common::temp_dir("levels");
     let truth = common::load_mesh(Path::new(common::BUNNY));
-    let pts = surface_samples(&truth, 12_000);
+    let pts = common::area_samples(&truth, 12_000, 17);
     let input = dir.join("bunny12k.xyz");
     common::write_xyz(&input, &pts);
     let (lo, hi) = volspline::spline::hygiene::bounding_box(&pts, 3);

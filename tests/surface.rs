@@ -7,7 +7,7 @@ mod common;
 
 use std::path::Path;
 
-use common::solve_serial;
+use common::{area_samples, solve_serial, Rng};
 use volspline::io::model_file::read_model;
 use volspline::io::vtkhdf::read_image;
 use volspline::linalg::dist::SolverKind;
@@ -19,20 +19,6 @@ use volspline::spline::hygiene::prepare;
 use volspline::spline::{Carrier, Kernel, Model};
 use volspline::surface::blobs::{blob_values, find, sample, Lattice};
 use volspline::surface::{neighbourhoods, off_points, off_values, oriented};
-
-/// A small deterministic generator: uniform in [0, 1) and standard normal (Box-Muller).
-struct Rng(u64);
-
-impl Rng {
-    fn unit(&mut self) -> f64 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn normal(&mut self) -> f64 {
-        let (u, v) = (self.unit().max(1e-300), self.unit());
-        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-    }
-}
 
 /// `n` points of a surface given by `at(u, v)` for u, v uniform in [0, 1) (area-uniform for the
 /// parametrisations below), with Gaussian noise of `sigma` on every coordinate.
@@ -187,13 +173,7 @@ fn offsurface_fits_on_one_two_and_three_ranks_match_the_serial_oracle() {
         let dw = common::rel_diff(&model.spline.weights, &oracle.spline.weights);
         let dc = common::rel_diff(&model.spline.poly, &oracle.spline.poly);
         assert!(dw < 1e-9 && dc < 1e-9, "{ranks} ranks: weights {dw:e}, poly {dc:e}");
-        let (grid, values) = read_image(Path::new(&format!("{p}.hdf")), "f").unwrap();
-        let [nx, ny, nz] = grid.dims;
-        let expect: Vec<f64> = (0..nz)
-            .flat_map(|kk| (0..ny).flat_map(move |j| (0..nx).map(move |i| (i, j, kk))))
-            .map(|(i, j, kk)| oracle.eval(&grid.node(i, j, kk)))
-            .collect();
-        let dv = common::rel_diff(&values, &expect);
+        let dv = common::volume_diff(Path::new(&format!("{p}.hdf")), &oracle);
         assert!(dv < 1e-9, "{ranks} ranks: grid values differ by {dv:e}");
     }
 }
@@ -248,36 +228,6 @@ fn compactly_supported_fits_take_the_off_surface_points_at_level_zero_on_one_and
         let d = coef(a).iter().zip(&coef(b)).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / scale;
         assert!(d < 1e-8, "MUMPS on 2 ranks vs cholesky on 1: level {l}'s coefficients differ by {d:e}");
     }
-}
-
-/// `n` points uniform over the area of `mesh`'s triangles.
-fn area_samples(mesh: &volspline::mesh::TriMesh, n: usize, seed: u64) -> Vec<f64> {
-    let corner = |t: &[u32; 3], k: usize| mesh.vertices[t[k] as usize];
-    let area = |t: &[u32; 3]| {
-        let (a, b, c) = (corner(t, 0), corner(t, 1), corner(t, 2));
-        let (u, v) = ([0, 1, 2].map(|d| b[d] - a[d]), [0, 1, 2].map(|d| c[d] - a[d]));
-        let x = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
-        0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt()
-    };
-    let mut cumulative = Vec::with_capacity(mesh.triangles.len());
-    let mut total = 0.0;
-    for t in &mesh.triangles {
-        total += area(t);
-        cumulative.push(total);
-    }
-    let mut r = Rng(seed);
-    (0..n)
-        .flat_map(|_| {
-            let at = r.unit() * total;
-            let t = &mesh.triangles[cumulative.partition_point(|&c| c < at).min(mesh.triangles.len() - 1)];
-            let (mut s, mut q) = (r.unit(), r.unit());
-            if s + q > 1.0 {
-                (s, q) = (1.0 - s, 1.0 - q);
-            }
-            let (a, b, c) = (corner(t, 0), corner(t, 1), corner(t, 2));
-            [0, 1, 2].map(|d| a[d] + s * (b[d] - a[d]) + q * (c[d] - a[d]))
-        })
-        .collect()
 }
 
 /// The connected component of every vertex of `mesh` (by shared triangles).

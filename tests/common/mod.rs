@@ -190,3 +190,60 @@ pub fn assemble_one(
         volspline::linalg::dist::RowCyclic::new(n, 1, 0),
     )
 }
+
+/// A small deterministic generator: uniform in [0, 1) and standard normal (Box-Muller).
+pub struct Rng(pub u64);
+
+impl Rng {
+    pub fn unit(&mut self) -> f64 {
+        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+    pub fn normal(&mut self) -> f64 {
+        let (u, v) = (self.unit().max(1e-300), self.unit());
+        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    }
+}
+
+/// `n` points uniform over the area of `mesh`'s triangles (a triangle chosen with probability
+/// proportional to its area, then a uniform point in it), from the stream [`Rng`]`(seed)`.
+pub fn area_samples(mesh: &volspline::mesh::TriMesh, n: usize, seed: u64) -> Vec<f64> {
+    let corner = |t: &[u32; 3], k: usize| mesh.vertices[t[k] as usize];
+    let area = |t: &[u32; 3]| {
+        let (a, b, c) = (corner(t, 0), corner(t, 1), corner(t, 2));
+        let (u, v) = ([0, 1, 2].map(|d| b[d] - a[d]), [0, 1, 2].map(|d| c[d] - a[d]));
+        let x = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+        0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt()
+    };
+    let mut cumulative = Vec::with_capacity(mesh.triangles.len());
+    let mut total = 0.0;
+    for t in &mesh.triangles {
+        total += area(t);
+        cumulative.push(total);
+    }
+    let mut r = Rng(seed);
+    (0..n)
+        .flat_map(|_| {
+            let at = r.unit() * total;
+            let t = &mesh.triangles[cumulative.partition_point(|&c| c < at).min(mesh.triangles.len() - 1)];
+            let (mut s, mut q) = (r.unit(), r.unit());
+            if s + q > 1.0 {
+                (s, q) = (1.0 - s, 1.0 - q);
+            }
+            let (a, b, c) = (corner(t, 0), corner(t, 1), corner(t, 2));
+            [0, 1, 2].map(|d| a[d] + s * (b[d] - a[d]) + q * (c[d] - a[d]))
+        })
+        .collect()
+}
+
+/// The relative difference ([`rel_diff`]) between the volume `f` of the VTKHDF file `hdf` and
+/// `model` evaluated at its grid nodes one by one.
+pub fn volume_diff(hdf: &Path, model: &volspline::spline::Model) -> f64 {
+    let (grid, values) = volspline::io::vtkhdf::read_image(hdf, "f").unwrap();
+    let [nx, ny, nz] = grid.dims;
+    let expect: Vec<f64> = (0..nz)
+        .flat_map(|kk| (0..ny).flat_map(move |j| (0..nx).map(move |i| (i, j, kk))))
+        .map(|(i, j, kk)| model.eval(&grid.node(i, j, kk)))
+        .collect();
+    rel_diff(&values, &expect)
+}
