@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use crate::frep::raycast::{Axis, Colouring};
 use crate::frep::Syntax;
 use crate::grid::{parse_bounds, GridSize};
-use crate::linalg::dist::{Precision, SolverKind};
+use crate::linalg::dist::{Layout, Precision, SolverKind};
 use crate::spline::{Carrier, Kernel};
 
 /// volspline: reconstruct solids from scattered surface points as a volume spline f(x,y,z) with
@@ -104,6 +104,12 @@ pub struct FitArgs {
     /// one node the look-ahead has not measured faster).
     #[arg(long, default_value = "off", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub lookahead: bool,
+    /// Distribution of the dense system over the ranks: row-cyclic (global row g on rank
+    /// g mod p; every solver), 2d (nb x nb blocks on the squarest process grid, as ScaLAPACK
+    /// deals them; LU only, f64 only) or an explicit process grid PRxPC whose product is the
+    /// rank count. 2D moves less data per rank from about 64 ranks on.
+    #[arg(long, default_value = "row-cyclic", value_name = "row-cyclic|2d|PRxPC", value_parser = with(Layout::parse))]
+    pub layout: Layout,
     /// Points closer than this fraction of the bounding-box diagonal are merged into one.
     #[arg(long, allow_hyphen_values = true, default_value = "1e-6", value_name = "F", value_parser = merge_tol)]
     pub merge_tol: f64,

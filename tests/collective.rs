@@ -1,5 +1,6 @@
 //! Library code that communicates, run on 2 and 3 MPI ranks against serial oracles: the typed
 //! collectives, the agreement on errors, the distributed solvers and the Cholesky -> LU fallback,
+//! the LU on every 2D process grid of the ranks (also on 1 and 4 ranks, that check alone),
 //! the mixed-precision solve and its fallback to f64,
 //! the parallel VTKHDF writer, and the per-slice fits of `contours`.
 //!
@@ -17,7 +18,7 @@ use std::time::Duration;
 
 use faer::{Mat, MatRef};
 use volspline::app::contours::solve_sections;
-use volspline::app::fit::assemble;
+use volspline::app::fit::{assemble, assemble_blocks};
 use volspline::contour::planes::{slice_mesh, PlaneFamily};
 use volspline::contour::SectionCarrier;
 use volspline::error::{Error, Result};
@@ -33,6 +34,8 @@ use volspline::spline::{full_system, system_size, Carrier, Kernel};
 use common::mpijob::{self, must, same_on_every_rank, Case, Check, Expect, Log};
 
 const BREAK: &str = "VOLSPLINE_COLLECTIVE_BREAK";
+/// Set: the job runs only the check of the 2D block-cyclic LU (on 1 and 4 ranks).
+const ONLY_LU2D: &str = "VOLSPLINE_COLLECTIVE_ONLY_LU2D";
 const HANG: &str = "VOLSPLINE_COLLECTIVE_HANG";
 
 fn main() {
@@ -40,6 +43,8 @@ fn main() {
     let cases = vec![
         Case { name: "collective_checks_on_2_ranks", ranks: 2, env: &[], expect: Expect::Pass, limit },
         Case { name: "collective_checks_on_3_ranks", ranks: 3, env: &[], expect: Expect::Pass, limit },
+        Case { name: "lu2d_on_1_rank", ranks: 1, env: &[(ONLY_LU2D, "1")], expect: Expect::Pass, limit },
+        Case { name: "lu2d_on_4_ranks", ranks: 4, env: &[(ONLY_LU2D, "1")], expect: Expect::Pass, limit },
         Case {
             name: "harness_a_wrong_value_fails_the_job",
             ranks: 2,
@@ -74,12 +79,19 @@ fn child() {
         }
         comm.barrier();
     }
-    let checks: [(&str, Check); 12] = [
+    if std::env::var_os(ONLY_LU2D).is_some() {
+        let failed =
+            mpijob::run_checks(comm, &[("2D block-cyclic LU vs the dense oracle", lu2d_matches_the_oracle)]);
+        drop(world);
+        std::process::exit(i32::from(failed > 0));
+    }
+    let checks: [(&str, Check); 13] = [
         ("typed collectives", typed_collectives),
         ("agree: one failing rank", agree_one_failing_rank),
         ("agree: two failing ranks, the lowest wins", agree_lowest_rank_wins),
         ("distributed solvers vs dense oracles", solvers_match_the_oracles),
         ("LU with and without look-ahead vs the dense oracle", lookahead_matches_the_oracle),
+        ("2D block-cyclic LU vs the dense oracle", lu2d_matches_the_oracle),
         ("Cholesky -> LU fallback, 4 points", fallback_on_four_points),
         ("Cholesky -> LU fallback, indefinite block", fallback_on_an_indefinite_block),
         ("mixed precision vs the dense LU oracle", mixed_matches_the_oracle),
@@ -278,6 +290,45 @@ fn lookahead_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
             let (x, r) = must(dist::mixed_solve(&job, &rows, SolverKind::Lu), "mixed lu");
             log.check(r.converged, || format!("{what}: mixed refinement {}", r.describe()));
             log.close(&x, &want, 1e-7, || format!("{what} (f32 factors)"));
+        }
+    }
+}
+
+/// The LU on the 2D block-cyclic layout, on every process grid of the job's ranks and several
+/// block sizes (1: a panel per column; 7 and 16: blocks ending inside the polynomial border;
+/// 64: fewer blocks than ranks in a grid dimension near the end), against the dense LU oracle on
+/// about 1000 rows; a system with a repeated centre is singular on every rank alike.
+fn lu2d_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
+    let k = Kernel::new(3, 2).unwrap();
+    let prep =
+        must(prepare(&common::bunny_subset(5, 2), &k, &Carrier::AutoBall, 1e-6), "prepare the bunny points");
+    let want = oracle(&prep, &k, lu_solve);
+    let p = comm.size();
+    let shapes: Vec<(usize, usize)> = (1..=p).filter(|pr| p % pr == 0).map(|pr| (pr, p / pr)).collect();
+    // the same centres with the first one repeated at the end: two equal rows
+    let mut centres = prep.centres.clone();
+    centres.extend_from_slice(&prep.centres[..3]);
+    let mut values = prep.values.clone();
+    values.push(prep.values[0]);
+    for &shape in &shapes {
+        let grid = must(dist::ProcessGrid::new(comm, shape), "the process grid");
+        for nb in [1, 7, 16, 64] {
+            let what = format!("lu2d {}x{} block {nb} n {}", shape.0, shape.1, want.len());
+            let mut a = assemble_blocks(&k, &prep.centres, &prep.values, &grid, nb);
+            let x = must(dist::lu2d_solve(&Job::on(comm), &grid, &mut a), &what);
+            log.close(&x, &want, 1e-9, || what.clone());
+            same_on_every_rank(comm, log, &x, &what);
+        }
+        let mut a = assemble_blocks(&k, &centres, &values, &grid, 16);
+        let what = format!("lu2d {}x{} repeated centre", shape.0, shape.1);
+        match dist::lu2d_solve(&Job::on(comm), &grid, &mut a) {
+            Ok(_) => log.check(false, || format!("{what}: solved a singular system")),
+            Err(e) => {
+                let msg = e.to_string();
+                log.check(msg.contains("singular"), || format!("{what}: {msg}"));
+                let bytes: Vec<f64> = msg.bytes().map(f64::from).collect();
+                same_on_every_rank(comm, log, &bytes, &format!("{what}: the error"));
+            }
         }
     }
 }

@@ -86,6 +86,10 @@ pub trait Comm {
         work();
         self.all_gather_f32(send, counts, recv);
     }
+    /// The ranks with the same `color` as a communicator of their own, ordered by `key` (ties by
+    /// rank here), as MPI_Comm_split makes them: the rows and columns of a 2D process grid.
+    /// Collective over all ranks of `self`.
+    fn split(&self, color: usize, key: usize) -> Box<dyn Comm + '_>;
     /// The communicator handle for collective file access (MPI-IO), where there is one.
     fn raw(&self) -> Option<RawComm> {
         None

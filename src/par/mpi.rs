@@ -6,7 +6,7 @@ use mpi::collective::SystemOperation;
 use mpi::datatype::PartitionMut;
 use mpi::environment::Universe;
 use mpi::raw::AsRaw;
-use mpi::topology::SimpleCommunicator;
+use mpi::topology::{Color, SimpleCommunicator};
 use mpi::traits::*;
 use mpi::Count;
 
@@ -221,6 +221,13 @@ impl Comm for MpiComm {
         work: &mut dyn FnMut() -> bool,
     ) {
         self.all_gather_while(send, counts, recv, work);
+    }
+    fn split(&self, color: usize, key: usize) -> Box<dyn Comm + '_> {
+        let sub = self
+            .comm
+            .split_by_color_with_key(Color::with_value(color as i32), key as i32)
+            .expect("every rank passes a defined colour");
+        Box::new(MpiComm::new(sub))
     }
     fn raw(&self) -> Option<RawComm> {
         Some(self.comm.as_raw())

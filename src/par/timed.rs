@@ -4,6 +4,7 @@
 //! figure is what the overlap failed to hide.
 
 use std::cell::Cell;
+use std::rc::Rc;
 use std::time::Instant;
 
 use super::{Comm, RawComm};
@@ -47,36 +48,55 @@ fn gather_kind(len: usize) -> CallKind {
 }
 
 /// `inner` with a stopwatch around every call. Not thread-safe (MPI is called from one thread).
+/// The communicators split from it ([`Comm::split`]) are timed too, into the same counters, so
+/// the figures of a solver on a 2D process grid include its row and column communicators.
 pub struct Timed<'a> {
-    inner: &'a dyn Comm,
+    inner: Inner<'a>,
+    counters: Rc<Counters>,
+}
+
+#[derive(Default)]
+struct Counters {
     seconds: [Cell<f64>; 4],
     calls: Cell<u64>,
 }
 
+enum Inner<'a> {
+    Borrowed(&'a dyn Comm),
+    Split(Box<dyn Comm + 'a>),
+}
+
 impl<'a> Timed<'a> {
     pub fn new(inner: &'a dyn Comm) -> Self {
-        Timed { inner, seconds: Default::default(), calls: Cell::new(0) }
+        Timed { inner: Inner::Borrowed(inner), counters: Rc::default() }
+    }
+
+    fn comm(&self) -> &dyn Comm {
+        match &self.inner {
+            Inner::Borrowed(c) => *c,
+            Inner::Split(c) => c.as_ref(),
+        }
     }
 
     /// Seconds spent in communication calls so far on this rank.
     pub fn seconds(&self) -> f64 {
-        self.seconds.iter().map(Cell::get).sum()
+        self.counters.seconds.iter().map(Cell::get).sum()
     }
 
     /// Seconds spent in calls of `kind` so far on this rank.
     pub fn seconds_in(&self, kind: CallKind) -> f64 {
-        self.seconds[kind as usize].get()
+        self.counters.seconds[kind as usize].get()
     }
 
     /// Communication calls so far on this rank.
     pub fn calls(&self) -> u64 {
-        self.calls.get()
+        self.counters.calls.get()
     }
 
     fn add(&self, kind: CallKind, seconds: f64) {
-        let c = &self.seconds[kind as usize];
+        let c = &self.counters.seconds[kind as usize];
         c.set(c.get() + seconds);
-        self.calls.set(self.calls.get() + 1);
+        self.counters.calls.set(self.counters.calls.get() + 1);
     }
 
     fn timed<R>(&self, kind: CallKind, f: impl FnOnce() -> R) -> R {
@@ -108,46 +128,46 @@ impl<'a> Timed<'a> {
 
 impl Comm for Timed<'_> {
     fn rank(&self) -> usize {
-        self.inner.rank()
+        self.comm().rank()
     }
     fn size(&self) -> usize {
-        self.inner.size()
+        self.comm().size()
     }
     fn barrier(&self) {
-        self.timed(CallKind::Reduce, || self.inner.barrier())
+        self.timed(CallKind::Reduce, || self.comm().barrier())
     }
     fn sum_f64(&self, buf: &mut [f64]) {
-        self.timed(CallKind::Reduce, || self.inner.sum_f64(buf))
+        self.timed(CallKind::Reduce, || self.comm().sum_f64(buf))
     }
     fn max_f64(&self, buf: &mut [f64]) {
-        self.timed(CallKind::Reduce, || self.inner.max_f64(buf))
+        self.timed(CallKind::Reduce, || self.comm().max_f64(buf))
     }
     fn min_f64(&self, buf: &mut [f64]) {
-        self.timed(CallKind::Reduce, || self.inner.min_f64(buf))
+        self.timed(CallKind::Reduce, || self.comm().min_f64(buf))
     }
     fn sum_u64(&self, buf: &mut [u64]) {
-        self.timed(CallKind::Reduce, || self.inner.sum_u64(buf))
+        self.timed(CallKind::Reduce, || self.comm().sum_u64(buf))
     }
     fn broadcast_f64(&self, root: usize, buf: &mut [f64]) {
-        self.timed(CallKind::Reduce, || self.inner.broadcast_f64(root, buf))
+        self.timed(CallKind::Reduce, || self.comm().broadcast_f64(root, buf))
     }
     fn broadcast_bytes(&self, root: usize, buf: &mut Vec<u8>) {
-        self.timed(CallKind::Reduce, || self.inner.broadcast_bytes(root, buf))
+        self.timed(CallKind::Reduce, || self.comm().broadcast_bytes(root, buf))
     }
     fn all_gather_f64(&self, send: &[f64], counts: &[usize], recv: &mut [f64]) {
-        self.timed(gather_kind(recv.len()), || self.inner.all_gather_f64(send, counts, recv))
+        self.timed(gather_kind(recv.len()), || self.comm().all_gather_f64(send, counts, recv))
     }
     fn gather_bytes(&self, root: usize, send: &[u8]) -> Option<Vec<Vec<u8>>> {
-        self.timed(CallKind::Reduce, || self.inner.gather_bytes(root, send))
+        self.timed(CallKind::Reduce, || self.comm().gather_bytes(root, send))
     }
     fn shift_f64(&self, dest: usize, source: usize, send: &[f64], recv: &mut [f64]) {
-        self.timed(CallKind::Shift, || self.inner.shift_f64(dest, source, send, recv))
+        self.timed(CallKind::Shift, || self.comm().shift_f64(dest, source, send, recv))
     }
     fn all_gather_f32(&self, send: &[f32], counts: &[usize], recv: &mut [f32]) {
-        self.timed(gather_kind(recv.len()), || self.inner.all_gather_f32(send, counts, recv))
+        self.timed(gather_kind(recv.len()), || self.comm().all_gather_f32(send, counts, recv))
     }
     fn shift_f32(&self, dest: usize, source: usize, send: &[f32], recv: &mut [f32]) {
-        self.timed(CallKind::Shift, || self.inner.shift_f32(dest, source, send, recv))
+        self.timed(CallKind::Shift, || self.comm().shift_f32(dest, source, send, recv))
     }
     fn all_gather_f64_while(
         &self,
@@ -157,7 +177,7 @@ impl Comm for Timed<'_> {
         work: &mut dyn FnMut() -> bool,
     ) {
         let kind = gather_kind(recv.len());
-        self.overlapped(kind, |w| self.inner.all_gather_f64_while(send, counts, recv, w), work)
+        self.overlapped(kind, |w| self.comm().all_gather_f64_while(send, counts, recv, w), work)
     }
     fn all_gather_f32_while(
         &self,
@@ -167,13 +187,17 @@ impl Comm for Timed<'_> {
         work: &mut dyn FnMut() -> bool,
     ) {
         let kind = gather_kind(recv.len());
-        self.overlapped(kind, |w| self.inner.all_gather_f32_while(send, counts, recv, w), work)
+        self.overlapped(kind, |w| self.comm().all_gather_f32_while(send, counts, recv, w), work)
+    }
+    fn split(&self, color: usize, key: usize) -> Box<dyn Comm + '_> {
+        let sub = self.timed(CallKind::Reduce, || self.comm().split(color, key));
+        Box::new(Timed { inner: Inner::Split(sub), counters: Rc::clone(&self.counters) })
     }
     fn raw(&self) -> Option<RawComm> {
-        self.inner.raw()
+        self.comm().raw()
     }
     fn fortran_handle(&self) -> Option<i32> {
-        self.inner.fortran_handle()
+        self.comm().fortran_handle()
     }
 }
 

@@ -177,20 +177,36 @@ pub fn system_size(kernel: &Kernel, n_centres: usize) -> usize {
 /// `rows.len()` and N + k + 1 columns (the right-hand side last). Rows are independent: each costs
 /// N kernel evaluations, so any distribution of the rows over ranks can be assembled in place.
 pub fn fill_rows(kernel: &Kernel, centres: &[f64], values: &[f64], rows: &[usize], out: &mut [f64]) {
+    let cols: Vec<usize> = (0..values.len() + kernel.poly_count() + 1).collect();
+    fill_block(kernel, centres, values, rows, &cols, out);
+}
+
+/// Fills the entries (rows x cols, global indices, column N + k the right-hand side) of
+/// [A P; P^T 0 | r 0] into `out`, column-major with leading dimension `rows.len()`: the blocks a
+/// rank of a 2D process grid owns, or whole rows ([`fill_rows`]). Every entry is the same function
+/// of its indices whatever the distribution, so all layouts assemble the same matrix bit for bit.
+pub fn fill_block(
+    kernel: &Kernel,
+    centres: &[f64],
+    values: &[f64],
+    rows: &[usize],
+    cols: &[usize],
+    out: &mut [f64],
+) {
     // one dispatch on the kind of kernel for the whole fill, not one per entry
     match kernel.wendland_part() {
-        Some(w) => fill_rows_with(kernel, move |r2| w.eval_r2(r2), centres, values, rows, out),
-        None => fill_rows_with(kernel, |r2| kernel.green_r2(r2), centres, values, rows, out),
+        Some(w) => fill_with(kernel, move |r2| w.eval_r2(r2), centres, values, (rows, cols), out),
+        None => fill_with(kernel, |r2| kernel.green_r2(r2), centres, values, (rows, cols), out),
     }
 }
 
-/// [`fill_rows`] with the radial function `radial` (which is `kernel.eval_r2`).
-fn fill_rows_with(
+/// [`fill_block`] with the radial function `radial` (which is `kernel.eval_r2`).
+fn fill_with(
     kernel: &Kernel,
     radial: impl Fn(f64) -> f64 + Sync,
     centres: &[f64],
     values: &[f64],
-    rows: &[usize],
+    (rows, cols): (&[usize], &[usize]),
     out: &mut [f64],
 ) {
     let dim = kernel.dim();
@@ -198,13 +214,14 @@ fn fill_rows_with(
     let k = kernel.poly_count();
     let lc = rows.len();
     assert_eq!(centres.len(), n * dim);
-    assert_eq!(out.len(), lc * (n + k + 1));
+    assert_eq!(out.len(), lc * cols.len());
+    assert!(cols.iter().all(|&j| j <= n + k), "column index beyond the right-hand side");
     if lc == 0 {
         return;
     }
     let monomials = kernel.monomials();
     // column j is filled for all the rows at once: one parallel task per column
-    out.par_chunks_mut(lc).enumerate().for_each(|(j, col)| {
+    out.par_chunks_mut(lc).zip(cols).for_each(|(col, &j)| {
         if j < n {
             let pj = &centres[j * dim..(j + 1) * dim];
             for (v, &g) in col.iter_mut().zip(rows) {

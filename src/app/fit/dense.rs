@@ -8,11 +8,15 @@ use super::{Fitted, Run};
 use crate::app::preflight::{check_memory, dense_fit_bytes};
 use crate::app::progress::Progress;
 use crate::app::stages::{Stage, Stages};
+use crate::cli::FitArgs;
+use crate::error::Error;
 use crate::error::Result;
-use crate::linalg::dist::{self, Job, LocalRows, Precision, RowCyclic, SolverKind};
+use crate::linalg::dist::{
+    self, Job, Layout, LocalBlocks, LocalRows, Precision, ProcessGrid, RowCyclic, SolverKind,
+};
 use crate::par::{CallKind, Comm, Timed};
 use crate::spline::hygiene::Prepared;
-use crate::spline::{fill_rows, residual_parts, Kernel, Spline};
+use crate::spline::{fill_block, fill_rows, residual_parts, Kernel, Spline};
 
 /// This rank's rows of the bordered system of `kernel` through `values` at `centres`.
 pub fn assemble(kernel: &Kernel, centres: &[f64], values: &[f64], layout: RowCyclic) -> LocalRows {
@@ -21,6 +25,46 @@ pub fn assemble(kernel: &Kernel, centres: &[f64], values: &[f64], layout: RowCyc
     let globals: Vec<usize> = (0..layout.local_count()).map(|l| layout.global(l)).collect();
     fill_rows(kernel, centres, values, &globals, &mut rows.data);
     rows
+}
+
+/// This rank's blocks of the bordered system of `kernel` on a process grid, in nb x nb blocks.
+pub fn assemble_blocks(
+    kernel: &Kernel,
+    centres: &[f64],
+    values: &[f64],
+    grid: &ProcessGrid<'_>,
+    nb: usize,
+) -> LocalBlocks {
+    let n = values.len() + kernel.poly_count();
+    let mut a = LocalBlocks::zeros(grid, n, nb);
+    fill_block(kernel, centres, values, &a.rows.globals(), &a.cols.globals(), &mut a.data);
+    a
+}
+
+/// Refuses, before any work, a `--layout` the rest of the arguments or the rank count cannot
+/// use: the 2D block-cyclic layout has the LU solver in f64 only, and its grid must cover the
+/// ranks exactly.
+pub fn check_layout(a: &FitArgs, ranks: usize) -> Result<()> {
+    let Some((pr, pc)) = a.layout.shape(ranks) else { return Ok(()) };
+    if !matches!(a.solver, SolverKind::Lu | SolverKind::Auto) {
+        return Err(Error::Usage(format!(
+            "--layout {} factors by LU only: use --solver lu (or auto), or --layout row-cyclic for {}",
+            a.layout.name(ranks),
+            a.solver.name()
+        )));
+    }
+    if a.precision != Precision::F64 {
+        return Err(Error::Usage(
+            "--precision mixed runs on the row-cyclic layout only: use --layout row-cyclic".into(),
+        ));
+    }
+    if pr * pc != ranks {
+        return Err(Error::Usage(format!(
+            "--layout {pr}x{pc} needs {} ranks, the job has {ranks} (or use --layout 2d for the squarest grid)",
+            pr * pc
+        )));
+    }
+    Ok(())
 }
 
 /// Refuses a dense system that does not fit in the ranks' memory. Collective.
@@ -39,15 +83,38 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
     let Run { args: a, comm, threads } = *run;
     let (centres, values) = (&prep.centres, &prep.values);
     let layout = RowCyclic::new(values.len() + kernel.poly_count(), comm.size(), comm.rank());
-    let rows = stages.time(Stage::Assemble, || assemble(&kernel, centres, values, layout));
     let progress = Progress::new("solve", comm);
     let timed = Timed::new(comm);
-    let solved = stages.time(Stage::Solve, || {
-        let report = |d, t| progress.update(d, t);
-        let job =
-            Job::on(&timed).panel(a.panel).par(Par::rayon(threads)).progress(&report).lookahead(a.lookahead);
-        dist::solve_in(&job, a.solver, a.precision, rows, || assemble(&kernel, centres, values, layout))
-    });
+    let report = |d, t| progress.update(d, t);
+    let job =
+        Job::on(&timed).panel(a.panel).par(Par::rayon(threads)).progress(&report).lookahead(a.lookahead);
+    let solved = match a.layout {
+        Layout::RowCyclic => {
+            let rows = stages.time(Stage::Assemble, || assemble(&kernel, centres, values, layout));
+            stages.time(Stage::Solve, || {
+                dist::solve_in(&job, a.solver, a.precision, rows, || {
+                    assemble(&kernel, centres, values, layout)
+                })
+            })
+        }
+        Layout::BlockCyclic(_) => {
+            let shape = a.layout.shape(comm.size()).expect("a 2D layout has a grid");
+            let grid = ProcessGrid::new(&timed, shape)?;
+            let nb = if a.panel > 0 { a.panel } else { dist::DEFAULT_BLOCK };
+            let mut blocks =
+                stages.time(Stage::Assemble, || assemble_blocks(&kernel, centres, values, &grid, nb));
+            stages.time(Stage::Solve, || {
+                dist::lu2d_solve(&job, &grid, &mut blocks).map(|x| dist::Solved {
+                    x,
+                    used: SolverKind::Lu,
+                    panel: nb,
+                    fallback: None,
+                    refinement: None,
+                    mixed_fallback: None,
+                })
+            })
+        }
+    };
     stages.add(Stage::CommWait, timed.seconds());
     let calls = timed.calls();
     // the slowest rank's wait in each kind of call
@@ -75,7 +142,8 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
     let precision =
         if mixed { format!("mixed (f32 {}, f64 refinement)", solved.used.name()) } else { "f64".into() };
     let lu = solved.used == SolverKind::Lu;
-    let lookahead = if !lu {
+    let two_d = a.layout != Layout::RowCyclic;
+    let lookahead = if !lu || two_d {
         ""
     } else if a.lookahead {
         ", look-ahead on"
@@ -83,8 +151,9 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
         ", look-ahead off"
     };
     let mut line = format!(
-        "solver {} (dense, row-cyclic), panel {}{lookahead}, precision {precision}",
+        "solver {} (dense, {}), panel {}{lookahead}, precision {precision}",
         solved.used.name(),
+        a.layout.name(comm.size()),
         solved.panel
     );
     let kinds: Vec<String> =
@@ -110,7 +179,8 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
         figures: [
             ("solver".into(), solved.used.name().into()),
             ("panel".into(), solved.panel.to_string()),
-            ("lookahead".into(), (lu && a.lookahead).to_string()),
+            ("lookahead".into(), (lu && !two_d && a.lookahead).to_string()),
+            ("layout".into(), a.layout.name(comm.size())),
             ("comm_calls".into(), calls.to_string()),
             ("system_size".into(), layout.n.to_string()),
             ("precision".into(), if mixed { "mixed" } else { "f64" }.into()),

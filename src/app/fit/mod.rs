@@ -30,7 +30,7 @@ use crate::spline::hygiene::{prepare, Prepared};
 use crate::spline::system::power_of_two_below_inverse;
 use crate::spline::{Evaluator, Kernel, Model, Provenance, Spline};
 
-pub use dense::assemble;
+pub use dense::{assemble, assemble_blocks};
 
 /// What every method is given: the command's arguments, the ranks and the threads per rank.
 #[derive(Clone, Copy)]
@@ -119,6 +119,7 @@ fn choose(a: &FitArgs, n: usize, ranks: usize, centres: &[f64]) -> Result<(Metho
 /// Runs `volspline fit`. Collective.
 pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
+    dense::check_layout(a, comm.size())?;
     check_prefix(comm, &a.out)?;
     let raw = stages.time(Stage::Read, || read_points_everywhere(comm, &a.input))?;
     let points_read = raw.len() / 3;

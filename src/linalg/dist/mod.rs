@@ -13,9 +13,11 @@
 
 mod backsub;
 mod cholesky;
+mod grid;
 mod householder;
 mod layout;
 mod lu;
+mod lu2d;
 mod mixed;
 mod mixed_cholesky;
 mod refine;
@@ -24,9 +26,11 @@ mod solver;
 mod system;
 
 pub use cholesky::cholesky_solve;
+pub use grid::{squarest, BlockCyclic, Layout, LocalBlocks, ProcessGrid};
 pub use householder::householder_solve;
 pub use layout::RowCyclic;
 pub use lu::{lu_factor, lu_solve};
+pub use lu2d::{lu2d_factor, lu2d_solve, DEFAULT_BLOCK};
 pub use refine::{mixed_solve, Refinement};
 pub use scalar::Scalar;
 pub use solver::{solve, solve_in, Job, Precision, Solved, SolverKind, AUTO_CHOLESKY_FROM, LOOKAHEAD};

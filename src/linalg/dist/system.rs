@@ -153,59 +153,83 @@ impl<T: Scalar> LocalRows<T> {
     /// them) to columns c0..c1 at once: the net permutation moves each affected row once, local
     /// rows column by column, remote rows in one message per pair of ranks. Collective.
     pub fn permute_rows(&mut self, comm: &dyn Comm, swaps: &[(usize, usize)], c0: usize, c1: usize) {
-        if c0 >= c1 || swaps.is_empty() {
-            return;
-        }
-        // net permutation: new content of row g is the old row src[g]
-        let mut src: std::collections::BTreeMap<usize, usize> = std::collections::BTreeMap::new();
-        for &(a, b) in swaps {
-            let sa = *src.get(&a).unwrap_or(&a);
-            let sb = *src.get(&b).unwrap_or(&b);
-            src.insert(a, sb);
-            src.insert(b, sa);
-        }
-        let moves: Vec<(usize, usize)> = src.into_iter().filter(|(d, s)| d != s).collect();
         let lay = self.layout;
-        let (me, p) = (lay.rank, lay.ranks);
         let ld = self.ld();
-        let w = c1 - c0;
-        // read every source first (rows may be both source and destination), column by column
-        let pack = |data: &[T], list: &[(usize, usize)]| -> Vec<T> {
-            let mut buf = vec![T::of(0.0); list.len() * w];
-            for c in c0..c1 {
-                for (t, &(_, s)) in list.iter().enumerate() {
-                    buf[(c - c0) * list.len() + t] = data[lay.local(s) + c * ld];
-                }
+        let rows = RowMap { owner: &|g| lay.owner(g), local: &|g| lay.local(g) };
+        permute_local_rows(comm, &rows, swaps, &mut self.data, ld, c0..c1);
+    }
+}
+
+/// Where the global rows of a distributed matrix live: the rank (of the communicator the rows are
+/// exchanged over) owning global row g, and its local index there.
+pub(crate) struct RowMap<'a> {
+    pub owner: &'a dyn Fn(usize) -> usize,
+    pub local: &'a dyn Fn(usize) -> usize,
+}
+
+/// Applies the row interchanges `swaps` (in order) to the local columns `cols` of a column-major
+/// local matrix (leading dimension `ld`) whose rows are distributed over `comm` as `rows` says:
+/// the net permutation moves each affected row once, one message per pair of ranks (always sent,
+/// possibly empty, so every rank takes part in every step). Collective over `comm`.
+pub(crate) fn permute_local_rows<T: Scalar>(
+    comm: &dyn Comm,
+    rows: &RowMap<'_>,
+    swaps: &[(usize, usize)],
+    data: &mut [T],
+    ld: usize,
+    cols: Range<usize>,
+) {
+    let (c0, c1) = (cols.start, cols.end);
+    if c0 >= c1 || swaps.is_empty() {
+        return;
+    }
+    // net permutation: new content of row g is the old row src[g]
+    let mut src: std::collections::BTreeMap<usize, usize> = std::collections::BTreeMap::new();
+    for &(a, b) in swaps {
+        let sa = *src.get(&a).unwrap_or(&a);
+        let sb = *src.get(&b).unwrap_or(&b);
+        src.insert(a, sb);
+        src.insert(b, sa);
+    }
+    let moves: Vec<(usize, usize)> = src.into_iter().filter(|(d, s)| d != s).collect();
+    let (me, p) = (comm.rank(), comm.size());
+    let (owner, local) = (rows.owner, rows.local);
+    let w = c1 - c0;
+    // read every source first (rows may be both source and destination), column by column
+    let pack = |data: &[T], list: &[(usize, usize)]| -> Vec<T> {
+        let mut buf = vec![T::of(0.0); list.len() * w];
+        for c in c0..c1 {
+            for (t, &(_, s)) in list.iter().enumerate() {
+                buf[(c - c0) * list.len() + t] = data[local(s) + c * ld];
             }
-            buf
-        };
-        let to = |r: usize| -> Vec<(usize, usize)> {
-            moves.iter().copied().filter(|&(d, s)| lay.owner(s) == me && lay.owner(d) == r).collect()
-        };
-        let from = |r: usize| -> Vec<(usize, usize)> {
-            moves.iter().copied().filter(|&(d, s)| lay.owner(d) == me && lay.owner(s) == r).collect()
-        };
-        let local_moves = to(me);
-        let local_buf = pack(&self.data, &local_moves);
-        // (moves received, their values column-major)
-        type Batch<T> = (Vec<(usize, usize)>, Vec<T>);
-        let mut incoming: Vec<Batch<T>> = Vec::new();
-        for step in 1..p {
-            let (dest, source) = ((me + step) % p, (me + p - step) % p);
-            let out = to(dest);
-            let inn = from(source);
-            let send = pack(&self.data, &out);
-            let mut recv = vec![T::of(0.0); inn.len() * w];
-            // always sent, even empty: the partner's receive is posted regardless
-            T::shift(comm, dest, source, &send, &mut recv);
-            incoming.push((inn, recv));
         }
-        incoming.push((local_moves, local_buf));
-        for (list, buf) in incoming {
-            for c in c0..c1 {
-                for (t, &(d, _)) in list.iter().enumerate() {
-                    self.data[lay.local(d) + c * ld] = buf[(c - c0) * list.len() + t];
-                }
+        buf
+    };
+    let to = |r: usize| -> Vec<(usize, usize)> {
+        moves.iter().copied().filter(|&(d, s)| owner(s) == me && owner(d) == r).collect()
+    };
+    let from = |r: usize| -> Vec<(usize, usize)> {
+        moves.iter().copied().filter(|&(d, s)| owner(d) == me && owner(s) == r).collect()
+    };
+    let local_moves = to(me);
+    let local_buf = pack(data, &local_moves);
+    // (moves received, their values column-major)
+    type Batch<T> = (Vec<(usize, usize)>, Vec<T>);
+    let mut incoming: Vec<Batch<T>> = Vec::new();
+    for step in 1..p {
+        let (dest, source) = ((me + step) % p, (me + p - step) % p);
+        let out = to(dest);
+        let inn = from(source);
+        let send = pack(data, &out);
+        let mut recv = vec![T::of(0.0); inn.len() * w];
+        T::shift(comm, dest, source, &send, &mut recv);
+        incoming.push((inn, recv));
+    }
+    incoming.push((local_moves, local_buf));
+    for (list, buf) in incoming {
+        for c in c0..c1 {
+            for (t, &(d, _)) in list.iter().enumerate() {
+                data[local(d) + c * ld] = buf[(c - c0) * list.len() + t];
             }
         }
     }

@@ -1,0 +1,268 @@
+//! The 2D block-cyclic distribution: the ranks as a pr x pc process grid, and the dense system
+//! dealt out to it in nb x nb blocks, as ScaLAPACK distributes its matrices.
+//!
+//! # Why a second layout
+//!
+//! On the row-cyclic layout every step of a factorisation all-gathers a block row to every rank:
+//! each rank receives about n^2 / 2 values over the factorisation whatever the rank count, and
+//! every pivot search is a collective over all p ranks. On a pr x pc grid the factored panel
+//! travels only along the process rows (each rank gets its own rows of it) and the block row of U
+//! only down the process columns (each rank gets its own columns of it), so each rank receives
+//! about n^2 (1/pr + 1/pc) / 2 values, and the pivot searches are collectives over the pr ranks
+//! of one process column. For p = 64 and a square grid that is a quarter of the traffic and
+//! an eighth of the ranks per pivot search; the scaling model of the solvers (jobs/scaling-model)
+//! puts the break-even with row-cyclic at about 64 ranks for n >= 10^4. The price: the panel
+//! factorisation runs on one process column while the others wait, and the right-hand side and
+//! the solution move block by block in the back substitution.
+//!
+//! # The maps
+//!
+//! Along one dimension, n indices in blocks of nb over q processes: index g is in block g div nb,
+//! which lives on process (g div nb) mod q, at local index (g div (nb q)) nb + g mod nb. Process
+//! r owns
+//!
+//! ```text
+//!     numroc(g, r) = (g div (nb q)) nb + min(max(g mod (nb q) - r nb, 0), nb)
+//! ```
+//!
+//! of the indices below g, so its indices from g on are the contiguous local range
+//! numroc(g, r)..numroc(n, r), as on the row-cyclic layout (which is the case nb = 1, q = p).
+//! Rank (i, j) of the grid is world rank i pc + j; it holds the rows of process row i and the
+//! columns of process column j, column-major with its local row count as leading dimension.
+
+use crate::error::{Error, Result};
+use crate::par::Comm;
+
+/// n indices dealt in blocks of `nb` to `procs` processes cyclically; `me` is this process.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BlockCyclic {
+    pub n: usize,
+    pub nb: usize,
+    pub procs: usize,
+    pub me: usize,
+}
+
+impl BlockCyclic {
+    pub fn new(n: usize, nb: usize, procs: usize, me: usize) -> Self {
+        assert!(nb > 0 && procs > 0 && me < procs);
+        BlockCyclic { n, nb, procs, me }
+    }
+
+    /// Process owning index g.
+    #[inline]
+    pub fn owner(&self, g: usize) -> usize {
+        (g / self.nb) % self.procs
+    }
+
+    /// Local index of g on its owner.
+    #[inline]
+    pub fn local(&self, g: usize) -> usize {
+        (g / (self.nb * self.procs)) * self.nb + g % self.nb
+    }
+
+    /// Global index of this process's local index l.
+    #[inline]
+    pub fn global(&self, l: usize) -> usize {
+        (l / self.nb) * self.nb * self.procs + self.me * self.nb + l % self.nb
+    }
+
+    /// Number of indices below g owned by process r.
+    pub fn count_below_on(&self, r: usize, g: usize) -> usize {
+        let cycle = self.nb * self.procs;
+        (g / cycle) * self.nb + (g % cycle).saturating_sub(r * self.nb).min(self.nb)
+    }
+
+    /// First local index whose global index is >= g (the local count if none).
+    #[inline]
+    pub fn first_local_from(&self, g: usize) -> usize {
+        self.count_below_on(self.me, g)
+    }
+
+    /// Number of indices this process owns.
+    pub fn local_count(&self) -> usize {
+        self.count_below_on(self.me, self.n)
+    }
+
+    /// The global indices of this process's local indices, in local order.
+    pub fn globals(&self) -> Vec<usize> {
+        (0..self.local_count()).map(|l| self.global(l)).collect()
+    }
+}
+
+/// A pr x pc process grid over a communicator, with the communicators of its process row (the pc
+/// ranks of this rank's row, ranked by column) and of its process column (ranked by row).
+pub struct ProcessGrid<'a> {
+    pub comm: &'a dyn Comm,
+    pub pr: usize,
+    pub pc: usize,
+    pub myrow: usize,
+    pub mycol: usize,
+    pub row: Box<dyn Comm + 'a>,
+    pub col: Box<dyn Comm + 'a>,
+}
+
+impl<'a> ProcessGrid<'a> {
+    /// The grid of `shape` = (pr, pc) over `comm`; pr pc must be its size. Collective.
+    pub fn new(comm: &'a dyn Comm, (pr, pc): (usize, usize)) -> Result<Self> {
+        if pr == 0 || pc == 0 || pr * pc != comm.size() {
+            return Err(Error::Usage(format!(
+                "a {pr}x{pc} process grid needs {} ranks, the job has {}",
+                pr * pc,
+                comm.size()
+            )));
+        }
+        let (myrow, mycol) = (comm.rank() / pc, comm.rank() % pc);
+        let row = comm.split(myrow, mycol);
+        let col = comm.split(mycol, myrow);
+        Ok(ProcessGrid { comm, pr, pc, myrow, mycol, row, col })
+    }
+
+    /// World rank of grid position (i, j).
+    pub fn rank_at(&self, i: usize, j: usize) -> usize {
+        i * self.pc + j
+    }
+}
+
+/// How the dense system is distributed over the ranks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Layout {
+    /// Global row g on rank g mod p (every solver).
+    RowCyclic,
+    /// nb x nb blocks on a pr x pc process grid (LU only); None: the squarest grid.
+    BlockCyclic(Option<(usize, usize)>),
+}
+
+impl Layout {
+    /// `row-cyclic`, `2d` (the squarest grid for the job's ranks) or an explicit grid `PRxPC`.
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "row-cyclic" | "rows" => return Ok(Layout::RowCyclic),
+            "2d" => return Ok(Layout::BlockCyclic(None)),
+            _ => {}
+        }
+        let shape = s.split_once('x').and_then(|(a, b)| Some((a.parse().ok()?, b.parse().ok()?)));
+        match shape {
+            Some((pr, pc)) if pr > 0 && pc > 0 => Ok(Layout::BlockCyclic(Some((pr, pc)))),
+            _ => Err(Error::Usage(format!(
+                "unknown layout '{s}' (expected row-cyclic, 2d or a process grid PRxPC such as 2x4)"
+            ))),
+        }
+    }
+
+    /// The process grid for `ranks` ranks (None for row-cyclic).
+    pub fn shape(&self, ranks: usize) -> Option<(usize, usize)> {
+        match *self {
+            Layout::RowCyclic => None,
+            Layout::BlockCyclic(shape) => Some(shape.unwrap_or_else(|| squarest(ranks))),
+        }
+    }
+
+    pub fn name(&self, ranks: usize) -> String {
+        match self.shape(ranks) {
+            None => "row-cyclic".into(),
+            Some((pr, pc)) => format!("2D block-cyclic {pr}x{pc}"),
+        }
+    }
+}
+
+/// The squarest grid for `ranks` ranks with pr <= pc (ScaLAPACK's advice: the panel's process
+/// column is the one that works alone, so it should be the taller side of the trade).
+pub fn squarest(ranks: usize) -> (usize, usize) {
+    let mut pr = (ranks as f64).sqrt() as usize;
+    while pr > 1 && ranks % pr != 0 {
+        pr -= 1;
+    }
+    let pr = pr.max(1);
+    (pr, ranks / pr)
+}
+
+/// This rank's blocks of an n x (n + 1) system on a process grid, the right-hand side as global
+/// column n; column-major, leading dimension the local row count.
+#[derive(Debug, Clone)]
+pub struct LocalBlocks {
+    pub rows: BlockCyclic,
+    pub cols: BlockCyclic,
+    pub data: Vec<f64>,
+}
+
+impl LocalBlocks {
+    /// The zero blocks of this grid position for an n x (n + 1) system in nb x nb blocks.
+    pub fn zeros(grid: &ProcessGrid<'_>, n: usize, nb: usize) -> Self {
+        let rows = BlockCyclic::new(n, nb, grid.pr, grid.myrow);
+        let cols = BlockCyclic::new(n + 1, nb, grid.pc, grid.mycol);
+        let data = vec![0.0; rows.local_count() * cols.local_count()];
+        LocalBlocks { rows, cols, data }
+    }
+
+    /// Global order n of the system.
+    pub fn n(&self) -> usize {
+        self.rows.n
+    }
+
+    /// Leading dimension: the local row count.
+    #[inline]
+    pub fn ld(&self) -> usize {
+        self.rows.local_count()
+    }
+
+    /// Largest |entry| of the global matrix (the right-hand side left out). Collective.
+    pub fn max_abs(&self, comm: &dyn Comm) -> f64 {
+        let ld = self.ld();
+        let end = self.cols.first_local_from(self.n());
+        let mut m = [self.data[..ld * end].iter().fold(0.0f64, |a, v| a.max(v.abs()))];
+        comm.max_f64(&mut m);
+        m[0]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn block_cyclic_maps_round_trip() {
+        for procs in 1..5 {
+            for nb in [1, 2, 3, 8] {
+                for n in [0, 1, 7, 10, 13, 33] {
+                    let mut seen = vec![0; n];
+                    for me in 0..procs {
+                        let m = BlockCyclic::new(n, nb, procs, me);
+                        for l in 0..m.local_count() {
+                            let g = m.global(l);
+                            assert!(g < n);
+                            assert_eq!((m.owner(g), m.local(g)), (me, l), "n={n} nb={nb} q={procs}");
+                            seen[g] += 1;
+                        }
+                        for g in 0..=n {
+                            let expect = (0..m.local_count()).find(|&l| m.global(l) >= g);
+                            assert_eq!(m.first_local_from(g), expect.unwrap_or(m.local_count()));
+                        }
+                    }
+                    assert!(seen.iter().all(|&c| c == 1), "n={n} nb={nb} q={procs}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn layouts_parse() {
+        assert_eq!(Layout::parse("row-cyclic").unwrap(), Layout::RowCyclic);
+        assert_eq!(Layout::parse("2d").unwrap().shape(6), Some((2, 3)));
+        assert_eq!(Layout::parse("3x1").unwrap().shape(6), Some((3, 1)));
+        assert_eq!(Layout::parse("2x2").unwrap().name(4), "2D block-cyclic 2x2");
+        for bad in ["", "x", "0x2", "2x", "2x-1", "square", "2*2"] {
+            assert!(Layout::parse(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn squarest_grids() {
+        assert_eq!(squarest(1), (1, 1));
+        assert_eq!(squarest(2), (1, 2));
+        assert_eq!(squarest(3), (1, 3));
+        assert_eq!(squarest(4), (2, 2));
+        assert_eq!(squarest(12), (3, 4));
+        assert_eq!(squarest(16), (4, 4));
+        assert_eq!(squarest(1024), (32, 32));
+    }
+}
