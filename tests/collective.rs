@@ -313,15 +313,17 @@ fn lu2d_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
     for &shape in &shapes {
         let grid = must(dist::ProcessGrid::new(comm, shape), "the process grid");
         for nb in [1, 7, 16, 64] {
-            let what = format!("lu2d {}x{} block {nb} n {}", shape.0, shape.1, want.len());
-            let mut a = assemble_blocks(&k, &prep.centres, &prep.values, &grid, nb);
-            let x = must(dist::lu2d_solve(&Job::on(comm), &grid, &mut a), &what);
-            log.close(&x, &want, 1e-9, || what.clone());
-            same_on_every_rank(comm, log, &x, &what);
+            for lookahead in [false, true] {
+                let what = format!("lu2d {}x{} block {nb} look-ahead {lookahead} n {}", shape.0, shape.1, want.len());
+                let mut a = assemble_blocks(&k, &prep.centres, &prep.values, &grid, nb);
+                let x = must(dist::lu2d_solve(&Job::on(comm).lookahead(lookahead), &grid, &mut a), &what);
+                log.close(&x, &want, 1e-9, || what.clone());
+                same_on_every_rank(comm, log, &x, &what);
+            }
         }
         let mut a = assemble_blocks(&k, &centres, &values, &grid, 16);
         let what = format!("lu2d {}x{} repeated centre", shape.0, shape.1);
-        match dist::lu2d_solve(&Job::on(comm), &grid, &mut a) {
+        match dist::lu2d_solve(&Job::on(comm).lookahead(true), &grid, &mut a) {
             Ok(_) => log.check(false, || format!("{what}: solved a singular system")),
             Err(e) => {
                 let msg = e.to_string();

@@ -75,6 +75,15 @@ pub trait Comm {
         work();
         self.all_gather_f64(send, counts, recv);
     }
+    /// [`Comm::broadcast_f64`] that calls `work` while the message is in flight, as
+    /// [`Comm::all_gather_f64_while`] does: the 2D LU broadcasts its next panel along the process
+    /// rows during the trailing update. Every rank must call this one (a blocking and a
+    /// non-blocking broadcast do not match). Without non-blocking collectives, `work` runs until
+    /// it has nothing more to do and the broadcast follows.
+    fn broadcast_f64_while(&self, root: usize, buf: &mut [f64], work: &mut dyn FnMut() -> bool) {
+        while work() {}
+        self.broadcast_f64(root, buf);
+    }
     /// [`Comm::all_gather_f64_while`] of single-precision values.
     fn all_gather_f32_while(
         &self,

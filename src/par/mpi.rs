@@ -108,6 +108,30 @@ impl MpiComm {
         });
     }
 
+    /// The broadcast as MPI_Ibcast, with `work` run while it is in flight (see
+    /// [`Comm::broadcast_f64_while`]); work left when the broadcast completes runs after it.
+    fn broadcast_while<T: Equivalence + Copy>(&self, root: usize, buf: &mut [T], work: &mut dyn FnMut() -> bool) {
+        if self.size == 1 {
+            while work() {}
+            return;
+        }
+        let mut more = true;
+        mpi::request::scope(|scope| {
+            let p = self.comm.process_at_rank(root as i32);
+            let mut req = p.immediate_broadcast_into(scope, buf);
+            more = work();
+            while more {
+                match req.test() {
+                    Ok(_) => return,
+                    Err(pending) => req = pending,
+                }
+                more = work();
+            }
+            req.wait_without_status();
+        });
+        while more && work() {}
+    }
+
     fn shift<T: Equivalence + Copy>(&self, dest: usize, source: usize, send: &[T], recv: &mut [T]) {
         if dest == self.rank && source == self.rank {
             recv.copy_from_slice(send);
@@ -221,6 +245,9 @@ impl Comm for MpiComm {
         work: &mut dyn FnMut() -> bool,
     ) {
         self.all_gather_while(send, counts, recv, work);
+    }
+    fn broadcast_f64_while(&self, root: usize, buf: &mut [f64], work: &mut dyn FnMut() -> bool) {
+        self.broadcast_while(root, buf, work);
     }
     fn split(&self, color: usize, key: usize) -> Box<dyn Comm + '_> {
         let sub = self

@@ -52,37 +52,21 @@ pub fn lu2d_solve(job: &Job<'_>, grid: &ProcessGrid<'_>, a: &mut LocalBlocks) ->
 }
 
 /// Factors `a` in place: U and the multipliers of L in the matrix columns, L^-1 P b in the
-/// right-hand side column. Collective over the grid.
+/// right-hand side column. Collective over the grid. With `job.lookahead` the next panel is
+/// factored first and broadcast while the trailing update runs (see the module documentation);
+/// the factors are the same.
 pub fn lu2d_factor(job: &Job<'_>, grid: &ProcessGrid<'_>, a: &mut LocalBlocks, tol: f64) -> Result<()> {
-    let (n, nb, ld) = (a.n(), a.rows.nb, a.ld());
-    let (rows, cols) = (a.rows, a.cols);
-    let ncl = cols.local_count();
+    let n = a.n();
+    if n == 0 {
+        return Ok(());
+    }
+    let mut panel = factor_and_pack(grid, a, 0, tol);
+    grid.row.broadcast_f64(a.cols.owner(0), &mut panel);
     let mut k = 0;
-    while k < n {
-        let kb = nb.min(n - k);
+    loop {
+        let (rows, cols, ld) = (a.rows, a.cols, a.ld());
+        let kb = a.rows.nb.min(n - k);
         let end = k + kb;
-        let pk = cols.owner(k);
-        let lr0 = rows.first_local_from(k);
-        let m = ld - lr0;
-        // status (0, or the failing column + 1), the pivot rows, this process row's part of the
-        // factored panel (rows lr0.., column-major)
-        let mut panel = vec![0.0; 1 + kb + m * kb];
-        if grid.mycol == pk {
-            let lc0 = cols.local(k);
-            match factor_panel(grid.col.as_ref(), a, k, kb, lc0, tol) {
-                Ok(pivots) => {
-                    for (v, p) in panel[1..1 + kb].iter_mut().zip(pivots) {
-                        *v = p as f64;
-                    }
-                }
-                Err(j) => panel[0] = (j + 1) as f64,
-            }
-            for c in 0..kb {
-                let src = &a.data[lr0 + (lc0 + c) * ld..ld + (lc0 + c) * ld];
-                panel[1 + kb + c * m..1 + kb + (c + 1) * m].copy_from_slice(src);
-            }
-        }
-        grid.row.broadcast_f64(pk, &mut panel);
         if panel[0] != 0.0 {
             let j = panel[0] as usize - 1;
             return Err(Error::Numerical(format!(
@@ -90,43 +74,142 @@ pub fn lu2d_factor(job: &Job<'_>, grid: &ProcessGrid<'_>, a: &mut LocalBlocks, t
             )));
         }
         let swaps: Vec<(usize, usize)> = (k..end).zip(panel[1..1 + kb].iter().map(|&p| p as usize)).collect();
-        let l = MatRef::from_column_major_slice(&panel[1 + kb..], m, kb);
+        let lr0 = rows.first_local_from(k);
+        let m = ld - lr0;
         // the columns right of the panel: interchanges, U12, the trailing update
-        let lc1 = cols.first_local_from(end);
-        let w = ncl - lc1;
+        let (lc1, ncl) = (cols.first_local_from(end), cols.local_count());
         let map = RowMap { owner: &|g| rows.owner(g), local: &|g| rows.local(g) };
         permute_local_rows(grid.col.as_ref(), &map, &swaps, &mut a.data, ld, lc1..ncl);
-        let pr_k = rows.owner(k);
-        let mut u12 = vec![0.0; kb * w];
-        if grid.myrow == pr_k && w > 0 {
-            let lk = rows.local(k);
-            let l11 = l.subrows(lk - lr0, kb);
-            let mut a12 =
-                MatMut::from_column_major_slice_with_stride_mut(&mut a.data[lk + lc1 * ld..], kb, w, ld);
-            solve_unit_lower_triangular_in_place(l11, a12.as_mut(), faer::Par::Seq);
-            for c in 0..w {
-                u12[c * kb..(c + 1) * kb]
-                    .copy_from_slice(&a.data[lk + (lc1 + c) * ld..lk + kb + (lc1 + c) * ld]);
-            }
+        let u12 = block_row_of_u(grid, a, k, kb, &panel[1 + kb..]);
+        let update = Update { l: &panel[1 + kb..], m, lr0, kb, u12: &u12, lc1, first: rows.first_local_from(end) };
+        if end == n {
+            update.apply(a, lc1, ncl, job);
+            (job.progress)(end, n);
+            return Ok(());
         }
-        grid.col.broadcast_f64(pr_k, &mut u12);
-        let t0 = rows.first_local_from(end);
-        if t0 < ld && w > 0 {
-            let l21 = l.subrows(t0 - lr0, ld - t0);
-            let u = MatRef::from_column_major_slice(&u12, kb, w);
-            let a22 =
-                MatMut::from_column_major_slice_with_stride_mut(&mut a.data[t0 + lc1 * ld..], ld - t0, w, ld);
-            matmul(a22, Accum::Add, l21, u, -1.0, job.par);
+        let (pk1, kb1) = (cols.owner(end), a.rows.nb.min(n - end));
+        let mut next = if job.lookahead && grid.mycol == pk1 {
+            // the next panel's columns first, then the panel at once; the rest of the update
+            // runs while it travels along the process rows
+            update.apply(a, lc1, lc1 + kb1, job);
+            factor_and_pack(grid, a, end, tol)
+        } else {
+            vec![0.0; 1 + kb1 + (ld - rows.first_local_from(end)) * kb1]
+        };
+        let mut from = if job.lookahead && grid.mycol == pk1 { lc1 + kb1 } else { lc1 };
+        if job.lookahead {
+            let piece = (ncl - from).div_ceil(4).max(MIN_PIECE);
+            let mut work = || {
+                let to = (from + piece).min(ncl);
+                update.apply(a, from, to, job);
+                from = to;
+                from < ncl
+            };
+            grid.row.broadcast_f64_while(pk1, &mut next, &mut work);
+        } else {
+            update.apply(a, from, ncl, job);
+            if grid.mycol == pk1 {
+                next = factor_and_pack(grid, a, end, tol);
+            }
+            grid.row.broadcast_f64(pk1, &mut next);
         }
         (job.progress)(end, n);
+        panel = next;
         k = end;
     }
-    Ok(())
 }
 
-/// Unblocked LU of the panel columns k..k+kb (local columns lc0.., rows k..n) on the ranks of
-/// one process column (`col`, ranked by process row). Returns the pivot row of each column, or
-/// the first column without a pivot above `tol` (every rank of `col` stops at the same one).
+/// The narrowest piece of a trailing update run between two tests of the panel broadcast.
+const MIN_PIECE: usize = 256;
+
+/// On the process column owning the panel at column k: factors it and packs the status (0, or
+/// the failing column + 1), the pivot rows and this process row's part of the factored panel
+/// (rows k.., column-major); elsewhere a buffer of the same length. Collective over the process
+/// column.
+fn factor_and_pack(grid: &ProcessGrid<'_>, a: &mut LocalBlocks, k: usize, tol: f64) -> Vec<f64> {
+    let (rows, cols, ld) = (a.rows, a.cols, a.ld());
+    let kb = rows.nb.min(a.n() - k);
+    let lr0 = rows.first_local_from(k);
+    let m = ld - lr0;
+    let mut panel = vec![0.0; 1 + kb + m * kb];
+    if grid.mycol != cols.owner(k) {
+        return panel;
+    }
+    let lc0 = cols.local(k);
+    match factor_panel(grid.col.as_ref(), a, k, kb, lc0, tol) {
+        Ok(pivots) => {
+            for (v, p) in panel[1..1 + kb].iter_mut().zip(pivots) {
+                *v = p as f64;
+            }
+        }
+        Err(j) => panel[0] = (j + 1) as f64,
+    }
+    for c in 0..kb {
+        let src = &a.data[lr0 + (lc0 + c) * ld..ld + (lc0 + c) * ld];
+        panel[1 + kb + c * m..1 + kb + (c + 1) * m].copy_from_slice(src);
+    }
+    panel
+}
+
+/// U12 = L11^-1 A12 for this rank's columns right of the panel at k (l: this process row's rows
+/// k.. of the factored panel), computed on the process row owning rows k..k+kb, stored there and
+/// broadcast down every process column; returned kb x (columns), column-major. Collective over
+/// the process column.
+fn block_row_of_u(grid: &ProcessGrid<'_>, a: &mut LocalBlocks, k: usize, kb: usize, l: &[f64]) -> Vec<f64> {
+    let (rows, cols, ld) = (a.rows, a.cols, a.ld());
+    let lc1 = cols.first_local_from(k + kb);
+    let w = cols.local_count() - lc1;
+    let pr_k = rows.owner(k);
+    let mut u12 = vec![0.0; kb * w];
+    if grid.myrow == pr_k && w > 0 {
+        let (lk, lr0) = (rows.local(k), rows.first_local_from(k));
+        let l = MatRef::from_column_major_slice(l, ld - lr0, kb);
+        let l11 = l.subrows(lk - lr0, kb);
+        let mut a12 = MatMut::from_column_major_slice_with_stride_mut(&mut a.data[lk + lc1 * ld..], kb, w, ld);
+        solve_unit_lower_triangular_in_place(l11, a12.as_mut(), faer::Par::Seq);
+        for c in 0..w {
+            u12[c * kb..(c + 1) * kb].copy_from_slice(&a.data[lk + (lc1 + c) * ld..lk + kb + (lc1 + c) * ld]);
+        }
+    }
+    grid.col.broadcast_f64(pr_k, &mut u12);
+    u12
+}
+
+/// The trailing update A22 -= L21 U12 of one step, applied by ranges of local columns.
+struct Update<'p> {
+    /// This process row's rows k.. of the factored panel (m x kb, column-major).
+    l: &'p [f64],
+    m: usize,
+    /// The first local row at or below k, and at or below k + kb.
+    lr0: usize,
+    first: usize,
+    kb: usize,
+    /// U12 for the local columns lc1.. (kb x columns, column-major).
+    u12: &'p [f64],
+    lc1: usize,
+}
+
+impl Update<'_> {
+    /// The update of the local columns c0..c1 (one GEMM).
+    fn apply(&self, a: &mut LocalBlocks, c0: usize, c1: usize, job: &Job<'_>) {
+        let ld = a.ld();
+        if c0 >= c1 || self.first >= ld {
+            return;
+        }
+        let l = MatRef::from_column_major_slice(self.l, self.m, self.kb);
+        let l21 = l.subrows(self.first - self.lr0, ld - self.first);
+        let w = self.u12.len() / self.kb;
+        let u = MatRef::from_column_major_slice(self.u12, self.kb, w).subcols(c0 - self.lc1, c1 - c0);
+        let a22 =
+            MatMut::from_column_major_slice_with_stride_mut(&mut a.data[self.first + c0 * ld..], ld - self.first, c1 - c0, ld);
+        matmul(a22, Accum::Add, l21, u, -1.0, job.par);
+    }
+}
+
+/// LU of the panel columns k..k+kb (local columns lc0.., rows k..n) on the ranks of one process
+/// column (`col`, ranked by process row), recursively halved as in the row-cyclic LU, so that
+/// most of its flops are GEMMs too. Returns the pivot row of each column, or the first column
+/// without a pivot above `tol` (every rank of `col` stops at the same one).
 fn factor_panel(
     col: &dyn Comm,
     a: &mut LocalBlocks,
@@ -135,17 +218,79 @@ fn factor_panel(
     lc0: usize,
     tol: f64,
 ) -> std::result::Result<Vec<usize>, usize> {
+    let mut pivots = Vec::with_capacity(kb);
+    factor_range(col, a, (k, kb, lc0), (k, k + kb), tol, &mut pivots)?;
+    Ok(pivots)
+}
+
+/// Columns at most this wide are factored column by column; wider ones recursively.
+const LEAF: usize = 8;
+
+/// The columns c0..c1 of the panel `(k, kb, lc0)`: the left half, its block elimination on the
+/// right half, the right half. The rows c0..c1 lie in one block, so on one process row: it solves
+/// for the block of U and broadcasts it down the process column, every rank updates its rows.
+fn factor_range(
+    col: &dyn Comm,
+    a: &mut LocalBlocks,
+    panel: (usize, usize, usize),
+    (c0, c1): (usize, usize),
+    tol: f64,
+    pivots: &mut Vec<usize>,
+) -> std::result::Result<(), usize> {
+    if c1 - c0 <= LEAF {
+        return factor_columns(col, a, panel, (c0, c1), tol, pivots);
+    }
+    let mid = c0 + (c1 - c0) / 2;
+    factor_range(col, a, panel, (c0, mid), tol, pivots)?;
+    let (k, _, lc0) = panel;
+    let (rows, ld) = (a.rows, a.ld());
+    let lcol = |g: usize| lc0 + g - k;
+    let (h, w) = (mid - c0, c1 - mid);
+    let owner = rows.owner(c0);
+    let mut u = vec![0.0; h * w];
+    if col.rank() == owner {
+        let l = rows.local(c0);
+        let (left, right) = a.data.split_at_mut(lcol(mid) * ld);
+        let l11 = MatRef::from_column_major_slice_with_stride(&left[l + lcol(c0) * ld..], h, h, ld);
+        let mut a12 = MatMut::from_column_major_slice_with_stride_mut(&mut right[l..], h, w, ld);
+        solve_unit_lower_triangular_in_place(l11, a12.as_mut(), faer::Par::Seq);
+        for c in 0..w {
+            u[c * h..(c + 1) * h].copy_from_slice(&right[l + c * ld..l + h + c * ld]);
+        }
+    }
+    col.broadcast_f64(owner, &mut u);
+    let f = rows.first_local_from(mid);
+    if f < ld {
+        let (left, right) = a.data.split_at_mut(lcol(mid) * ld);
+        let l21 = MatRef::from_column_major_slice_with_stride(&left[f + lcol(c0) * ld..], ld - f, h, ld);
+        let a22 = MatMut::from_column_major_slice_with_stride_mut(&mut right[f..], ld - f, w, ld);
+        let u12 = MatRef::from_column_major_slice(&u, h, w);
+        matmul(a22, Accum::Add, l21, u12, -1.0, faer::Par::Seq);
+    }
+    factor_range(col, a, panel, (mid, c1), tol, pivots)
+}
+
+/// Unblocked LU of the panel columns c0..c1: per column one all-gather of each rank's best
+/// candidate with its row's part of the columns (so the pivot row is known on every rank of the
+/// process column), the interchange over the whole panel, the scaling and the rank-1 update of
+/// the columns up to c1.
+fn factor_columns(
+    col: &dyn Comm,
+    a: &mut LocalBlocks,
+    (k, kb, lc0): (usize, usize, usize),
+    (c0, c1): (usize, usize),
+    tol: f64,
+    pivots: &mut Vec<usize>,
+) -> std::result::Result<(), usize> {
     let (rows, ld) = (a.rows, a.ld());
     let ranks = col.size();
-    // each candidate: |a|, its global row, its row's panel part from column j on
-    let stride = 2 + kb;
+    // each candidate: |a|, its global row, its row's part of the columns from j on
+    let stride = 2 + (c1 - c0);
     let mut mine = vec![0.0; stride];
     let mut cand = vec![0.0; stride * ranks];
     let counts = vec![stride; ranks];
-    let mut pivots = Vec::with_capacity(kb);
-    let end = k + kb;
-    for j in k..end {
-        let (jl, width) = (lc0 + j - k, end - j);
+    for j in c0..c1 {
+        let (jl, width) = (lc0 + j - k, c1 - j);
         let mut best = (-1.0f64, usize::MAX);
         for l in rows.first_local_from(j)..ld {
             let v = a.data[l + jl * ld].abs();
@@ -190,7 +335,7 @@ fn factor_panel(
             }
         }
     }
-    Ok(pivots)
+    Ok(())
 }
 
 /// Exchanges global rows i and j in the local columns `lcols` between the process rows owning
