@@ -105,9 +105,10 @@ pub struct FitArgs {
     #[arg(long, default_value = "off", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub lookahead: bool,
     /// Distribution of the dense system over the ranks: row-cyclic (global row g on rank
-    /// g mod p; every solver), 2d (nb x nb blocks on the squarest process grid, as ScaLAPACK
-    /// deals them; LU only, f64 only) or an explicit process grid PRxPC whose product is the
-    /// rank count. 2D moves less data per rank from about 64 ranks on.
+    /// g mod p; every solver), 2d (blocks of --panel rows and columns, default 64, on the
+    /// squarest process grid, as ScaLAPACK deals them; cholesky and lu, in f64; auto picks
+    /// cholesky from 1000 rows and lu below) or an explicit process grid PRxPC whose product is
+    /// the rank count. 2D moves less data per rank from about 64 ranks on.
     #[arg(long, default_value = "row-cyclic", value_name = "row-cyclic|2d|PRxPC", value_parser = with(Layout::parse))]
     pub layout: Layout,
     /// Points closer than this fraction of the bounding-box diagonal are merged into one.

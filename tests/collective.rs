@@ -1,6 +1,7 @@
 //! Library code that communicates, run on 2 and 3 MPI ranks against serial oracles: the typed
 //! collectives, the agreement on errors, the distributed solvers and the Cholesky -> LU fallback,
-//! the LU on every 2D process grid of the ranks (also on 1 and 4 ranks, that check alone),
+//! the LU and the projected Cholesky on every 2D process grid of the ranks (also on 1 and 4
+//! ranks, those checks alone),
 //! the mixed-precision solve and its fallback to f64,
 //! the parallel VTKHDF writer, and the per-slice fits of `contours`.
 //!
@@ -34,8 +35,8 @@ use volspline::spline::{full_system, system_size, Carrier, Kernel};
 use common::mpijob::{self, must, same_on_every_rank, Case, Check, Expect, Log};
 
 const BREAK: &str = "VOLSPLINE_COLLECTIVE_BREAK";
-/// Set: the job runs only the check of the 2D block-cyclic LU (on 1 and 4 ranks).
-const ONLY_LU2D: &str = "VOLSPLINE_COLLECTIVE_ONLY_LU2D";
+/// Set: the job runs only the checks of the 2D block-cyclic solvers (on 1 and 4 ranks).
+const ONLY_2D: &str = "VOLSPLINE_COLLECTIVE_ONLY_2D";
 const HANG: &str = "VOLSPLINE_COLLECTIVE_HANG";
 
 fn main() {
@@ -43,8 +44,8 @@ fn main() {
     let cases = vec![
         Case { name: "collective_checks_on_2_ranks", ranks: 2, env: &[], expect: Expect::Pass, limit },
         Case { name: "collective_checks_on_3_ranks", ranks: 3, env: &[], expect: Expect::Pass, limit },
-        Case { name: "lu2d_on_1_rank", ranks: 1, env: &[(ONLY_LU2D, "1")], expect: Expect::Pass, limit },
-        Case { name: "lu2d_on_4_ranks", ranks: 4, env: &[(ONLY_LU2D, "1")], expect: Expect::Pass, limit },
+        Case { name: "solvers_2d_on_1_rank", ranks: 1, env: &[(ONLY_2D, "1")], expect: Expect::Pass, limit },
+        Case { name: "solvers_2d_on_4_ranks", ranks: 4, env: &[(ONLY_2D, "1")], expect: Expect::Pass, limit },
         Case {
             name: "harness_a_wrong_value_fails_the_job",
             ranks: 2,
@@ -79,19 +80,23 @@ fn child() {
         }
         comm.barrier();
     }
-    if std::env::var_os(ONLY_LU2D).is_some() {
-        let failed =
-            mpijob::run_checks(comm, &[("2D block-cyclic LU vs the dense oracle", lu2d_matches_the_oracle)]);
+    let checks_2d: [(&str, Check); 2] = [
+        ("2D block-cyclic LU vs the dense oracle", lu2d_matches_the_oracle),
+        ("2D projected Cholesky vs the dense oracle, fallback to LU", cholesky2d_matches_the_oracle),
+    ];
+    if std::env::var_os(ONLY_2D).is_some() {
+        let failed = mpijob::run_checks(comm, &checks_2d);
         drop(world);
         std::process::exit(i32::from(failed > 0));
     }
-    let checks: [(&str, Check); 13] = [
+    let checks: [(&str, Check); 14] = [
         ("typed collectives", typed_collectives),
         ("agree: one failing rank", agree_one_failing_rank),
         ("agree: two failing ranks, the lowest wins", agree_lowest_rank_wins),
         ("distributed solvers vs dense oracles", solvers_match_the_oracles),
         ("LU with and without look-ahead vs the dense oracle", lookahead_matches_the_oracle),
-        ("2D block-cyclic LU vs the dense oracle", lu2d_matches_the_oracle),
+        checks_2d[0],
+        checks_2d[1],
         ("Cholesky -> LU fallback, 4 points", fallback_on_four_points),
         ("Cholesky -> LU fallback, indefinite block", fallback_on_an_indefinite_block),
         ("mixed precision vs the dense LU oracle", mixed_matches_the_oracle),
@@ -314,7 +319,12 @@ fn lu2d_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
         let grid = must(dist::ProcessGrid::new(comm, shape), "the process grid");
         for nb in [1, 7, 16, 64] {
             for lookahead in [false, true] {
-                let what = format!("lu2d {}x{} block {nb} look-ahead {lookahead} n {}", shape.0, shape.1, want.len());
+                let what = format!(
+                    "lu2d {}x{} block {nb} look-ahead {lookahead} n {}",
+                    shape.0,
+                    shape.1,
+                    want.len()
+                );
                 let mut a = assemble_blocks(&k, &prep.centres, &prep.values, &grid, nb);
                 let x = must(dist::lu2d_solve(&Job::on(comm).lookahead(lookahead), &grid, &mut a), &what);
                 log.close(&x, &want, 1e-9, || what.clone());
@@ -331,6 +341,55 @@ fn lu2d_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
                 let bytes: Vec<f64> = msg.bytes().map(f64::from).collect();
                 same_on_every_rank(comm, log, &bytes, &format!("{what}: the error"));
             }
+        }
+    }
+}
+
+/// The projected Cholesky on the 2D block-cyclic layout, on every process grid of the job's ranks
+/// and block sizes 1 and 3 (panels narrower than the border), 7, 16 and 64, against the dense QR
+/// oracle; on an indefinite projected block every rank falls back to the 2D LU.
+fn cholesky2d_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
+    let k = Kernel::new(3, 2).unwrap();
+    let prep = bunny_system(&k);
+    let want = oracle(&prep, &k, householder_solve);
+    let (ind, kb) = indefinite_bordered();
+    let n = ind.nrows();
+    let b: Vec<f64> = (0..n).map(|i| ind[(i, n)]).collect();
+    let want_lu = must(lu_solve(ind.as_ref().subcols(0, n), &b), "the dense LU oracle");
+    let p = comm.size();
+    for shape in (1..=p).filter(|pr| p % pr == 0).map(|pr| (pr, p / pr)) {
+        let grid = must(dist::ProcessGrid::new(comm, shape), "the process grid");
+        for nb in [1, 3, 7, 16, 64] {
+            let what = format!("cholesky2d {}x{} block {nb}", shape.0, shape.1);
+            let a = assemble_blocks(&k, &prep.centres, &prep.values, &grid, nb);
+            let s = must(
+                dist::solve_2d(&Job::on(comm), &grid, SolverKind::Cholesky, 4, a, || unreachable!()),
+                &what,
+            );
+            log.check(s.used == SolverKind::Cholesky && s.fallback.is_none(), || format!("{what}: {s:?}"));
+            log.close(&s.x, &want, 1e-9, || what.clone());
+            same_on_every_rank(comm, log, &s.x, &what);
+            let blocks = || {
+                let mut a = dist::LocalBlocks::zeros(&grid, n, nb);
+                let (rg, cg) = (a.rows.globals(), a.cols.globals());
+                for (lc, &c) in cg.iter().enumerate() {
+                    for (lr, &r) in rg.iter().enumerate() {
+                        a.data[lr + lc * rg.len()] = ind[(r, c)];
+                    }
+                }
+                a
+            };
+            let what = format!("{what}, indefinite block");
+            let s = must(
+                dist::solve_2d(&Job::on(comm), &grid, SolverKind::Cholesky, kb, blocks(), blocks),
+                &what,
+            );
+            log.check(
+                s.used == SolverKind::Lu && s.fallback.as_ref().is_some_and(Error::is_not_definite),
+                || format!("{what}: used {:?}, fallback {:?}", s.used, s.fallback),
+            );
+            log.close(&s.x, &want_lu, 1e-9, || what.clone());
+            same_on_every_rank(comm, log, &s.x, &what);
         }
     }
 }
@@ -372,9 +431,9 @@ fn fallback_on_four_points(comm: &dyn Comm, log: &mut Log) {
     check_fallback(comm, log, &rows_of, n, &want, "4 points");
 }
 
-fn fallback_on_an_indefinite_block(comm: &dyn Comm, log: &mut Log) {
-    // symmetric random entries with a zero diagonal, bordered by [1 x y z] of random points: the
-    // projected block is indefinite. The same global matrix on every rank; each keeps its rows.
+/// Symmetric random entries with a zero diagonal, bordered by [1 x y z] of random points, and a
+/// random right-hand side as the last column (40 + 4 rows): the projected block is indefinite.
+fn indefinite_bordered() -> (Mat<f64>, usize) {
     let (m, k) = (40, 4);
     let n = m + k;
     let mut s = 3u64;
@@ -396,6 +455,13 @@ fn fallback_on_an_indefinite_block(comm: &dyn Comm, log: &mut Log) {
         }
         a[(i, n)] = rnd();
     }
+    (a, k)
+}
+
+fn fallback_on_an_indefinite_block(comm: &dyn Comm, log: &mut Log) {
+    // the same global matrix on every rank; each keeps its rows
+    let (a, k) = indefinite_bordered();
+    let n = a.nrows();
     let rows_of = |layout: RowCyclic| {
         let mut rows = LocalRows::zeros(layout, n + 1, k);
         for l in 0..layout.local_count() {

@@ -325,7 +325,7 @@ fn mixed_precision_reaches_the_f64_residual_or_falls_back() {
 }
 
 #[test]
-fn the_2d_layout_matches_the_serial_lu_oracle_and_refuses_what_it_cannot_do() {
+fn the_2d_layout_matches_the_serial_oracles_and_refuses_what_it_cannot_do() {
     let dir = common::temp_dir("layout2d");
     let input = dir.join("bunny253.xyz");
     common::write_xyz(&input, &common::bunny_subset(20, 0));
@@ -333,47 +333,58 @@ fn the_2d_layout_matches_the_serial_lu_oracle_and_refuses_what_it_cannot_do() {
     let read: Vec<f64> =
         volspline::io::points::read_points(&input).unwrap().points.iter().flatten().copied().collect();
     let prep = prepare(&read, &k, &Carrier::AutoBall, 1e-6).unwrap();
-    let oracle = Model {
-        carrier: prep.carrier.clone(),
-        spline: solve_serial(&prep, &k, SolverKind::Lu),
-        coarse: Vec::new(),
-        provenance: Default::default(),
-    };
     let input = input.to_str().unwrap();
-    for (ranks, layout, shape) in
-        [(0, "2d", "1x1"), (2, "1x2", "1x2"), (2, "2x1", "2x1"), (3, "2d", "1x3"), (4, "2x2", "2x2")]
-    {
-        let prefix = dir.join(format!("{ranks}-{layout}"));
-        let p = prefix.to_str().unwrap();
-        // block 16 over 257 rows: 17 panels, blocks of the polynomial border split over ranks
-        let args = [
-            "fit",
-            input,
-            "--out",
-            p,
-            "--layout",
-            layout,
-            "--grid",
-            "20",
-            "--panel",
-            "16",
-            "--surface",
-            "carrier",
-        ];
-        let out = common::run_ok(ranks, &args);
-        assert!(out.contains(&format!("solver lu (dense, 2D block-cyclic {shape}), panel 16")), "{out}");
-        let model = read_model(&dir.join(format!("{p}.model.h5"))).unwrap();
-        let dw = common::rel_diff(&model.spline.weights, &oracle.spline.weights);
-        let dc = common::rel_diff(&model.spline.poly, &oracle.spline.poly);
-        assert!(dw < 1e-9 && dc < 1e-9, "{layout} on {ranks} ranks: weights {dw:e}, poly {dc:e}");
-        assert!(model.provenance.residual < 1e-10, "residual {}", model.provenance.residual);
-        let dv = common::volume_diff(Path::new(&format!("{p}.hdf")), &oracle);
-        assert!(dv < 1e-9, "{layout} on {ranks} ranks: grid values differ by {dv:e}");
+    for solver in [SolverKind::Lu, SolverKind::Cholesky] {
+        let oracle = Model {
+            carrier: prep.carrier.clone(),
+            spline: solve_serial(&prep, &k, solver),
+            coarse: Vec::new(),
+            provenance: Default::default(),
+        };
+        for (ranks, layout, shape) in
+            [(0, "2d", "1x1"), (2, "1x2", "1x2"), (2, "2x1", "2x1"), (3, "2d", "1x3"), (4, "2x2", "2x2")]
+        {
+            let prefix = dir.join(format!("{}-{ranks}-{layout}", solver.name()));
+            let p = prefix.to_str().unwrap();
+            // block 16 over 257 rows: 17 panels, blocks of the polynomial border split over ranks
+            let args = [
+                "fit",
+                input,
+                "--out",
+                p,
+                "--layout",
+                layout,
+                "--solver",
+                solver.name(),
+                "--grid",
+                "20",
+                "--panel",
+                "16",
+                "--surface",
+                "carrier",
+            ];
+            let out = common::run_ok(ranks, &args);
+            let line = format!("solver {} (dense, 2D block-cyclic {shape}), panel 16", solver.name());
+            assert!(out.contains(&line), "{out}");
+            let model = read_model(&dir.join(format!("{p}.model.h5"))).unwrap();
+            let dw = common::rel_diff(&model.spline.weights, &oracle.spline.weights);
+            let dc = common::rel_diff(&model.spline.poly, &oracle.spline.poly);
+            let what = format!("{} {layout} on {ranks} ranks", solver.name());
+            assert!(dw < 1e-9 && dc < 1e-9, "{what}: weights {dw:e}, poly {dc:e}");
+            assert!(model.provenance.residual < 1e-10, "residual {}", model.provenance.residual);
+            let dv = common::volume_diff(Path::new(&format!("{p}.hdf")), &oracle);
+            assert!(dv < 1e-9, "{what}: grid values differ by {dv:e}");
+        }
     }
     let p = dir.join("refused");
     let p = p.to_str().unwrap();
     assert_fails(3, &["fit", input, "--out", p, "--layout", "2x2"], 2, &["needs 4 ranks, the job has 3"]);
-    assert_fails(0, &["fit", input, "--out", p, "--layout", "2d", "--solver", "cholesky"], 2, &["LU only"]);
+    assert_fails(
+        0,
+        &["fit", input, "--out", p, "--layout", "2d", "--solver", "householder"],
+        2,
+        &["no Householder"],
+    );
     assert_fails(
         0,
         &["fit", input, "--out", p, "--layout", "1x1", "--precision", "mixed"],

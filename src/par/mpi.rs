@@ -110,7 +110,12 @@ impl MpiComm {
 
     /// The broadcast as MPI_Ibcast, with `work` run while it is in flight (see
     /// [`Comm::broadcast_f64_while`]); work left when the broadcast completes runs after it.
-    fn broadcast_while<T: Equivalence + Copy>(&self, root: usize, buf: &mut [T], work: &mut dyn FnMut() -> bool) {
+    fn broadcast_while<T: Equivalence + Copy>(
+        &self,
+        root: usize,
+        buf: &mut [T],
+        work: &mut dyn FnMut() -> bool,
+    ) {
         if self.size == 1 {
             while work() {}
             return;

@@ -42,15 +42,14 @@ pub fn assemble_blocks(
 }
 
 /// Refuses, before any work, a `--layout` the rest of the arguments or the rank count cannot
-/// use: the 2D block-cyclic layout has the LU solver in f64 only, and its grid must cover the
-/// ranks exactly.
+/// use: the 2D block-cyclic layout has the LU and projected Cholesky solvers in f64 only, and
+/// its grid must cover the ranks exactly.
 pub fn check_layout(a: &FitArgs, ranks: usize) -> Result<()> {
     let Some((pr, pc)) = a.layout.shape(ranks) else { return Ok(()) };
-    if !matches!(a.solver, SolverKind::Lu | SolverKind::Auto) {
+    if a.solver == SolverKind::Householder {
         return Err(Error::Usage(format!(
-            "--layout {} factors by LU only: use --solver lu (or auto), or --layout row-cyclic for {}",
-            a.layout.name(ranks),
-            a.solver.name()
+            "--layout {} has no Householder solver: use --solver auto, cholesky or lu, or --layout row-cyclic",
+            a.layout.name(ranks)
         )));
     }
     if a.precision != Precision::F64 {
@@ -101,18 +100,10 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
             let shape = a.layout.shape(comm.size()).expect("a 2D layout has a grid");
             let grid = ProcessGrid::new(&timed, shape)?;
             let nb = if a.panel > 0 { a.panel } else { dist::DEFAULT_BLOCK };
-            let mut blocks =
-                stages.time(Stage::Assemble, || assemble_blocks(&kernel, centres, values, &grid, nb));
-            stages.time(Stage::Solve, || {
-                dist::lu2d_solve(&job, &grid, &mut blocks).map(|x| dist::Solved {
-                    x,
-                    used: SolverKind::Lu,
-                    panel: nb,
-                    fallback: None,
-                    refinement: None,
-                    mixed_fallback: None,
-                })
-            })
+            let assemble = || assemble_blocks(&kernel, centres, values, &grid, nb);
+            let blocks = stages.time(Stage::Assemble, assemble);
+            let k = kernel.poly_count();
+            stages.time(Stage::Solve, || dist::solve_2d(&job, &grid, a.solver, k, blocks, assemble))
         }
     };
     stages.add(Stage::CommWait, timed.seconds());

@@ -164,10 +164,15 @@ impl Border {
         let k = rows.border;
         let n = rows.layout.n - k;
         assert!(k >= 1, "the projected Cholesky needs a polynomial border");
+        let qr: Vec<f64> = rows.gather_rows(comm, n, n + k, 0, n).iter().map(|v| v.f64()).collect();
+        Border::of(qr, n, k)
+    }
+
+    /// The QR of P, given column-major (n x k) on this rank.
+    pub fn of(mut qr: Vec<f64>, n: usize, k: usize) -> Result<Border> {
         if n <= k {
             return Err(Error::NotDefinite(format!("{n} centres leave no definite block")));
         }
-        let mut qr: Vec<f64> = rows.gather_rows(comm, n, n + k, 0, n).iter().map(|v| v.f64()).collect();
         let taus = qr_in_place(&mut qr, n, k);
         let border = Border { k, n, qr, taus };
         let r = border.r();
@@ -177,6 +182,13 @@ impl Border {
             )));
         }
         Ok(border)
+    }
+
+    /// Q = I - V T V^T: the reflectors as explicit columns (n x k, unit diagonal) and T.
+    pub fn wy(&self) -> (Mat<f64>, Mat<f64>) {
+        let v = explicit_v(MatRef::from_column_major_slice(&self.qr, self.n, self.k), self.k);
+        let t = wy_t(&self.taus, (v.transpose() * &v).as_ref());
+        (v, t)
     }
 
     /// R (the upper triangle of the k x k block; the strict lower triangle holds reflectors).
@@ -211,8 +223,7 @@ impl Border {
         let (k, n) = (self.k, self.n);
         let lay = rows.layout;
         let la = lay.first_local_from(n);
-        let v = explicit_v(MatRef::from_column_major_slice(&self.qr, n, k), k);
-        let t = wy_t(&self.taus, (v.transpose() * &v).as_ref());
+        let (v, t) = self.wy();
         // X = A V on this rank's rows, then all of X on every rank
         let mut x_loc = Mat::<f64>::zeros(la, k);
         let a = MatRef::from_column_major_slice_with_stride(&rows.data, la, n, rows.ld());
@@ -365,7 +376,7 @@ pub(super) fn factor_projected<T: Scalar>(
 
 /// Cholesky of a small symmetric matrix (row-major, lower triangle used) by faer's blocked kernel;
 /// None unless every pivot is positive.
-fn cholesky_small<T: Scalar>(d: &[T], m: usize) -> Option<Mat<T>> {
+pub(super) fn cholesky_small<T: Scalar>(d: &[T], m: usize) -> Option<Mat<T>> {
     use faer::dyn_stack::{MemBuffer, MemStack};
     use faer::linalg::cholesky::llt::factor::{cholesky_in_place, cholesky_in_place_scratch};
     let zero = T::of(0.0);

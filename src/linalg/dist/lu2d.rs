@@ -81,7 +81,8 @@ pub fn lu2d_factor(job: &Job<'_>, grid: &ProcessGrid<'_>, a: &mut LocalBlocks, t
         let map = RowMap { owner: &|g| rows.owner(g), local: &|g| rows.local(g) };
         permute_local_rows(grid.col.as_ref(), &map, &swaps, &mut a.data, ld, lc1..ncl);
         let u12 = block_row_of_u(grid, a, k, kb, &panel[1 + kb..]);
-        let update = Update { l: &panel[1 + kb..], m, lr0, kb, u12: &u12, lc1, first: rows.first_local_from(end) };
+        let update =
+            Update { l: &panel[1 + kb..], m, lr0, kb, u12: &u12, lc1, first: rows.first_local_from(end) };
         if end == n {
             update.apply(a, lc1, ncl, job);
             (job.progress)(end, n);
@@ -165,7 +166,8 @@ fn block_row_of_u(grid: &ProcessGrid<'_>, a: &mut LocalBlocks, k: usize, kb: usi
         let (lk, lr0) = (rows.local(k), rows.first_local_from(k));
         let l = MatRef::from_column_major_slice(l, ld - lr0, kb);
         let l11 = l.subrows(lk - lr0, kb);
-        let mut a12 = MatMut::from_column_major_slice_with_stride_mut(&mut a.data[lk + lc1 * ld..], kb, w, ld);
+        let mut a12 =
+            MatMut::from_column_major_slice_with_stride_mut(&mut a.data[lk + lc1 * ld..], kb, w, ld);
         solve_unit_lower_triangular_in_place(l11, a12.as_mut(), faer::Par::Seq);
         for c in 0..w {
             u12[c * kb..(c + 1) * kb].copy_from_slice(&a.data[lk + (lc1 + c) * ld..lk + kb + (lc1 + c) * ld]);
@@ -200,8 +202,12 @@ impl Update<'_> {
         let l21 = l.subrows(self.first - self.lr0, ld - self.first);
         let w = self.u12.len() / self.kb;
         let u = MatRef::from_column_major_slice(self.u12, self.kb, w).subcols(c0 - self.lc1, c1 - c0);
-        let a22 =
-            MatMut::from_column_major_slice_with_stride_mut(&mut a.data[self.first + c0 * ld..], ld - self.first, c1 - c0, ld);
+        let a22 = MatMut::from_column_major_slice_with_stride_mut(
+            &mut a.data[self.first + c0 * ld..],
+            ld - self.first,
+            c1 - c0,
+            ld,
+        );
         matmul(a22, Accum::Add, l21, u, -1.0, job.par);
     }
 }
@@ -322,6 +328,10 @@ fn factor_columns(
         pivots.push(p);
         let d = pivot_row[0];
         let l0 = rows.first_local_from(j + 1);
+        if l0 == ld {
+            // no rows of this rank below the pivot (possibly none at all)
+            continue;
+        }
         let (left, right) = a.data.split_at_mut((jl + 1) * ld);
         let lcol = &mut left[jl * ld + l0..jl * ld + ld];
         let inv = 1.0 / d;

@@ -13,6 +13,7 @@
 
 mod backsub;
 mod cholesky;
+mod cholesky2d;
 mod grid;
 mod householder;
 mod layout;
@@ -26,6 +27,7 @@ mod solver;
 mod system;
 
 pub use cholesky::cholesky_solve;
+pub use cholesky2d::cholesky2d_solve;
 pub use grid::{squarest, BlockCyclic, Layout, LocalBlocks, ProcessGrid};
 pub use householder::householder_solve;
 pub use layout::RowCyclic;
@@ -33,5 +35,7 @@ pub use lu::{lu_factor, lu_solve};
 pub use lu2d::{lu2d_factor, lu2d_solve, DEFAULT_BLOCK};
 pub use refine::{mixed_solve, Refinement};
 pub use scalar::Scalar;
-pub use solver::{solve, solve_in, Job, Precision, Solved, SolverKind, AUTO_CHOLESKY_FROM, LOOKAHEAD};
+pub use solver::{
+    solve, solve_2d, solve_in, Job, Precision, Solved, SolverKind, AUTO_CHOLESKY_FROM, LOOKAHEAD,
+};
 pub use system::{all_gather_rows, GatherBuffers, LocalRows};

@@ -1,0 +1,354 @@
+//! The projected Cholesky (see `cholesky`) on the 2D block-cyclic layout (see `grid`).
+//!
+//! The reduction is the same: P = Q [R; 0], B = Q2^T A Q2 is definite with the kernel's sign s,
+//! s B = L L^T, mu from the two triangular solves, lambda = Q [0; mu] and R c from the first k
+//! rows of Q^T A Q. What the grid changes:
+//!
+//! - P^T is small (k x N): every rank contributes the entries it owns and one all-reduce puts the
+//!   whole of it on every rank, which factors it (the same bits everywhere).
+//! - The projection Q^T A Q = A - [Y V] [V^T; Y^T] needs X = A V: each rank multiplies its block by
+//!   the rows of V at its columns, and one all-reduce of the N x k result both sums over the
+//!   process columns and collects the process rows. Each rank then applies the rank-2k update to
+//!   its own block with one GEMM: its rows of [Y V] times its columns of [V^T; Y^T].
+//! - B is factored in panels of the blocks (the first panel starts at row k, so it is k narrower):
+//!   the owner of the diagonal block factors it and sends L11 down its process column, which
+//!   solves for its rows of L21 = B21 L11^-T; those travel along the process rows (each rank gets
+//!   its rows of L21), and the symmetric update B22 -= L21 L21^T needs L21 also at the rows that
+//!   are this rank's columns: the rank of each process row that holds such rows gives them to its
+//!   process column in one all-gather (every row index of B is some process row's, so each rank
+//!   receives exactly the rows at its columns, about N/pc of them). The update runs on column
+//!   chunks from the diagonal down, so only the lower triangle (and a sliver above it) is
+//!   touched: half of LU's flops, as on the row-cyclic layout.
+//! - The forward solve L z = y walks the panels down: the process row of the panel sums L z over
+//!   its columns left of it (one all-reduce over the process row), the diagonal block's owner
+//!   solves and broadcasts the piece of z; the back solve L^T mu = z walks up, summing down the
+//!   panel's process column instead.
+//!
+//! A pivot that is not positive is reported with the panel's status word, so every rank returns
+//! `Error::NotDefinite` at the same panel and the caller can fall back to LU.
+
+use faer::linalg::matmul::matmul;
+use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
+use faer::{Accum, Mat, MatMut, MatRef};
+
+use super::cholesky::{cholesky_small, Border};
+use super::grid::{LocalBlocks, ProcessGrid};
+use super::solver::Job;
+use crate::error::{Error, Result};
+
+/// Local columns updated per GEMM of the trailing update (the rows of each chunk start at its
+/// first column's diagonal).
+const COL_CHUNK: usize = 96;
+
+/// Solves the bordered system in `a` (k polynomial rows and columns before the right-hand side,
+/// k >= 1) by the projected Cholesky and returns the solution on every rank; or
+/// `Error::NotDefinite` on every rank when a pivot of the projected block is not positive (the
+/// caller falls back to LU on a fresh assembly: `a` is overwritten). Collective over the grid.
+pub fn cholesky2d_solve(
+    job: &Job<'_>,
+    grid: &ProcessGrid<'_>,
+    a: &mut LocalBlocks,
+    k: usize,
+) -> Result<Vec<f64>> {
+    assert!(k >= 1, "the projected Cholesky needs a polynomial border");
+    let (rows, cols, ld) = (a.rows, a.cols, a.ld());
+    let n = a.n() - k;
+    // P (n x k, column-major) from the border rows n.., columns 0..n, wherever they are
+    let (la, ca) = (rows.first_local_from(n), cols.first_local_from(n));
+    let mut p = vec![0.0; n * k];
+    for lr in la..ld {
+        let j = rows.global(lr) - n;
+        for lc in 0..ca {
+            p[cols.global(lc) + j * n] = a.data[lr + lc * ld];
+        }
+    }
+    grid.comm.sum_f64(&mut p);
+    let border = Border::of(p, n, k)?;
+    project(job, grid, a, &border, n);
+    let rhs = cols.owner(n + k);
+    let lrhs = cols.local(n + k);
+
+    // the right-hand side: Q^T r
+    let mut y = vec![0.0; n];
+    if grid.mycol == rhs {
+        for lr in 0..la {
+            y[rows.global(lr)] = a.data[lr + lrhs * ld];
+        }
+    }
+    grid.comm.sum_f64(&mut y);
+    border.q_transpose(&mut y);
+
+    // s B positive definite: the sign of its first diagonal entry
+    let mut d0 = [0.0];
+    let diag = grid.rank_at(rows.owner(k), cols.owner(k));
+    if grid.comm.rank() == diag {
+        d0[0] = a.data[rows.local(k) + cols.local(k) * ld];
+    }
+    grid.comm.broadcast_f64(diag, &mut d0);
+    let sign = if d0[0] < 0.0 { -1.0 } else { 1.0 };
+    if sign < 0.0 {
+        let r0 = rows.first_local_from(k);
+        for lc in cols.first_local_from(k)..ca {
+            a.data[lc * ld + r0..lc * ld + la].iter_mut().for_each(|v| *v = -*v);
+        }
+    }
+    factor(job, grid, a, k, n)?;
+
+    let panels = panels(k, n, rows.nb);
+    // forward solve L z = s y[k..n], panel by panel down
+    let mut z = vec![0.0; n];
+    for &(p0, p1) in &panels {
+        let (ri, ci) = (rows.owner(p0), cols.owner(p0));
+        let mut out = vec![0.0; p1 - p0];
+        if grid.myrow == ri {
+            let lb = rows.local(p0);
+            // s = sum over columns k..p0 of L[p0..p1, c] z[c], over the process row
+            let mut s = vec![0.0; p1 - p0];
+            for lc in cols.first_local_from(k)..cols.first_local_from(p0) {
+                let zc = z[cols.global(lc)];
+                for (st, l) in s.iter_mut().zip(&a.data[lb + lc * ld..lb + (p1 - p0) + lc * ld]) {
+                    *st += l * zc;
+                }
+            }
+            grid.row.sum_f64(&mut s);
+            if grid.mycol == ci {
+                let lcb = cols.local(p0);
+                let l = |i: usize, j: usize| a.data[lb + i + (lcb + j) * ld];
+                for i in 0..p1 - p0 {
+                    let t: f64 = (0..i).map(|j| l(i, j) * out[j]).sum();
+                    out[i] = (sign * y[p0 + i] - s[i] - t) / l(i, i);
+                }
+            }
+        }
+        grid.comm.broadcast_f64(grid.rank_at(ri, ci), &mut out);
+        z[p0..p1].copy_from_slice(&out);
+    }
+    // back solve L^T mu = z, panel by panel up
+    let mut mu = vec![0.0; n];
+    for &(p0, p1) in panels.iter().rev() {
+        let (ri, ci) = (rows.owner(p0), cols.owner(p0));
+        let mut out = vec![0.0; p1 - p0];
+        if grid.mycol == ci {
+            let lcb = cols.local(p0);
+            // s = sum over rows p1..n of L[r, p0..p1] mu[r], over the process column
+            let mut s = vec![0.0; p1 - p0];
+            let r0 = rows.first_local_from(p1);
+            for (t, st) in s.iter_mut().enumerate() {
+                let col = &a.data[(lcb + t) * ld..(lcb + t) * ld + la];
+                *st = (r0..la).map(|lr| col[lr] * mu[rows.global(lr)]).sum();
+            }
+            grid.col.sum_f64(&mut s);
+            if grid.myrow == ri {
+                let lb = rows.local(p0);
+                let l = |i: usize, j: usize| a.data[lb + i + (lcb + j) * ld];
+                for i in (0..p1 - p0).rev() {
+                    let t: f64 = (i + 1..p1 - p0).map(|j| l(j, i) * out[j]).sum();
+                    out[i] = (z[p0 + i] - s[i] - t) / l(i, i);
+                }
+            }
+        }
+        grid.comm.broadcast_f64(grid.rank_at(ri, ci), &mut out);
+        mu[p0..p1].copy_from_slice(&out);
+    }
+
+    // lambda = Q [0; mu]; R c = (Q^T r)[0..k] - (Q^T A Q)[0..k, k..n] mu
+    let mut lambda = mu.clone();
+    lambda[..k].iter_mut().for_each(|x| *x = 0.0);
+    border.q(&mut lambda);
+    let mut t = vec![0.0; k];
+    for lr in 0..rows.first_local_from(k) {
+        let i = rows.global(lr);
+        t[i] =
+            -(cols.first_local_from(k)..ca).map(|lc| a.data[lr + lc * ld] * mu[cols.global(lc)]).sum::<f64>();
+    }
+    grid.comm.sum_f64(&mut t);
+    let r = border.r();
+    let mut c = vec![0.0; k];
+    for i in (0..k).rev() {
+        let s: f64 = (i + 1..k).map(|j| r[(i, j)] * c[j]).sum();
+        c[i] = (y[i] + t[i] - s) / r[(i, i)];
+    }
+    lambda.extend(c);
+    Ok(lambda)
+}
+
+/// The panels of B: from row k to the end of its block, then block by block to n.
+fn panels(k: usize, n: usize, nb: usize) -> Vec<(usize, usize)> {
+    let mut out = Vec::new();
+    let mut p0 = k;
+    while p0 < n {
+        let p1 = ((p0 / nb + 1) * nb).min(n);
+        out.push((p0, p1));
+        p0 = p1;
+    }
+    out
+}
+
+/// A <- Q^T A Q on this rank's block of A (rows and columns 0..n). Collective over the grid.
+fn project(job: &Job<'_>, grid: &ProcessGrid<'_>, a: &mut LocalBlocks, border: &Border, n: usize) {
+    let (rows, cols, ld) = (a.rows, a.cols, a.ld());
+    let k = border.k;
+    let (la, ca) = (rows.first_local_from(n), cols.first_local_from(n));
+    let (v, t) = border.wy();
+    // X = A V: this block's part, summed over the process columns, placed at the global rows
+    let vcols = Mat::<f64>::from_fn(ca, k, |lc, j| v[(cols.global(lc), j)]);
+    let mut xloc = Mat::<f64>::zeros(la, k);
+    let block = MatRef::from_column_major_slice_with_stride(&a.data, la, ca, ld);
+    matmul(xloc.as_mut(), Accum::Replace, block, vcols.as_ref(), 1.0, job.par);
+    let mut xg = vec![0.0; n * k];
+    for j in 0..k {
+        for lr in 0..la {
+            xg[rows.global(lr) + j * n] = xloc[(lr, j)];
+        }
+    }
+    grid.comm.sum_f64(&mut xg);
+    let x = MatRef::from_column_major_slice(&xg, n, k);
+    let zm = v.transpose() * x;
+    let y = x * &t - (&v * (t.transpose() * &zm * &t)) * 0.5;
+    let left = Mat::<f64>::from_fn(la, 2 * k, |lr, j| {
+        let g = rows.global(lr);
+        if j < k {
+            y[(g, j)]
+        } else {
+            v[(g, j - k)]
+        }
+    });
+    let right = Mat::<f64>::from_fn(2 * k, ca, |j, lc| {
+        let c = cols.global(lc);
+        if j < k {
+            v[(c, j)]
+        } else {
+            y[(c, j - k)]
+        }
+    });
+    let block = MatMut::from_column_major_slice_with_stride_mut(&mut a.data, la, ca, ld);
+    matmul(block, Accum::Add, left.as_ref(), right.as_ref(), -1.0, job.par);
+}
+
+/// Factors s B (rows and columns k..n, already multiplied by the sign) in place: L in the lower
+/// triangle of the factored panels. Collective over the grid; `Error::NotDefinite` on every rank
+/// when a pivot is not positive.
+fn factor(job: &Job<'_>, grid: &ProcessGrid<'_>, a: &mut LocalBlocks, k: usize, n: usize) -> Result<()> {
+    let (rows, cols, ld) = (a.rows, a.cols, a.ld());
+    let la = rows.first_local_from(n);
+    for (p0, p1) in panels(k, n, rows.nb) {
+        let pb = p1 - p0;
+        let (ri, ci) = (rows.owner(p0), cols.owner(p0));
+        let t0 = rows.first_local_from(p1);
+        let m = la - t0;
+        // status (0, or 1: not definite) and this process row's rows p1..n of L21
+        let mut panel = vec![0.0; 1 + m * pb];
+        if grid.mycol == ci {
+            let lcb = cols.local(p0);
+            // status and L11 (column-major) down the process column
+            let mut d = vec![0.0; 1 + pb * pb];
+            if grid.myrow == ri {
+                let lb = rows.local(p0);
+                let b11: Vec<f64> = (0..pb * pb).map(|e| a.data[lb + e / pb + (lcb + e % pb) * ld]).collect();
+                match cholesky_small(&b11, pb) {
+                    Some(l11) => {
+                        for j in 0..pb {
+                            for i in 0..pb {
+                                d[1 + i + j * pb] = l11[(i, j)];
+                                a.data[lb + i + (lcb + j) * ld] = l11[(i, j)];
+                            }
+                        }
+                    }
+                    None => d[0] = 1.0,
+                }
+            }
+            grid.col.broadcast_f64(ri, &mut d);
+            panel[0] = d[0];
+            if d[0] == 0.0 && m > 0 {
+                // L21 = B21 L11^-T: L11 L21^T = B21^T, on a column-major copy of B21^T
+                let l11 = MatRef::from_column_major_slice(&d[1..], pb, pb);
+                let mut bt = Mat::<f64>::from_fn(pb, m, |j, i| a.data[t0 + i + (lcb + j) * ld]);
+                solve_lower_triangular_in_place(l11, bt.as_mut(), job.par);
+                for j in 0..pb {
+                    for i in 0..m {
+                        a.data[t0 + i + (lcb + j) * ld] = bt[(j, i)];
+                        panel[1 + i + j * m] = bt[(j, i)];
+                    }
+                }
+            }
+        }
+        grid.row.broadcast_f64(ci, &mut panel);
+        if panel[0] != 0.0 {
+            return Err(Error::NotDefinite(format!(
+                "a pivot of the projected block is not positive near row {p0} of {n} \
+                 (the kernel is not conditionally definite on these points to working precision)"
+            )));
+        }
+        if p1 < n {
+            update(job, grid, a, (p1, n), (&panel[1..], m, pb));
+        }
+        (job.progress)(p1, n);
+    }
+    Ok(())
+}
+
+/// B22 -= L21 L21^T on this rank's block, lower triangle (rows p1..n, columns p1..n). `l21`: this
+/// process row's rows p1..n of L21 (m x pb, column-major). Collective over the process column
+/// (the rows of L21 at this rank's columns are all-gathered there).
+fn update(
+    job: &Job<'_>,
+    grid: &ProcessGrid<'_>,
+    a: &mut LocalBlocks,
+    (p1, n): (usize, usize),
+    (l21, m, pb): (&[f64], usize, usize),
+) {
+    let (rows, cols, ld) = (a.rows, a.cols, a.ld());
+    let la = rows.first_local_from(n);
+    let t0 = rows.first_local_from(p1);
+    // this rank's rows of L21 at global indices that are columns of its process column
+    let mine = |g: usize| cols.owner(g) == grid.mycol;
+    let mut send = Vec::new();
+    for lr in t0..la {
+        let g = rows.global(lr);
+        if mine(g) {
+            send.extend((0..pb).map(|j| l21[lr - t0 + j * m]));
+        }
+    }
+    // every process row's count, and the order its rows arrive in: ascending global index
+    let mut counts = vec![0usize; grid.pr];
+    let (c1, cn) = (cols.first_local_from(p1), cols.first_local_from(n));
+    for lc in c1..cn {
+        counts[rows.owner(cols.global(lc))] += pb;
+    }
+    let mut recv = vec![0.0; counts.iter().sum()];
+    grid.col.all_gather_f64(&send, &counts, &mut recv);
+    // L21 rows at this rank's columns c1..cn, as the columns of a pb x w matrix
+    let w = cn - c1;
+    let mut lt = vec![0.0; pb * w];
+    let mut offset = vec![0usize; grid.pr];
+    for r in 1..grid.pr {
+        offset[r] = offset[r - 1] + counts[r - 1];
+    }
+    for lc in c1..cn {
+        let r = rows.owner(cols.global(lc));
+        lt[(lc - c1) * pb..(lc - c1 + 1) * pb].copy_from_slice(&recv[offset[r]..offset[r] + pb]);
+        offset[r] += pb;
+    }
+    if m == 0 || w == 0 {
+        return;
+    }
+    let l = MatRef::from_column_major_slice(l21, m, pb);
+    let ltm = MatRef::from_column_major_slice(&lt, pb, w);
+    let mut c0 = c1;
+    while c0 < cn {
+        let ce = (c0 + COL_CHUNK).min(cn);
+        // the rows at or below this chunk's first column
+        let r0 = rows.first_local_from(cols.global(c0)).max(t0);
+        if r0 < la {
+            let block = MatMut::from_column_major_slice_with_stride_mut(
+                &mut a.data[r0 + c0 * ld..],
+                la - r0,
+                ce - c0,
+                ld,
+            );
+            let lrows = l.subrows(r0 - t0, la - r0);
+            matmul(block, Accum::Add, lrows, ltm.subcols(c0 - c1, ce - c0), -1.0, job.par);
+        }
+        c0 = ce;
+    }
+}
