@@ -346,8 +346,9 @@ fn lu2d_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
 }
 
 /// The projected Cholesky on the 2D block-cyclic layout, on every process grid of the job's ranks
-/// and block sizes 1 and 3 (panels narrower than the border), 7, 16 and 64, against the dense QR
-/// oracle; on an indefinite projected block every rank falls back to the 2D LU.
+/// and block sizes 1 and 3 (panels narrower than the border), 7, 16 and 64, with and without
+/// look-ahead, against the dense QR oracle; on an indefinite projected block every rank falls
+/// back to the 2D LU.
 fn cholesky2d_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
     let k = Kernel::new(3, 2).unwrap();
     let prep = bunny_system(&k);
@@ -359,13 +360,13 @@ fn cholesky2d_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
     let p = comm.size();
     for shape in (1..=p).filter(|pr| p % pr == 0).map(|pr| (pr, p / pr)) {
         let grid = must(dist::ProcessGrid::new(comm, shape), "the process grid");
-        for nb in [1, 3, 7, 16, 64] {
-            let what = format!("cholesky2d {}x{} block {nb}", shape.0, shape.1);
+        for (nb, lookahead) in
+            [(1, false), (3, true), (7, false), (7, true), (16, true), (64, false), (64, true)]
+        {
+            let what = format!("cholesky2d {}x{} block {nb} look-ahead {lookahead}", shape.0, shape.1);
             let a = assemble_blocks(&k, &prep.centres, &prep.values, &grid, nb);
-            let s = must(
-                dist::solve_2d(&Job::on(comm), &grid, SolverKind::Cholesky, 4, a, || unreachable!()),
-                &what,
-            );
+            let job = Job::on(comm).lookahead(lookahead);
+            let s = must(dist::solve_2d(&job, &grid, SolverKind::Cholesky, 4, a, || unreachable!()), &what);
             log.check(s.used == SolverKind::Cholesky && s.fallback.is_none(), || format!("{what}: {s:?}"));
             log.close(&s.x, &want, 1e-9, || what.clone());
             same_on_every_rank(comm, log, &s.x, &what);

@@ -227,128 +227,196 @@ fn project(job: &Job<'_>, grid: &ProcessGrid<'_>, a: &mut LocalBlocks, border: &
 
 /// Factors s B (rows and columns k..n, already multiplied by the sign) in place: L in the lower
 /// triangle of the factored panels. Collective over the grid; `Error::NotDefinite` on every rank
-/// when a pivot is not positive.
+/// when a pivot is not positive. With `job.lookahead` the process column of the next panel
+/// updates that panel's columns first, factors it and broadcasts it (non-blocking) while the rest
+/// of the trailing update runs, as the 2D LU does; the factor is the same.
 fn factor(job: &Job<'_>, grid: &ProcessGrid<'_>, a: &mut LocalBlocks, k: usize, n: usize) -> Result<()> {
-    let (rows, cols, ld) = (a.rows, a.cols, a.ld());
-    let la = rows.first_local_from(n);
-    for (p0, p1) in panels(k, n, rows.nb) {
-        let pb = p1 - p0;
-        let (ri, ci) = (rows.owner(p0), cols.owner(p0));
-        let t0 = rows.first_local_from(p1);
-        let m = la - t0;
-        // status (0, or 1: not definite) and this process row's rows p1..n of L21
-        let mut panel = vec![0.0; 1 + m * pb];
-        if grid.mycol == ci {
-            let lcb = cols.local(p0);
-            // status and L11 (column-major) down the process column
-            let mut d = vec![0.0; 1 + pb * pb];
-            if grid.myrow == ri {
-                let lb = rows.local(p0);
-                let b11: Vec<f64> = (0..pb * pb).map(|e| a.data[lb + e / pb + (lcb + e % pb) * ld]).collect();
-                match cholesky_small(&b11, pb) {
-                    Some(l11) => {
-                        for j in 0..pb {
-                            for i in 0..pb {
-                                d[1 + i + j * pb] = l11[(i, j)];
-                                a.data[lb + i + (lcb + j) * ld] = l11[(i, j)];
-                            }
-                        }
-                    }
-                    None => d[0] = 1.0,
-                }
-            }
-            grid.col.broadcast_f64(ri, &mut d);
-            panel[0] = d[0];
-            if d[0] == 0.0 && m > 0 {
-                // L21 = B21 L11^-T: L11 L21^T = B21^T, on a column-major copy of B21^T
-                let l11 = MatRef::from_column_major_slice(&d[1..], pb, pb);
-                let mut bt = Mat::<f64>::from_fn(pb, m, |j, i| a.data[t0 + i + (lcb + j) * ld]);
-                solve_lower_triangular_in_place(l11, bt.as_mut(), job.par);
-                for j in 0..pb {
-                    for i in 0..m {
-                        a.data[t0 + i + (lcb + j) * ld] = bt[(j, i)];
-                        panel[1 + i + j * m] = bt[(j, i)];
-                    }
-                }
-            }
-        }
-        grid.row.broadcast_f64(ci, &mut panel);
+    let panels = panels(k, n, a.rows.nb);
+    let Some(&first) = panels.first() else { return Ok(()) };
+    let mut panel = factor_and_pack(job, grid, a, first, n);
+    grid.row.broadcast_f64(a.cols.owner(first.0), &mut panel);
+    for (i, &(p0, p1)) in panels.iter().enumerate() {
         if panel[0] != 0.0 {
             return Err(Error::NotDefinite(format!(
                 "a pivot of the projected block is not positive near row {p0} of {n} \
                  (the kernel is not conditionally definite on these points to working precision)"
             )));
         }
-        if p1 < n {
-            update(job, grid, a, (p1, n), (&panel[1..], m, pb));
+        let Some(&next) = panels.get(i + 1) else {
+            (job.progress)(p1, n);
+            return Ok(());
+        };
+        let (rows, cols) = (a.rows, a.cols);
+        let (t0, la) = (rows.first_local_from(p1), rows.first_local_from(n));
+        let update = Update::new(grid, a, (p0, p1, n), &panel[1..], la - t0);
+        let (c1, cn) = (cols.first_local_from(p1), cols.first_local_from(n));
+        let ci1 = cols.owner(next.0);
+        let early = job.lookahead && grid.mycol == ci1;
+        let mut next_panel = if early {
+            update.apply(job, a, c1, c1 + (next.1 - next.0));
+            factor_and_pack(job, grid, a, next, n)
+        } else {
+            vec![0.0; 1 + (la - rows.first_local_from(next.1)) * (next.1 - next.0)]
+        };
+        let mut from = if early { c1 + (next.1 - next.0) } else { c1 };
+        if job.lookahead {
+            let piece = (cn - from).div_ceil(4).max(4 * COL_CHUNK);
+            let mut work = || {
+                let to = (from + piece).min(cn);
+                update.apply(job, a, from, to);
+                from = to;
+                from < cn
+            };
+            grid.row.broadcast_f64_while(ci1, &mut next_panel, &mut work);
+        } else {
+            update.apply(job, a, from, cn);
+            if grid.mycol == ci1 {
+                next_panel = factor_and_pack(job, grid, a, next, n);
+            }
+            grid.row.broadcast_f64(ci1, &mut next_panel);
         }
         (job.progress)(p1, n);
+        panel = next_panel;
     }
     Ok(())
 }
 
-/// B22 -= L21 L21^T on this rank's block, lower triangle (rows p1..n, columns p1..n). `l21`: this
-/// process row's rows p1..n of L21 (m x pb, column-major). Collective over the process column
-/// (the rows of L21 at this rank's columns are all-gathered there).
-fn update(
+/// On the process column of the panel (p0, p1): the owner of the diagonal block factors it and
+/// sends L11 down the process column, which solves for its rows of L21 = B21 L11^-T (stored in
+/// place). Returns the status (0, or 1: not definite) and this process row's rows p1..n of L21
+/// (column-major), to travel along the process rows; elsewhere a buffer of the same length.
+/// Collective over the panel's process column.
+fn factor_and_pack(
     job: &Job<'_>,
     grid: &ProcessGrid<'_>,
     a: &mut LocalBlocks,
-    (p1, n): (usize, usize),
-    (l21, m, pb): (&[f64], usize, usize),
-) {
+    (p0, p1): (usize, usize),
+    n: usize,
+) -> Vec<f64> {
     let (rows, cols, ld) = (a.rows, a.cols, a.ld());
-    let la = rows.first_local_from(n);
+    let pb = p1 - p0;
+    let (ri, ci) = (rows.owner(p0), cols.owner(p0));
     let t0 = rows.first_local_from(p1);
-    // this rank's rows of L21 at global indices that are columns of its process column
-    let mine = |g: usize| cols.owner(g) == grid.mycol;
-    let mut send = Vec::new();
-    for lr in t0..la {
-        let g = rows.global(lr);
-        if mine(g) {
-            send.extend((0..pb).map(|j| l21[lr - t0 + j * m]));
+    let m = rows.first_local_from(n) - t0;
+    let mut panel = vec![0.0; 1 + m * pb];
+    if grid.mycol != ci {
+        return panel;
+    }
+    let lcb = cols.local(p0);
+    let mut d = vec![0.0; 1 + pb * pb];
+    if grid.myrow == ri {
+        let lb = rows.local(p0);
+        let b11: Vec<f64> = (0..pb * pb).map(|e| a.data[lb + e / pb + (lcb + e % pb) * ld]).collect();
+        match cholesky_small(&b11, pb) {
+            Some(l11) => {
+                for j in 0..pb {
+                    for i in 0..pb {
+                        d[1 + i + j * pb] = l11[(i, j)];
+                        a.data[lb + i + (lcb + j) * ld] = l11[(i, j)];
+                    }
+                }
+            }
+            None => d[0] = 1.0,
         }
     }
-    // every process row's count, and the order its rows arrive in: ascending global index
-    let mut counts = vec![0usize; grid.pr];
-    let (c1, cn) = (cols.first_local_from(p1), cols.first_local_from(n));
-    for lc in c1..cn {
-        counts[rows.owner(cols.global(lc))] += pb;
-    }
-    let mut recv = vec![0.0; counts.iter().sum()];
-    grid.col.all_gather_f64(&send, &counts, &mut recv);
-    // L21 rows at this rank's columns c1..cn, as the columns of a pb x w matrix
-    let w = cn - c1;
-    let mut lt = vec![0.0; pb * w];
-    let mut offset = vec![0usize; grid.pr];
-    for r in 1..grid.pr {
-        offset[r] = offset[r - 1] + counts[r - 1];
-    }
-    for lc in c1..cn {
-        let r = rows.owner(cols.global(lc));
-        lt[(lc - c1) * pb..(lc - c1 + 1) * pb].copy_from_slice(&recv[offset[r]..offset[r] + pb]);
-        offset[r] += pb;
-    }
-    if m == 0 || w == 0 {
-        return;
-    }
-    let l = MatRef::from_column_major_slice(l21, m, pb);
-    let ltm = MatRef::from_column_major_slice(&lt, pb, w);
-    let mut c0 = c1;
-    while c0 < cn {
-        let ce = (c0 + COL_CHUNK).min(cn);
-        // the rows at or below this chunk's first column
-        let r0 = rows.first_local_from(cols.global(c0)).max(t0);
-        if r0 < la {
-            let block = MatMut::from_column_major_slice_with_stride_mut(
-                &mut a.data[r0 + c0 * ld..],
-                la - r0,
-                ce - c0,
-                ld,
-            );
-            let lrows = l.subrows(r0 - t0, la - r0);
-            matmul(block, Accum::Add, lrows, ltm.subcols(c0 - c1, ce - c0), -1.0, job.par);
+    grid.col.broadcast_f64(ri, &mut d);
+    panel[0] = d[0];
+    if d[0] == 0.0 && m > 0 {
+        // L21 = B21 L11^-T: L11 L21^T = B21^T, on a column-major copy of B21^T
+        let l11 = MatRef::from_column_major_slice(&d[1..], pb, pb);
+        let mut bt = Mat::<f64>::from_fn(pb, m, |j, i| a.data[t0 + i + (lcb + j) * ld]);
+        solve_lower_triangular_in_place(l11, bt.as_mut(), job.par);
+        for j in 0..pb {
+            for i in 0..m {
+                a.data[t0 + i + (lcb + j) * ld] = bt[(j, i)];
+                panel[1 + i + j * m] = bt[(j, i)];
+            }
         }
-        c0 = ce;
+    }
+    panel
+}
+
+/// The symmetric update B22 -= L21 L21^T of one panel on this rank's block: its rows of L21 and
+/// the rows of L21 at its columns.
+struct Update<'p> {
+    /// This process row's rows p1..n of L21 (m x pb, column-major).
+    l21: &'p [f64],
+    m: usize,
+    pb: usize,
+    /// The rows of L21 at this rank's columns p1..n, as the columns of a pb x (columns) matrix.
+    lt: Vec<f64>,
+    /// The first local row and column at or below p1; the end of the rows of B.
+    t0: usize,
+    c1: usize,
+    la: usize,
+}
+
+impl<'p> Update<'p> {
+    /// Collects the rows of L21 at this rank's columns: the rank of each process row that holds
+    /// such rows gives them to the process column in one all-gather. Collective over the process
+    /// column.
+    fn new(
+        grid: &ProcessGrid<'_>,
+        a: &LocalBlocks,
+        (p0, p1, n): (usize, usize, usize),
+        l21: &'p [f64],
+        m: usize,
+    ) -> Self {
+        let (rows, cols) = (a.rows, a.cols);
+        let pb = p1 - p0;
+        let (t0, la) = (rows.first_local_from(p1), rows.first_local_from(n));
+        let mut send = Vec::new();
+        for lr in t0..la {
+            if cols.owner(rows.global(lr)) == grid.mycol {
+                send.extend((0..pb).map(|j| l21[lr - t0 + j * m]));
+            }
+        }
+        // every process row's count, and the order its rows arrive in: ascending global index
+        let mut counts = vec![0usize; grid.pr];
+        let (c1, cn) = (cols.first_local_from(p1), cols.first_local_from(n));
+        for lc in c1..cn {
+            counts[rows.owner(cols.global(lc))] += pb;
+        }
+        let mut recv = vec![0.0; counts.iter().sum()];
+        grid.col.all_gather_f64(&send, &counts, &mut recv);
+        let mut lt = vec![0.0; pb * (cn - c1)];
+        let mut offset = vec![0usize; grid.pr];
+        for r in 1..grid.pr {
+            offset[r] = offset[r - 1] + counts[r - 1];
+        }
+        for lc in c1..cn {
+            let r = rows.owner(cols.global(lc));
+            lt[(lc - c1) * pb..(lc - c1 + 1) * pb].copy_from_slice(&recv[offset[r]..offset[r] + pb]);
+            offset[r] += pb;
+        }
+        Update { l21, m, pb, lt, t0, c1, la }
+    }
+
+    /// The update of the local columns c0..ce, lower triangle: chunks of columns, each from the
+    /// row of its first column's diagonal down.
+    fn apply(&self, job: &Job<'_>, a: &mut LocalBlocks, c0: usize, ce: usize) {
+        let (rows, cols, ld) = (a.rows, a.cols, a.ld());
+        if self.m == 0 || c0 >= ce {
+            return;
+        }
+        let l = MatRef::from_column_major_slice(self.l21, self.m, self.pb);
+        let w = self.lt.len() / self.pb;
+        let ltm = MatRef::from_column_major_slice(&self.lt, self.pb, w);
+        let mut c = c0;
+        while c < ce {
+            let e = (c + COL_CHUNK).min(ce);
+            let r0 = rows.first_local_from(cols.global(c)).max(self.t0);
+            if r0 < self.la {
+                let block = MatMut::from_column_major_slice_with_stride_mut(
+                    &mut a.data[r0 + c * ld..],
+                    self.la - r0,
+                    e - c,
+                    ld,
+                );
+                let lrows = l.subrows(r0 - self.t0, self.la - r0);
+                matmul(block, Accum::Add, lrows, ltm.subcols(c - self.c1, e - c), -1.0, job.par);
+            }
+            c = e;
+        }
     }
 }
