@@ -99,11 +99,13 @@ pub struct FitArgs {
     /// lu, 256 for cholesky).
     #[arg(long, allow_negative_numbers = true, default_value_t = 0, value_name = "NB")]
     pub panel: usize,
-    /// Look-ahead of the LU solver: on (each panel's trailing update runs while the next panel's
-    /// pivot searches are in flight) or off (update, then the next panel; the default, since on
-    /// one node the look-ahead has not measured faster).
-    #[arg(long, default_value = "off", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
-    pub lookahead: bool,
+    /// Look-ahead of the factorisations: on, off, or auto (the default): off on the row-cyclic
+    /// layout, where only the LU has it (each panel's trailing update runs while the next panel's
+    /// pivot searches are in flight) and it has not measured faster on one node; on for the 2D
+    /// LU and projected Cholesky when the grid has more than one process column (the next
+    /// panel's column factors it and broadcasts it during the trailing update), off with one.
+    #[arg(long, default_value = "auto", value_name = "auto|on|off", value_parser = on_off_auto)]
+    pub lookahead: LookAhead,
     /// Distribution of the dense system over the ranks: row-cyclic (global row g on rank
     /// g mod p; every solver), 2d (blocks of --panel rows and columns, default 64, on the
     /// squarest process grid, as ScaLAPACK deals them; cholesky and lu, in f64; auto picks
@@ -136,6 +138,10 @@ pub struct FitArgs {
     #[command(flatten)]
     pub grid: GridArgs,
 }
+
+/// `--lookahead`: on or off as asked, or None for the layout's default.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LookAhead(pub Option<bool>);
 
 /// What `fit` fits the spline to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -388,6 +394,15 @@ fn reason<T>(r: Result<T>) -> Parsed<T> {
     })
 }
 
+fn on_off_auto(s: &str) -> Parsed<LookAhead> {
+    match s {
+        "auto" => Ok(LookAhead(None)),
+        other => on_off(other)
+            .map(|b| LookAhead(Some(b)))
+            .map_err(|_| format!("expected auto, on or off, not '{other}'")),
+    }
+}
+
 fn on_off(s: &str) -> Parsed<bool> {
     match s {
         "on" => Ok(true),
@@ -576,7 +591,7 @@ mod tests {
         let Command::Fit(a) = cli.command else { panic!("fit") };
         assert_eq!(a.solver, SolverKind::Lu);
         assert_eq!(a.precision, Precision::F64);
-        assert!(!a.lookahead);
+        assert_eq!(a.lookahead, LookAhead(None));
         assert_eq!(a.kernel, KernelChoice::Auto);
         assert_eq!(a.method, Method::Auto);
         assert_eq!(a.leaf, 10);

@@ -242,6 +242,9 @@ fn help_documents_every_option_with_its_default() {
         "--margin",
         "[default: 0.05]",
         "--panel",
+        "--layout",
+        "[default: row-cyclic]",
+        "--lookahead",
         "--threads",
         "--merge-tol",
     ] {

@@ -27,6 +27,17 @@ pub fn assemble(kernel: &Kernel, centres: &[f64], values: &[f64], layout: RowCyc
     rows
 }
 
+/// Whether the solvers look ahead: as asked, or by default (`auto`) off on the row-cyclic layout
+/// (`shape` None; its LU measured no faster with it on one node) and on a 2D grid when it has
+/// more than one process column (with one, every rank is in the next panel's column and nothing
+/// can run ahead).
+pub fn lookahead_for(asked: Option<bool>, shape: Option<(usize, usize)>) -> bool {
+    asked.unwrap_or(match shape {
+        None => dist::LOOKAHEAD,
+        Some((_, pc)) => pc > 1,
+    })
+}
+
 /// This rank's blocks of the bordered system of `kernel` on a process grid, in nb x nb blocks.
 pub fn assemble_blocks(
     kernel: &Kernel,
@@ -85,8 +96,8 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
     let progress = Progress::new("solve", comm);
     let timed = Timed::new(comm);
     let report = |d, t| progress.update(d, t);
-    let job =
-        Job::on(&timed).panel(a.panel).par(Par::rayon(threads)).progress(&report).lookahead(a.lookahead);
+    let lookahead = lookahead_for(a.lookahead.0, a.layout.shape(comm.size()));
+    let job = Job::on(&timed).panel(a.panel).par(Par::rayon(threads)).progress(&report).lookahead(lookahead);
     let solved = match a.layout {
         Layout::RowCyclic => {
             let rows = stages.time(Stage::Assemble, || assemble(&kernel, centres, values, layout));
@@ -133,13 +144,13 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
     let precision =
         if mixed { format!("mixed (f32 {}, f64 refinement)", solved.used.name()) } else { "f64".into() };
     let lu = solved.used == SolverKind::Lu;
-    let two_d = a.layout != Layout::RowCyclic;
-    let lookahead = if !lu || two_d {
-        ""
-    } else if a.lookahead {
-        ", look-ahead on"
-    } else {
-        ", look-ahead off"
+    // the row-cyclic layout has look-ahead in its LU only, the 2D one in both solvers
+    let has_lookahead = lu || a.layout != Layout::RowCyclic;
+    let lookahead_used = has_lookahead && lookahead;
+    let lookahead = match (has_lookahead, lookahead) {
+        (false, _) => "",
+        (true, true) => ", look-ahead on",
+        (true, false) => ", look-ahead off",
     };
     let mut line = format!(
         "solver {} (dense, {}), panel {}{lookahead}, precision {precision}",
@@ -170,7 +181,7 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
         figures: [
             ("solver".into(), solved.used.name().into()),
             ("panel".into(), solved.panel.to_string()),
-            ("lookahead".into(), (lu && !two_d && a.lookahead).to_string()),
+            ("lookahead".into(), lookahead_used.to_string()),
             ("layout".into(), a.layout.name(comm.size())),
             ("comm_calls".into(), calls.to_string()),
             ("system_size".into(), layout.n.to_string()),
