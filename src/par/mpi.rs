@@ -95,16 +95,7 @@ impl MpiComm {
         let (c, d) = displacements(counts);
         let mut part = PartitionMut::new(recv, c, d);
         mpi::request::scope(|scope| {
-            let mut req = self.comm.immediate_all_gather_varcount_into(scope, send, &mut part);
-            let mut more = work();
-            while more {
-                match req.test() {
-                    Ok(_) => return,
-                    Err(pending) => req = pending,
-                }
-                more = work();
-            }
-            req.wait_without_status();
+            overlap(self.comm.immediate_all_gather_varcount_into(scope, send, &mut part), work);
         });
     }
 
@@ -120,19 +111,8 @@ impl MpiComm {
             while work() {}
             return;
         }
-        let mut more = true;
-        mpi::request::scope(|scope| {
-            let p = self.comm.process_at_rank(root as i32);
-            let mut req = p.immediate_broadcast_into(scope, buf);
-            more = work();
-            while more {
-                match req.test() {
-                    Ok(_) => return,
-                    Err(pending) => req = pending,
-                }
-                more = work();
-            }
-            req.wait_without_status();
+        let more = mpi::request::scope(|scope| {
+            overlap(self.comm.process_at_rank(root as i32).immediate_broadcast_into(scope, buf), work)
         });
         while more && work() {}
     }
@@ -146,6 +126,23 @@ impl MpiComm {
         let s = self.comm.process_at_rank(source as i32);
         mpi::point_to_point::send_receive_into(send, &d, recv, &s);
     }
+}
+
+/// Runs `work` while `req` is in flight, testing the request between its pieces (which drives
+/// MPI's progress), and waits for it once `work` has nothing more to do. Returns whether `work`
+/// has more to do (the request completed first).
+fn overlap<'a, D: ?Sized, S: mpi::request::Scope<'a>>(
+    mut req: mpi::request::Request<'a, D, S>,
+    work: &mut dyn FnMut() -> bool,
+) -> bool {
+    while work() {
+        match req.test() {
+            Ok(_) => return true,
+            Err(pending) => req = pending,
+        }
+    }
+    req.wait_without_status();
+    false
 }
 
 fn displacements(counts: &[usize]) -> (Vec<Count>, Vec<Count>) {
