@@ -7,7 +7,7 @@ mod common;
 
 use std::path::Path;
 
-use common::{area_samples, solve_serial, Rng};
+use common::{area_samples, area_samples_with_normals, solve_serial, Rng};
 use volspline::io::model_file::read_model;
 use volspline::io::vtkhdf::read_image;
 use volspline::linalg::dist::SolverKind;
@@ -15,10 +15,11 @@ use volspline::mesh::{
     connected_components, euler_characteristic, is_closed_manifold_edges, point_mesh_distances,
 };
 use volspline::par::Solo;
-use volspline::spline::hygiene::prepare;
+use volspline::spline::hygiene::{prepare, Prepared};
 use volspline::spline::{Carrier, Kernel, Model};
 use volspline::surface::blobs::{blob_values, find, sample, Lattice};
-use volspline::surface::{neighbourhoods, off_points, off_values, oriented};
+use volspline::surface::energy::{flip_by_energy, pairs, patch_energy, ENERGY_LIMIT};
+use volspline::surface::{neighbourhoods, off_points, off_value_parts, off_values, oriented, Neighbourhoods};
 
 /// `n` points of a surface given by `at(u, v)` for u, v uniform in [0, 1) (area-uniform for the
 /// parametrisations below), with Gaussian noise of `sigma` on every coordinate.
@@ -280,5 +281,99 @@ fn the_cow_has_no_spurious_blobs() {
     println!("components (vertices, beyond 2 %): {:?}", per.values().collect::<Vec<_>>());
     for (count, beyond) in per.values() {
         assert!(2 * beyond < *count, "a component of {count} vertices, {beyond} beyond 2 % of the diagonal");
+    }
+}
+
+/// The samples, their true normals, the prepared data, their neighbourhoods and oriented normals.
+type CowOriented = (Vec<f64>, Vec<[f64; 3]>, Prepared, Neighbourhoods, Vec<[f64; 3]>);
+
+/// 1000 area-uniform samples of the cow with their true normals, prepared for the kernel r with
+/// the default carrier, their neighbourhoods and the default orientation's normals.
+fn cow_oriented() -> CowOriented {
+    let truth = common::load_mesh(Path::new(common::COW));
+    let (pts, normals) = area_samples_with_normals(&truth, 1000, 7);
+    let prep = prepare(&pts, &Kernel::new(3, 2).unwrap(), &Carrier::AutoBall, 1e-6).unwrap();
+    assert_eq!(prep.values.len(), 1000, "no sample may be merged");
+    let hoods = neighbourhoods(&prep.centres).unwrap();
+    let o = oriented(&Solo, &prep.centres, &hoods).unwrap();
+    (pts, normals, prep, hoods, o.normals)
+}
+
+/// The fraction of `normals` on the side of `truth`.
+fn agreement(normals: &[[f64; 3]], truth: &[[f64; 3]]) -> f64 {
+    let same =
+        normals.iter().zip(truth).filter(|(a, b)| a[0] * b[0] + a[1] * b[1] + a[2] * b[2] > 0.0).count();
+    same as f64 / truth.len() as f64
+}
+
+/// The bending energy -lambda^T b of the spline of the kernel r through the data of `prep` and
+/// the off-point pairs of `normals`, solved directly.
+fn pair_energy(prep: &Prepared, hoods: &Neighbourhoods, normals: &[[f64; 3]]) -> f64 {
+    let n = normals.len();
+    let off = pairs(&prep.centres, normals, &hoods.tree, (ENERGY_LIMIT - n) / 2);
+    let (fc, target) = off_value_parts(&off, &prep.points, &prep.carrier, &prep.norm);
+    let carrier: Vec<f64> = prep.values.iter().chain(&fc).copied().collect();
+    // every point in the one fixed group: H is 1 x 1, the energy of the signs as they are
+    patch_energy(&prep.centres, &off, &carrier, &target, &vec![0; n], 0).unwrap()[0]
+}
+
+#[test]
+fn the_bending_energy_of_turned_patches_is_what_the_patch_matrix_predicts() {
+    let (_, truth, prep, hoods, mut normals) = cow_oriented();
+    let start = normals.clone();
+    let before = agreement(&normals, &truth);
+    let e = flip_by_energy(&Solo, &prep, &hoods, &mut normals).unwrap();
+    let after = agreement(&normals, &truth);
+    let (direct_before, direct_after) =
+        (pair_energy(&prep, &hoods, &start), pair_energy(&prep, &hoods, &normals));
+    println!(
+        "cow 1000: agreement {before:.4} -> {after:.4}; {e:?}; energies solved directly {direct_before:.6} -> \
+         {direct_after:.6}"
+    );
+    assert!(e.ran && e.flipped > 0 && !e.turned_all && e.after < e.before, "{e:?}");
+    // the energy of the turned signs, predicted from one factorisation and one right-hand side
+    // per patch, is that of the spline through the turned pairs solved afresh (the places of
+    // a pair are swapped exactly): a wrong sign or a patch's target left out would differ
+    for (predicted, direct) in [(e.before, direct_before), (e.after, direct_after)] {
+        assert!((predicted - direct).abs() < 1e-8 * direct.abs(), "predicted {predicted}, solved {direct}");
+    }
+    // measured 0.9330 -> 0.9290 on this sample (0.9200 -> 0.9430 on the surface benchmark's
+    // 1000 cow points): the energy does not reliably pick the true signs, see src/surface/energy.rs
+    assert!(after > 0.92, "agreement {before} -> {after}");
+}
+
+#[test]
+fn energy_orientation_gives_the_same_signs_on_one_two_and_three_ranks() {
+    let (pts, _, prep, hoods, mut normals) = cow_oriented();
+    flip_by_energy(&Solo, &prep, &hoods, &mut normals).unwrap();
+    // the fit's off points (the default rate 0.4) from the serially turned normals
+    let off = off_points(&prep.centres, &normals, &hoods.tree, 0.4);
+    let dir = common::temp_dir("energy-ranks");
+    let input = dir.join("cow1000.xyz");
+    common::write_xyz(&input, &pts);
+    for ranks in [1, 2, 3] {
+        let p = dir.join(format!("r{ranks}"));
+        let p = p.to_str().unwrap();
+        let args = [
+            "fit",
+            input.to_str().unwrap(),
+            "--out",
+            p,
+            "--grid",
+            "16",
+            "--no-preview",
+            "--orient-energy",
+            "on",
+        ];
+        let text = common::run_ok(ranks, &args);
+        let line = text.lines().find(|l| l.contains("energy: ")).unwrap_or_default();
+        assert!(line.contains("patches turned"), "{ranks} ranks: {text}");
+        let model = read_model(Path::new(&format!("{p}.model.h5"))).unwrap();
+        let n = prep.centres.len();
+        assert_eq!(
+            &model.spline.centres[n..n + off.centres.len()],
+            &off.centres[..],
+            "{ranks} ranks: other off-surface points than the serial energy orientation's"
+        );
     }
 }

@@ -19,11 +19,12 @@
 //! which the ranks share.
 
 pub mod blobs;
+pub mod energy;
 pub mod normals;
 pub mod offsurface;
 pub mod orient;
 
-pub use offsurface::{off_points, off_values, OffPoints, DELTA};
+pub use offsurface::{off_points, off_value_parts, off_values, OffPoints, DELTA};
 pub use orient::{orient, Orientation};
 
 use crate::error::{Error, Result};

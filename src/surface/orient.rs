@@ -286,7 +286,7 @@ fn dense_patch_sums(
 
 /// Flips patches greedily while sum t_P t_Q B_PQ decreases; returns the patch signs (the fixed
 /// group m keeps +1).
-fn greedy_flips(b: &[f64], m: usize) -> Vec<f64> {
+pub(crate) fn greedy_flips(b: &[f64], m: usize) -> Vec<f64> {
     let width = m + 1;
     let mut t = vec![1.0; width];
     let mut g: Vec<f64> =
@@ -305,6 +305,61 @@ fn greedy_flips(b: &[f64], m: usize) -> Vec<f64> {
         }
     }
     t
+}
+
+/// Patches of oriented normals `o`: the connected components of the `edges` whose ends are
+/// mutually tangent (|o . d| < 0.35 at both) with nearly parallel normals (o_i . o_j > 0.9), as
+/// labels 0..count numbered in the order of their smallest point.
+pub(crate) fn tangent_patches(
+    points: &[f64],
+    o: &[[f64; 3]],
+    edges: &[(usize, usize)],
+) -> (Vec<usize>, usize) {
+    let tangent = edges.iter().copied().filter(|&(i, j)| {
+        let (d, _) = unit_between(points, i, j);
+        dot(&o[i], &d).abs() < 0.35 && dot(&o[j], &d).abs() < 0.35 && dot(&o[i], &o[j]) > 0.9
+    });
+    components(o.len(), tangent)
+}
+
+/// The edges of the orientation graph ([`GRAPH_NEIGHBOURS`] of each point's `kmax` nearest
+/// neighbours `knn`).
+pub(crate) fn orientation_edges(knn: &[usize], kmax: usize) -> Vec<(usize, usize)> {
+    graph_edges(knn, kmax, GRAPH_NEIGHBOURS)
+}
+
+/// Turns all of `o` around unless sum_i A_i o_i . (p_i - c) >= 0 (the outward sign of the
+/// module doc, A_i the squared distance to the 8th of the `kmax` neighbours `knn`); true if it did.
+pub(crate) fn make_outward(points: &[f64], o: &mut [[f64; 3]], knn: &[usize], kmax: usize) -> bool {
+    let n = o.len();
+    let area = areas(points, knn, kmax, n);
+    let c = centroid(points, n);
+    let inward = flux(points, o, &area, &c, 0..n) < 0.0;
+    if inward {
+        for v in o.iter_mut() {
+            *v = [-v[0], -v[1], -v[2]];
+        }
+    }
+    inward
+}
+
+/// The area of each point: the squared distance to its 8th neighbour.
+fn areas(points: &[f64], knn: &[usize], kmax: usize, n: usize) -> Vec<f64> {
+    let k8 = 8.min(kmax);
+    (0..n)
+        .map(|i| if k8 == 0 { 1.0 } else { dist2(&points[3 * i..], &points[3 * knn[i * kmax + k8 - 1]..]) })
+        .collect()
+}
+
+/// The centroid of `n` points.
+fn centroid(points: &[f64], n: usize) -> [f64; 3] {
+    let mut c = [0.0; 3];
+    for p in points.chunks_exact(3) {
+        for d in 0..3 {
+            c[d] += p[d] / n.max(1) as f64;
+        }
+    }
+    c
 }
 
 /// Orients `normals` (unit, arbitrary signs) of `points` (3 values per point) consistently and
@@ -335,17 +390,8 @@ fn orient_with(
     let signs = agree(comm, spectral_signs(points, normals, &edges, &label, count))?;
     let mut o: Vec<[f64; 3]> =
         normals.iter().zip(&signs).map(|(v, s)| [v[0] * s, v[1] * s, v[2] * s]).collect();
-    // the area of a point: the squared distance to its 8th neighbour
-    let k8 = 8.min(kmax);
-    let area: Vec<f64> = (0..n)
-        .map(|i| if k8 == 0 { 1.0 } else { dist2(&points[3 * i..], &points[3 * knn[i * kmax + k8 - 1]..]) })
-        .collect();
-    let mut c = [0.0; 3];
-    for p in points.chunks_exact(3) {
-        for d in 0..3 {
-            c[d] += p[d] / n.max(1) as f64;
-        }
-    }
+    let area = areas(points, knn, kmax, n);
+    let c = centroid(points, n);
     let mut per_component = vec![0.0; count];
     for i in 0..n {
         per_component[label[i]] += flux(points, &o, &area, &c, std::iter::once(i));
@@ -358,12 +404,7 @@ fn orient_with(
     let dense_dipole = n <= dense_limit;
     let (mut patches, mut m, mut flipped) = (0, 0, 0);
     if dense_dipole {
-        // patches: mutually tangent neighbours with nearly parallel oriented normals
-        let tangent = edges.iter().copied().filter(|&(i, j)| {
-            let (d, _) = unit_between(points, i, j);
-            dot(&o[i], &d).abs() < 0.35 && dot(&o[j], &d).abs() < 0.35 && dot(&o[i], &o[j]) > 0.9
-        });
-        let (raw, found) = components(n, tangent);
+        let (raw, found) = tangent_patches(points, &o, &edges);
         let mut size = vec![0usize; found];
         for &p in &raw {
             size[p] += 1;
