@@ -18,7 +18,7 @@ use volspline::par::Solo;
 use volspline::spline::hygiene::prepare;
 use volspline::spline::{Carrier, Kernel};
 use volspline::surface::energy::{energy, flip_by_energy, pairs, patch_energy, patches, ENERGY_LIMIT};
-use volspline::surface::{neighbourhoods, off_value_parts, oriented};
+use volspline::surface::{neighbourhoods, off_value_parts, oriented_with};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -40,12 +40,18 @@ fn main() {
     let prep = prepare(&raw, &Kernel::new(3, 2).unwrap(), &Carrier::AutoBall, 1e-6).unwrap();
     assert_eq!(prep.values.len(), truth.len(), "points merged: the truth no longer lines up");
     let hoods = neighbourhoods(&prep.centres).unwrap();
-    let o = oriented(&Solo, &prep.centres, &hoods).unwrap();
+    let o = oriented_with(&Solo, &prep.centres, &hoods, false).unwrap();
+    let sided = oriented_with(&Solo, &prep.centres, &hoods, true).unwrap();
     let agree = |nn: &[[f64; 3]]| {
         nn.iter().zip(&truth).filter(|(a, b)| a[0] * b[0] + a[1] * b[1] + a[2] * b[2] > 0.0).count() as f64
             / truth.len() as f64
     };
     let before = agree(&o.normals);
+    println!(
+        "  side vote: agreement {before:.4} -> {:.4}, {:?} patches turned",
+        agree(&sided.normals),
+        sided.side_turned
+    );
     let off = pairs(&prep.centres, &o.normals, &hoods.tree, (ENERGY_LIMIT - truth.len()) / 2);
     let (fc, target) = off_value_parts(&off, &prep.points, &prep.carrier, &prep.norm);
     let mut carrier = prep.values.clone();
@@ -105,6 +111,50 @@ fn main() {
             }
         }
         println!("  points in single flips: wrong patches downhill {down_wrong}, uphill {up_wrong}; right patches downhill {down_right}");
+    }
+    if std::env::var("EN_VOTE").is_ok() {
+        // the side the rest of the neighbourhood lies on: outward normals point away from it
+        let tau: f64 = std::env::var("EN_VOTE").unwrap().parse().unwrap_or(0.3);
+        let mut vote = vec![0.0; m + 1];
+        let mut count = vec![0.0f64; m + 1];
+        let pts = &prep.centres;
+        for i in 0..wrong.len() {
+            for &j in &hoods.knn[i * hoods.kmax..(i + 1) * hoods.kmax] {
+                if patch[j] == patch[i] {
+                    continue;
+                }
+                let d = [0, 1, 2].map(|k| pts[3 * j + k] - pts[3 * i + k]);
+                let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                let a = (o.normals[i][0] * d[0] + o.normals[i][1] * d[1] + o.normals[i][2] * d[2])
+                    / r.max(1e-300);
+                if a.abs() > tau {
+                    vote[patch[i]] += a.signum();
+                    count[patch[i]] += 1.0;
+                }
+            }
+        }
+        let list: Vec<String> = (0..m)
+            .filter(|&p| vote[p] > 0.0 || oracle[p] < 0.0)
+            .map(|p| {
+                format!(
+                    "{}{}:{:.2}",
+                    if oracle[p] < 0.0 { "W" } else { "r" },
+                    per[p].0,
+                    vote[p] / count[p].max(1.0)
+                )
+            })
+            .collect();
+        println!("  {}", list.join(" "));
+        let (mut good, mut bad, mut missed) = (0, 0, 0);
+        for p in 0..m {
+            match (oracle[p] < 0.0, vote[p] > 0.0) {
+                (true, true) => good += per[p].0,
+                (false, true) => bad += per[p].0,
+                (true, false) => missed += per[p].0,
+                _ => {}
+            }
+        }
+        println!("  neighbour-side vote (tau {tau}): points in wrong patches caught {good}, missed {missed}; in right patches turned {bad}");
     }
     let fixed_wrong = per[m].1;
     let movable_wrong: usize = per[..m].iter().map(|x| x.1).sum();

@@ -19,7 +19,8 @@ taken.
 Methods. `default`: `volspline fit` with no surface option (the new default); `carrier`: the
 plain carrier method of Savchenko et al. 1995 (`--surface carrier`); `offsurface`:
 `--surface offsurface`; `energy`: the default with `--orient-energy on` (patches of the normals
-turned by the spline's bending energy, src/surface/energy.rs). A binary whose `fit --help` has no `--surface` only has the plain method:
+turned by the spline's bending energy, src/surface/energy.rs); `side`: the default with
+`--orient-side on` (the side vote of src/surface/orient.rs). A binary whose `fit --help` has no `--surface` only has the plain method:
 then `carrier` runs it without the flag and `default`/`offsurface` are dropped with a note.
 `poisson`: screened Poisson (Kazhdan and Hoppe 2013, pymeshlab, octree depth --poisson-depth)
 on normals estimated by PCA of the 10 nearest neighbours and oriented by MeshLab's propagation.
@@ -200,7 +201,7 @@ def run_poisson(args, pts):
 def method_list(args, has_surface):
     """[(label, kind, flags)] of the methods this binary can run, and a note on the choice."""
     if has_surface:
-        flags = {"default": [], "poisson": [], "energy": ["--orient-energy", "on"]}
+        flags = {"default": [], "poisson": [], "energy": ["--orient-energy", "on"], "side": ["--orient-side", "on"]}
         return [(m, "poisson" if m == "poisson" else "volspline",
                  flags.get(m, ["--surface", m])) for m in args.methods], ""
     # a binary without --surface has one method, the plain carrier method: run it once as `carrier`
@@ -235,8 +236,8 @@ def parse(argv):
         if m not in MESHES:
             ap.error(f"unknown mesh {m} (one of {', '.join(MESHES)})")
     for m in args.methods:
-        if m not in ("default", "carrier", "offsurface", "energy", "poisson"):
-            ap.error(f"unknown method {m} (default, carrier, offsurface, energy, poisson)")
+        if m not in ("default", "carrier", "offsurface", "energy", "side", "poisson"):
+            ap.error(f"unknown method {m} (default, carrier, offsurface, energy, side, poisson)")
     if args.quick:
         args.sizes, args.variant_sizes, args.grid = [1000, 2000], [1000], 64
     return args

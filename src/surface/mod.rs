@@ -59,7 +59,18 @@ pub fn neighbourhoods(points: &[f64]) -> Result<Neighbourhoods> {
     Ok(Neighbourhoods { tree, knn, kmax, normals })
 }
 
-/// Oriented outward normals of `points` from their neighbourhoods. Collective.
+/// Oriented outward normals of `points` from their neighbourhoods, without the side vote of
+/// [`orient`] (the default of `fit`). Collective.
 pub fn oriented(comm: &dyn Comm, points: &[f64], hoods: &Neighbourhoods) -> Result<Orientation> {
-    orient(comm, points, &hoods.normals, &hoods.knn, hoods.kmax)
+    orient(comm, points, &hoods.normals, &hoods.knn, hoods.kmax, false)
+}
+
+/// [`oriented`] with the side vote on or off. Collective.
+pub fn oriented_with(
+    comm: &dyn Comm,
+    points: &[f64],
+    hoods: &Neighbourhoods,
+    side_vote: bool,
+) -> Result<Orientation> {
+    orient(comm, points, &hoods.normals, &hoods.knn, hoods.kmax, side_vote)
 }

@@ -250,6 +250,9 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         r.figure("orient_components", s.components);
         r.figure("orient_patches", s.patches);
         r.figure("orient_flipped", s.flipped);
+        if let Some(k) = s.side_turned {
+            r.figure("orient_side_turned", k);
+        }
         if let Some(e) = &s.energy {
             r.figure("energy_ran", e.ran);
             r.figure("energy_flipped", e.flipped);
@@ -309,7 +312,10 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
             } else {
                 "no dipole correction (too many points)".to_string()
             },
-        ) + &match &s.energy {
+        ) + &match s.side_turned {
+            Some(k) => format!(", {k} turned by the side vote"),
+            None => String::new(),
+        } + &match &s.energy {
             None => String::new(),
             Some(e) if e.ran => format!(
                 "; energy: {} of {} patches turned (energy {:.4e} -> {:.4e})",

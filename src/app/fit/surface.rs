@@ -28,6 +28,8 @@ pub struct SurfaceSummary {
     pub patches: usize,
     pub flipped: usize,
     pub dense_dipole: bool,
+    /// Patches turned by the side vote (None: not run).
+    pub side_turned: Option<usize>,
     /// The patch orientation by energy (None: not asked for).
     pub energy: Option<EnergyFlips>,
     /// Constraint points added by the second fit against spurious blobs (0: no second fit).
@@ -69,7 +71,7 @@ pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<
     let comm: &dyn Comm = run.comm;
     let hoods = stages.time(Stage::Normals, || agree(comm, neighbourhoods(&prep.centres)))?;
     let (orientation, off) = stages.time(Stage::Orient, || -> Result<_> {
-        let o = surface::oriented(comm, &prep.centres, &hoods)?;
+        let o = surface::oriented_with(comm, &prep.centres, &hoods, run.args.orient_side)?;
         let off = off_points(&prep.centres, &o.normals, &hoods.tree, run.args.off_points);
         Ok((o, off))
     })?;
@@ -95,6 +97,7 @@ pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<
         patches: orientation.patches,
         flipped: orientation.flipped,
         dense_dipole: orientation.dense_dipole,
+        side_turned: orientation.side_turned,
         energy,
         blob_points: 0,
         blob_regions: 0,
