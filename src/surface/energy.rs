@@ -62,8 +62,9 @@
 //! 0.920 / 0.9225 / 0.960 to 0.943 / 0.9245 / 0.962, but the mesh's distance to the truth (rms, %
 //! of the diagonal, 2 ranks, grid 100) from 0.72 / 0.87 / 0.85 to 1.21 / 0.86 / 0.86, the
 //! vertices beyond 2 % of the diagonal from 3.5 / 4.7 / 4.6 % to 6.8 / 4.6 / 4.7 %. On the bunny
-//! (1000, 2000) it helped at 1000 (rms 0.64 -> 0.35 %, beyond 2 %: 2.2 -> 0.26 %) and changed
-//! nothing at 2000. Orientation is the cow's bottleneck: the same PCA normals given the true
+//! it helped at 1000 points (rms 0.64 -> 0.35 %, beyond 2 %: 2.2 -> 0.3 %; with noise of 0.5 %
+//! of the diagonal 1.04 -> 0.53 %), hurt at 400 (0.85 -> 1.31 %) and changed nothing at 2000 and
+//! 4000 (bench-results/2026-11-26-surface-energy). Orientation is the cow's bottleneck: the same PCA normals given the true
 //! signs give 0.25 % / 0.15 % at 2000 / 4000 (0.23 % / 0.02 % of the vertices beyond 2 %), and
 //! each patch turned by the majority of its points' true signs 0.77 % / 0.22 %. But the energy
 //! does not point to the true signs: from the present signs, turning one truly wrong patch alone
