@@ -130,6 +130,16 @@ pub struct FitArgs {
     /// 0.4 keeps the dense factorisation within 1.4^3 = 2.7 times the plain method's.
     #[arg(long, allow_hyphen_values = true, default_value = "0.4", value_name = "F", value_parser = off_rate)]
     pub off_points: f64,
+    /// Turn small patches of the oriented normals whose off-plane neighbours lie mostly on their
+    /// outer side (on, or off): the two sides of thin parts (legs, ears) seen in one
+    /// neighbourhood (see src/surface/orient.rs; it helped the cow at 4000 points and hurt it at
+    /// 1000, so it is off by default).
+    #[arg(long, default_value = "off", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
+    pub orient_side: bool,
+    /// Turn whole patches of the estimated normals where that lowers the bending energy of the
+    /// off-surface spline (on, or off), for up to 6000 rows (see src/surface/energy.rs).
+    #[arg(long, default_value = "off", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
+    pub orient_energy: bool,
     /// Points of level 0 of the two-level compactly supported fit (--method csrbf with --surface
     /// auto or offsurface): a dense off-surface fit of this many points chosen evenly over space,
     /// the carrier of the Wendland spline through all points.

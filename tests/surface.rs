@@ -7,7 +7,7 @@ mod common;
 
 use std::path::Path;
 
-use common::{area_samples, solve_serial, Rng};
+use common::{area_samples, area_samples_with_normals, solve_serial, Rng};
 use volspline::io::model_file::read_model;
 use volspline::io::vtkhdf::read_image;
 use volspline::linalg::dist::SolverKind;
@@ -15,10 +15,13 @@ use volspline::mesh::{
     connected_components, euler_characteristic, is_closed_manifold_edges, point_mesh_distances,
 };
 use volspline::par::Solo;
-use volspline::spline::hygiene::prepare;
+use volspline::spline::hygiene::{prepare, Prepared};
 use volspline::spline::{Carrier, Kernel, Model};
 use volspline::surface::blobs::{blob_values, find, sample, Lattice};
-use volspline::surface::{neighbourhoods, off_points, off_values, oriented};
+use volspline::surface::energy::{flip_by_energy, pairs, patch_energy, ENERGY_LIMIT};
+use volspline::surface::{
+    neighbourhoods, off_points, off_value_parts, off_values, oriented, oriented_with, Neighbourhoods,
+};
 
 /// `n` points of a surface given by `at(u, v)` for u, v uniform in [0, 1) (area-uniform for the
 /// parametrisations below), with Gaussian noise of `sigma` on every coordinate.
@@ -280,5 +283,117 @@ fn the_cow_has_no_spurious_blobs() {
     println!("components (vertices, beyond 2 %): {:?}", per.values().collect::<Vec<_>>());
     for (count, beyond) in per.values() {
         assert!(2 * beyond < *count, "a component of {count} vertices, {beyond} beyond 2 % of the diagonal");
+    }
+}
+
+/// The samples, their true normals, the prepared data, their neighbourhoods and oriented normals.
+type CowOriented = (Vec<f64>, Vec<[f64; 3]>, Prepared, Neighbourhoods, Vec<[f64; 3]>);
+
+/// `n` area-uniform samples of the cow with their true normals, prepared for the kernel r with
+/// the default carrier, their neighbourhoods and the oriented normals, with the side vote or not.
+fn cow_oriented(n: usize, side_vote: bool) -> CowOriented {
+    let truth = common::load_mesh(Path::new(common::COW));
+    let (pts, normals) = area_samples_with_normals(&truth, n, 7);
+    let prep = prepare(&pts, &Kernel::new(3, 2).unwrap(), &Carrier::AutoBall, 1e-6).unwrap();
+    assert_eq!(prep.values.len(), n, "no sample may be merged");
+    let hoods = neighbourhoods(&prep.centres).unwrap();
+    let o = oriented_with(&Solo, &prep.centres, &hoods, side_vote).unwrap();
+    (pts, normals, prep, hoods, o.normals)
+}
+
+/// The fraction of `normals` on the side of `truth`.
+fn agreement(normals: &[[f64; 3]], truth: &[[f64; 3]]) -> f64 {
+    let same =
+        normals.iter().zip(truth).filter(|(a, b)| a[0] * b[0] + a[1] * b[1] + a[2] * b[2] > 0.0).count();
+    same as f64 / truth.len() as f64
+}
+
+/// The bending energy -lambda^T b of the spline of the kernel r through the data of `prep` and
+/// the off-point pairs of `normals`, solved directly.
+fn pair_energy(prep: &Prepared, hoods: &Neighbourhoods, normals: &[[f64; 3]]) -> f64 {
+    let n = normals.len();
+    let off = pairs(&prep.centres, normals, &hoods.tree, (ENERGY_LIMIT - n) / 2);
+    let (fc, target) = off_value_parts(&off, &prep.points, &prep.carrier, &prep.norm);
+    let carrier: Vec<f64> = prep.values.iter().chain(&fc).copied().collect();
+    // every point in the one fixed group: H is 1 x 1, the energy of the signs as they are
+    patch_energy(&prep.centres, &off, &carrier, &target, &vec![0; n], 0).unwrap()[0]
+}
+
+#[test]
+fn the_bending_energy_of_turned_patches_is_what_the_patch_matrix_predicts() {
+    let (_, truth, prep, hoods, mut normals) = cow_oriented(1000, false);
+    let start = normals.clone();
+    let before = agreement(&normals, &truth);
+    let e = flip_by_energy(&Solo, &prep, &hoods, &mut normals).unwrap();
+    let after = agreement(&normals, &truth);
+    let (direct_before, direct_after) =
+        (pair_energy(&prep, &hoods, &start), pair_energy(&prep, &hoods, &normals));
+    println!(
+        "cow 1000: agreement {before:.4} -> {after:.4}; {e:?}; energies solved directly {direct_before:.6} -> \
+         {direct_after:.6}"
+    );
+    assert!(e.ran && e.flipped > 0 && !e.turned_all && e.after < e.before, "{e:?}");
+    // the energy of the turned signs, predicted from one factorisation and one right-hand side
+    // per patch, is that of the spline through the turned pairs solved afresh (the places of
+    // a pair are swapped exactly): a wrong sign or a patch's target left out would differ
+    for (predicted, direct) in [(e.before, direct_before), (e.after, direct_after)] {
+        assert!((predicted - direct).abs() < 1e-8 * direct.abs(), "predicted {predicted}, solved {direct}");
+    }
+    // measured 0.9330 -> 0.9290 on this sample (0.9200 -> 0.9430 on the surface benchmark's
+    // 1000 cow points): the energy does not reliably pick the true signs, see src/surface/energy.rs
+    assert!(after > 0.92, "agreement {before} -> {after}");
+}
+
+#[test]
+fn the_side_vote_turns_inward_patches_of_the_cows_thin_parts() {
+    // measured on these samples: 0.9340 -> 0.9615 at 2000 points, 0.9575 -> 0.9647 at 4000
+    for (n, bound) in [(2000, 0.95), (4000, 0.961)] {
+        let (_, truth, _, _, without) = cow_oriented(n, false);
+        let (_, _, _, _, with) = cow_oriented(n, true);
+        let (a, b) = (agreement(&without, &truth), agreement(&with, &truth));
+        println!("cow {n}: agreement with the true normals {a:.4} without the side vote, {b:.4} with it");
+        assert!(a < bound && b > bound, "cow {n}: agreement {a} without the side vote, {b} with it");
+    }
+}
+
+#[test]
+fn side_vote_and_energy_orientation_give_the_same_signs_on_one_two_and_three_ranks() {
+    let (pts, _, prep, hoods, mut normals) = cow_oriented(1000, true);
+    let e = flip_by_energy(&Solo, &prep, &hoods, &mut normals).unwrap();
+    assert!(e.flipped > 0, "{e:?}");
+    // the fit's off points (the default rate 0.4) from the serially oriented normals
+    let off = off_points(&prep.centres, &normals, &hoods.tree, 0.4);
+    let dir = common::temp_dir("orient-ranks");
+    let input = dir.join("cow1000.xyz");
+    common::write_xyz(&input, &pts);
+    for ranks in [1, 2, 3] {
+        let p = dir.join(format!("r{ranks}"));
+        let p = p.to_str().unwrap();
+        let args = [
+            "fit",
+            input.to_str().unwrap(),
+            "--out",
+            p,
+            "--grid",
+            "16",
+            "--no-preview",
+            "--orient-side",
+            "on",
+            "--orient-energy",
+            "on",
+        ];
+        let text = common::run_ok(ranks, &args);
+        let line = text.lines().find(|l| l.contains("surface offsurface")).unwrap_or_default();
+        assert!(
+            line.contains("turned by the side vote") && line.contains("patches turned"),
+            "{ranks} ranks: {text}"
+        );
+        let model = read_model(Path::new(&format!("{p}.model.h5"))).unwrap();
+        let n = prep.centres.len();
+        assert_eq!(
+            &model.spline.centres[n..n + off.centres.len()],
+            &off.centres[..],
+            "{ranks} ranks: other off-surface points than the serial orientation's"
+        );
     }
 }

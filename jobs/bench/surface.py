@@ -18,7 +18,9 @@ taken.
 
 Methods. `default`: `volspline fit` with no surface option (the new default); `carrier`: the
 plain carrier method of Savchenko et al. 1995 (`--surface carrier`); `offsurface`:
-`--surface offsurface`. A binary whose `fit --help` has no `--surface` only has the plain method:
+`--surface offsurface`; `energy`: the default with `--orient-energy on` (patches of the normals
+turned by the spline's bending energy, src/surface/energy.rs); `side`: the default with
+`--orient-side on` (the side vote of src/surface/orient.rs). A binary whose `fit --help` has no `--surface` only has the plain method:
 then `carrier` runs it without the flag and `default`/`offsurface` are dropped with a note.
 `poisson`: screened Poisson (Kazhdan and Hoppe 2013, pymeshlab, octree depth --poisson-depth)
 on normals estimated by PCA of the 10 nearest neighbours and oriented by MeshLab's propagation.
@@ -199,8 +201,9 @@ def run_poisson(args, pts):
 def method_list(args, has_surface):
     """[(label, kind, flags)] of the methods this binary can run, and a note on the choice."""
     if has_surface:
+        flags = {"default": [], "poisson": [], "energy": ["--orient-energy", "on"], "side": ["--orient-side", "on"]}
         return [(m, "poisson" if m == "poisson" else "volspline",
-                 [] if m in ("default", "poisson") else ["--surface", m]) for m in args.methods], ""
+                 flags.get(m, ["--surface", m])) for m in args.methods], ""
     # a binary without --surface has one method, the plain carrier method: run it once as `carrier`
     out = [("carrier", "volspline", [])] if any(m != "poisson" for m in args.methods) else []
     out += [("poisson", "poisson", [])] if "poisson" in args.methods else []
@@ -233,8 +236,8 @@ def parse(argv):
         if m not in MESHES:
             ap.error(f"unknown mesh {m} (one of {', '.join(MESHES)})")
     for m in args.methods:
-        if m not in ("default", "carrier", "offsurface", "poisson"):
-            ap.error(f"unknown method {m} (default, carrier, offsurface, poisson)")
+        if m not in ("default", "carrier", "offsurface", "energy", "side", "poisson"):
+            ap.error(f"unknown method {m} (default, carrier, offsurface, energy, side, poisson)")
     if args.quick:
         args.sizes, args.variant_sizes, args.grid = [1000, 2000], [1000], 64
     return args

@@ -19,11 +19,12 @@
 //! which the ranks share.
 
 pub mod blobs;
+pub mod energy;
 pub mod normals;
 pub mod offsurface;
 pub mod orient;
 
-pub use offsurface::{off_points, off_values, OffPoints, DELTA};
+pub use offsurface::{off_points, off_value_parts, off_values, OffPoints, DELTA};
 pub use orient::{orient, Orientation};
 
 use crate::error::{Error, Result};
@@ -58,7 +59,18 @@ pub fn neighbourhoods(points: &[f64]) -> Result<Neighbourhoods> {
     Ok(Neighbourhoods { tree, knn, kmax, normals })
 }
 
-/// Oriented outward normals of `points` from their neighbourhoods. Collective.
+/// Oriented outward normals of `points` from their neighbourhoods, without the side vote of
+/// [`orient`] (the default of `fit`). Collective.
 pub fn oriented(comm: &dyn Comm, points: &[f64], hoods: &Neighbourhoods) -> Result<Orientation> {
-    orient(comm, points, &hoods.normals, &hoods.knn, hoods.kmax)
+    orient(comm, points, &hoods.normals, &hoods.knn, hoods.kmax, false)
+}
+
+/// [`oriented`] with the side vote on or off. Collective.
+pub fn oriented_with(
+    comm: &dyn Comm,
+    points: &[f64],
+    hoods: &Neighbourhoods,
+    side_vote: bool,
+) -> Result<Orientation> {
+    orient(comm, points, &hoods.normals, &hoods.knn, hoods.kmax, side_vote)
 }

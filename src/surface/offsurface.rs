@@ -84,27 +84,41 @@ fn sides(i: usize, per_point: f64) -> Vec<f64> {
     }
 }
 
+/// delta and the place p + side delta n of the off point of data point `i` (normal `n`) on
+/// `side`, delta halved until the place is nearest to its source (None: no delta is); `found` is
+/// scratch space.
+pub(crate) fn place(
+    points: &[f64],
+    n: &[f64; 3],
+    tree: &Octree,
+    i: usize,
+    side: f64,
+    found: &mut Vec<usize>,
+) -> Option<(f64, [f64; 3])> {
+    let p = &points[3 * i..3 * i + 3];
+    let mut delta = DELTA;
+    for _ in 0..=HALVINGS {
+        let q = [0, 1, 2].map(|d| p[d] + side * delta * n[d]);
+        let own = dist2(&q, p);
+        tree.within(q, own.sqrt(), found);
+        if found.iter().all(|&j| j == i || dist2(&q, &points[3 * j..]) >= own) {
+            return Some((delta, q));
+        }
+        delta *= 0.5;
+    }
+    None
+}
+
 /// The off points of data `points` (normalised, 3 per point, the tree `tree` built over them)
 /// with outward unit `normals`, at `per_point` off points per data point.
 pub fn off_points(points: &[f64], normals: &[[f64; 3]], tree: &Octree, per_point: f64) -> OffPoints {
     let placed: Vec<Vec<(f64, f64, [f64; 3])>> = (0..normals.len())
         .into_par_iter()
         .map_init(Vec::new, |found, i| {
-            let p = &points[3 * i..3 * i + 3];
             sides(i, per_point)
                 .into_iter()
                 .filter_map(|side| {
-                    let mut delta = DELTA;
-                    for _ in 0..=HALVINGS {
-                        let q = [0, 1, 2].map(|d| p[d] + side * delta * normals[i][d]);
-                        let own = dist2(&q, p);
-                        tree.within(q, own.sqrt(), found);
-                        if found.iter().all(|&j| j == i || dist2(&q, &points[3 * j..]) >= own) {
-                            return Some((side, delta, q));
-                        }
-                        delta *= 0.5;
-                    }
-                    None
+                    place(points, &normals[i], tree, i, side, found).map(|(d, q)| (side, d, q))
                 })
                 .collect()
         })
@@ -157,6 +171,26 @@ pub fn off_values(off: &OffPoints, raw: &[f64], carrier: &Carrier, norm: &Normal
             carrier.eval(&q) + off.side[k] * g * off.delta[k] * norm.scale
         })
         .collect()
+}
+
+/// The two parts of [`off_values`]: the carrier's values f_c(q) at the off points and what the
+/// targets add to them, side * g * delta (so that the values are their sums, bit for bit).
+pub fn off_value_parts(
+    off: &OffPoints,
+    raw: &[f64],
+    carrier: &Carrier,
+    norm: &Normalisation,
+) -> (Vec<f64>, Vec<f64>) {
+    let h = 1e-6 * norm.scale;
+    (0..off.side.len())
+        .into_par_iter()
+        .map(|k| {
+            let q: Vec<f64> = (0..3).map(|d| norm.centre[d] + norm.scale * off.centres[3 * k + d]).collect();
+            let s = off.source[k];
+            let g = carrier_slope(carrier, &raw[3 * s..3 * s + 3], h);
+            (carrier.eval(&q), off.side[k] * g * off.delta[k] * norm.scale)
+        })
+        .unzip()
 }
 
 #[cfg(test)]

@@ -208,6 +208,16 @@ impl Rng {
 /// `n` points uniform over the area of `mesh`'s triangles (a triangle chosen with probability
 /// proportional to its area, then a uniform point in it), from the stream [`Rng`]`(seed)`.
 pub fn area_samples(mesh: &volspline::mesh::TriMesh, n: usize, seed: u64) -> Vec<f64> {
+    area_samples_with_normals(mesh, n, seed).0
+}
+
+/// [`area_samples`] and the unit normal of the triangle each sample lies in (the mesh's
+/// orientation: outward for the closed meshes of tests/data).
+pub fn area_samples_with_normals(
+    mesh: &volspline::mesh::TriMesh,
+    n: usize,
+    seed: u64,
+) -> (Vec<f64>, Vec<[f64; 3]>) {
     let corner = |t: &[u32; 3], k: usize| mesh.vertices[t[k] as usize];
     let area = |t: &[u32; 3]| {
         let (a, b, c) = (corner(t, 0), corner(t, 1), corner(t, 2));
@@ -222,7 +232,8 @@ pub fn area_samples(mesh: &volspline::mesh::TriMesh, n: usize, seed: u64) -> Vec
         cumulative.push(total);
     }
     let mut r = Rng(seed);
-    (0..n)
+    let mut normals = Vec::with_capacity(n);
+    let points = (0..n)
         .flat_map(|_| {
             let at = r.unit() * total;
             let t = &mesh.triangles[cumulative.partition_point(|&c| c < at).min(mesh.triangles.len() - 1)];
@@ -231,9 +242,14 @@ pub fn area_samples(mesh: &volspline::mesh::TriMesh, n: usize, seed: u64) -> Vec
                 (s, q) = (1.0 - s, 1.0 - q);
             }
             let (a, b, c) = (corner(t, 0), corner(t, 1), corner(t, 2));
-            [0, 1, 2].map(|d| a[d] + s * (b[d] - a[d]) + q * (c[d] - a[d]))
+            let (u, v) = ([0, 1, 2].map(|d| b[d] - a[d]), [0, 1, 2].map(|d| c[d] - a[d]));
+            let x = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+            let len = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt().max(f64::MIN_POSITIVE);
+            normals.push(x.map(|w| w / len));
+            [0, 1, 2].map(|d| a[d] + s * u[d] + q * v[d])
         })
-        .collect()
+        .collect();
+    (points, normals)
 }
 
 /// The relative difference ([`rel_diff`]) between the volume `f` of the VTKHDF file `hdf` and

@@ -251,6 +251,13 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         r.figure("orient_components", s.components);
         r.figure("orient_patches", s.patches);
         r.figure("orient_flipped", s.flipped);
+        if let Some(k) = s.side_turned {
+            r.figure("orient_side_turned", k);
+        }
+        if let Some(e) = &s.energy {
+            r.figure("energy_ran", e.ran);
+            r.figure("energy_flipped", e.flipped);
+        }
         r.figure("blob_points", s.blob_points);
         r.figure("blob_regions", s.blob_regions);
     }
@@ -306,7 +313,17 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
             } else {
                 "no dipole correction (too many points)".to_string()
             },
-        ) + &if s.blob_points > 0 {
+        ) + &match s.side_turned {
+            Some(k) => format!(", {k} turned by the side vote"),
+            None => String::new(),
+        } + &match &s.energy {
+            None => String::new(),
+            Some(e) if e.ran => format!(
+                "; energy: {} of {} patches turned (energy {:.4e} -> {:.4e})",
+                e.flipped, e.movable, e.before, e.after
+            ),
+            Some(_) => format!("; energy: skipped (more than {} rows)", crate::surface::energy::ENERGY_LIMIT),
+        } + &if s.blob_points > 0 {
             format!(
                 "; blobs: {} constraint points ({} regions away from the data), fitted twice",
                 s.blob_points, s.blob_regions

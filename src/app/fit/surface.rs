@@ -11,6 +11,7 @@ use crate::error::Result;
 use crate::par::{agree, Comm};
 use crate::spline::hygiene::Prepared;
 use crate::surface::blobs::{blob_values, find, sample, Lattice};
+use crate::surface::energy::{flip_by_energy, EnergyFlips};
 use crate::surface::{self, neighbourhoods, off_points, off_values, Neighbourhoods};
 
 /// Fewest points for which `--surface auto` adds off-surface constraints.
@@ -27,6 +28,10 @@ pub struct SurfaceSummary {
     pub patches: usize,
     pub flipped: usize,
     pub dense_dipole: bool,
+    /// Patches turned by the side vote (None: not run).
+    pub side_turned: Option<usize>,
+    /// The patch orientation by energy (None: not asked for).
+    pub energy: Option<EnergyFlips>,
     /// Constraint points added by the second fit against spurious blobs (0: no second fit).
     pub blob_points: usize,
     /// Positive regions of the first fit that came nowhere near the data.
@@ -66,10 +71,20 @@ pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<
     let comm: &dyn Comm = run.comm;
     let hoods = stages.time(Stage::Normals, || agree(comm, neighbourhoods(&prep.centres)))?;
     let (orientation, off) = stages.time(Stage::Orient, || -> Result<_> {
-        let o = surface::oriented(comm, &prep.centres, &hoods)?;
+        let o = surface::oriented_with(comm, &prep.centres, &hoods, run.args.orient_side)?;
         let off = off_points(&prep.centres, &o.normals, &hoods.tree, run.args.off_points);
         Ok((o, off))
     })?;
+    let (mut orientation, mut off) = (orientation, off);
+    let mut energy = None;
+    if run.args.orient_energy {
+        let e =
+            stages.time(Stage::Orient, || flip_by_energy(comm, prep, &hoods, &mut orientation.normals))?;
+        if e.flipped > 0 {
+            off = off_points(&prep.centres, &orientation.normals, &hoods.tree, run.args.off_points);
+        }
+        energy = Some(e);
+    }
     let values = off_values(&off, &prep.points, &prep.carrier, &prep.norm);
     let scale = prep.norm.scale;
     let delta =
@@ -82,6 +97,8 @@ pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<
         patches: orientation.patches,
         flipped: orientation.flipped,
         dense_dipole: orientation.dense_dipole,
+        side_turned: orientation.side_turned,
+        energy,
         blob_points: 0,
         blob_regions: 0,
     };
