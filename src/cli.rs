@@ -96,7 +96,7 @@ pub struct FitArgs {
     #[arg(long, default_value = "f64", value_name = "f64|mixed", value_parser = with(Precision::parse))]
     pub precision: Precision,
     /// Panel (block) width of the distributed solvers (0: automatic, 64 for householder, 128 for
-    /// lu, 256 for cholesky).
+    /// lu, 256 for cholesky below 6000 rows and 384 from 6000; 64 on a 2D grid).
     #[arg(long, allow_negative_numbers = true, default_value_t = 0, value_name = "NB")]
     pub panel: usize,
     /// Look-ahead of the factorisations: on, off, or auto (the default): off on the row-cyclic

@@ -72,6 +72,9 @@ pub enum SolverKind {
 /// the same time on 2 ranks, at 2004 Cholesky takes 40 % less).
 pub const AUTO_CHOLESKY_FROM: usize = 1000;
 
+/// System size from which the projected Cholesky's default panel is 384 rather than 256.
+pub const CHOLESKY_WIDE_FROM: usize = 6000;
+
 impl SolverKind {
     pub fn parse(name: &str) -> Result<Self> {
         match name {
@@ -103,14 +106,17 @@ impl SolverKind {
         }
     }
 
-    /// Panel width used when the user gives none, measured on a 2-core AVX-512 machine at
-    /// N = 4000 and 8000, 2 ranks: Cholesky gains from wide panels (its trailing GEMMs get a
-    /// longer inner dimension), LU is best at 128 (equal at 8000, 7 % faster at 4000, where the
-    /// panel's collectives weigh more), Householder's per-column all-reduces favour 64.
-    pub fn default_panel(&self) -> usize {
+    /// Panel width used when the user gives none for a system of `n` rows, measured on a 2-core
+    /// AVX-512 machine, 2 ranks: Cholesky gains from wide panels (its trailing GEMMs get a longer
+    /// inner dimension) as n grows: 256 is best at 2000 and 4000 rows (384 is 3-10 % slower
+    /// there), 384 at 8000 (2.20-2.23 s against 2.30-2.34 s with 256); LU is best at 128 (equal
+    /// at 8000, 7 % faster at 4000, where the panel's collectives weigh more); Householder's
+    /// per-column all-reduces favour 64 (48 to 96 take the same time at 8000).
+    pub fn default_panel(&self, n: usize) -> usize {
         match self {
             SolverKind::Householder => 64,
             SolverKind::Lu => 128,
+            SolverKind::Cholesky | SolverKind::Auto if n >= CHOLESKY_WIDE_FROM => 384,
             SolverKind::Cholesky | SolverKind::Auto => 256,
         }
     }
@@ -119,7 +125,8 @@ impl SolverKind {
     /// is the solver's default. Collective. The local outcome is not agreed on: see [`solve`].
     pub fn run(&self, job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>> {
         let kind = self.resolve(rows.layout.n);
-        let job = Job { panel: if job.panel > 0 { job.panel } else { kind.default_panel() }, ..*job };
+        let n = rows.layout.n;
+        let job = Job { panel: if job.panel > 0 { job.panel } else { kind.default_panel(n) }, ..*job };
         match kind {
             SolverKind::Householder => householder_solve(&job, rows),
             SolverKind::Lu => lu_solve(&job, rows),
@@ -195,7 +202,7 @@ pub fn solve_in(
         SolverKind::Cholesky if rows.border > 0 => SolverKind::Cholesky,
         _ => SolverKind::Lu,
     };
-    let panel = if job.panel > 0 { job.panel } else { factor.default_panel() };
+    let panel = if job.panel > 0 { job.panel } else { factor.default_panel(rows.layout.n) };
     let (refinement, why) = match agree(job.comm, mixed_solve(&Job { panel, ..*job }, &rows, factor)) {
         Ok((x, r)) if r.converged => {
             let used = factor;
@@ -229,7 +236,8 @@ pub fn solve(
 ) -> Result<Solved> {
     let comm = job.comm;
     let used = kind.resolve(rows.layout.n);
-    let panel_of = |k: SolverKind| if job.panel > 0 { job.panel } else { k.default_panel() };
+    let n = rows.layout.n;
+    let panel_of = |k: SolverKind| if job.panel > 0 { job.panel } else { k.default_panel(n) };
     match agree(comm, used.run(job, &mut rows)) {
         Ok(x) => Ok(Solved {
             x,
