@@ -108,9 +108,9 @@ pub struct FitArgs {
     pub lookahead: LookAhead,
     /// Distribution of the dense system over the ranks: row-cyclic (global row g on rank
     /// g mod p; every solver), 2d (blocks of --panel rows and columns, default 64, on the
-    /// squarest process grid, as ScaLAPACK deals them; cholesky and lu, in f64; auto picks
-    /// cholesky from 1000 rows and lu below) or an explicit process grid PRxPC whose product is
-    /// the rank count. 2D moves less data per rank from about 64 ranks on.
+    /// squarest process grid, as ScaLAPACK deals them; every solver, in f64) or an explicit
+    /// process grid PRxPC whose product is the rank count. 2D moves less data per rank from about
+    /// 64 ranks on.
     #[arg(long, default_value = "row-cyclic", value_name = "row-cyclic|2d|PRxPC", value_parser = with(Layout::parse))]
     pub layout: Layout,
     /// Points closer than this fraction of the bounding-box diagonal are merged into one.

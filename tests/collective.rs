@@ -81,7 +81,7 @@ fn child() {
         comm.barrier();
     }
     let checks_2d: [(&str, Check); 2] = [
-        ("2D block-cyclic LU vs the dense oracle", lu2d_matches_the_oracle),
+        ("2D block-cyclic LU and Householder vs the dense oracles", lu2d_matches_the_oracle),
         ("2D projected Cholesky vs the dense oracle, fallback to LU", cholesky2d_matches_the_oracle),
     ];
     if std::env::var_os(ONLY_2D).is_some() {
@@ -299,15 +299,17 @@ fn lookahead_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
     }
 }
 
-/// The LU on the 2D block-cyclic layout, on every process grid of the job's ranks and several
-/// block sizes (1: a panel per column; 7 and 16: blocks ending inside the polynomial border;
-/// 64: fewer blocks than ranks in a grid dimension near the end), against the dense LU oracle on
-/// about 1000 rows; a system with a repeated centre is singular on every rank alike.
+/// The LU and the Householder QR on the 2D block-cyclic layout, on every process grid of the
+/// job's ranks and several block sizes (1: a panel per column; 7 and 16: blocks ending inside
+/// the polynomial border; 64: fewer blocks than ranks in a grid dimension near the end), with and
+/// without look-ahead, against the dense LU and QR oracles on about 1000 rows; a system with a
+/// repeated centre is singular on every rank alike.
 fn lu2d_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
     let k = Kernel::new(3, 2).unwrap();
     let prep =
         must(prepare(&common::bunny_subset(5, 2), &k, &Carrier::AutoBall, 1e-6), "prepare the bunny points");
     let want = oracle(&prep, &k, lu_solve);
+    let want_qr = oracle(&prep, &k, householder_solve);
     let p = comm.size();
     let shapes: Vec<(usize, usize)> = (1..=p).filter(|pr| p % pr == 0).map(|pr| (pr, p / pr)).collect();
     // the same centres with the first one repeated at the end: two equal rows
@@ -330,6 +332,15 @@ fn lu2d_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
                 log.close(&x, &want, 1e-9, || what.clone());
                 same_on_every_rank(comm, log, &x, &what);
             }
+        }
+        // Householder QR on the same grid, against the dense QR oracle
+        for (nb, lookahead) in [(1, false), (7, true), (16, false), (64, true)] {
+            let what = format!("householder2d {}x{} block {nb} look-ahead {lookahead}", shape.0, shape.1);
+            let mut a = assemble_blocks(&k, &prep.centres, &prep.values, &grid, nb);
+            let x =
+                must(dist::householder2d_solve(&Job::on(comm).lookahead(lookahead), &grid, &mut a), &what);
+            log.close(&x, &want_qr, 1e-9, || what.clone());
+            same_on_every_rank(comm, log, &x, &what);
         }
         let mut a = assemble_blocks(&k, &centres, &values, &grid, 16);
         let what = format!("lu2d {}x{} repeated centre", shape.0, shape.1);

@@ -142,6 +142,8 @@ elif mode == "solve":
             check(f"2D LU ({what}) time <= PDGESV time ({grid})", get(impl, "lu", nmax, ranks, grid)[1], pd, 1, higher=False)
             check(f"2D projected Cholesky ({what}) time <= PDPOTRF + PDPOTRS time ({grid}) + 10 %",
                   get(impl, "cholesky", nmax, ranks, grid)[1], 1.1 * pc if pc else None, 1, higher=False)
+            check(f"2D Householder ({what}) time <= PDGEQRF time ({grid})", get(impl, "householder", nmax, ranks, grid)[1],
+                  get("scalapack", "pdgeqrf", nmax, ranks, grid)[1], 1, higher=False)
     micro = f"{out}/micro_blas.csv"
     if os.path.exists(micro):
         with open(micro) as f:
@@ -189,8 +191,8 @@ elif mode == "solve":
     lines.append("\nNominal flops: LU 2/3 n^3, QR 4/3 n^3, Cholesky 1/3 n^3 (the projection's O(k n^2) not counted). "
                  "pdpotrf: PDPOTRF + PDPOTRS of one right-hand side on a symmetric positive definite matrix of the same "
                  "size (symmetrised random matrix + n I). Grid PRxPC: ScaLAPACK's process grid (blocks of NB); "
-                 "volspline's rows are row-cyclic (P x 1, blocks of one row); volspline-2d: its LU and projected "
-                 "Cholesky on the 2D block-cyclic layout of the grid, blocks of NB (-lookahead: the next panel factored and broadcast "
+                 "volspline's rows are row-cyclic (P x 1, blocks of one row); volspline-2d: its three solvers "
+                 "on the 2D block-cyclic layout of the grid, blocks of NB (-lookahead: the next panel factored and broadcast "
                  "during the trailing update). Plot: gflops.png.")
 
 elif mode == "eval":

@@ -53,16 +53,10 @@ pub fn assemble_blocks(
 }
 
 /// Refuses, before any work, a `--layout` the rest of the arguments or the rank count cannot
-/// use: the 2D block-cyclic layout has the LU and projected Cholesky solvers in f64 only, and
-/// its grid must cover the ranks exactly.
+/// use: the 2D block-cyclic layout solves in f64 only, and its grid must cover the ranks
+/// exactly.
 pub fn check_layout(a: &FitArgs, ranks: usize) -> Result<()> {
     let Some((pr, pc)) = a.layout.shape(ranks) else { return Ok(()) };
-    if a.solver == SolverKind::Householder {
-        return Err(Error::Usage(format!(
-            "--layout {} has no Householder solver: use --solver auto, cholesky or lu, or --layout row-cyclic",
-            a.layout.name(ranks)
-        )));
-    }
     if a.precision != Precision::F64 {
         return Err(Error::Usage(
             "--precision mixed runs on the row-cyclic layout only: use --layout row-cyclic".into(),

@@ -372,9 +372,11 @@ fn swap_rows(col: &dyn Comm, a: &mut LocalBlocks, i: usize, j: usize, lcols: std
     }
 }
 
-/// Solves U x = y (U the upper triangle of the factored matrix, y its right-hand side column)
-/// block row by block row from the last; x ends on every rank. Collective over the grid.
-fn back_substitute(grid: &ProcessGrid<'_>, a: &LocalBlocks, tol: f64) -> Result<Vec<f64>> {
+/// Solves U x = y (U the upper triangle of the factored matrix, y its right-hand side column:
+/// U and L^-1 P b of the LU, R and Q^T b of the QR) block row by block row from the last; x
+/// ends on every rank. A diagonal entry at most `tol` in magnitude is a singular matrix, on every
+/// rank alike. Collective over the grid.
+pub(super) fn back_substitute(grid: &ProcessGrid<'_>, a: &LocalBlocks, tol: f64) -> Result<Vec<f64>> {
     let (n, nb, ld) = (a.n(), a.rows.nb, a.ld());
     let (rows, cols) = (a.rows, a.cols);
     let rhs_owner = cols.owner(n);

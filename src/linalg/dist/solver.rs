@@ -6,8 +6,8 @@
 use faer::Par;
 
 use super::{
-    cholesky2d_solve, cholesky_solve, householder_solve, lu2d_solve, lu_solve, mixed_solve, LocalBlocks,
-    LocalRows, ProcessGrid, Refinement,
+    cholesky2d_solve, cholesky_solve, householder2d_solve, householder_solve, lu2d_solve, lu_solve,
+    mixed_solve, LocalBlocks, LocalRows, ProcessGrid, Refinement,
 };
 use crate::error::{Error, Result};
 use crate::par::{agree, Comm};
@@ -266,10 +266,9 @@ pub fn solve(
 }
 
 /// Solves the bordered system `a` (k polynomial rows) on the 2D block-cyclic layout of `grid`,
-/// in f64: the projected Cholesky where `kind` resolves to it for the size
-/// (falling back to LU on the assembly of `reassemble` when a pivot is not positive), LU otherwise (`auto`
-/// below [`AUTO_CHOLESKY_FROM`] rows: there is no 2D Householder). The panel width is the block
-/// size of the assembly. Collective; every rank returns the same outcome.
+/// in f64, with `kind` resolved for the size as on the row-cyclic layout; the projected Cholesky
+/// falls back to LU on the assembly of `reassemble` when a pivot is not positive. The panel width
+/// is the block size of the assembly. Collective; every rank returns the same outcome.
 pub fn solve_2d(
     job: &Job<'_>,
     grid: &ProcessGrid<'_>,
@@ -281,18 +280,17 @@ pub fn solve_2d(
     let comm = job.comm;
     let (n, panel) = (a.n(), a.rows.nb);
     let used = match kind.resolve(n) {
-        SolverKind::Cholesky if k > 0 => SolverKind::Cholesky,
-        SolverKind::Householder if kind == SolverKind::Householder => {
-            return Err(Error::Usage("the 2D block-cyclic layout has no Householder solver".into()));
-        }
-        _ => SolverKind::Lu,
+        SolverKind::Cholesky if k == 0 => SolverKind::Lu,
+        other => other,
     };
     let done =
         |x, used, fallback| Solved { x, used, panel, fallback, refinement: None, mixed_fallback: None };
-    if used == SolverKind::Lu {
-        return agree(comm, lu2d_solve(job, grid, &mut a)).map(|x| done(x, used, None));
-    }
-    match agree(comm, cholesky2d_solve(job, grid, &mut a, k)) {
+    let outcome = match used {
+        SolverKind::Householder => householder2d_solve(job, grid, &mut a),
+        SolverKind::Lu | SolverKind::Auto => lu2d_solve(job, grid, &mut a),
+        SolverKind::Cholesky => cholesky2d_solve(job, grid, &mut a, k),
+    };
+    match agree(comm, outcome) {
         Ok(x) => Ok(done(x, used, None)),
         Err(e) if e.is_not_definite() => {
             drop(a);

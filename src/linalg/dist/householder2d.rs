@@ -1,0 +1,273 @@
+//! Householder QR on the 2D block-cyclic layout (see `grid`), blocked in compact-WY form as
+//! ScaLAPACK's PDGEQRF: the reflectors and T of `crate::linalg::reflector`, the ranks arranged as
+//! in the row-cyclic Householder (`householder`) but over one process column at a time.
+//!
+//! At the panel of columns k..k+kb (one block column, on process column pk):
+//!
+//! 1. The PR ranks of process column pk factor the panel column by column. A reflector needs
+//!    a_jj and the squared norm of the column below it, and applying it to the panel column c
+//!    needs a_jc and v'^T a'_c: they travel in one all-reduce over the process column per column
+//!    (as on the row-cyclic layout, where it is over all ranks), after which each rank updates its
+//!    own rows of the panel.
+//! 2. They sum their parts of V^T V over the process column, every one builds the same T, and
+//!    each broadcasts along its process row the taus, T and its rows of V (explicit: unit
+//!    diagonal, zeros above).
+//! 3. Every rank forms its part of W = V^T A_trail for its columns right of the panel (the
+//!    right-hand side among them, so that it receives Q^T b on the way), one all-reduce over the
+//!    process column sums it, and A_trail <- A_trail - V (T^T W) is one local GEMM.
+//!
+//! R and Q^T b end where U and L^-1 P b end in the 2D LU, so its back substitution finishes the
+//! solve. With look-ahead the process column of the next panel applies step 3 to that panel's
+//! columns first, factors it and starts its broadcast (non-blocking) while every rank runs the
+//! rest of step 3 in pieces; the factors are the same.
+
+use faer::linalg::matmul::matmul;
+use faer::{Accum, MatMut, MatRef};
+
+use super::grid::{LocalBlocks, ProcessGrid};
+use super::lu2d::back_substitute;
+use super::solver::Job;
+use crate::error::Result;
+use crate::linalg::reflector::{wy_t, Reflector};
+use crate::par::Comm;
+
+/// Solves the system in `a` (right-hand side as global column n) on `grid` by Householder QR and
+/// returns the solution on every rank. Collective over the grid; every rank returns the same
+/// outcome (a singular R is found in the back substitution). `a` is overwritten by R, the
+/// reflectors and Q^T b. The panel width is the block size of `a`. With `job.lookahead` the
+/// process column of the next panel applies the update to that panel's columns first, factors it
+/// and broadcasts it (non-blocking) while the rest of the update runs, as in the 2D LU.
+pub fn householder2d_solve(job: &Job<'_>, grid: &ProcessGrid<'_>, a: &mut LocalBlocks) -> Result<Vec<f64>> {
+    let n = a.n();
+    let tol = a.max_abs(grid.comm) * f64::EPSILON * n as f64;
+    if n == 0 {
+        return back_substitute(grid, a, tol);
+    }
+    let (rows, cols) = (a.rows, a.cols);
+    let mut panel = factor_and_pack(grid, a, 0);
+    grid.row.broadcast_f64(cols.owner(0), &mut panel);
+    let mut k = 0;
+    loop {
+        let kb = rows.nb.min(n - k);
+        let end = k + kb;
+        let lc1 = cols.first_local_from(end);
+        let ncl = cols.local_count();
+        let update = Update::new(grid, a, k, kb, &panel, job);
+        if end == n {
+            update.apply(a, lc1, ncl, job);
+            (job.progress)(end, n);
+            break;
+        }
+        let (pk1, kb1) = (cols.owner(end), rows.nb.min(n - end));
+        let early = job.lookahead && grid.mycol == pk1;
+        let mut next = if early {
+            update.apply(a, lc1, lc1 + kb1, job);
+            factor_and_pack(grid, a, end)
+        } else {
+            vec![0.0; panel_len(kb1, a.ld() - rows.first_local_from(end))]
+        };
+        let mut from = if early { lc1 + kb1 } else { lc1 };
+        if job.lookahead {
+            let piece = (ncl - from).div_ceil(4).max(MIN_PIECE);
+            let mut work = || {
+                let to = (from + piece).min(ncl);
+                update.apply(a, from, to, job);
+                from = to;
+                from < ncl
+            };
+            grid.row.broadcast_f64_while(pk1, &mut next, &mut work);
+        } else {
+            update.apply(a, from, ncl, job);
+            if grid.mycol == pk1 {
+                next = factor_and_pack(grid, a, end);
+            }
+            grid.row.broadcast_f64(pk1, &mut next);
+        }
+        (job.progress)(end, n);
+        panel = next;
+        k = end;
+    }
+    back_substitute(grid, a, tol)
+}
+
+/// The narrowest piece of an update run between two tests of the panel broadcast.
+const MIN_PIECE: usize = 256;
+
+/// Length of a packed panel of width kb with m local rows: the taus, T (kb x kb) and V (m x kb).
+fn panel_len(kb: usize, m: usize) -> usize {
+    kb + kb * kb + m * kb
+}
+
+/// On the process column of the panel at column k: factors it, builds T from V^T V (summed over
+/// the process column) and packs the taus, T and this process row's rows k.. of V (explicit:
+/// unit diagonal, zeros above), column-major; elsewhere a buffer of the same length. Collective
+/// over the process column.
+fn factor_and_pack(grid: &ProcessGrid<'_>, a: &mut LocalBlocks, k: usize) -> Vec<f64> {
+    let (rows, cols, ld) = (a.rows, a.cols, a.ld());
+    let kb = rows.nb.min(a.n() - k);
+    let lr0 = rows.first_local_from(k);
+    let m = ld - lr0;
+    let (t_at, v_at) = (kb, kb + kb * kb);
+    let mut panel = vec![0.0; panel_len(kb, m)];
+    if grid.mycol != cols.owner(k) {
+        return panel;
+    }
+    let lc0 = cols.local(k);
+    let taus = factor_panel(grid.col.as_ref(), a, k, kb, lc0);
+    for c in 0..kb {
+        for (t, lr) in (lr0..ld).enumerate() {
+            let g = rows.global(lr);
+            panel[v_at + t + c * m] = match g.cmp(&(k + c)) {
+                std::cmp::Ordering::Less => 0.0,
+                std::cmp::Ordering::Equal => 1.0,
+                std::cmp::Ordering::Greater => a.data[lr + (lc0 + c) * ld],
+            };
+        }
+    }
+    let v = MatRef::from_column_major_slice(&panel[v_at..], m, kb);
+    let mut gram = vec![0.0; kb * kb];
+    let gm = MatMut::from_column_major_slice_mut(&mut gram, kb, kb);
+    matmul(gm, Accum::Replace, v.transpose(), v, 1.0, faer::Par::Seq);
+    grid.col.sum_f64(&mut gram);
+    let t = wy_t(&taus, MatRef::from_column_major_slice(&gram, kb, kb));
+    panel[..kb].copy_from_slice(&taus);
+    for j in 0..kb {
+        for i in 0..kb {
+            panel[t_at + i + j * kb] = t[(i, j)];
+        }
+    }
+    panel
+}
+
+/// The block update A_trail <- A_trail - V (T^T W) of one panel, W = V^T A_trail summed over the
+/// process column once for all this rank's columns right of the panel; applied by column ranges.
+struct Update<'p> {
+    /// This process row's rows k.. of V (m x kb, column-major).
+    v: MatRef<'p, f64>,
+    /// T^T W for the local columns lc1.. (kb x columns, column-major).
+    tw: Vec<f64>,
+    lr0: usize,
+    lc1: usize,
+}
+
+impl<'p> Update<'p> {
+    /// Forms T^T W from the packed panel. Collective over the process column.
+    fn new(
+        grid: &ProcessGrid<'_>,
+        a: &LocalBlocks,
+        k: usize,
+        kb: usize,
+        panel: &'p [f64],
+        job: &Job<'_>,
+    ) -> Self {
+        let (rows, cols, ld) = (a.rows, a.cols, a.ld());
+        let lr0 = rows.first_local_from(k);
+        let m = ld - lr0;
+        let (t_at, v_at) = (kb, kb + kb * kb);
+        let v = MatRef::from_column_major_slice(&panel[v_at..], m, kb);
+        let lc1 = cols.first_local_from(k + kb);
+        let w = cols.local_count() - lc1;
+        let mut wbuf = vec![0.0; kb * w];
+        if w > 0 && m > 0 {
+            let trail = MatRef::from_column_major_slice_with_stride(&a.data[lr0 + lc1 * ld..], m, w, ld);
+            let wm = MatMut::from_column_major_slice_mut(&mut wbuf, kb, w);
+            matmul(wm, Accum::Replace, v.transpose(), trail, 1.0, job.par);
+        }
+        grid.col.sum_f64(&mut wbuf);
+        let t = MatRef::from_column_major_slice(&panel[t_at..v_at], kb, kb);
+        let mut tw = vec![0.0; kb * w];
+        if w > 0 {
+            let twm = MatMut::from_column_major_slice_mut(&mut tw, kb, w);
+            matmul(
+                twm,
+                Accum::Replace,
+                t.transpose(),
+                MatRef::from_column_major_slice(&wbuf, kb, w),
+                1.0,
+                job.par,
+            );
+        }
+        Update { v, tw, lr0, lc1 }
+    }
+
+    /// The update of the local columns c0..c1 (one GEMM).
+    fn apply(&self, a: &mut LocalBlocks, c0: usize, c1: usize, job: &Job<'_>) {
+        let ld = a.ld();
+        let (m, kb) = (self.v.nrows(), self.v.ncols());
+        if c0 >= c1 || m == 0 {
+            return;
+        }
+        let w = self.tw.len() / kb;
+        let tw = MatRef::from_column_major_slice(&self.tw, kb, w).subcols(c0 - self.lc1, c1 - c0);
+        let trail = MatMut::from_column_major_slice_with_stride_mut(
+            &mut a.data[self.lr0 + c0 * ld..],
+            m,
+            c1 - c0,
+            ld,
+        );
+        matmul(trail, Accum::Add, self.v, tw, -1.0, job.par);
+    }
+}
+
+/// Unblocked Householder QR of the panel columns k..k+kb (local columns lc0.., rows k..n) on the
+/// ranks of one process column; returns the tau of each reflector (v(0) = 1, its tail stored
+/// below the diagonal, R on and above it).
+fn factor_panel(col: &dyn Comm, a: &mut LocalBlocks, k: usize, kb: usize, lc0: usize) -> Vec<f64> {
+    let (rows, ld) = (a.rows, a.ld());
+    let me = col.rank();
+    let mut taus = vec![0.0; kb];
+    // one all-reduce per column: [sum of squares below the diagonal, x0, x^T A (unscaled, below),
+    // row j of A], over the panel columns right of j; w = A_j + x^T A / (x0 - beta) follows
+    let mut s = vec![0.0; 2 + 2 * kb];
+    for j in k..k + kb {
+        let jl = lc0 + j - k;
+        let l0 = rows.first_local_from(j + 1);
+        let owns_j = rows.owner(j) == me;
+        let lj = rows.local(j);
+        let width = k + kb - j - 1;
+        let s = &mut s[..2 + 2 * width];
+        s.fill(0.0);
+        {
+            let x = &a.data[jl * ld + l0..jl * ld + ld];
+            s[0] = x.iter().map(|v| v * v).sum::<f64>();
+            if owns_j {
+                s[1] = a.data[lj + jl * ld];
+            }
+            for t in 0..width {
+                let c = &a.data[(jl + 1 + t) * ld..(jl + 2 + t) * ld];
+                s[2 + t] = c[l0..].iter().zip(x).map(|(p, q)| p * q).sum::<f64>();
+                if owns_j {
+                    s[2 + width + t] = c[lj];
+                }
+            }
+        }
+        col.sum_f64(s);
+        let Reflector { tau, beta, scale } = Reflector::new(s[1], s[0]);
+        if tau == 0.0 {
+            // already triangular in this column: H = I
+            continue;
+        }
+        taus[j - k] = tau;
+        if ld == 0 {
+            continue;
+        }
+        let (left, right) = a.data.split_at_mut((jl + 1) * ld);
+        let v = &mut left[jl * ld + l0..jl * ld + ld];
+        v.iter_mut().for_each(|x| *x *= scale);
+        if owns_j {
+            left[lj + jl * ld] = beta;
+        }
+        let v = &left[jl * ld + l0..jl * ld + ld];
+        // apply H_j = I - tau v v^T (v(j) = 1) to the panel columns right of j
+        for (t, c) in right.chunks_exact_mut(ld).take(width).enumerate() {
+            let tw = tau * (s[2 + width + t] + scale * s[2 + t]);
+            if owns_j {
+                c[lj] -= tw;
+            }
+            for (p, vl) in c[l0..].iter_mut().zip(v) {
+                *p -= vl * tw;
+            }
+        }
+    }
+    taus
+}
