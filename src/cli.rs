@@ -96,7 +96,8 @@ pub struct FitArgs {
     #[arg(long, default_value = "f64", value_name = "f64|mixed", value_parser = with(Precision::parse))]
     pub precision: Precision,
     /// Panel (block) width of the distributed solvers (0: automatic, 64 for householder, 128 for
-    /// lu, 256 for cholesky below 6000 rows and 384 from 6000; 64 on a 2D grid).
+    /// lu, 256 for cholesky below 6000 rows and 384 from 6000; on a 2D grid the block size, 64 for
+    /// householder and 128 for lu and cholesky).
     #[arg(long, allow_negative_numbers = true, default_value_t = 0, value_name = "NB")]
     pub panel: usize,
     /// Look-ahead of the factorisations: on, off, or auto (the default): off on the row-cyclic
@@ -107,7 +108,7 @@ pub struct FitArgs {
     #[arg(long, default_value = "auto", value_name = "auto|on|off", value_parser = on_off_auto)]
     pub lookahead: LookAhead,
     /// Distribution of the dense system over the ranks: row-cyclic (global row g on rank
-    /// g mod p; every solver), 2d (blocks of --panel rows and columns, default 64, on the
+    /// g mod p; every solver), 2d (blocks of --panel rows and columns on the
     /// squarest process grid, as ScaLAPACK deals them; every solver, in f64) or an explicit
     /// process grid PRxPC whose product is the rank count. 2D moves less data per rank from about
     /// 64 ranks on.

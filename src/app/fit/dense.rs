@@ -104,7 +104,11 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
         Layout::BlockCyclic(_) => {
             let shape = a.layout.shape(comm.size()).expect("a 2D layout has a grid");
             let grid = ProcessGrid::new(&timed, shape)?;
-            let nb = if a.panel > 0 { a.panel } else { dist::DEFAULT_BLOCK };
+            let nb = if a.panel > 0 {
+                a.panel
+            } else {
+                a.solver.default_block_2d(values.len() + kernel.poly_count())
+            };
             let assemble = || assemble_blocks(&kernel, centres, values, &grid, nb);
             let blocks = stages.time(Stage::Assemble, assemble);
             let k = kernel.poly_count();

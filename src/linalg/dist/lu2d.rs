@@ -37,10 +37,6 @@ use super::system::{permute_local_rows, RowMap};
 use crate::error::{Error, Result};
 use crate::par::Comm;
 
-/// The panel width of the 2D LU when none is given: ScaLAPACK's usual block size (the panel is
-/// factored column by column on one process column, so wider panels put more of the flops there).
-pub const DEFAULT_BLOCK: usize = 64;
-
 /// Solves the system in `a` (right-hand side as global column n) on `grid` and returns the
 /// solution on every rank. Collective over the grid; every rank returns the same outcome. `a` is
 /// overwritten by the factors. The panel width is the block size of `a`; `job.par` goes to the

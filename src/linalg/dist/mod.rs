@@ -34,7 +34,7 @@ pub use householder::householder_solve;
 pub use householder2d::householder2d_solve;
 pub use layout::RowCyclic;
 pub use lu::{lu_factor, lu_solve};
-pub use lu2d::{lu2d_factor, lu2d_solve, DEFAULT_BLOCK};
+pub use lu2d::{lu2d_factor, lu2d_solve};
 pub use refine::{mixed_solve, Refinement};
 pub use scalar::Scalar;
 pub use solver::{
