@@ -258,6 +258,9 @@ def load_study(folder):
                 continue
             key, t = (r["operation"], int(r["n"]), int(r["ranks"])), float(r["seconds"])
         else:
+            # jobs/table1 with LAYOUT=2d: not the row-cyclic layout the validation models
+            if not r.get("layout", "row-cyclic").startswith("row"):
+                continue
             key, t = (r["solver"], int(r["system_size"]), int(r["ranks"])), float(r["solve_s"])
         best[key] = min(best.get(key, 1e30), t)
     cores = int([ln for ln in open(f"{folder}/machine.txt") if ln.startswith("cores:")][0].split()[1])
