@@ -466,3 +466,57 @@ fn readers_refuse_random_and_mutated_bytes_without_panicking() {
         assert!(caught.is_ok(), "the model reader panicked on an edited model");
     }
 }
+
+/// Points of a torus (tube radius 0.7 about a circle of radius 2 in the xy plane), a fixed
+/// pseudo-random sample.
+fn torus_points(n: usize) -> Vec<f64> {
+    let mut rng = common::Rng(3);
+    let mut pts = Vec::with_capacity(3 * n);
+    for _ in 0..n {
+        let (u, v) = (rng.unit() * std::f64::consts::TAU, rng.unit() * std::f64::consts::TAU);
+        let ring = 2.0 + 0.7 * v.cos();
+        pts.extend([ring * u.cos(), ring * u.sin(), 0.7 * v.sin()]);
+    }
+    pts
+}
+
+#[test]
+fn an_unbounded_solid_is_reported() {
+    // with the kernel r^3 (a quadratic polynomial part) and a union of two balls as carrier, the
+    // fit of a torus comes out inside-out: negative in the tube, positive at the hole and
+    // everywhere far away (f = 1.9e3 at 10 diagonals). The kernel r keeps the carrier's sign.
+    let dir = temp_dir("hardening-unbounded");
+    let input = dir.join("torus.xyz");
+    write_xyz(&input, &torus_points(800));
+    let carrier = "union(ball:-1,0,0,2.5,ball:1,0,0,2.5)";
+    for (kernel, ranks) in [("r3", 1), ("r3", 2), ("r", 2)] {
+        let prefix = dir.join(format!("{kernel}-{ranks}"));
+        let timings = dir.join(format!("{kernel}-{ranks}.csv"));
+        let args = [
+            "fit",
+            s(&input),
+            "--out",
+            s(&prefix),
+            "--kernel",
+            kernel,
+            "--carrier",
+            carrier,
+            "--surface",
+            "carrier",
+            "--grid",
+            "24",
+            "--no-preview",
+            "--timings",
+            s(&timings),
+        ];
+        let out = run(ranks, &args);
+        let t = text(&out);
+        assert!(out.status.success(), "{t}");
+        let csv = std::fs::read_to_string(&timings).unwrap();
+        let inverted = kernel == "r3";
+        assert_eq!(csv.contains("bounded,false"), inverted, "{csv}");
+        assert_eq!(t.contains("volspline: warning: the fitted solid is not bounded"), inverted, "{t}");
+        assert_eq!(t.contains("inside and outside are swapped"), inverted, "{t}");
+        assert!(triangles(&out) > 1000, "{t}");
+    }
+}

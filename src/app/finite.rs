@@ -7,6 +7,14 @@
 //! |x - c|^2 and sum_i |w_i| |x - c_i| are convex and take their maxima on a box at a vertex. The
 //! grid is therefore checked at its eight corners before any slab is evaluated, and a slab's
 //! values can be checked again before they are written ([`check_slab`]).
+//!
+//! A fitted model must also be a bounded solid: f < 0 far from the data, where the carrier's
+//! sign decides ([`check_bounded`]). With the kernel r (and the compactly supported kernels) U
+//! grows at most linearly there and the carrier's quadratic decay wins. With r^3 the polynomial
+//! part of U is quadratic, like every quadric-based carrier, and can absorb the carrier's far
+//! field: the fit can then come out inside-out (f > 0 everywhere far away, a torus's tube
+//! negative). The surface is still the fitted one (curvature tests use such fits), so this is a
+//! warning in the report and on standard error, not a refusal.
 
 use super::fit::Fitted;
 use crate::contour::SectionFit;
@@ -14,7 +22,7 @@ use crate::error::{Error, Result};
 use crate::grid::Grid;
 use crate::par::{agree, Comm};
 use crate::spline::hygiene::Prepared;
-use crate::spline::Field;
+use crate::spline::{Field, Model};
 
 /// Largest magnitude in `v` (NaN counts as infinite).
 fn reach(v: &[f64]) -> f64 {
@@ -39,6 +47,46 @@ pub fn check_fit(fitted: &Fitted, prep: &Prepared) -> Result<()> {
          magnitude)",
         reach(&prep.values)
     )))
+}
+
+/// Whether a model is negative far from the data: f is evaluated at the 8 corners and 6 face
+/// centres of the data's box grown to 9 times its size about its centre (4 half-diagonals beyond
+/// each side). Returns a warning naming the first place where f >= 0 and how many of the 14 are
+/// not negative, or None for a bounded solid. The same on every rank (every rank holds the whole
+/// model).
+pub fn check_bounded(model: &Model, kernel_name: &str) -> Option<String> {
+    let (lo, hi) = (model.provenance.box_lo, model.provenance.box_hi);
+    let c: Vec<f64> = (0..3).map(|d| 0.5 * (lo[d] + hi[d])).collect();
+    let h: Vec<f64> = (0..3).map(|d| 4.5 * (hi[d] - lo[d]).max(f64::MIN_POSITIVE)).collect();
+    let mut far = Vec::with_capacity(14);
+    for corner in 0..8 {
+        far.push(
+            (0..3).map(|d| c[d] + if corner >> d & 1 == 1 { h[d] } else { -h[d] }).collect::<Vec<f64>>(),
+        );
+    }
+    for d in 0..3 {
+        for s in [-1.0, 1.0] {
+            let mut p = c.clone();
+            p[d] += s * h[d];
+            far.push(p);
+        }
+    }
+    let values: Vec<f64> = far.iter().map(|p| model.eval(p)).collect();
+    let bad = values.iter().filter(|v| !(**v < 0.0)).count();
+    let first = values.iter().position(|v| !(*v < 0.0))?;
+    let (p, v) = (&far[first], values[first]);
+    let what = if bad == far.len() {
+        "inside and outside are swapped (f > 0 in every direction far away)".to_string()
+    } else {
+        format!("f >= 0 in {bad} of {} directions far away", far.len())
+    };
+    Some(format!(
+        "the fitted solid is not bounded: f = {v:.3e} at ({:.4e}, {:.4e}, {:.4e}), far from the data, \
+         where the carrier should make it negative; {what}. The surface f = 0 is as fitted, but the \
+         volume's sign is not the solid's: kernel {kernel_name}'s polynomial part absorbed the \
+         carrier's growth; the kernel r (the default) keeps the carrier's sign",
+        p[0], p[1], p[2]
+    ))
 }
 
 /// Refuses contour sections whose solution or residual is not finite, naming the first such slice

@@ -213,6 +213,10 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             ..run_provenance(comm, threads, &stages)
         },
     };
+    let unbounded = super::finite::check_bounded(&model, &kernel.name());
+    if let (Some(w), 0) = (&unbounded, comm.rank()) {
+        eprintln!("volspline: warning: {w}");
+    }
     super::finite::check_grid_field(comm, &model, &grid)?;
     let model_path = output_path(&a.out, ".model.h5");
     stages.time(Stage::Write, || {
@@ -237,6 +241,10 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     r.line(format!("ranks = {}, threads per rank = {threads}", comm.size()));
     r.line(format!("relative residual |Mx - b|/|b| = {:.3e}", fitted.residual));
     r.line(format!("|f| at the data points: rms {rms:.3e}, max {max_abs:.3e}"));
+    if let Some(w) = &unbounded {
+        r.line(format!("warning: {w}"));
+    }
+    r.figure("bounded", unbounded.is_none());
     r.figure("input", a.input.display());
     r.figure("points", n);
     r.figure("method", method_name);
