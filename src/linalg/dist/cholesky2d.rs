@@ -32,7 +32,7 @@ use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
 use faer::{Accum, Mat, MatMut, MatRef};
 
 use super::cholesky::{cholesky_small, Border};
-use super::grid::{LocalBlocks, ProcessGrid};
+use super::grid::{update_and_next_panel, LocalBlocks, ProcessGrid};
 use super::solver::Job;
 use crate::error::{Error, Result};
 
@@ -250,31 +250,17 @@ fn factor(job: &Job<'_>, grid: &ProcessGrid<'_>, a: &mut LocalBlocks, k: usize, 
         let (t0, la) = (rows.first_local_from(p1), rows.first_local_from(n));
         let update = Update::new(grid, a, (p0, p1, n), &panel[1..], la - t0);
         let (c1, cn) = (cols.first_local_from(p1), cols.first_local_from(n));
-        let ci1 = cols.owner(next.0);
-        let early = job.lookahead && grid.mycol == ci1;
-        let mut next_panel = if early {
-            update.apply(job, a, c1, c1 + (next.1 - next.0));
-            factor_and_pack(job, grid, a, next, n)
-        } else {
-            vec![0.0; 1 + (la - rows.first_local_from(next.1)) * (next.1 - next.0)]
-        };
-        let mut from = if early { c1 + (next.1 - next.0) } else { c1 };
-        if job.lookahead {
-            let piece = (cn - from).div_ceil(4).max(4 * COL_CHUNK);
-            let mut work = || {
-                let to = (from + piece).min(cn);
-                update.apply(job, a, from, to);
-                from = to;
-                from < cn
-            };
-            grid.row.broadcast_f64_while(ci1, &mut next_panel, &mut work);
-        } else {
-            update.apply(job, a, from, cn);
-            if grid.mycol == ci1 {
-                next_panel = factor_and_pack(job, grid, a, next, n);
-            }
-            grid.row.broadcast_f64(ci1, &mut next_panel);
-        }
+        let len = 1 + (la - rows.first_local_from(next.1)) * (next.1 - next.0);
+        let next_panel = update_and_next_panel(
+            grid,
+            a,
+            job.lookahead,
+            c1..cn,
+            (cols.owner(next.0), next.1 - next.0),
+            len,
+            &|a, c0, ce| update.apply(job, a, c0, ce),
+            &|a| factor_and_pack(job, grid, a, next, n),
+        );
         (job.progress)(p1, n);
         panel = next_panel;
     }

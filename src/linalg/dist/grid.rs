@@ -215,6 +215,56 @@ impl LocalBlocks {
     }
 }
 
+/// The narrowest piece of a trailing update run between two tests of a panel broadcast.
+const MIN_PIECE: usize = 256;
+
+/// One step of a right-looking 2D factorisation after the panel's own work: the trailing update
+/// of this rank's columns `cols` (by `update(a, c0, c1)` on local column ranges) and the next
+/// panel, factored by `factor` on its process column `pk1` (whose first `kb1` columns of `cols`
+/// are that panel) and broadcast along the process rows; returns the packed next panel (`len`
+/// values) on every rank. Without look-ahead: the whole update, then the panel, then a blocking
+/// broadcast. With it: the process column of the next panel updates that panel's columns first
+/// and factors it at once, and every rank runs the rest of its update in pieces while the
+/// non-blocking broadcast is in flight. The factors are the same either way: the next panel's
+/// factorisation reads and writes only its own columns, which are updated before it runs.
+/// Collective over the grid.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn update_and_next_panel(
+    grid: &ProcessGrid<'_>,
+    a: &mut LocalBlocks,
+    lookahead: bool,
+    cols: std::ops::Range<usize>,
+    (pk1, kb1): (usize, usize),
+    len: usize,
+    update: &dyn Fn(&mut LocalBlocks, usize, usize),
+    factor: &dyn Fn(&mut LocalBlocks) -> Vec<f64>,
+) -> Vec<f64> {
+    let (c1, end) = (cols.start, cols.end);
+    if !lookahead {
+        update(a, c1, end);
+        let mut next = if grid.mycol == pk1 { factor(a) } else { vec![0.0; len] };
+        grid.row.broadcast_f64(pk1, &mut next);
+        return next;
+    }
+    let early = grid.mycol == pk1;
+    let mut next = if early {
+        update(a, c1, c1 + kb1);
+        factor(a)
+    } else {
+        vec![0.0; len]
+    };
+    let mut from = if early { c1 + kb1 } else { c1 };
+    let piece = (end - from).div_ceil(4).max(MIN_PIECE);
+    let mut work = || {
+        let to = (from + piece).min(end);
+        update(a, from, to);
+        from = to;
+        from < end
+    };
+    grid.row.broadcast_f64_while(pk1, &mut next, &mut work);
+    next
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

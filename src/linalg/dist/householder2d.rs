@@ -24,7 +24,7 @@
 use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef};
 
-use super::grid::{LocalBlocks, ProcessGrid};
+use super::grid::{update_and_next_panel, LocalBlocks, ProcessGrid};
 use super::lu2d::back_substitute;
 use super::solver::Job;
 use crate::error::Result;
@@ -59,39 +59,23 @@ pub fn householder2d_solve(job: &Job<'_>, grid: &ProcessGrid<'_>, a: &mut LocalB
             break;
         }
         let (pk1, kb1) = (cols.owner(end), rows.nb.min(n - end));
-        let early = job.lookahead && grid.mycol == pk1;
-        let mut next = if early {
-            update.apply(a, lc1, lc1 + kb1, job);
-            factor_and_pack(grid, a, end)
-        } else {
-            vec![0.0; panel_len(kb1, a.ld() - rows.first_local_from(end))]
-        };
-        let mut from = if early { lc1 + kb1 } else { lc1 };
-        if job.lookahead {
-            let piece = (ncl - from).div_ceil(4).max(MIN_PIECE);
-            let mut work = || {
-                let to = (from + piece).min(ncl);
-                update.apply(a, from, to, job);
-                from = to;
-                from < ncl
-            };
-            grid.row.broadcast_f64_while(pk1, &mut next, &mut work);
-        } else {
-            update.apply(a, from, ncl, job);
-            if grid.mycol == pk1 {
-                next = factor_and_pack(grid, a, end);
-            }
-            grid.row.broadcast_f64(pk1, &mut next);
-        }
+        let len = panel_len(kb1, a.ld() - rows.first_local_from(end));
+        let next = update_and_next_panel(
+            grid,
+            a,
+            job.lookahead,
+            lc1..ncl,
+            (pk1, kb1),
+            len,
+            &|a, c0, c1| update.apply(a, c0, c1, job),
+            &|a| factor_and_pack(grid, a, end),
+        );
         (job.progress)(end, n);
         panel = next;
         k = end;
     }
     back_substitute(grid, a, tol)
 }
-
-/// The narrowest piece of an update run between two tests of the panel broadcast.
-const MIN_PIECE: usize = 256;
 
 /// Length of a packed panel of width kb with m local rows: the taus, T (kb x kb) and V (m x kb).
 fn panel_len(kb: usize, m: usize) -> usize {

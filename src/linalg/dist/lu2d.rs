@@ -31,7 +31,7 @@ use faer::linalg::matmul::matmul;
 use faer::linalg::triangular_solve::solve_unit_lower_triangular_in_place;
 use faer::{Accum, MatMut, MatRef};
 
-use super::grid::{LocalBlocks, ProcessGrid};
+use super::grid::{update_and_next_panel, LocalBlocks, ProcessGrid};
 use super::solver::Job;
 use super::system::{permute_local_rows, RowMap};
 use crate::error::{Error, Result};
@@ -85,39 +85,22 @@ pub fn lu2d_factor(job: &Job<'_>, grid: &ProcessGrid<'_>, a: &mut LocalBlocks, t
             return Ok(());
         }
         let (pk1, kb1) = (cols.owner(end), a.rows.nb.min(n - end));
-        let mut next = if job.lookahead && grid.mycol == pk1 {
-            // the next panel's columns first, then the panel at once; the rest of the update
-            // runs while it travels along the process rows
-            update.apply(a, lc1, lc1 + kb1, job);
-            factor_and_pack(grid, a, end, tol)
-        } else {
-            vec![0.0; 1 + kb1 + (ld - rows.first_local_from(end)) * kb1]
-        };
-        let mut from = if job.lookahead && grid.mycol == pk1 { lc1 + kb1 } else { lc1 };
-        if job.lookahead {
-            let piece = (ncl - from).div_ceil(4).max(MIN_PIECE);
-            let mut work = || {
-                let to = (from + piece).min(ncl);
-                update.apply(a, from, to, job);
-                from = to;
-                from < ncl
-            };
-            grid.row.broadcast_f64_while(pk1, &mut next, &mut work);
-        } else {
-            update.apply(a, from, ncl, job);
-            if grid.mycol == pk1 {
-                next = factor_and_pack(grid, a, end, tol);
-            }
-            grid.row.broadcast_f64(pk1, &mut next);
-        }
+        let len = 1 + kb1 + (ld - rows.first_local_from(end)) * kb1;
+        let next = update_and_next_panel(
+            grid,
+            a,
+            job.lookahead,
+            lc1..ncl,
+            (pk1, kb1),
+            len,
+            &|a, c0, c1| update.apply(a, c0, c1, job),
+            &|a| factor_and_pack(grid, a, end, tol),
+        );
         (job.progress)(end, n);
         panel = next;
         k = end;
     }
 }
-
-/// The narrowest piece of a trailing update run between two tests of the panel broadcast.
-const MIN_PIECE: usize = 256;
 
 /// On the process column owning the panel at column k: factors it and packs the status (0, or
 /// the failing column + 1), the pivot rows and this process row's part of the factored panel
