@@ -161,16 +161,8 @@ pub fn carrier_slope(carrier: &Carrier, x: &[f64], h: f64) -> f64 {
 /// The spline's values r = f_c(q) - t at the off points, t = -side * g * delta in the caller's
 /// units (see the module doc), for data `raw` (caller's coordinates, 3 per point).
 pub fn off_values(off: &OffPoints, raw: &[f64], carrier: &Carrier, norm: &Normalisation) -> Vec<f64> {
-    let h = 1e-6 * norm.scale;
-    (0..off.side.len())
-        .into_par_iter()
-        .map(|k| {
-            let q: Vec<f64> = (0..3).map(|d| norm.centre[d] + norm.scale * off.centres[3 * k + d]).collect();
-            let s = off.source[k];
-            let g = carrier_slope(carrier, &raw[3 * s..3 * s + 3], h);
-            carrier.eval(&q) + off.side[k] * g * off.delta[k] * norm.scale
-        })
-        .collect()
+    let (fc, t) = off_value_parts(off, raw, carrier, norm);
+    fc.iter().zip(&t).map(|(a, b)| a + b).collect()
 }
 
 /// The two parts of [`off_values`]: the carrier's values f_c(q) at the off points and what the
