@@ -12,17 +12,31 @@
 use crate::spline::compact_eval::CompactRows;
 use crate::spline::Spline;
 
-const LANES: usize = 8;
+/// Lanes of the vectorised radial sums, here and in [`crate::spline::point_eval`].
+pub(crate) const LANES: usize = 8;
 /// Centres per block: 4 arrays x 512 x 8 bytes = 16 KiB, in L1 with room to spare.
 const BLOCK: usize = 512;
 
-/// Which closed form the inner loop uses.
+/// Which closed form the vectorised loops use (here and in [`crate::spline::point_eval`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Form {
+pub(crate) enum Form {
     /// G = r (n = 3, m = 2)
     R1,
     /// G = r^3 (n = 3, m = 3)
     R3,
+}
+
+impl Form {
+    /// The closed form of a spline's kernel: the 3D Green's functions have one, the others
+    /// (compactly supported kernels, 2D and 1D splines) are summed generically.
+    pub(crate) fn of(spline: &Spline) -> Option<Form> {
+        let k = spline.kernel;
+        match (k.dim(), k.order(), k.is_compact()) {
+            (3, 2, None) => Some(Form::R1),
+            (3, 3, None) => Some(Form::R3),
+            _ => None,
+        }
+    }
 }
 
 /// A spline prepared for evaluation at many points.
@@ -53,15 +67,17 @@ pub(crate) fn padded_lanes(spline: &Spline, lanes: usize) -> [Vec<f64>; 4] {
     [cx, cy, cz, w]
 }
 
+/// The sum of the lanes of a radial sum, pairwise in a fixed order, so that every evaluator gives
+/// the same bits for the same point.
+#[inline(always)]
+pub(crate) fn reduce_lanes(a: &[f64; LANES]) -> f64 {
+    ((a[0] + a[4]) + (a[2] + a[6])) + ((a[1] + a[5]) + (a[3] + a[7]))
+}
+
 impl<'a> Evaluator<'a> {
     pub fn new(spline: &'a Spline) -> Self {
-        let k = spline.kernel;
         let compact = CompactRows::new(spline);
-        let form = match (k.dim(), k.order(), k.is_compact()) {
-            (3, 2, None) => Some(Form::R1),
-            (3, 3, None) => Some(Form::R3),
-            _ => None,
-        };
+        let form = Form::of(spline);
         let [cx, cy, cz, w] = if form.is_some() { padded_lanes(spline, LANES) } else { Default::default() };
         Evaluator { spline, form, cx, cy, cz, w, compact }
     }
@@ -110,8 +126,7 @@ impl<'a> Evaluator<'a> {
         let k = sp.poly.len();
         let mut pv = [0.0; 10];
         for ((o, a), &x) in out.iter_mut().zip(&acc).zip(&xn) {
-            // lanes reduced pairwise in a fixed order
-            let s = ((a[0] + a[4]) + (a[2] + a[6])) + ((a[1] + a[5]) + (a[3] + a[7]));
+            let s = reduce_lanes(a);
             sp.kernel.poly_eval(&[x, yn, zn], &mut pv[..k]);
             *o = s + pv[..k].iter().zip(&sp.poly).map(|(p, c)| p * c).sum::<f64>();
         }

@@ -12,20 +12,9 @@
 use crate::spline::derivatives::{
     add_radial_term, carrier_jet, denormalise, polynomial_jet, spline_jet, Jet,
 };
-use crate::spline::evaluator::padded_lanes;
+use crate::spline::evaluator::{padded_lanes, reduce_lanes, Form, LANES};
 use crate::spline::octree::{Octree, DEFAULT_LEAF_CAPACITY};
 use crate::spline::{Model, Spline};
-
-const LANES: usize = 8;
-
-/// Which closed form the vector loops use.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Form {
-    /// G = r (n = 3, m = 2)
-    R1,
-    /// G = r^3 (n = 3, m = 3)
-    R3,
-}
 
 /// One level of a model prepared for evaluation at single points (it owns a copy of its spline).
 #[derive(Debug, Clone)]
@@ -42,11 +31,7 @@ struct Level {
 impl Level {
     fn new(spline: &Spline) -> Self {
         let k = spline.kernel;
-        let form = match (k.dim(), k.order(), k.is_compact()) {
-            (3, 2, None) => Some(Form::R1),
-            (3, 3, None) => Some(Form::R3),
-            _ => None,
-        };
+        let form = Form::of(spline);
         let tree = (k.is_compact().is_some() && k.dim() == 3)
             .then(|| Octree::new(&spline.centres, DEFAULT_LEAF_CAPACITY));
         let [cx, cy, cz, w] = if form.is_some() { padded_lanes(spline, LANES) } else { Default::default() };
@@ -209,7 +194,7 @@ fn radial_value_portable(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[
             a[l] += pw[l] * g;
         }
     }
-    ((a[0] + a[4]) + (a[2] + a[6])) + ((a[1] + a[5]) + (a[3] + a[7]))
+    reduce_lanes(&a)
 }
 
 /// sum_i w_i a(r_i) (x - P_i) (normalised gradient of the radial part).
@@ -238,7 +223,7 @@ fn radial_gradient(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[f64], 
             acc[2][l] += s * dz;
         }
     }
-    acc.map(|a| ((a[0] + a[4]) + (a[2] + a[6])) + ((a[1] + a[5]) + (a[3] + a[7])))
+    acc.map(|a| reduce_lanes(&a))
 }
 
 /// sum_i w_i G(|x - P_i|) with its gradient and Hessian (normalised coordinates), in lanes:
@@ -289,7 +274,7 @@ fn radial_jet_portable(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[f6
             acc[9][l] += wb * dy * dz;
         }
     }
-    let s = acc.map(|a| ((a[0] + a[4]) + (a[2] + a[6])) + ((a[1] + a[5]) + (a[3] + a[7])));
+    let s = acc.map(|a| reduce_lanes(&a));
     Jet {
         value: s[0],
         gradient: [s[1], s[2], s[3]],
