@@ -31,64 +31,41 @@ pub trait Scalar: RealField + Copy + Send + Sync + std::ops::Neg<Output = Self> 
     );
 }
 
-impl Scalar for f64 {
-    const EPSILON: f64 = f64::EPSILON;
-    #[inline]
-    fn of(v: f64) -> Self {
-        v
-    }
-    #[inline]
-    fn f64(self) -> f64 {
-        self
-    }
-    #[inline]
-    fn magnitude(self) -> Self {
-        self.abs()
-    }
-    fn all_gather(comm: &dyn Comm, send: &[Self], counts: &[usize], recv: &mut [Self]) {
-        comm.all_gather_f64(send, counts, recv);
-    }
-    fn shift(comm: &dyn Comm, dest: usize, source: usize, send: &[Self], recv: &mut [Self]) {
-        comm.shift_f64(dest, source, send, recv);
-    }
-    fn all_gather_while(
-        comm: &dyn Comm,
-        send: &[Self],
-        counts: &[usize],
-        recv: &mut [Self],
-        work: &mut dyn FnMut() -> bool,
-    ) {
-        comm.all_gather_f64_while(send, counts, recv, work);
-    }
+/// The impl for one float type, its collectives the [`Comm`] methods of that type.
+macro_rules! scalar {
+    ($t:ty, $all_gather:ident, $shift:ident, $all_gather_while:ident) => {
+        impl Scalar for $t {
+            const EPSILON: f64 = <$t>::EPSILON as f64;
+            #[inline]
+            fn of(v: f64) -> Self {
+                v as $t
+            }
+            #[inline]
+            fn f64(self) -> f64 {
+                self as f64
+            }
+            #[inline]
+            fn magnitude(self) -> Self {
+                self.abs()
+            }
+            fn all_gather(comm: &dyn Comm, send: &[Self], counts: &[usize], recv: &mut [Self]) {
+                comm.$all_gather(send, counts, recv);
+            }
+            fn shift(comm: &dyn Comm, dest: usize, source: usize, send: &[Self], recv: &mut [Self]) {
+                comm.$shift(dest, source, send, recv);
+            }
+            fn all_gather_while(
+                comm: &dyn Comm,
+                send: &[Self],
+                counts: &[usize],
+                recv: &mut [Self],
+                work: &mut dyn FnMut() -> bool,
+            ) {
+                comm.$all_gather_while(send, counts, recv, work);
+            }
+        }
+    };
 }
 
-impl Scalar for f32 {
-    const EPSILON: f64 = f32::EPSILON as f64;
-    #[inline]
-    fn of(v: f64) -> Self {
-        v as f32
-    }
-    #[inline]
-    fn f64(self) -> f64 {
-        self as f64
-    }
-    #[inline]
-    fn magnitude(self) -> Self {
-        self.abs()
-    }
-    fn all_gather(comm: &dyn Comm, send: &[Self], counts: &[usize], recv: &mut [Self]) {
-        comm.all_gather_f32(send, counts, recv);
-    }
-    fn shift(comm: &dyn Comm, dest: usize, source: usize, send: &[Self], recv: &mut [Self]) {
-        comm.shift_f32(dest, source, send, recv);
-    }
-    fn all_gather_while(
-        comm: &dyn Comm,
-        send: &[Self],
-        counts: &[usize],
-        recv: &mut [Self],
-        work: &mut dyn FnMut() -> bool,
-    ) {
-        comm.all_gather_f32_while(send, counts, recv, work);
-    }
-}
+scalar!(f64, all_gather_f64, shift_f64, all_gather_f64_while);
+scalar!(f32, all_gather_f32, shift_f32, all_gather_f32_while);
