@@ -78,7 +78,7 @@ use rayon::prelude::*;
 use super::geom::{add, carrier_box, corners, meet, mul, mul_t, sub};
 pub use super::geom::{hull, rotation, widened, Box3};
 use super::parse::{Op, Syntax};
-use super::Implicit;
+use super::{pointwise, Implicit};
 use crate::contour::ContourModel;
 use crate::error::{Error, Result};
 use crate::grid::Grid;
@@ -338,19 +338,6 @@ fn step(e: &Expr) -> f64 {
     let (lo, hi) = Implicit::bounds(e);
     let size = (0..3).map(|d| (hi[d] - lo[d]).abs()).fold(0.0, f64::max);
     super::DIFF_STEP * if size > 0.0 { size } else { 1.0 }
-}
-
-/// `self.value` at every node of the layers, threaded over rows.
-fn pointwise(e: &Expr, grid: &Grid, k0: usize, layers: usize) -> Vec<f64> {
-    let [nx, ny, _] = grid.dims;
-    let mut out = vec![0.0; nx * ny * layers];
-    out.par_chunks_mut(nx.max(1)).enumerate().for_each(|(row, vals)| {
-        let (j, k) = (row % ny, k0 + row / ny);
-        for (i, v) in vals.iter_mut().enumerate() {
-            *v = e.value(grid.node(i, j, k));
-        }
-    });
-    out
 }
 
 /// `carrier(MODEL, SPEC)`: the model of `path` with `carrier` (an automatic ball fitted to its

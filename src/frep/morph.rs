@@ -49,7 +49,7 @@ use faer::MatRef;
 use rayon::prelude::*;
 
 use super::expr::Expr;
-use super::Implicit;
+use super::{pointwise, Implicit};
 use crate::error::{Error, Result};
 use crate::grid::Grid;
 use crate::linalg::dense::{lu_solve, relative_residual};
@@ -268,17 +268,7 @@ impl Field for Morph<'_> {
                 out.par_iter_mut().zip(b.as_slice()).for_each(|(x, y)| *x = self.mix(*x, *y));
                 out
             }
-            Some(_) => {
-                let [nx, ny, _] = grid.dims;
-                let mut out = vec![0.0; nx * ny * layers];
-                out.par_chunks_mut(nx.max(1)).enumerate().for_each(|(row, vals)| {
-                    let (j, k) = (row % ny, k0 + row / ny);
-                    for (i, v) in vals.iter_mut().enumerate() {
-                        *v = Implicit::value(self, grid.node(i, j, k));
-                    }
-                });
-                out
-            }
+            Some(_) => pointwise(self, grid, k0, layers),
         }
     }
 
