@@ -119,18 +119,22 @@ fn refine(job: &Job<'_>, m: &LocalRows, factors: &dyn Approximate) -> Result<(Ve
         history: vec![norm2(&r) / bnorm],
         converged: false,
     };
+    // the correction d: x + d is kept when it lowers the residual; true while the residual halves
+    let step = |x: &mut Vec<f64>, r: &mut Vec<f64>, d: &[f64], history: &mut Vec<f64>| {
+        let next: Vec<f64> = x.iter().zip(d).map(|(a, b)| a + b).collect();
+        let rn = op.residual(comm, &next);
+        history.push(norm2(&rn) / bnorm);
+        let (old, new) = (norm_inf(r), norm_inf(&rn));
+        if new < old {
+            (*x, *r) = (next, rn);
+        }
+        !(new > 0.5 * old)
+    };
     // classical refinement while the residual halves
     while out.classical < CLASSICAL_STEPS && norm_inf(&r) > floor(&x) {
         let d = factors.apply(comm, &r);
-        let next: Vec<f64> = x.iter().zip(&d).map(|(a, b)| a + b).collect();
-        let rn = op.residual(comm, &next);
         out.classical += 1;
-        out.history.push(norm2(&rn) / bnorm);
-        let (old, new) = (norm_inf(&r), norm_inf(&rn));
-        if new < old {
-            (x, r) = (next, rn);
-        }
-        if new > 0.5 * old {
+        if !step(&mut x, &mut r, &d, &mut out.history) {
             break;
         }
     }
@@ -138,16 +142,9 @@ fn refine(job: &Job<'_>, m: &LocalRows, factors: &dyn Approximate) -> Result<(Ve
     while out.gmres < GMRES_STEPS && norm_inf(&r) > accept(&x) {
         let apply = |v: &[f64]| factors.apply(comm, &op.product(comm, v));
         let (d, its) = gmres(&apply, factors.apply(comm, &r), GMRES_TOL, GMRES_ITERATIONS);
-        let next: Vec<f64> = x.iter().zip(&d).map(|(a, b)| a + b).collect();
-        let rn = op.residual(comm, &next);
         out.gmres += 1;
         out.gmres_iterations += its;
-        out.history.push(norm2(&rn) / bnorm);
-        let (old, new) = (norm_inf(&r), norm_inf(&rn));
-        if new < old {
-            (x, r) = (next, rn);
-        }
-        if new > 0.5 * old {
+        if !step(&mut x, &mut r, &d, &mut out.history) {
             break;
         }
     }
