@@ -11,60 +11,71 @@ use common::solve_serial;
 use volspline::io::model_file::read_model;
 use volspline::io::vtkhdf::read_image;
 use volspline::linalg::dist::SolverKind;
-use volspline::spline::hygiene::prepare;
+use volspline::spline::hygiene::{prepare, Prepared};
 use volspline::spline::{Carrier, Kernel, Model};
+
+/// Every 20th bunny vertex written to `dir`/bunny253.xyz and prepared as the binary prepares it
+/// (the points go through the .xyz text and back): the input of the oracle comparisons.
+fn bunny253(dir: &Path) -> (std::path::PathBuf, Kernel, Prepared) {
+    let input = dir.join("bunny253.xyz");
+    common::write_xyz(&input, &common::bunny_subset(20, 0));
+    let k = Kernel::new(3, 2).unwrap();
+    let read: Vec<f64> =
+        volspline::io::points::read_points(&input).unwrap().points.iter().flatten().copied().collect();
+    let prep = prepare(&read, &k, &Carrier::AutoBall, 1e-6).unwrap();
+    (input, k, prep)
+}
+
+/// The serial oracle's model of `prep` solved by `solver`.
+fn oracle_model(prep: &Prepared, k: &Kernel, solver: SolverKind) -> Model {
+    Model {
+        carrier: prep.carrier.clone(),
+        spline: solve_serial(prep, k, solver),
+        coarse: Vec::new(),
+        provenance: Default::default(),
+    }
+}
+
+/// Fits `input` on `ranks` ranks with the carrier method, panel 16 and grid 20 (panels of 16 over
+/// 257 rows: many panels, rows and blocks of each on every rank), plus `extra`; checks the model's
+/// weights, residual and grid values against `oracle` and returns the model and the report.
+fn fit_like_the_oracle(
+    ranks: usize,
+    input: &Path,
+    prefix: &Path,
+    extra: &[&str],
+    oracle: &Model,
+    what: &str,
+) -> (Model, String) {
+    let p = prefix.to_str().unwrap();
+    let args =
+        ["fit", input.to_str().unwrap(), "--out", p, "--grid", "20", "--panel", "16", "--surface", "carrier"];
+    let out = common::run_ok(ranks, &[&args[..], extra].concat());
+    let model = read_model(Path::new(&format!("{p}.model.h5"))).unwrap();
+    let dw = common::rel_diff(&model.spline.weights, &oracle.spline.weights);
+    let dc = common::rel_diff(&model.spline.poly, &oracle.spline.poly);
+    assert!(dw < 1e-9 && dc < 1e-9, "{what}: weights {dw:e}, poly {dc:e}");
+    assert!(model.provenance.residual < 1e-10, "{what}: residual {}", model.provenance.residual);
+    let dv = common::volume_diff(Path::new(&format!("{p}.hdf")), oracle);
+    assert!(dv < 1e-9, "{what}: grid values differ by {dv:e}");
+    (model, out)
+}
 
 #[test]
 fn distributed_runs_match_the_serial_oracle() {
     let dir = common::temp_dir("oracle");
-    let input = dir.join("bunny253.xyz");
-    let raw = common::bunny_subset(20, 0);
-    common::write_xyz(&input, &raw);
-    let k = Kernel::new(3, 2).unwrap();
-    // the points go through the .xyz text and back: read them as the binary does
-    let read: Vec<f64> =
-        volspline::io::points::read_points(&input).unwrap().points.iter().flatten().copied().collect();
-    let prep = prepare(&read, &k, &Carrier::AutoBall, 1e-6).unwrap();
+    let (input, k, prep) = bunny253(&dir);
     for solver in [SolverKind::Householder, SolverKind::Lu, SolverKind::Cholesky] {
-        let oracle = Model {
-            carrier: prep.carrier.clone(),
-            spline: solve_serial(&prep, &k, solver),
-            coarse: Vec::new(),
-            provenance: Default::default(),
-        };
+        let oracle = oracle_model(&prep, &k, solver);
         for ranks in [1, 2, 3] {
             let prefix = dir.join(format!("{}-{ranks}", solver.name()));
-            let p = prefix.to_str().unwrap();
-            // panel 16 over 257 rows: many panels, rows of each panel on every rank
-            common::run_ok(
-                ranks,
-                &[
-                    "fit",
-                    input.to_str().unwrap(),
-                    "--out",
-                    p,
-                    "--solver",
-                    solver.name(),
-                    "--grid",
-                    "20",
-                    "--panel",
-                    "16",
-                    "--surface",
-                    "carrier",
-                ],
-            );
-            let model = read_model(&dir.join(format!("{p}.model.h5"))).unwrap();
+            let what = format!("{solver:?} on {ranks} ranks");
+            let (model, _) =
+                fit_like_the_oracle(ranks, &input, &prefix, &["--solver", solver.name()], &oracle, &what);
             assert_eq!(model.spline.len(), 253);
             assert_eq!(model.provenance.ranks, ranks);
-            let dw = common::rel_diff(&model.spline.weights, &oracle.spline.weights);
-            let dc = common::rel_diff(&model.spline.poly, &oracle.spline.poly);
-            assert!(dw < 1e-9 && dc < 1e-9, "{solver:?} on {ranks} ranks: weights {dw:e}, poly {dc:e}");
-            assert!(model.provenance.residual < 1e-10, "residual {}", model.provenance.residual);
-            let dv = common::volume_diff(Path::new(&format!("{p}.hdf")), &oracle);
-            assert!(dv < 1e-9, "{solver:?} on {ranks} ranks: grid values differ by {dv:e}");
             // no temporary files are left behind
-            let dir = Path::new(&p).parent().unwrap();
-            let left = std::fs::read_dir(dir)
+            let left = std::fs::read_dir(&dir)
                 .unwrap()
                 .filter(|e| e.as_ref().unwrap().file_name().to_string_lossy().ends_with(".partial"));
             assert_eq!(left.count(), 0, "temporary files left in {}", dir.display());
@@ -330,55 +341,21 @@ fn mixed_precision_reaches_the_f64_residual_or_falls_back() {
 #[test]
 fn the_2d_layout_matches_the_serial_oracles_and_refuses_what_it_cannot_do() {
     let dir = common::temp_dir("layout2d");
-    let input = dir.join("bunny253.xyz");
-    common::write_xyz(&input, &common::bunny_subset(20, 0));
-    let k = Kernel::new(3, 2).unwrap();
-    let read: Vec<f64> =
-        volspline::io::points::read_points(&input).unwrap().points.iter().flatten().copied().collect();
-    let prep = prepare(&read, &k, &Carrier::AutoBall, 1e-6).unwrap();
-    let input = input.to_str().unwrap();
+    let (input, k, prep) = bunny253(&dir);
     for solver in [SolverKind::Lu, SolverKind::Cholesky, SolverKind::Householder] {
-        let oracle = Model {
-            carrier: prep.carrier.clone(),
-            spline: solve_serial(&prep, &k, solver),
-            coarse: Vec::new(),
-            provenance: Default::default(),
-        };
+        let oracle = oracle_model(&prep, &k, solver);
         for (ranks, layout, shape) in
             [(0, "2d", "1x1"), (2, "1x2", "1x2"), (2, "2x1", "2x1"), (3, "2d", "1x3"), (4, "2x2", "2x2")]
         {
             let prefix = dir.join(format!("{}-{ranks}-{layout}", solver.name()));
-            let p = prefix.to_str().unwrap();
-            // block 16 over 257 rows: 17 panels, blocks of the polynomial border split over ranks
-            let args = [
-                "fit",
-                input,
-                "--out",
-                p,
-                "--layout",
-                layout,
-                "--solver",
-                solver.name(),
-                "--grid",
-                "20",
-                "--panel",
-                "16",
-                "--surface",
-                "carrier",
-            ];
-            let out = common::run_ok(ranks, &args);
+            let what = format!("{} {layout} on {ranks} ranks", solver.name());
+            let extra = ["--layout", layout, "--solver", solver.name()];
+            let (_, out) = fit_like_the_oracle(ranks, &input, &prefix, &extra, &oracle, &what);
             let line = format!("solver {} (dense, 2D block-cyclic {shape}), panel 16", solver.name());
             assert!(out.contains(&line), "{out}");
-            let model = read_model(&dir.join(format!("{p}.model.h5"))).unwrap();
-            let dw = common::rel_diff(&model.spline.weights, &oracle.spline.weights);
-            let dc = common::rel_diff(&model.spline.poly, &oracle.spline.poly);
-            let what = format!("{} {layout} on {ranks} ranks", solver.name());
-            assert!(dw < 1e-9 && dc < 1e-9, "{what}: weights {dw:e}, poly {dc:e}");
-            assert!(model.provenance.residual < 1e-10, "residual {}", model.provenance.residual);
-            let dv = common::volume_diff(Path::new(&format!("{p}.hdf")), &oracle);
-            assert!(dv < 1e-9, "{what}: grid values differ by {dv:e}");
         }
     }
+    let input = input.to_str().unwrap();
     let p = dir.join("refused");
     let p = p.to_str().unwrap();
     assert_fails(3, &["fit", input, "--out", p, "--layout", "2x2"], 2, &["needs 4 ranks, the job has 3"]);
