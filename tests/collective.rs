@@ -525,14 +525,20 @@ fn mixed_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
     }
 }
 
-fn mixed_falls_back_to_f64(comm: &dyn Comm, log: &mut Log) {
-    // every 4th bunny point again, 1e-5 of the box diagonal (25) away: rows that agree to 1e-5 are
-    // singular in f32 (pivot tolerance n eps32 max |a| = 4e-5), not in f64
-    let k = Kernel::new(3, 2).unwrap();
+/// Every 20th bunny vertex, and every 4th of those again, moved by `dx` in x (the box diagonal is
+/// 25), prepared for the kernel `k` without merging them.
+fn near_coincident(k: &Kernel, dx: f64) -> Prepared {
     let mut raw = common::bunny_subset(20, 0);
-    let near: Vec<f64> = raw.chunks(3).step_by(4).flat_map(|p| [p[0] + 2.5e-4, p[1], p[2]]).collect();
+    let near: Vec<f64> = raw.chunks(3).step_by(4).flat_map(|p| [p[0] + dx, p[1], p[2]]).collect();
     raw.extend(near);
-    let prep = must(prepare(&raw, &k, &Carrier::AutoBall, 1e-12), "prepare the near-coincident points");
+    must(prepare(&raw, k, &Carrier::AutoBall, 1e-12), "prepare the near-coincident points")
+}
+
+fn mixed_falls_back_to_f64(comm: &dyn Comm, log: &mut Log) {
+    // 1e-5 of the box diagonal apart: rows that agree to 1e-5 are singular in f32 (pivot
+    // tolerance n eps32 max |a| = 4e-5), not in f64
+    let k = Kernel::new(3, 2).unwrap();
+    let prep = near_coincident(&k, 2.5e-4);
     let want = oracle(&prep, &k, lu_solve);
     for panel in [0, 16] {
         let s = mixed(comm, &k, &prep, SolverKind::Lu, panel);
@@ -548,13 +554,10 @@ fn mixed_falls_back_to_f64(comm: &dyn Comm, log: &mut Log) {
 }
 
 fn mixed_cholesky_falls_back_to_f64(comm: &dyn Comm, log: &mut Log) {
-    // every 4th bunny point again, 1e-8 of the box diagonal away: the projected block is
-    // definite in f64 (barely), but its rounding to f32 is not
+    // 1e-8 of the box diagonal apart: the projected block is definite in f64 (barely), but its
+    // rounding to f32 is not
     let k = Kernel::new(3, 2).unwrap();
-    let mut raw = common::bunny_subset(20, 0);
-    let near: Vec<f64> = raw.chunks(3).step_by(4).flat_map(|p| [p[0] + 2.5e-7, p[1], p[2]]).collect();
-    raw.extend(near);
-    let prep = must(prepare(&raw, &k, &Carrier::AutoBall, 1e-12), "prepare the near-coincident points");
+    let prep = near_coincident(&k, 2.5e-7);
     let want = oracle(&prep, &k, lu_solve);
     for panel in [0, 16] {
         let s = mixed(comm, &k, &prep, SolverKind::Cholesky, panel);
