@@ -30,6 +30,7 @@
 //! Rank (i, j) of the grid is world rank i pc + j; it holds the rows of process row i and the
 //! columns of process column j, column-major with its local row count as leading dimension.
 
+use super::system::RowIndex;
 use crate::error::{Error, Result};
 use crate::par::Comm;
 
@@ -86,6 +87,18 @@ impl BlockCyclic {
     /// The global indices of this process's local indices, in local order.
     pub fn globals(&self) -> Vec<usize> {
         (0..self.local_count()).map(|l| self.global(l)).collect()
+    }
+}
+
+impl RowIndex for BlockCyclic {
+    fn owner(&self, g: usize) -> usize {
+        BlockCyclic::owner(self, g)
+    }
+    fn local(&self, g: usize) -> usize {
+        BlockCyclic::local(self, g)
+    }
+    fn first_local_from(&self, g: usize) -> usize {
+        BlockCyclic::first_local_from(self, g)
     }
 }
 

@@ -22,7 +22,7 @@ use faer::{Accum, MatMut, MatRef, Par};
 
 use super::backsub::back_substitute;
 use super::solver::Job;
-use super::system::LocalRows;
+use super::system::{LocalRows, RowIndex};
 use crate::error::Result;
 use crate::linalg::reflector::{wy_t, Reflector};
 use crate::par::Comm;
@@ -39,7 +39,7 @@ pub fn householder_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>
     let mut k = 0;
     while k < n {
         let kb = nb.min(n - k);
-        let taus = factor_panel(comm, rows, k, kb);
+        let taus = factor_panel(comm, &lay, &mut rows.data, lc, (k, kb), k);
         let rest = cols - (k + kb);
         if rest > 0 {
             // V: this rank's rows k.. of the panel, unit lower trapezoidal, made explicit
@@ -101,33 +101,41 @@ pub fn householder_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>
     back_substitute(comm, rows, nb, tol)
 }
 
-/// Unblocked Householder QR of the panel columns k..k+kb (rows k..n); returns the tau of each
-/// reflector H = I - tau v v^T (v(0) = 1, its tail stored below the diagonal; R on and above it).
-fn factor_panel(comm: &dyn Comm, rows: &mut LocalRows, k: usize, kb: usize) -> Vec<f64> {
-    let lay = rows.layout;
-    let lc = rows.ld();
-    let ld = lc;
-    let me = lay.rank;
+/// Unblocked Householder QR of the panel columns k..k+kb (rows k..n) of a column-major local
+/// matrix (leading dimension `ld`, the local row count) whose rows are spread over `comm` as
+/// `rows` says, global column k at local column `lc0`: the row-cyclic layout over all ranks, or
+/// one process column of the 2D layout. Returns the tau of each reflector H = I - tau v v^T
+/// (v(0) = 1, its tail stored below the diagonal; R on and above it).
+pub(super) fn factor_panel(
+    comm: &dyn Comm,
+    rows: &dyn RowIndex,
+    data: &mut [f64],
+    ld: usize,
+    (k, kb): (usize, usize),
+    lc0: usize,
+) -> Vec<f64> {
+    let me = comm.rank();
     let mut taus = vec![0.0; kb];
     // one all-reduce per column: [sum of squares below the diagonal, x0, x^T A (unscaled, below),
     // row j of A], all over the panel columns right of j; w = A_j + x^T A / (x0 - alpha) follows
     let mut s = vec![0.0; 2 + 2 * kb];
     for j in k..k + kb {
-        let l0 = lay.first_local_from(j + 1);
-        let owns_j = lay.owner(j) == me;
-        let lj = lay.local(j);
+        let jl = lc0 + j - k;
+        let l0 = rows.first_local_from(j + 1);
+        let owns_j = rows.owner(j) == me;
+        let lj = rows.local(j);
         let width = k + kb - j - 1;
         let s = &mut s[..2 + 2 * width];
-        s.iter_mut().for_each(|v| *v = 0.0);
+        s.fill(0.0);
         {
-            let (left, right) = rows.data.split_at((j + 1) * ld);
-            let x = &left[j * ld + l0..j * ld + lc];
+            let x = &data[jl * ld + l0..jl * ld + ld];
             s[0] = x.iter().map(|v| v * v).sum::<f64>();
             if owns_j {
-                s[1] = left[lj + j * ld];
+                s[1] = data[lj + jl * ld];
             }
-            for (t, col) in right.chunks_exact(ld).take(width).enumerate() {
-                s[2 + t] = col[l0..lc].iter().zip(x).map(|(a, b)| a * b).sum::<f64>();
+            for t in 0..width {
+                let col = &data[(jl + 1 + t) * ld..(jl + 2 + t) * ld];
+                s[2 + t] = col[l0..].iter().zip(x).map(|(a, b)| a * b).sum::<f64>();
                 if owns_j {
                     s[2 + width + t] = col[lj];
                 }
@@ -140,20 +148,24 @@ fn factor_panel(comm: &dyn Comm, rows: &mut LocalRows, k: usize, kb: usize) -> V
             continue;
         }
         taus[j - k] = tau;
-        let (left, right) = rows.data.split_at_mut((j + 1) * ld);
-        let v = &mut left[j * ld + l0..j * ld + lc];
+        if ld == 0 {
+            // no rows here
+            continue;
+        }
+        let (left, right) = data.split_at_mut((jl + 1) * ld);
+        let v = &mut left[jl * ld + l0..jl * ld + ld];
         v.iter_mut().for_each(|x| *x *= scale);
         if owns_j {
-            left[lj + j * ld] = beta;
+            left[lj + jl * ld] = beta;
         }
-        let v = &left[j * ld + l0..j * ld + lc];
+        let v = &left[jl * ld + l0..jl * ld + ld];
         // apply H_j = I - tau v v^T (v(j) = 1) to the panel columns right of j
         for (t, col) in right.chunks_exact_mut(ld).take(width).enumerate() {
             let tw = tau * (s[2 + width + t] + scale * s[2 + t]);
             if owns_j {
                 col[lj] -= tw;
             }
-            for (a, vl) in col[l0..lc].iter_mut().zip(v) {
+            for (a, vl) in col[l0..].iter_mut().zip(v) {
                 *a -= vl * tw;
             }
         }

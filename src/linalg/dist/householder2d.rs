@@ -25,11 +25,11 @@ use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef};
 
 use super::grid::{update_and_next_panel, LocalBlocks, ProcessGrid};
+use super::householder::factor_panel;
 use super::lu2d::back_substitute;
 use super::solver::Job;
 use crate::error::Result;
-use crate::linalg::reflector::{wy_t, Reflector};
-use crate::par::Comm;
+use crate::linalg::reflector::wy_t;
 
 /// Solves the system in `a` (right-hand side as global column n) on `grid` by Householder QR and
 /// returns the solution on every rank. Collective over the grid; every rank returns the same
@@ -97,7 +97,7 @@ fn factor_and_pack(grid: &ProcessGrid<'_>, a: &mut LocalBlocks, k: usize) -> Vec
         return panel;
     }
     let lc0 = cols.local(k);
-    let taus = factor_panel(grid.col.as_ref(), a, k, kb, lc0);
+    let taus = factor_panel(grid.col.as_ref(), &rows, &mut a.data, ld, (k, kb), lc0);
     for c in 0..kb {
         for (t, lr) in (lr0..ld).enumerate() {
             let g = rows.global(lr);
@@ -191,67 +191,4 @@ impl<'p> Update<'p> {
         );
         matmul(trail, Accum::Add, self.v, tw, -1.0, job.par);
     }
-}
-
-/// Unblocked Householder QR of the panel columns k..k+kb (local columns lc0.., rows k..n) on the
-/// ranks of one process column; returns the tau of each reflector (v(0) = 1, its tail stored
-/// below the diagonal, R on and above it).
-fn factor_panel(col: &dyn Comm, a: &mut LocalBlocks, k: usize, kb: usize, lc0: usize) -> Vec<f64> {
-    let (rows, ld) = (a.rows, a.ld());
-    let me = col.rank();
-    let mut taus = vec![0.0; kb];
-    // one all-reduce per column: [sum of squares below the diagonal, x0, x^T A (unscaled, below),
-    // row j of A], over the panel columns right of j; w = A_j + x^T A / (x0 - beta) follows
-    let mut s = vec![0.0; 2 + 2 * kb];
-    for j in k..k + kb {
-        let jl = lc0 + j - k;
-        let l0 = rows.first_local_from(j + 1);
-        let owns_j = rows.owner(j) == me;
-        let lj = rows.local(j);
-        let width = k + kb - j - 1;
-        let s = &mut s[..2 + 2 * width];
-        s.fill(0.0);
-        {
-            let x = &a.data[jl * ld + l0..jl * ld + ld];
-            s[0] = x.iter().map(|v| v * v).sum::<f64>();
-            if owns_j {
-                s[1] = a.data[lj + jl * ld];
-            }
-            for t in 0..width {
-                let c = &a.data[(jl + 1 + t) * ld..(jl + 2 + t) * ld];
-                s[2 + t] = c[l0..].iter().zip(x).map(|(p, q)| p * q).sum::<f64>();
-                if owns_j {
-                    s[2 + width + t] = c[lj];
-                }
-            }
-        }
-        col.sum_f64(s);
-        let Reflector { tau, beta, scale } = Reflector::new(s[1], s[0]);
-        if tau == 0.0 {
-            // already triangular in this column: H = I
-            continue;
-        }
-        taus[j - k] = tau;
-        if ld == 0 {
-            continue;
-        }
-        let (left, right) = a.data.split_at_mut((jl + 1) * ld);
-        let v = &mut left[jl * ld + l0..jl * ld + ld];
-        v.iter_mut().for_each(|x| *x *= scale);
-        if owns_j {
-            left[lj + jl * ld] = beta;
-        }
-        let v = &left[jl * ld + l0..jl * ld + ld];
-        // apply H_j = I - tau v v^T (v(j) = 1) to the panel columns right of j
-        for (t, c) in right.chunks_exact_mut(ld).take(width).enumerate() {
-            let tw = tau * (s[2 + width + t] + scale * s[2 + t]);
-            if owns_j {
-                c[lj] -= tw;
-            }
-            for (p, vl) in c[l0..].iter_mut().zip(v) {
-                *p -= vl * tw;
-            }
-        }
-    }
-    taus
 }

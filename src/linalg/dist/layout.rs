@@ -21,6 +21,8 @@
 //! range are g0 + ((r - g0) mod p) + t p, t = 0, 1, ...; [`RowCyclic::to_global_order`] puts
 //! them back in global order.
 
+use super::system::RowIndex;
+
 /// Row-cyclic distribution of `n` global rows over `p` ranks: global row g lives on rank g mod p
 /// at local index g div p.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -95,6 +97,18 @@ impl RowCyclic {
                 off += w;
             }
         }
+    }
+}
+
+impl RowIndex for RowCyclic {
+    fn owner(&self, g: usize) -> usize {
+        RowCyclic::owner(self, g)
+    }
+    fn local(&self, g: usize) -> usize {
+        RowCyclic::local(self, g)
+    }
+    fn first_local_from(&self, g: usize) -> usize {
+        RowCyclic::first_local_from(self, g)
     }
 }
 

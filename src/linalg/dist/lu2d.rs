@@ -33,7 +33,7 @@ use faer::{Accum, MatMut, MatRef};
 
 use super::grid::{update_and_next_panel, LocalBlocks, ProcessGrid};
 use super::solver::Job;
-use super::system::{permute_local_rows, RowMap};
+use super::system::permute_local_rows;
 use crate::error::{Error, Result};
 use crate::par::Comm;
 
@@ -74,8 +74,7 @@ pub fn lu2d_factor(job: &Job<'_>, grid: &ProcessGrid<'_>, a: &mut LocalBlocks, t
         let m = ld - lr0;
         // the columns right of the panel: interchanges, U12, the trailing update
         let (lc1, ncl) = (cols.first_local_from(end), cols.local_count());
-        let map = RowMap { owner: &|g| rows.owner(g), local: &|g| rows.local(g) };
-        permute_local_rows(grid.col.as_ref(), &map, &swaps, &mut a.data, ld, lc1..ncl);
+        permute_local_rows(grid.col.as_ref(), &rows, &swaps, &mut a.data, ld, lc1..ncl);
         let u12 = block_row_of_u(grid, a, k, kb, &panel[1 + kb..]);
         let update =
             Update { l: &panel[1 + kb..], m, lr0, kb, u12: &u12, lc1, first: rows.first_local_from(end) };

@@ -155,16 +155,18 @@ impl<T: Scalar> LocalRows<T> {
     pub fn permute_rows(&mut self, comm: &dyn Comm, swaps: &[(usize, usize)], c0: usize, c1: usize) {
         let lay = self.layout;
         let ld = self.ld();
-        let rows = RowMap { owner: &|g| lay.owner(g), local: &|g| lay.local(g) };
-        permute_local_rows(comm, &rows, swaps, &mut self.data, ld, c0..c1);
+        permute_local_rows(comm, &lay, swaps, &mut self.data, ld, c0..c1);
     }
 }
 
-/// Where the global rows of a distributed matrix live: the rank (of the communicator the rows are
-/// exchanged over) owning global row g, and its local index there.
-pub(crate) struct RowMap<'a> {
-    pub owner: &'a dyn Fn(usize) -> usize,
-    pub local: &'a dyn Fn(usize) -> usize,
+/// Where the global rows of a distributed matrix live, seen from one rank: the rank (of the
+/// communicator the rows are exchanged over) owning global row g, its local index there, and the
+/// first of this rank's local rows at or below g. The row-cyclic and the 2D block-cyclic layouts
+/// both have one, so the row operations written against it serve both.
+pub(crate) trait RowIndex {
+    fn owner(&self, g: usize) -> usize;
+    fn local(&self, g: usize) -> usize;
+    fn first_local_from(&self, g: usize) -> usize;
 }
 
 /// Applies the row interchanges `swaps` (in order) to the local columns `cols` of a column-major
@@ -173,7 +175,7 @@ pub(crate) struct RowMap<'a> {
 /// possibly empty, so every rank takes part in every step). Collective over `comm`.
 pub(crate) fn permute_local_rows<T: Scalar>(
     comm: &dyn Comm,
-    rows: &RowMap<'_>,
+    rows: &dyn RowIndex,
     swaps: &[(usize, usize)],
     data: &mut [T],
     ld: usize,
@@ -193,7 +195,7 @@ pub(crate) fn permute_local_rows<T: Scalar>(
     }
     let moves: Vec<(usize, usize)> = src.into_iter().filter(|(d, s)| d != s).collect();
     let (me, p) = (comm.rank(), comm.size());
-    let (owner, local) = (rows.owner, rows.local);
+    let (owner, local) = (|g| rows.owner(g), |g| rows.local(g));
     let w = c1 - c0;
     // read every source first (rows may be both source and destination), column by column
     let pack = |data: &[T], list: &[(usize, usize)]| -> Vec<T> {
