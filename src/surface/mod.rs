@@ -11,6 +11,9 @@
 //!   Laplacian, corrected patch by patch by the dipole field) made outward by the divergence
 //!   theorem;
 //! - [`offsurface`]: the off points and the values the spline takes there;
+//! - [`rays`]: after a first fit, rays inward and outward from every data point find the small
+//!   patches whose normals point inward (a false shell around a thin part), turned for a
+//!   second fit;
 //! - [`blobs`]: after a first fit, the regions it makes inside with no data to support them,
 //!   pinned outside by further points for a second fit.
 //!
@@ -23,6 +26,7 @@ pub mod energy;
 pub mod normals;
 pub mod offsurface;
 pub mod orient;
+pub mod rays;
 
 pub use offsurface::{off_points, off_value_parts, off_values, OffPoints, DELTA};
 pub use orient::{orient, Orientation};

@@ -25,7 +25,7 @@
 use std::collections::HashMap;
 use std::time::Instant;
 
-use super::surface::{clear_blobs, constrain, SurfaceSummary};
+use super::surface::{check_first_fit, constrain, SurfaceSummary};
 use super::{dense, Fitted, Run};
 use crate::app::stages::{Stage, Stages};
 use crate::error::Result;
@@ -132,7 +132,7 @@ pub fn fit(
     let first = refit(&constrained.prep, &mut inner)?;
     // level 0 decides the sign away from the data: its spurious blobs are cleared like a
     // single-level fit's
-    let level0 = clear_blobs(run, &sub, &mut constrained, first, &mut inner, &mut refit)?;
+    let level0 = check_first_fit(run, &sub, &mut constrained, first, &mut inner, &mut refit)?;
     crate::app::finite::check_fit(&level0, &constrained.prep)?;
     let rows = constrained.prep.values.len();
     let summary = constrained.summary.clone();

@@ -188,7 +188,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         };
         let mut fitted = fit_with(fit_prep, &mut stages)?;
         if let Some(c) = constrained.as_mut() {
-            fitted = surface::clear_blobs(&run, &prep, c, fitted, &mut stages, &mut fit_with)?;
+            fitted = surface::check_first_fit(&run, &prep, c, fitted, &mut stages, &mut fit_with)?;
         }
         let fit_prep = constrained.as_ref().map_or(&prep, |c| &c.prep);
         let summary = constrained.as_ref().map(|c| c.summary.clone());
@@ -268,6 +268,12 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         }
         r.figure("blob_points", s.blob_points);
         r.figure("blob_regions", s.blob_regions);
+        if let Some(k) = &s.rays {
+            r.figure("rays_doubtful", k.doubtful);
+            r.figure("rays_enclosed", k.enclosed);
+            r.figure("rays_turned_patches", k.turned);
+            r.figure("rays_turned_points", k.turned_points);
+        }
     }
     for (k, v) in &fitted.figures {
         r.figure(k, v);
@@ -331,13 +337,20 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
                 e.flipped, e.movable, e.before, e.after
             ),
             Some(_) => format!("; energy: skipped (more than {} rows)", crate::surface::energy::ENERGY_LIMIT),
+        } + &match &s.rays {
+            Some(k) => format!(
+                "; rays: {} doubtful points ({} enclosed), {} patches ({} points) turned",
+                k.doubtful, k.enclosed, k.turned, k.turned_points
+            ),
+            None => String::new(),
         } + &if s.blob_points > 0 {
-            format!(
-                "; blobs: {} constraint points ({} regions away from the data), fitted twice",
-                s.blob_points, s.blob_regions
-            )
+            format!("; blobs: {} constraint points ({} regions away from the data)", s.blob_points, s.blob_regions)
         } else {
             "; blobs: none".to_string()
+        } + if s.blob_points > 0 || s.rays.as_ref().is_some_and(|k| k.turned > 0) {
+            ", fitted twice"
+        } else {
+            ""
         },
     }
 }

@@ -1,8 +1,10 @@
 //! The surface method of `fit`: the data alone (the plain carrier method), or the data with
 //! off-surface constraints from estimated and oriented normals ([`crate::surface`]), which enter
-//! the dense and the compactly supported systems as further centres; after the first fit,
-//! regions it makes positive with no data to support them are pinned negative and the spline is
-//! fitted once more ([`crate::surface::blobs`]).
+//! the dense and the compactly supported systems as further centres. After the first fit,
+//! patches of normals that rays through it show turned inward are turned back
+//! ([`crate::surface::rays`]), regions it makes positive with no data to support them are pinned
+//! negative ([`crate::surface::blobs`]), and where either changed something the spline is fitted
+//! once more.
 
 use super::{Fitted, Run};
 use crate::app::stages::{Stage, Stages};
@@ -12,6 +14,7 @@ use crate::par::{agree, Comm};
 use crate::spline::hygiene::Prepared;
 use crate::surface::blobs::{blob_values, find, sample, Lattice};
 use crate::surface::energy::{flip_by_energy, EnergyFlips};
+use crate::surface::rays::{self, RayCheck};
 use crate::surface::{self, neighbourhoods, off_points, off_values, Neighbourhoods};
 
 /// Fewest points for which `--surface auto` adds off-surface constraints.
@@ -36,11 +39,13 @@ pub struct SurfaceSummary {
     pub blob_points: usize,
     /// Positive regions of the first fit that came nowhere near the data.
     pub blob_regions: usize,
+    /// The ray test of the first fit (None: no first fit was checked).
+    pub rays: Option<RayCheck>,
 }
 
 /// The constrained points of a fit and what the blob search needs of the surface step.
 pub struct Constrained {
-    /// The data followed by the off-surface points (and, after [`clear_blobs`], the blob points).
+    /// The data followed by the off-surface points (and, after [`check_first_fit`], the blob points).
     pub prep: Prepared,
     pub summary: SurfaceSummary,
     hoods: Neighbourhoods,
@@ -101,6 +106,7 @@ pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<
         energy,
         blob_points: 0,
         blob_regions: 0,
+        rays: None,
     };
     let mut out = prep.clone();
     out.centres.extend_from_slice(&off.centres);
@@ -108,11 +114,12 @@ pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<
     Ok(Constrained { prep: out, summary, hoods, normals: orientation.normals })
 }
 
-/// The fit `first` of `c.prep`, or, where it is positive in regions no data supports (see
-/// [`crate::surface::blobs`]), the fit `refit` makes of `c.prep` with constraint points there
-/// appended (`c` is updated). `data` is the data alone; the lattice covers its box grown by
+/// The fit `first` of `c.prep`, or, where rays through it turn patches of the normals (see
+/// [`crate::surface::rays`], unless `--orient-rays off`) or it is positive in regions no data
+/// supports (see [`crate::surface::blobs`]), the fit `refit` makes of `c.prep` with the turned
+/// patches' off points and constraint points in those regions (`c` is updated). `data` is the data alone; the lattice covers its box grown by
 /// the grid's margin. The search is timed as part of the orientation stage. Collective.
-pub fn clear_blobs(
+pub fn check_first_fit(
     run: &Run<'_>,
     data: &Prepared,
     c: &mut Constrained,
@@ -122,12 +129,39 @@ pub fn clear_blobs(
 ) -> Result<Fitted> {
     let norm = data.norm;
     let lattice = Lattice::of_fit(&data.box_lo, &data.box_hi, run.args.grid.margin, &norm);
+    let turned = stages.time(Stage::Orient, || {
+        if !run.args.orient_rays {
+            return RayCheck::default();
+        }
+        let spacing = rays::spacing(&data.centres, &c.hoods.knn, c.hoods.kmax);
+        let verdicts = rays::verdicts(
+            run.comm,
+            &first.spline,
+            &data.carrier,
+            &data.centres,
+            &c.normals,
+            &c.hoods.tree,
+            &spacing,
+        );
+        rays::turn_doubtful_patches(&data.centres, &mut c.normals, &c.hoods.knn, c.hoods.kmax, &verdicts)
+    });
+    if turned.turned > 0 {
+        // the off points of the turned normals replace the first fit's
+        let off = off_points(&data.centres, &c.normals, &c.hoods.tree, run.args.off_points);
+        let values = off_values(&off, &data.points, &data.carrier, &norm);
+        c.prep = data.clone();
+        c.prep.centres.extend_from_slice(&off.centres);
+        c.prep.values.extend_from_slice(&values);
+        c.summary.off_points = off.side.len();
+        c.summary.dropped = off.dropped;
+    }
     let blobs = stages.time(Stage::Orient, || {
         let values = sample(run.comm, &lattice, &data.carrier, &first.spline);
         find(&lattice, &values, &data.centres, &c.normals, &c.hoods.tree)
     });
     c.summary.blob_regions = blobs.regions;
-    if blobs.source.is_empty() {
+    c.summary.rays = run.args.orient_rays.then(|| turned.clone());
+    if blobs.source.is_empty() && turned.turned == 0 {
         return Ok(first);
     }
     drop(first);
