@@ -343,9 +343,8 @@ fn mesh_to_cow(truth: &volspline::mesh::TriMesh, mesh: &volspline::mesh::TriMesh
 fn the_ray_test_removes_the_false_shell_around_the_cows_legs() {
     // 4000 points of the cow: parts of the legs oriented inward make shells of false solid
     // around them; the ray test finds their points and turns their patches. Measured (grid 64):
-    // mesh -> cow rms 1.51 % of the diagonal, 6.9 % of the vertices beyond 2 % without it,
-    // 0.29 % and 0.49 % with it (other seeds: 1.49 -> 0.54 %, 1.53 -> 0.24 %, 0.51 -> 0.26 %,
-    // 0.66 -> 0.51 %, and 0.18 % and 0.33 % unchanged where nothing was turned)
+    // mesh -> cow rms 0.50 % of the diagonal, 2.2 % of the vertices beyond 2 % without it (the
+    // blob step pins part of the shells), 0.29 % and 0.49 % with it
     let truth = common::load_mesh(Path::new(common::COW));
     let pts = area_samples(&truth, 4000, 4);
     let (off, _, off_line) = fit_mesh("cow-rays-off", &pts, "64", &["--orient-rays", "off"]);
@@ -357,7 +356,7 @@ fn the_ray_test_removes_the_false_shell_around_the_cows_legs() {
         "{on_line}"
     );
     assert!(
-        rms_on < 0.4 * rms_off && far_on < 0.01,
+        rms_on < 0.7 * rms_off && far_on < 0.01,
         "mesh -> cow rms {rms_off} -> {rms_on}, far {far_off} -> {far_on}"
     );
 }

@@ -20,7 +20,7 @@
 //!    near the data: no node of the region lies within one lattice cell diagonal of a data point.
 //!    A true part of the solid is bounded by the surface, so its positive nodes reach the data;
 //!    a region that does not is a blob whatever the normals say; or
-//! 2. it lies farther than [`CLEARANCE`] lattice spacings from every data point and its
+//! 2. it lies farther than [`CLEARANCE`] (5 % of the box diagonal) from every data point and its
 //!    [`VOTERS`] nearest data points p_j with outward normals n_j agree, by a fraction of at
 //!    least [`AGREE`], that it is outside: (q - p_j) . n_j > 0. Inside a solid every nearby point
 //!    of the surface faces away from q; outside, towards it. Near the data (within the clearance)
@@ -45,13 +45,14 @@ use crate::spline::octree::Octree;
 use crate::spline::{Evaluator, Normalisation, Spline};
 
 /// Lattice nodes along the longest side of the box.
-pub const NODES: usize = 32;
+pub const NODES: usize = 64;
 /// Nearest data points that vote on the side of a node.
 pub const VOTERS: usize = 10;
 /// Fraction of the voters that must find a node outside.
 pub const AGREE: f64 = 0.8;
-/// Distance from the data, in lattice spacings, below which a node is left to the off points.
-pub const CLEARANCE: f64 = 2.0;
+/// Distance from the data below which a node is left to the off points, in normalised
+/// coordinates (5 % of the box diagonal, which is 2 there).
+pub const CLEARANCE: f64 = 0.1;
 /// Most blob points, as a fraction of the data points (at least [`MIN_CAP`]).
 pub const MAX_SHARE: f64 = 0.25;
 /// Blob points allowed whatever the data's count.
@@ -224,7 +225,7 @@ pub fn find(lattice: &Lattice, values: &[f64], points: &[f64], normals: &[[f64; 
     let mut blobs = Blobs { regions: supported.iter().filter(|&&s| !s).count(), ..Default::default() };
     for (i, j) in judged.iter().enumerate() {
         let Some((d, nearest, voted)) = *j else { continue };
-        let spurious = !supported[region[i]] || (d > CLEARANCE * h && voted);
+        let spurious = !supported[region[i]] || (d > CLEARANCE && voted);
         if spurious {
             blobs.centres.extend_from_slice(&lattice.node(i));
             blobs.distance.push(d);
@@ -306,12 +307,10 @@ mod tests {
         assert!(bulge >= 1, "{bulge} nodes of the bulge");
         assert_eq!(detached + bulge, blobs.source.len(), "no node of the sphere itself");
         for (k, q) in blobs.centres.chunks_exact(3).enumerate() {
-            assert!(
-                dist2(q, &[0.0; 3]).sqrt() > 1.0 + 0.5 * CLEARANCE * lattice.h,
-                "blob point {k} at {q:?}"
-            );
+            assert!(dist2(q, &[0.0; 3]).sqrt() > 1.0, "blob point {k} at {q:?}");
             let d = dist2(q, &pts[3 * blobs.source[k]..]).sqrt();
             assert!((d - blobs.distance[k]).abs() < 1e-12);
+            assert!(d > CLEARANCE || dist2(q, &[1.6, 0.0, 0.0]).sqrt() <= 0.25, "blob point {k} at {q:?}");
         }
     }
 
