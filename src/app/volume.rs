@@ -1,6 +1,7 @@
 //! The volume outputs every command ends with: the field evaluated on the grid in z-slabs (one slab
-//! per rank, rayon threads within), written in parallel as one VTKHDF file, polygonised per slab,
-//! gathered and welded on rank 0 and written as PLY. On request the mean and Gaussian curvature
+//! per rank, rayon threads within), written in parallel as one VTKHDF file, polygonised per slab
+//! (with the next slab's first layer, received from its rank), gathered and welded on rank 0 and
+//! written as PLY. On request the mean and Gaussian curvature
 //! ([`crate::frep::curvature`]) go with them: at every node (of the level surface through it) as
 //! two more arrays of the VTKHDF file, and at every vertex of the mesh as two vertex properties.
 
@@ -114,6 +115,7 @@ pub fn write_volume(
     // one ghost layer above the slab lets this rank polygonise the cells between its last layer and
     // the next rank's first
     let ghost = usize::from(layers > 0 && k0 + layers < nz);
+    let layer = nx * ny;
     // measured once (a compact model samples its neighbour counts through an octree)
     let evals_per_node = field.kernel_evals_per_node();
     if comm.rank() == 0 {
@@ -126,9 +128,31 @@ pub fn write_volume(
             evals_per_node
         );
     }
-    let values = stages.time(Stage::Evaluate, || field.eval_layers(grid, k0, layers + ghost));
+    let values = stages.time(Stage::Evaluate, || {
+        let mut values = field.eval_layers(grid, k0, layers);
+        if comm.size() > 1 {
+            // the ghost layer is the next rank's first layer, received rather than evaluated twice
+            // (the same bits: a node's value does not depend on the rank); a cyclic shift down the
+            // ranks, in which the last rank's message is not needed and a rank without layers sends
+            // zeros
+            let zeros;
+            let first: &[f64] = if layers > 0 {
+                &values[..layer]
+            } else {
+                zeros = vec![0.0; layer];
+                &zeros
+            };
+            let mut next = vec![0.0; layer];
+            let (rank, size) = (comm.rank(), comm.size());
+            comm.shift_f64((rank + size - 1) % size, (rank + 1) % size, first, &mut next);
+            if ghost == 1 {
+                values.extend_from_slice(&next);
+            }
+        }
+        values
+    });
     // a non-finite value would make an unusable volume and mesh: refuse it with the cause
-    super::finite::check_slab(comm, &values[..nx * ny * layers])?;
+    super::finite::check_slab(comm, &values[..layer * layers])?;
 
     let node_curvature = curvature.map(|solid| {
         stages.time(Stage::Evaluate, || {
