@@ -32,7 +32,9 @@ fn main() {
             eprintln!("volspline: error: cannot start {threads} threads: {e}");
             1
         }
-        Ok(()) => match volspline::app::run(&cli.command, &comm, threads) {
+        Ok(()) => match volspline::app::same_arguments(&comm, std::env::args().skip(1).collect())
+            .and_then(|()| volspline::app::run(&cli.command, &comm, threads))
+        {
             Ok(()) => 0,
             Err(e) => {
                 if comm.rank() == 0 {

@@ -1,7 +1,8 @@
 //! Fault injection through the binary: a full disk (a 2 MB tmpfs, mounted when the tests run as
 //! root, otherwise skipped with a message), SIGTERM in the middle of a run, two concurrent runs
-//! on one prefix, a failing rerun over good outputs and `--timings` to a special file. Each test
-//! checks the exit code, the message and the exact set of files left in the output directory.
+//! on one prefix, a failing rerun over good outputs, `--timings` to a special file and ranks started
+//! with different command lines. Each test checks the exit code, the message and the exact set of
+//! files left in the output directory.
 
 mod common;
 
@@ -236,4 +237,41 @@ fn timings_to_stdout_prints_the_csv() {
     assert_eq!(names(&dir.join("out")), set(&["a.hdf", "a.model.h5", "a.ply", "a.png"]));
     // the link itself is untouched (never renamed over)
     assert!(std::fs::symlink_metadata("/dev/stdout").is_ok_and(|m| m.file_type().is_symlink()));
+}
+
+#[test]
+fn ranks_started_with_different_arguments_are_refused_without_a_hang() {
+    // a wrapper that gives each rank its own output prefix: the ranks would create different
+    // files in one collective and wait on each other for ever
+    let dir = temp_dir("different-arguments");
+    let input = dir.join("s.xyz");
+    sphere(&input, 1.0);
+    let wrapper = dir.join("each-its-own.sh");
+    std::fs::write(
+        &wrapper,
+        format!(
+            "#!/bin/sh\nexec {BIN} fit {} --out {}/r$OMPI_COMM_WORLD_RANK --grid 16 --no-preview\n",
+            input.display(),
+            dir.display()
+        ),
+    )
+    .unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&wrapper, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let mut c = Command::new("mpirun");
+    c.args(["-n", "2", "--oversubscribe"])
+        .arg(&wrapper)
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .env("RAYON_NUM_THREADS", "1");
+    let done = output_within(c, Duration::from_secs(120));
+    let out = text(&done.output);
+    assert!(!done.timed_out, "the job hung:\n{out}");
+    assert!(!done.output.status.success(), "{out}");
+    assert!(
+        out.contains("error on rank 1: ")
+            && out.contains("rank 1 was started with other arguments than rank 0 (argument 4: "),
+        "{out}"
+    );
+    assert_eq!(names(&dir), set(&["s.xyz", "each-its-own.sh"]), "nothing written");
 }

@@ -19,9 +19,33 @@ pub mod volume;
 mod wire;
 
 use crate::cli::Command;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::io::staging;
-use crate::par::{on_root, Comm};
+use crate::par::{agree, on_root, Comm};
+
+/// Refuses a job whose ranks were started with different command lines (a wrapper that gives
+/// each rank its own output prefix, say): the ranks would open different files in collectives
+/// meant for one and wait on each other for ever. `args` are this rank's arguments after the
+/// program's name. Collective.
+pub fn same_arguments(comm: &dyn Comm, args: Vec<String>) -> Result<()> {
+    let first: Vec<String> = comm.broadcast_value(0, (comm.rank() == 0).then(|| args.clone()));
+    let local = match first.iter().zip(&args).position(|(a, b)| a != b) {
+        None if first.len() == args.len() => Ok(()),
+        at => {
+            let at = at.unwrap_or(first.len().min(args.len()));
+            let show = |v: &[String]| v.get(at).map_or("nothing".to_string(), |a| format!("'{a}'"));
+            Err(Error::Usage(format!(
+                "rank {} was started with other arguments than rank 0 (argument {}: {} against {}); every rank \
+                 of a job must get the same command line",
+                comm.rank(),
+                at + 1,
+                show(&args),
+                show(&first)
+            )))
+        }
+    };
+    agree(comm, local)
+}
 
 /// Runs a parsed command on `comm` with `threads` threads per rank. Collective.
 ///
