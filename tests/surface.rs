@@ -343,7 +343,7 @@ fn mesh_to_cow(truth: &volspline::mesh::TriMesh, mesh: &volspline::mesh::TriMesh
 fn the_ray_test_removes_the_false_shell_around_the_cows_legs() {
     // 4000 points of the cow: parts of the legs oriented inward make shells of false solid
     // around them; the ray test finds their points and turns their patches. Measured (grid 64):
-    // mesh -> cow rms 0.50 % of the diagonal, 2.2 % of the vertices beyond 2 % without it (the
+    // mesh -> cow rms 0.39 % of the diagonal, 1.1 % of the vertices beyond 2 % without it (the
     // blob step pins part of the shells), 0.29 % and 0.49 % with it
     let truth = common::load_mesh(Path::new(common::COW));
     let pts = area_samples(&truth, 4000, 4);
@@ -356,7 +356,7 @@ fn the_ray_test_removes_the_false_shell_around_the_cows_legs() {
         "{on_line}"
     );
     assert!(
-        rms_on < 0.7 * rms_off && far_on < 0.01,
+        rms_on < 0.8 * rms_off && far_on < 0.6 * far_off && far_on < 0.01,
         "mesh -> cow rms {rms_off} -> {rms_on}, far {far_off} -> {far_on}"
     );
 }
