@@ -26,7 +26,7 @@ pub fn assemble(kernel: &Kernel, centres: &[f64], values: &[f64], layout: RowCyc
 }
 
 /// Whether the solvers look ahead: as asked, or by default (`auto`) off on the row-cyclic layout
-/// (`shape` None; its LU measured no faster with it on one node) and on a 2D grid when it has
+/// (`shape` None; none of its solvers measured faster with it on one node) and on a 2D grid when it has
 /// more than one process column (with one, every rank is in the next panel's column and nothing
 /// can run ahead).
 pub fn lookahead_for(asked: Option<bool>, shape: Option<(usize, usize)>) -> bool {

@@ -41,6 +41,16 @@
 //! triangle (L11 L11^T = B11, L21 = B21 L11^-T, B22 <- B22 - L21 L21^T, one GEMM per chunk of
 //! local rows); forward and back substitution give mu, and lambda = Q [0; mu] applies the k
 //! reflectors to a vector, last one first.
+//!
+//! Look-ahead: every rank holds rows of every panel, so every rank prepares the next panel
+//! itself. With `job.lookahead`, once L21 of panel k is on every rank, each rank updates the
+//! columns of panel k+1 in its rows first, then gathers panel k+1's diagonal block, factors it,
+//! solves for its L21 and all-gathers that, both gathers non-blocking
+//! ([`Comm::all_gather_f64_while`]), while the rest of panel k's update runs a row chunk at a
+//! time between the tests; what is left runs before panel k+1's own update. Exact: panel k+1 reads
+//! and writes only its own columns, which are updated before it; the other columns get the same
+//! GEMMs (no piece a single column, see `householder`): the factors are the same, bit for bit in
+//! the tests on two and three ranks.
 
 use faer::linalg::matmul::matmul;
 use faer::linalg::triangular_solve::solve_lower_triangular_in_place;

@@ -15,6 +15,19 @@
 //! and applies A_trail <- A_trail - V (T^T W) to its own rows with one local GEMM. That GEMM
 //! carries almost all the flops (4/3 n^3 in total, twice LU's). The matrix is never gathered;
 //! back substitution on R finishes the solve.
+//!
+//! Look-ahead: on the row-cyclic layout every rank holds rows of every panel and takes part in
+//! each of its all-reduces (one per column, then V^T V), so no rank can factor the next panel
+//! alone; what can overlap is a rank's own trailing update with those small collectives. After
+//! W of panel k is summed, the columns of panel k+1 are updated first, panel k+1 is factored with
+//! non-blocking all-reduces (all-gathers summed in rank order, [`Comm::all_gather_f64_while`])
+//! while the remaining columns of panel k's update run in pieces between the tests, and whatever
+//! is left runs before W of panel k+1, which reads every trailing column. Exact: the update of a
+//! column gives the same values whenever it runs, and panel k+1's reflectors touch only its own
+//! columns. (No piece is a single column, which faer computes as a matrix-vector product whose
+//! sums differ in the last bits; on two ranks the factors are bit-identical with and without
+//! look-ahead, on more the sums in rank order may round differently from the all-reduce's.) The
+//! large all-reduce of W is not overlapped: every trailing column takes part in it.
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef, Par};

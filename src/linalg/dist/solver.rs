@@ -14,7 +14,9 @@ use crate::par::{agree, Comm};
 
 /// The context of a distributed solve: the ranks, the panel width (0: the solver's default), the
 /// parallelism of each rank's local kernels (GEMMs, triangular solves), where progress goes, and
-/// whether the LU overlaps its trailing updates with the next panel's pivot searches.
+/// whether the factorisations look ahead: overlap each panel's trailing update with the next
+/// panel's collectives (on the row-cyclic layout the LU's pivot searches, the Householder
+/// panel's all-reduces, the projected Cholesky's gathers of L11 and L21).
 #[derive(Clone, Copy)]
 pub struct Job<'a> {
     pub comm: &'a dyn Comm,
