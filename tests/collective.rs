@@ -89,12 +89,13 @@ fn child() {
         drop(world);
         std::process::exit(i32::from(failed > 0));
     }
-    let checks: [(&str, Check); 14] = [
+    let checks: [(&str, Check); 15] = [
         ("typed collectives", typed_collectives),
         ("agree: one failing rank", agree_one_failing_rank),
         ("agree: two failing ranks, the lowest wins", agree_lowest_rank_wins),
         ("distributed solvers vs dense oracles", solvers_match_the_oracles),
         ("LU with and without look-ahead vs the dense oracle", lookahead_matches_the_oracle),
+        ("Householder and Cholesky with and without look-ahead", row_cyclic_lookahead_matches_the_oracle),
         checks_2d[0],
         checks_2d[1],
         ("Cholesky -> LU fallback, 4 points", fallback_on_four_points),
@@ -299,6 +300,46 @@ fn lookahead_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
     }
 }
 
+/// The row-cyclic Householder QR and projected Cholesky with look-ahead (the trailing update in
+/// pieces inside the next panel's collectives) and without, on about 1000 rows against the dense
+/// QR oracle, with panels narrower than the border (1 and 3 < k = 4), ending inside a rank's rows
+/// (16) and wider (64): the factors (the overwritten rows) agree to 1e-12 either way. The f32
+/// projected Cholesky of a mixed-precision solve looks ahead too.
+fn row_cyclic_lookahead_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
+    let k = Kernel::new(3, 2).unwrap();
+    let prep =
+        must(prepare(&common::bunny_subset(5, 2), &k, &Carrier::AutoBall, 1e-6), "prepare the bunny points");
+    let n = system_size(&k, prep.values.len());
+    let want = oracle(&prep, &k, householder_solve);
+    let layout = RowCyclic::new(n, comm.size(), comm.rank());
+    for kind in [SolverKind::Householder, SolverKind::Cholesky] {
+        for panel in [1, 3, 16, 64] {
+            let mut factors = Vec::new();
+            for lookahead in [false, true] {
+                let job = Job::on(comm).panel(panel).lookahead(lookahead);
+                let mut rows = assemble(&k, &prep.centres, &prep.values, layout);
+                let x = must(kind.run(&job, &mut rows), kind.name());
+                let what = format!("{} panel {panel} n {n} look-ahead {lookahead}", kind.name());
+                log.close(&x, &want, 1e-9, || what.clone());
+                same_on_every_rank(comm, log, &x, &what);
+                factors.push(rows.data);
+            }
+            log.close(&factors[1], &factors[0], 1e-12, || {
+                format!("{} panel {panel}: the factors with look-ahead against those without", kind.name())
+            });
+        }
+    }
+    for panel in [3, 64] {
+        let job = Job::on(comm).panel(panel).lookahead(true);
+        let rows = assemble(&k, &prep.centres, &prep.values, layout);
+        let what = format!("mixed cholesky panel {panel} look-ahead");
+        let (x, r) = must(dist::mixed_solve(&job, &rows, SolverKind::Cholesky), &what);
+        log.check(r.converged, || format!("{what}: refinement {}", r.describe()));
+        log.close(&x, &want, 1e-7, || what.clone());
+        same_on_every_rank(comm, log, &x, &what);
+    }
+}
+
 /// The LU and the Householder QR on the 2D block-cyclic layout, on every process grid of the
 /// job's ranks and several block sizes (1: a panel per column; 7 and 16: blocks ending inside
 /// the polynomial border; 64: fewer blocks than ranks in a grid dimension near the end), with and
@@ -406,8 +447,8 @@ fn cholesky2d_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
     }
 }
 
-/// Solves with `dist::solve` and the Cholesky solver, and checks that every rank fell back to LU
-/// (because of a block that is not definite) and matches the dense LU solution `want`.
+/// Solves with `dist::solve` and the Cholesky solver (with and without look-ahead), and checks
+/// that every rank fell back to LU (because of a block that is not definite) and matches the dense LU solution `want`.
 fn check_fallback(
     comm: &dyn Comm,
     log: &mut Log,
@@ -416,11 +457,11 @@ fn check_fallback(
     want: &[f64],
     what: &str,
 ) {
-    for panel in [0, 3, 8] {
+    for (panel, lookahead) in [(0, false), (3, false), (3, true), (8, false), (8, true)] {
         let layout = RowCyclic::new(n, comm.size(), comm.rank());
-        let solved = dist::solve(&Job::on(comm).panel(panel), SolverKind::Cholesky, rows_of(layout), || {
-            rows_of(layout)
-        });
+        let job = Job::on(comm).panel(panel).lookahead(lookahead);
+        let solved = dist::solve(&job, SolverKind::Cholesky, rows_of(layout), || rows_of(layout));
+        let what = &format!("{what} look-ahead {lookahead}");
         let s = must(solved, what);
         log.check(s.used == SolverKind::Lu, || format!("{what} panel {panel}: used {:?}", s.used));
         let why = s.fallback.as_ref();

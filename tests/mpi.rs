@@ -1,5 +1,6 @@
 //! The real binary under `mpirun -n 1`, `-n 2` and `-n 3 --oversubscribe` on bunny points: the
-//! model coefficients and the grid values agree with the serial oracle; `eval` reproduces `fit`;
+//! model coefficients and the grid values agree with the serial oracle (every row-cyclic solver
+//! with look-ahead too); `eval` reproduces `fit`;
 //! bad input fails cleanly on every rank count; the Cholesky solver falls back to LU on every rank;
 //! `--precision mixed` reaches the residual of f64, or falls back to f64 with its message.
 
@@ -79,6 +80,15 @@ fn distributed_runs_match_the_serial_oracle() {
                 .unwrap()
                 .filter(|e| e.as_ref().unwrap().file_name().to_string_lossy().ends_with(".partial"));
             assert_eq!(left.count(), 0, "temporary files left in {}", dir.display());
+        }
+        // with look-ahead: the same model, and the report says so
+        for ranks in [2, 3] {
+            let prefix = dir.join(format!("{}-{ranks}-lookahead", solver.name()));
+            let what = format!("{solver:?} on {ranks} ranks with look-ahead");
+            let extra = ["--solver", solver.name(), "--lookahead", "on"];
+            let (_, out) = fit_like_the_oracle(ranks, &input, &prefix, &extra, &oracle, &what);
+            let line = format!("solver {} (dense, row-cyclic), panel 16, look-ahead on", solver.name());
+            assert!(out.contains(&line), "{what}: {out}");
         }
     }
 }

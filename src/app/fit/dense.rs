@@ -11,9 +11,7 @@ use crate::app::stages::{Stage, Stages};
 use crate::cli::FitArgs;
 use crate::error::Error;
 use crate::error::Result;
-use crate::linalg::dist::{
-    self, Job, Layout, LocalBlocks, LocalRows, Precision, ProcessGrid, RowCyclic, SolverKind,
-};
+use crate::linalg::dist::{self, Job, Layout, LocalBlocks, LocalRows, Precision, ProcessGrid, RowCyclic};
 use crate::par::{CallKind, Comm, Timed};
 use crate::spline::hygiene::Prepared;
 use crate::spline::{fill_block, fill_rows, residual_parts, Kernel, Spline};
@@ -28,7 +26,7 @@ pub fn assemble(kernel: &Kernel, centres: &[f64], values: &[f64], layout: RowCyc
 }
 
 /// Whether the solvers look ahead: as asked, or by default (`auto`) off on the row-cyclic layout
-/// (`shape` None; its LU measured no faster with it on one node) and on a 2D grid when it has
+/// (`shape` None; none of its solvers measured faster with it on one node) and on a 2D grid when it has
 /// more than one process column (with one, every rank is in the next panel's column and nothing
 /// can run ahead).
 pub fn lookahead_for(asked: Option<bool>, shape: Option<(usize, usize)>) -> bool {
@@ -141,15 +139,9 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
     let mixed = solved.mixed_fallback.is_none() && solved.refinement.is_some();
     let precision =
         if mixed { format!("mixed (f32 {}, f64 refinement)", solved.used.name()) } else { "f64".into() };
-    let lu = solved.used == SolverKind::Lu;
-    // the row-cyclic layout has look-ahead in its LU only, the 2D one in both solvers
-    let has_lookahead = lu || a.layout != Layout::RowCyclic;
-    let lookahead_used = has_lookahead && lookahead;
-    let lookahead = match (has_lookahead, lookahead) {
-        (false, _) => "",
-        (true, true) => ", look-ahead on",
-        (true, false) => ", look-ahead off",
-    };
+    // every solver of both layouts looks ahead when asked (on more than one rank)
+    let lookahead_used = lookahead;
+    let lookahead = if lookahead { ", look-ahead on" } else { ", look-ahead off" };
     let mut line = format!(
         "solver {} (dense, {}), panel {}{lookahead}, precision {precision}",
         solved.used.name(),

@@ -41,15 +41,26 @@
 //! triangle (L11 L11^T = B11, L21 = B21 L11^-T, B22 <- B22 - L21 L21^T, one GEMM per chunk of
 //! local rows); forward and back substitution give mu, and lambda = Q [0; mu] applies the k
 //! reflectors to a vector, last one first.
+//!
+//! Look-ahead: every rank holds rows of every panel, so every rank prepares the next panel
+//! itself. With `job.lookahead`, once L21 of panel k is on every rank, each rank updates the
+//! columns of panel k+1 in its rows first, then gathers panel k+1's diagonal block, factors it,
+//! solves for its L21 and all-gathers that, both gathers non-blocking
+//! ([`Comm::all_gather_f64_while`]), while the rest of panel k's update runs a row chunk at a
+//! time between the tests; what is left runs before panel k+1's own update. Exact: panel k+1 reads
+//! and writes only its own columns, which are updated before it; the other columns get the same
+//! GEMMs (no piece a single column, see `householder`): the factors are the same, bit for bit in
+//! the tests on two and three ranks.
 
 use faer::linalg::matmul::matmul;
 use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
 use faer::reborrow::Reborrow;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 
+use super::layout::RowCyclic;
 use super::scalar::Scalar;
 use super::solver::Job;
-use super::system::{all_gather_rows, GatherBuffers, LocalRows};
+use super::system::{all_gather_rows, gather_rows_while, GatherBuffers, LocalRows};
 use crate::error::{Error, Result};
 use crate::linalg::reflector::{apply, explicit_v, qr_in_place, wy_t};
 use crate::par::Comm;
@@ -309,7 +320,7 @@ pub(super) fn factor_projected<T: Scalar>(
     k: usize,
     n: usize,
 ) -> Result<f64> {
-    let Job { comm, panel, par, progress, .. } = *job;
+    let Job { comm, panel, par, progress, lookahead } = *job;
     let lay = rows.layout;
     let nb = panel.max(1);
     let ld = rows.ld();
@@ -327,51 +338,127 @@ pub(super) fn factor_projected<T: Scalar>(
     }
 
     // blocked right-looking Cholesky of B, lower triangle, in place
-    let mut bufs = GatherBuffers::default();
-    let mut p0 = k;
-    while p0 < n {
-        let pb = nb.min(n - p0);
-        let d = rows.gather_rows(comm, p0, p0 + pb, p0, p0 + pb);
-        let l11 = cholesky_small(&d, pb).ok_or_else(|| {
-            Error::NotDefinite(format!(
-                "a pivot of the projected block is not positive near row {p0} of {n} \
-                 (the kernel is not conditionally definite on these points to working precision)"
-            ))
-        })?;
-        for l in lay.first_local_from(p0)..lay.first_local_from(p0 + pb) {
-            let i = lay.global(l) - p0;
-            for c in 0..pb {
-                rows.set(l, p0 + c, if c <= i { l11[(i, c)] } else { T::of(0.0) });
-            }
+    // (on one rank there are no messages to overlap with)
+    let lookahead = lookahead && comm.size() > 1;
+    let (mut bufs, mut next_bufs) = (GatherBuffers::default(), GatherBuffers::default());
+    let (mut p0, mut pb) = (k, nb.min(n - k));
+    prepare_panel(comm, lay, &mut rows.data, (p0, p0 + pb, n), par, &mut bufs, None)?;
+    loop {
+        let p1 = p0 + pb;
+        if p1 == n {
+            progress(n, n);
+            return Ok(sign);
         }
-        let t0 = lay.first_local_from(p0 + pb);
-        if p0 + pb < n {
-            // L21 = B21 L11^-T, i.e. L11 L21^T = B21^T
-            // (solved on a column-major copy of B21^T: faer's blocked path wants unit row stride)
-            {
-                let mut b21 = rows.view_mut().submatrix_mut(t0, p0, la - t0, pb);
-                let mut bt = b21.rb().transpose().to_owned();
-                solve_lower_triangular_in_place(l11.as_ref(), bt.as_mut(), par);
-                b21.copy_from(bt.transpose());
-            }
-            // every rank needs all of L21 for its rows of B22 -= L21 L21^T
-            let rest = n - p0 - pb;
-            rows.gather_rows_with(comm, p0 + pb, n, p0, p0 + pb, &mut bufs);
-            let lt = MatRef::from_column_major_slice(&bufs.out, pb, rest);
+        let (pb1, t0) = (nb.min(n - p1), lay.first_local_from(p1));
+        // all of L21, transposed: every rank needs it for its rows of B22 -= L21 L21^T
+        let lt = MatRef::from_column_major_slice(&bufs.out, pb, n - p1);
+        if !lookahead {
             let mut a = t0;
             while a < la {
                 let b = (a + ROW_CHUNK).min(la);
-                let ncols = lay.global(b - 1) + 1 - (p0 + pb);
-                let m = rows.view_mut().submatrix_mut(a, 0, b - a, p0 + pb + ncols);
-                let (left, right) = m.split_at_col_mut(p0 + pb);
+                let ncols = lay.global(b - 1) + 1 - p1;
+                let m = rows.view_mut().submatrix_mut(a, 0, b - a, p1 + ncols);
+                let (left, right) = m.split_at_col_mut(p1);
                 matmul(right, Accum::Add, left.rb().subcols(p0, pb), lt.subcols(0, ncols), T::of(-1.0), par);
                 a = b;
             }
+            prepare_panel(comm, lay, &mut rows.data, (p1, p1 + pb1, n), par, &mut next_bufs, None)?;
+        } else {
+            // this rank's rows of L21, apart from the columns the next panel writes
+            let l21 = rows.view().submatrix(t0, p0, la - t0, pb).to_owned();
+            let split = p1 + pb1;
+            // a chunk's rows, the end of its columns and where its columns after the next panel
+            // begin: no piece is a single column (faer computes a matrix-vector product in
+            // another order than the same column of a wider product)
+            let chunk = |a: usize| {
+                let b = (a + ROW_CHUNK).min(la);
+                let c1 = lay.global(b - 1) + 1;
+                let s = split.max(p1 + 2).min(c1);
+                (b, c1, if s + 1 >= c1 { c1 } else { s })
+            };
+            let update = |data: &mut [T], base: usize, (a, b): (usize, usize), (c0, c1): (usize, usize)| {
+                if c0 >= c1 {
+                    return;
+                }
+                let all = MatMut::from_column_major_slice_mut(data, ld, data.len() / ld);
+                let out = all.submatrix_mut(a, c0 - base, b - a, c1 - c0);
+                let l = l21.as_ref().subrows(a - t0, b - a);
+                matmul(out, Accum::Add, l, lt.subcols(c0 - p1, c1 - c0), T::of(-1.0), par);
+            };
+            // the next panel's columns first, every row chunk of them
+            let mut a = t0;
+            while a < la {
+                let (b, _, s) = chunk(a);
+                update(&mut rows.data, 0, (a, b), (p1, s));
+                a = b;
+            }
+            // the other columns a row chunk at a time, in the windows of the next panel's gathers
+            let (left, right) = rows.data.split_at_mut(split * ld);
+            let mut a = t0;
+            let mut work = || {
+                if a < la {
+                    let (b, c1, s) = chunk(a);
+                    update(right, split, (a, b), (s, c1));
+                    a = b;
+                }
+                a < la
+            };
+            prepare_panel(comm, lay, left, (p1, split, n), par, &mut next_bufs, Some(&mut work))?;
+            while work() {}
         }
-        p0 += pb;
-        progress(p0, n);
+        progress(p1, n);
+        std::mem::swap(&mut bufs, &mut next_bufs);
+        (p0, pb) = (p1, pb1);
     }
-    Ok(sign)
+}
+
+/// The panel p0..p1 of B, updated by every panel before it: factors its diagonal block L11 L11^T
+/// (gathered, on every rank alike), stores L11 in its owners' rows and L21 = B21 L11^-T in this
+/// rank's rows below it, and gathers all of L21, transposed ((p1 - p0) x (n - p1), column-major),
+/// into `bufs.out`. `data`: this rank's rows, column-major from global column 0 through at least
+/// column p1. With `work`, both gathers are non-blocking and `work` runs while they are in
+/// flight. Collective; `Error::NotDefinite` on every rank when a pivot is not positive.
+fn prepare_panel<T: Scalar>(
+    comm: &dyn Comm,
+    lay: RowCyclic,
+    data: &mut [T],
+    (p0, p1, n): (usize, usize, usize),
+    par: Par,
+    bufs: &mut GatherBuffers<T>,
+    mut work: Option<&mut (dyn FnMut() -> bool + '_)>,
+) -> Result<()> {
+    let pb = p1 - p0;
+    let ld = lay.local_count();
+    let la = lay.first_local_from(n);
+    let mut diag = GatherBuffers::default();
+    gather_rows_while(comm, lay, data, (p0, p1), (p0, p1), &mut diag, work.as_deref_mut());
+    let l11 = cholesky_small(&diag.out, pb).ok_or_else(|| {
+        Error::NotDefinite(format!(
+            "a pivot of the projected block is not positive near row {p0} of {n} \
+             (the kernel is not conditionally definite on these points to working precision)"
+        ))
+    })?;
+    for l in lay.first_local_from(p0)..lay.first_local_from(p1) {
+        let i = lay.global(l) - p0;
+        for c in 0..pb {
+            data[l + (p0 + c) * ld] = if c <= i { l11[(i, c)] } else { T::of(0.0) };
+        }
+    }
+    if p1 == n {
+        return Ok(());
+    }
+    let t0 = lay.first_local_from(p1);
+    if ld > 0 {
+        // L21 = B21 L11^-T, i.e. L11 L21^T = B21^T
+        // (solved on a column-major copy of B21^T: faer's blocked path wants unit row stride)
+        let all = MatMut::from_column_major_slice_mut(data, ld, data.len() / ld);
+        let mut b21 = all.submatrix_mut(t0, p0, la - t0, pb);
+        let mut bt = b21.rb().transpose().to_owned();
+        solve_lower_triangular_in_place(l11.as_ref(), bt.as_mut(), par);
+        b21.copy_from(bt.transpose());
+    }
+    gather_rows_while(comm, lay, data, (p1, n), (p0, p1), bufs, work);
+    Ok(())
 }
 
 /// Cholesky of a small symmetric matrix (row-major, lower triangle used) by faer's blocked kernel;

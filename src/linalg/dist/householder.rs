@@ -15,12 +15,25 @@
 //! and applies A_trail <- A_trail - V (T^T W) to its own rows with one local GEMM. That GEMM
 //! carries almost all the flops (4/3 n^3 in total, twice LU's). The matrix is never gathered;
 //! back substitution on R finishes the solve.
+//!
+//! Look-ahead: on the row-cyclic layout every rank holds rows of every panel and takes part in
+//! each of its all-reduces (one per column, then V^T V), so no rank can factor the next panel
+//! alone; what can overlap is a rank's own trailing update with those small collectives. After
+//! W of panel k is summed, the columns of panel k+1 are updated first, panel k+1 is factored with
+//! non-blocking all-reduces (all-gathers summed in rank order, [`Comm::all_gather_f64_while`])
+//! while the remaining columns of panel k's update run in pieces between the tests, and whatever
+//! is left runs before W of panel k+1, which reads every trailing column. Exact: the update of a
+//! column gives the same values whenever it runs, and panel k+1's reflectors touch only its own
+//! columns. (No piece is a single column, which faer computes as a matrix-vector product whose
+//! sums differ in the last bits; on two ranks the factors are bit-identical with and without
+//! look-ahead, on more the sums in rank order may round differently from the all-reduce's.) The
+//! large all-reduce of W is not overlapped: every trailing column takes part in it.
 
 use faer::linalg::matmul::matmul;
-use faer::reborrow::Reborrow;
 use faer::{Accum, MatMut, MatRef, Par};
 
 use super::backsub::back_substitute;
+use super::layout::RowCyclic;
 use super::solver::Job;
 use super::system::{LocalRows, RowIndex};
 use crate::error::Result;
@@ -29,82 +42,219 @@ use crate::par::Comm;
 
 /// Solves the distributed system in `rows` (right-hand side in the last column) and returns the
 /// solution on every rank. Collective. `rows` is overwritten by R, the reflectors and Q^T b.
-/// `par` is the parallelism of the local trailing-update GEMMs.
+/// `par` is the parallelism of the local trailing-update GEMMs. With `job.lookahead`, the
+/// trailing update of each panel runs in the all-reduces of the next one (see the module
+/// documentation); the factors are the same.
 pub fn householder_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>> {
-    let Job { comm, panel, par, progress, .. } = *job;
+    let Job { comm, panel, par, progress, lookahead } = *job;
+    // on one rank there are no messages to overlap with
+    let lookahead = lookahead && comm.size() > 1;
     let (lay, cols, nb) = (rows.layout, rows.cols, panel.max(1));
     let n = lay.n;
     let tol = rows.singular_tol(comm);
     let lc = rows.ld();
-    let mut k = 0;
-    while k < n {
-        let kb = nb.min(n - k);
-        let taus = factor_panel(comm, &lay, &mut rows.data, lc, (k, kb), k);
-        let rest = cols - (k + kb);
-        if rest > 0 {
-            // V: this rank's rows k.. of the panel, unit lower trapezoidal, made explicit
-            let r0 = lay.first_local_from(k);
-            let mr = lc - r0;
-            let mut v = vec![0.0; mr * kb];
-            for c in 0..kb {
-                for (t, l) in (r0..lc).enumerate() {
-                    let g = lay.global(l);
-                    v[t + c * mr] = match g.cmp(&(k + c)) {
-                        std::cmp::Ordering::Less => 0.0,
-                        std::cmp::Ordering::Equal => 1.0,
-                        std::cmp::Ordering::Greater => rows.get(l, k + c),
-                    };
-                }
+    if n == 0 {
+        return back_substitute(comm, rows, nb, tol);
+    }
+    let (mut k, mut kb) = (0, nb.min(n));
+    let taus = factor_panel(comm, &lay, &mut rows.data, lc, (k, kb), k, None);
+    let mut wy = PanelWy::of(comm, &lay, &rows.data, lc, (k, kb), &taus, None);
+    loop {
+        let end = k + kb;
+        let update = Update::of(comm, rows, &wy, cols, par);
+        if end == n {
+            update.apply(&mut rows.data, lc, 0, end, cols);
+            progress(n, n);
+            break;
+        }
+        let next = (end, nb.min(n - end));
+        let split = end + next.1;
+        let next_wy = if lookahead {
+            // the next panel's columns first; the rest in the windows of its all-reduces
+            let first = narrow_free(split.max(end + 2), cols);
+            update.apply(&mut rows.data, lc, 0, end, first);
+            let (left, right) = rows.data.split_at_mut(split * lc);
+            let piece = (cols - split).div_ceil(next.1 + 1).max(MIN_PIECE);
+            let mut from = first;
+            let mut work = || {
+                let to = narrow_free(from + piece, cols);
+                update.apply(right, lc, split, from, to);
+                from = to;
+                from < cols
+            };
+            let taus = factor_panel(comm, &lay, left, lc, next, end, Some(&mut work));
+            let wy = PanelWy::of(comm, &lay, left, lc, next, &taus, Some(&mut work));
+            update.apply(right, lc, split, from, cols);
+            wy
+        } else {
+            update.apply(&mut rows.data, lc, 0, end, cols);
+            let taus = factor_panel(comm, &lay, &mut rows.data, lc, next, end, None);
+            PanelWy::of(comm, &lay, &rows.data, lc, next, &taus, None)
+        };
+        wy = next_wy;
+        progress(end, n);
+        (k, kb) = next;
+    }
+    back_substitute(comm, rows, nb, tol)
+}
+
+/// The narrowest piece of a trailing update run in one window of an all-reduce of the next
+/// panel (every piece reads all of V again; as in the LU).
+const MIN_PIECE: usize = 256;
+
+/// The end of a piece of columns of a trailing update that ends at `cols`, at least `to`: `cols`
+/// where the piece would leave a single column, so that no piece is a matrix-vector product
+/// (computed in another order than the same column of a wider product).
+fn narrow_free(to: usize, cols: usize) -> usize {
+    if to + 1 >= cols {
+        cols
+    } else {
+        to
+    }
+}
+
+/// The compact-WY form of a factored panel k..k+kb on this rank: V (this rank's rows k.., unit
+/// lower trapezoidal, explicit, column-major) and T.
+struct PanelWy {
+    k: usize,
+    kb: usize,
+    /// The first of this rank's local rows at or below row k, and how many there are from it.
+    r0: usize,
+    mr: usize,
+    v: Vec<f64>,
+    t: faer::Mat<f64>,
+}
+
+impl PanelWy {
+    /// V from the factored panel in `data` (column-major, leading dimension `ld`, from global
+    /// column 0) and T from V^T V (dlarft, forward, column-wise), summed over the ranks with
+    /// `work` run while the sum is in flight where there is some. Collective.
+    fn of(
+        comm: &dyn Comm,
+        lay: &RowCyclic,
+        data: &[f64],
+        ld: usize,
+        (k, kb): (usize, usize),
+        taus: &[f64],
+        work: Option<&mut dyn FnMut() -> bool>,
+    ) -> Self {
+        let r0 = lay.first_local_from(k);
+        let mr = ld - r0;
+        let mut v = vec![0.0; mr * kb];
+        for c in 0..kb {
+            for (t, l) in (r0..ld).enumerate() {
+                let g = lay.global(l);
+                v[t + c * mr] = match g.cmp(&(k + c)) {
+                    std::cmp::Ordering::Less => 0.0,
+                    std::cmp::Ordering::Equal => 1.0,
+                    std::cmp::Ordering::Greater => data[l + (k + c) * ld],
+                };
             }
-            let vref = MatRef::from_column_major_slice(&v, mr, kb);
-            // T from V^T V (dlarft, forward, column-wise)
-            let mut vtv = vec![0.0; kb * kb];
+        }
+        let vref = MatRef::from_column_major_slice(&v, mr, kb);
+        let mut vtv = vec![0.0; kb * kb];
+        matmul(
+            MatMut::from_column_major_slice_mut(&mut vtv, kb, kb),
+            Accum::Replace,
+            vref.transpose(),
+            vref,
+            1.0,
+            Par::Seq,
+        );
+        sum_while(comm, &mut vtv, work, &mut Vec::new());
+        let t = wy_t(taus, MatRef::from_column_major_slice(&vtv, kb, kb));
+        PanelWy { k, kb, r0, mr, v, t }
+    }
+
+    fn v(&self) -> MatRef<'_, f64> {
+        MatRef::from_column_major_slice(&self.v, self.mr, self.kb)
+    }
+}
+
+/// The update of the trailing columns by a panel's Q^T = I - V T^T V^T: V and T^T W, W = V^T
+/// A_trail summed over the ranks, for the columns from the panel's end to `cols`.
+struct Update<'a> {
+    wy: &'a PanelWy,
+    c0: usize,
+    tw: Vec<f64>,
+    par: Par,
+}
+
+impl<'a> Update<'a> {
+    /// Computes T^T W from this rank's rows of the trailing columns (all updated by the earlier
+    /// panels). Collective: one all-reduce of W.
+    fn of(comm: &dyn Comm, rows: &LocalRows, wy: &'a PanelWy, cols: usize, par: Par) -> Self {
+        let (kb, c0) = (wy.kb, wy.k + wy.kb);
+        let rest = cols - c0;
+        let mut wbuf = vec![0.0; kb * rest];
+        {
+            let a_trail = rows.view().submatrix(wy.r0, c0, wy.mr, rest);
             matmul(
-                MatMut::from_column_major_slice_mut(&mut vtv, kb, kb),
+                MatMut::from_column_major_slice_mut(&mut wbuf, kb, rest),
                 Accum::Replace,
-                vref.transpose(),
-                vref,
-                1.0,
-                Par::Seq,
-            );
-            comm.sum_f64(&mut vtv);
-            let t = wy_t(&taus, MatRef::from_column_major_slice(&vtv, kb, kb));
-            // W = V^T A_trail, summed over ranks; then W <- T^T W and A_trail -= V W
-            let mut wbuf = vec![0.0; kb * rest];
-            {
-                let a_trail = rows.view().submatrix(r0, k + kb, mr, rest);
-                matmul(
-                    MatMut::from_column_major_slice_mut(&mut wbuf, kb, rest),
-                    Accum::Replace,
-                    vref.transpose(),
-                    a_trail,
-                    1.0,
-                    par,
-                );
-            }
-            comm.sum_f64(&mut wbuf);
-            let mut tw = vec![0.0; kb * rest];
-            matmul(
-                MatMut::from_column_major_slice_mut(&mut tw, kb, rest),
-                Accum::Replace,
-                t.as_ref().transpose(),
-                MatRef::from_column_major_slice(&wbuf, kb, rest),
+                wy.v().transpose(),
+                a_trail,
                 1.0,
                 par,
             );
-            let a_trail = rows.view_mut().submatrix_mut(r0, k + kb, mr, rest);
-            matmul(a_trail, Accum::Add, vref.rb(), MatRef::from_column_major_slice(&tw, kb, rest), -1.0, par);
         }
-        k += kb;
-        progress(k, n);
+        comm.sum_f64(&mut wbuf);
+        let mut tw = vec![0.0; kb * rest];
+        matmul(
+            MatMut::from_column_major_slice_mut(&mut tw, kb, rest),
+            Accum::Replace,
+            wy.t.as_ref().transpose(),
+            MatRef::from_column_major_slice(&wbuf, kb, rest),
+            1.0,
+            par,
+        );
+        Update { wy, c0, tw, par }
     }
-    back_substitute(comm, rows, nb, tol)
+
+    /// A_trail -= V (T^T W) on the global columns c0..c1 of this rank's rows in `data`
+    /// (column-major, leading dimension `ld`, from global column `base`): one local GEMM.
+    fn apply(&self, data: &mut [f64], ld: usize, base: usize, c0: usize, c1: usize) {
+        let (r0, mr, kb) = (self.wy.r0, self.wy.mr, self.wy.kb);
+        if c0 >= c1 || mr == 0 {
+            return;
+        }
+        let all = MatMut::from_column_major_slice_mut(data, ld, data.len() / ld);
+        let a = all.submatrix_mut(r0, c0 - base, mr, c1 - c0);
+        let tw = MatRef::from_column_major_slice(&self.tw, kb, self.tw.len() / kb.max(1));
+        matmul(a, Accum::Add, self.wy.v(), tw.subcols(c0 - self.c0, c1 - c0), -1.0, self.par);
+    }
+}
+
+/// Sums `buf` over the ranks in place: one all-reduce, or with `work`, a non-blocking all-gather
+/// with `work` run while it is in flight and the sum taken in rank order (the same on every
+/// rank). `recv` is scratch. Collective; every rank passes `work` or none alike.
+fn sum_while(
+    comm: &dyn Comm,
+    buf: &mut [f64],
+    work: Option<&mut (dyn FnMut() -> bool + '_)>,
+    recv: &mut Vec<f64>,
+) {
+    let Some(work) = work else {
+        comm.sum_f64(buf);
+        return;
+    };
+    let (len, p) = (buf.len(), comm.size());
+    recv.clear();
+    recv.resize(len * p, 0.0);
+    comm.all_gather_f64_while(buf, &vec![len; p], recv, work);
+    for (i, b) in buf.iter_mut().enumerate() {
+        *b = recv[i];
+        for r in 1..p {
+            *b += recv[r * len + i];
+        }
+    }
 }
 
 /// Unblocked Householder QR of the panel columns k..k+kb (rows k..n) of a column-major local
 /// matrix (leading dimension `ld`, the local row count) whose rows are spread over `comm` as
 /// `rows` says, global column k at local column `lc0`: the row-cyclic layout over all ranks, or
-/// one process column of the 2D layout. Returns the tau of each reflector H = I - tau v v^T
+/// one process column of the 2D layout. With `work`, the all-reduces are non-blocking and `work`
+/// runs while each is in flight (see [`sum_while`]). Returns the tau of each reflector H = I - tau v v^T
 /// (v(0) = 1, its tail stored below the diagonal; R on and above it).
 pub(super) fn factor_panel(
     comm: &dyn Comm,
@@ -113,8 +263,10 @@ pub(super) fn factor_panel(
     ld: usize,
     (k, kb): (usize, usize),
     lc0: usize,
+    mut work: Option<&mut dyn FnMut() -> bool>,
 ) -> Vec<f64> {
     let me = comm.rank();
+    let mut recv = Vec::new();
     let mut taus = vec![0.0; kb];
     // one all-reduce per column: [sum of squares below the diagonal, x0, x^T A (unscaled, below),
     // row j of A], all over the panel columns right of j; w = A_j + x^T A / (x0 - alpha) follows
@@ -141,7 +293,7 @@ pub(super) fn factor_panel(
                 }
             }
         }
-        comm.sum_f64(s);
+        sum_while(comm, s, work.as_deref_mut(), &mut recv);
         let Reflector { tau, beta, scale } = Reflector::new(s[1], s[0]);
         if tau == 0.0 {
             // already triangular in this column: H = I

@@ -97,7 +97,7 @@ fn factor_and_pack(grid: &ProcessGrid<'_>, a: &mut LocalBlocks, k: usize) -> Vec
         return panel;
     }
     let lc0 = cols.local(k);
-    let taus = factor_panel(grid.col.as_ref(), &rows, &mut a.data, ld, (k, kb), lc0);
+    let taus = factor_panel(grid.col.as_ref(), &rows, &mut a.data, ld, (k, kb), lc0, None);
     for c in 0..kb {
         for (t, lr) in (lr0..ld).enumerate() {
             let g = rows.global(lr);

@@ -14,7 +14,9 @@ use crate::par::{agree, Comm};
 
 /// The context of a distributed solve: the ranks, the panel width (0: the solver's default), the
 /// parallelism of each rank's local kernels (GEMMs, triangular solves), where progress goes, and
-/// whether the LU overlaps its trailing updates with the next panel's pivot searches.
+/// whether the factorisations look ahead: overlap each panel's trailing update with the next
+/// panel's collectives (on the row-cyclic layout the LU's pivot searches, the Householder
+/// panel's all-reduces, the projected Cholesky's gathers of L11 and L21).
 #[derive(Clone, Copy)]
 pub struct Job<'a> {
     pub comm: &'a dyn Comm,
@@ -26,8 +28,12 @@ pub struct Job<'a> {
 
 fn silent(_: usize, _: usize) {}
 
-/// Whether the LU looks ahead by default: no, since on a quiet 2-core node it measured no faster
-/// (N = 4000 on 2 ranks 0.61 s either way, N = 8000 4.70 s with against 4.37 s without).
+/// Whether the row-cyclic solvers look ahead by default: no. On a quiet 2-core node the LU
+/// measured no faster (N = 4000 on 2 ranks 0.61 s either way, N = 8000 4.70 s with against 4.37 s
+/// without). On a shared 2-core node, 2 ranks, runs interleaved, the Householder QR was slower
+/// with it (N + k = 4000: median 3.54 s against 3.35 s; 8000: 22.4 s against 20.8 s) and the
+/// projected Cholesky within the noise (4000: median 1.07 s against 0.97 s; 8000: 5.03 s against
+/// 5.07 s, the median of the pairs 4 % faster).
 pub const LOOKAHEAD: bool = false;
 
 impl<'a> Job<'a> {

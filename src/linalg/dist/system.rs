@@ -108,20 +108,7 @@ impl<T: Scalar> LocalRows<T> {
         c1: usize,
         bufs: &mut GatherBuffers<T>,
     ) {
-        let lay = self.layout;
-        let w = c1 - c0;
-        let (l0, l1) = (lay.first_local_from(g0), lay.first_local_from(g1));
-        let ld = self.ld();
-        let send = &mut bufs.send;
-        send.clear();
-        send.resize((l1 - l0) * w, T::of(0.0));
-        // column by column through the local matrix (contiguous), row-major into the buffer
-        for c in c0..c1 {
-            for (t, v) in self.data[l0 + c * ld..l1 + c * ld].iter().enumerate() {
-                send[t * w + (c - c0)] = *v;
-            }
-        }
-        all_gather_rows_into(comm, lay, &bufs.send, (g0, g1, w), &mut bufs.recv, &mut bufs.out);
+        gather_rows_while(comm, self.layout, &self.data, (g0, g1), (c0, c1), bufs, None);
     }
 
     /// Exchanges global rows a and b in columns c0..c1 between their owners. Only the two owners
@@ -237,6 +224,34 @@ pub(crate) fn permute_local_rows<T: Scalar>(
     }
 }
 
+/// [`LocalRows::gather_rows_with`] on the column-major local rows `data` (the leading dimension
+/// is the layout's local row count; `data` may end after column c1). With `work`, the gather is
+/// non-blocking and `work` runs while it is in flight ([`Comm::all_gather_f64_while`]); every
+/// rank must pass `work` or none alike. Collective.
+pub(crate) fn gather_rows_while<T: Scalar>(
+    comm: &dyn Comm,
+    lay: RowCyclic,
+    data: &[T],
+    (g0, g1): (usize, usize),
+    (c0, c1): (usize, usize),
+    bufs: &mut GatherBuffers<T>,
+    work: Option<&mut (dyn FnMut() -> bool + '_)>,
+) {
+    let w = c1 - c0;
+    let (l0, l1) = (lay.first_local_from(g0), lay.first_local_from(g1));
+    let ld = lay.local_count();
+    let send = &mut bufs.send;
+    send.clear();
+    send.resize((l1 - l0) * w, T::of(0.0));
+    // column by column through the local matrix (contiguous), row-major into the buffer
+    for c in c0..c1 {
+        for (t, v) in data[l0 + c * ld..l1 + c * ld].iter().enumerate() {
+            send[t * w + (c - c0)] = *v;
+        }
+    }
+    all_gather_rows_into(comm, lay, &bufs.send, (g0, g1, w), (&mut bufs.recv, &mut bufs.out), work);
+}
+
 /// Buffers reused by [`LocalRows::gather_rows_with`].
 #[derive(Debug)]
 pub struct GatherBuffers<T = f64> {
@@ -263,23 +278,27 @@ pub fn all_gather_rows<T: Scalar>(
     w: usize,
 ) -> Vec<T> {
     let (mut recv, mut out) = (Vec::new(), Vec::new());
-    all_gather_rows_into(comm, lay, send, (rows.start, rows.end, w), &mut recv, &mut out);
+    all_gather_rows_into(comm, lay, send, (rows.start, rows.end, w), (&mut recv, &mut out), None);
     out
 }
 
-/// [`all_gather_rows`] of rows g0..g1 of width w, into reused buffers.
+/// [`all_gather_rows`] of rows g0..g1 of width w, into reused buffers, with `work` run while the
+/// gather is in flight where there is some.
 fn all_gather_rows_into<T: Scalar>(
     comm: &dyn Comm,
     lay: RowCyclic,
     send: &[T],
     (g0, g1, w): (usize, usize, usize),
-    recv: &mut Vec<T>,
-    out: &mut Vec<T>,
+    (recv, out): (&mut Vec<T>, &mut Vec<T>),
+    work: Option<&mut (dyn FnMut() -> bool + '_)>,
 ) {
     let counts: Vec<usize> = (0..lay.ranks).map(|r| lay.count_in_on(r, g0, g1) * w).collect();
     recv.clear();
     recv.resize((g1 - g0) * w, T::of(0.0));
-    T::all_gather(comm, send, &counts, recv);
+    match work {
+        None => T::all_gather(comm, send, &counts, recv),
+        Some(work) => T::all_gather_while(comm, send, &counts, recv, work),
+    }
     out.clear();
     out.resize((g1 - g0) * w, T::of(0.0));
     lay.to_global_order(recv, g0, g1, w, out);
