@@ -100,12 +100,13 @@ pub struct FitArgs {
     /// householder and 128 for lu and cholesky).
     #[arg(long, allow_negative_numbers = true, default_value_t = 0, value_name = "NB")]
     pub panel: usize,
-    /// Look-ahead of the factorisations: on, off, or auto (the default): off on the row-cyclic
-    /// layout, where each panel's trailing update runs while the next panel's collectives are in
-    /// flight (the LU's pivot searches, the Householder panel's all-reduces, the projected
-    /// Cholesky's gathers) and no solver has measured faster with it on one node; on for the 2D
-    /// LU and projected Cholesky when the grid has more than one process column (the next
-    /// panel's column factors it and broadcasts it during the trailing update), off with one.
+    /// Look-ahead of the factorisations: on, off, or auto (the default). On the row-cyclic
+    /// layout each panel's trailing update runs while the next panel's collectives are in flight
+    /// (the LU's pivot searches, the Householder panel's all-reduces, the projected Cholesky's
+    /// gathers); auto turns it on there for the projected Cholesky only (5-7 % faster on one
+    /// node; LU no faster, Householder slower). On a 2D grid auto is on when the grid has more
+    /// than one process column (the next panel's column factors it and broadcasts it during the
+    /// trailing update), off with one.
     #[arg(long, default_value = "auto", value_name = "auto|on|off", value_parser = on_off_auto)]
     pub lookahead: LookAhead,
     /// Distribution of the dense system over the ranks: row-cyclic (global row g on rank

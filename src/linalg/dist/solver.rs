@@ -28,12 +28,12 @@ pub struct Job<'a> {
 
 fn silent(_: usize, _: usize) {}
 
-/// Whether the row-cyclic solvers look ahead by default: no. On a quiet 2-core node the LU
-/// measured no faster (N = 4000 on 2 ranks 0.61 s either way, N = 8000 4.70 s with against 4.37 s
-/// without). On a shared 2-core node, 2 ranks, runs interleaved, the Householder QR was slower
-/// with it (N + k = 4000: median 3.54 s against 3.35 s; 8000: 22.4 s against 20.8 s) and the
-/// projected Cholesky within the noise (4000: median 1.07 s against 0.97 s; 8000: 5.03 s against
-/// 5.07 s, the median of the pairs 4 % faster).
+/// Whether a [`Job`] looks ahead unless told: no. `fit` turns it on for the row-cyclic projected
+/// Cholesky: on a quiet 2-core node, 2 ranks, runs interleaved, it took 0.395-0.408 s against
+/// 0.425-0.539 s at N + k = 4000 and 2.32-2.51 s against 2.49-2.57 s at 8000. The LU measured no
+/// faster (N = 4000 on 2 ranks 0.61 s either way, N = 8000 4.70 s with against 4.37 s without)
+/// and the Householder QR slower (4000: 1.36-1.46 s against 1.32-1.36 s; 8000: 9.35-9.53 s
+/// against 8.89-9.39 s).
 pub const LOOKAHEAD: bool = false;
 
 impl<'a> Job<'a> {
