@@ -126,6 +126,32 @@ impl Lattice {
         [0, 1, 2].map(|d| self.lo[d] + idx[d] as f64 * self.h)
     }
 
+    /// The connected regions (six-neighbour connectivity) of the nodes where `member` is true:
+    /// a label 0..count for each of them (usize::MAX for the others) and the count, numbered in
+    /// the order of their first node.
+    fn regions(&self, member: &[bool]) -> (Vec<usize>, usize) {
+        let mut label = vec![usize::MAX; self.len()];
+        let (mut stack, mut adj, mut count) = (Vec::new(), Vec::new(), 0);
+        for start in 0..self.len() {
+            if !member[start] || label[start] != usize::MAX {
+                continue;
+            }
+            label[start] = count;
+            stack.push(start);
+            while let Some(i) = stack.pop() {
+                self.neighbours(i, &mut adj);
+                for &j in &adj {
+                    if member[j] && label[j] == usize::MAX {
+                        label[j] = count;
+                        stack.push(j);
+                    }
+                }
+            }
+            count += 1;
+        }
+        (label, count)
+    }
+
     /// The six lattice neighbours of node `i` that exist.
     fn neighbours(&self, i: usize, out: &mut Vec<usize>) {
         out.clear();
@@ -223,28 +249,12 @@ pub fn find(lattice: &Lattice, values: &[f64], points: &[f64], normals: &[[f64; 
     // regions of positive nodes; a region is supported when one of its nodes is within a cell
     // diagonal of the data
     let reach = h * 3f64.sqrt();
-    let mut region = vec![usize::MAX; lattice.len()];
-    let mut supported = Vec::new();
-    let (mut stack, mut adj) = (Vec::new(), Vec::new());
-    for start in 0..lattice.len() {
-        if !positive[start] || region[start] != usize::MAX {
-            continue;
+    let (region, count) = lattice.regions(&positive);
+    let mut supported = vec![false; count];
+    for (i, j) in judged.iter().enumerate() {
+        if j.is_some_and(|(d, _, _)| d <= reach) {
+            supported[region[i]] = true;
         }
-        let id = supported.len();
-        let mut near_data = false;
-        region[start] = id;
-        stack.push(start);
-        while let Some(i) = stack.pop() {
-            near_data |= judged[i].is_some_and(|(d, _, _)| d <= reach);
-            lattice.neighbours(i, &mut adj);
-            for &j in &adj {
-                if positive[j] && region[j] == usize::MAX {
-                    region[j] = id;
-                    stack.push(j);
-                }
-            }
-        }
-        supported.push(near_data);
     }
     let mut blobs = Blobs { regions: supported.iter().filter(|&&s| !s).count(), ..Default::default() };
     let thin = thin_unsupported(lattice, values, tree, points);
@@ -284,25 +294,8 @@ fn thin_unsupported(lattice: &Lattice, values: &[f64], tree: &Octree, points: &[
     // connected regions of non-positive nodes: a sheet with the same region on both faces is a
     // fin or a web in empty space; one between two regions closes a cavity (the lid over a scan's
     // hole) and stays
-    let mut label = vec![usize::MAX; lattice.len()];
-    let (mut stack, mut adj, mut count) = (Vec::new(), Vec::new(), 0);
-    for start in 0..lattice.len() {
-        if positive[start] || label[start] != usize::MAX {
-            continue;
-        }
-        label[start] = count;
-        stack.push(start);
-        while let Some(i) = stack.pop() {
-            lattice.neighbours(i, &mut adj);
-            for &j in &adj {
-                if !positive[j] && label[j] == usize::MAX {
-                    label[j] = count;
-                    stack.push(j);
-                }
-            }
-        }
-        count += 1;
-    }
+    let negative: Vec<bool> = positive.iter().map(|&p| !p).collect();
+    let (label, _) = lattice.regions(&negative);
     (0..lattice.len())
         .into_par_iter()
         .map_init(Vec::new, |found, i| {
