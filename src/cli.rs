@@ -143,10 +143,11 @@ pub struct FitArgs {
     /// off-surface spline (on, or off), for up to 6000 rows (see src/surface/energy.rs).
     #[arg(long, default_value = "off", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub orient_energy: bool,
-    /// After the first fit, follow a ray inward from every data point and turn the small
-    /// patches of normals whose rays leave the solid far from every data point (on, or off):
-    /// patches turned inward make a shell of false solid around a thin part, and the fit is then
-    /// made a second time (see src/surface/rays.rs).
+    /// After the first fit, follow rays inward and outward from every data point and turn the
+    /// small patches of normals whose inward rays leave the solid far from every data point and
+    /// whose outward rays meet it again (on, or off): a patch turned inward makes a shell of
+    /// false solid around a thin part; the fit is then made a second time (see
+    /// src/surface/rays.rs).
     #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub orient_rays: bool,
     /// Points of level 0 of the two-level compactly supported fit (--method csrbf with --surface
