@@ -332,13 +332,11 @@ fn thin_unsupported(lattice: &Lattice, values: &[f64], tree: &Octree, points: &[
                 // the faces must be crossed head on: the gradient of f there mostly along the axis
                 let along = |j: usize| {
                     let jj = [j % nx, (j / nx) % ny, j / (nx * ny)];
-                    let g: Vec<f64> = (0..3)
-                        .map(|b| {
-                            let lo = if jj[b] > 0 { j - strides[b] } else { j };
-                            let hi = if jj[b] + 1 < extent[b] { j + strides[b] } else { j };
-                            values[hi] - values[lo]
-                        })
-                        .collect();
+                    let g: [f64; 3] = std::array::from_fn(|b| {
+                        let lo = if jj[b] > 0 { j - strides[b] } else { j };
+                        let hi = if jj[b] + 1 < extent[b] { j + strides[b] } else { j };
+                        values[hi] - values[lo]
+                    });
                     let norm = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
                     if norm > 0.0 {
                         g[a].abs() / norm

@@ -373,7 +373,7 @@ pub(crate) fn make_outward(points: &[f64], o: &mut [[f64; 3]], knn: &[usize], km
 }
 
 /// The area of each point: the squared distance to its 8th neighbour.
-fn areas(points: &[f64], knn: &[usize], kmax: usize, n: usize) -> Vec<f64> {
+pub(crate) fn areas(points: &[f64], knn: &[usize], kmax: usize, n: usize) -> Vec<f64> {
     let k8 = 8.min(kmax);
     (0..n)
         .map(|i| if k8 == 0 { 1.0 } else { dist2(&points[3 * i..], &points[3 * knn[i * kmax + k8 - 1]..]) })

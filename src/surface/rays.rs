@@ -49,7 +49,7 @@ use rayon::prelude::*;
 
 use super::normals::dist2;
 use super::offsurface::DELTA;
-use super::orient::{orientation_edges, tangent_patches};
+use super::orient::{areas, orientation_edges, tangent_patches};
 use crate::par::Comm;
 use crate::spline::carrier::Carrier;
 use crate::spline::octree::Octree;
@@ -198,18 +198,7 @@ pub fn turn_doubtful_patches(
 }
 
 /// The local spacing of each point: the distance to its 8th nearest neighbour (of the `kmax`
-/// in `knn`, nearest first).
+/// in `knn`, nearest first), the square root of the orientation's area.
 pub fn spacing(points: &[f64], knn: &[usize], kmax: usize) -> Vec<f64> {
-    let k = 8.min(kmax);
-    (0..points.len() / 3)
-        .map(
-            |i| {
-                if k == 0 {
-                    0.0
-                } else {
-                    dist2(&points[3 * i..], &points[3 * knn[i * kmax + k - 1]..]).sqrt()
-                }
-            },
-        )
-        .collect()
+    areas(points, knn, kmax, points.len() / 3).into_iter().map(f64::sqrt).collect()
 }

@@ -15,7 +15,7 @@ use crate::spline::hygiene::Prepared;
 use crate::surface::blobs::{blob_values, find, sample, Lattice};
 use crate::surface::energy::{flip_by_energy, EnergyFlips};
 use crate::surface::rays::{self, RayCheck};
-use crate::surface::{self, neighbourhoods, off_points, off_values, Neighbourhoods};
+use crate::surface::{self, neighbourhoods, off_points, off_values, Neighbourhoods, OffPoints};
 
 /// Fewest points for which `--surface auto` adds off-surface constraints.
 pub const AUTO_MIN_POINTS: usize = 50;
@@ -90,14 +90,10 @@ pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<
         }
         energy = Some(e);
     }
-    let values = off_values(&off, &prep.points, &prep.carrier, &prep.norm);
-    let scale = prep.norm.scale;
-    let delta =
-        off.delta.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| (lo.min(d * scale), hi.max(d * scale)));
     let summary = SurfaceSummary {
         off_points: off.side.len(),
         dropped: off.dropped,
-        delta: if off.delta.is_empty() { (0.0, 0.0) } else { delta },
+        delta: delta_range(&off, prep.norm.scale),
         components: orientation.components,
         patches: orientation.patches,
         flipped: orientation.flipped,
@@ -108,10 +104,23 @@ pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<
         blob_regions: 0,
         rays: None,
     };
-    let mut out = prep.clone();
+    Ok(Constrained { prep: with_off_points(prep, &off), summary, hoods, normals: orientation.normals })
+}
+
+/// `data` with the off points `off` and their values appended to its centres and values.
+fn with_off_points(data: &Prepared, off: &OffPoints) -> Prepared {
+    let mut out = data.clone();
     out.centres.extend_from_slice(&off.centres);
-    out.values.extend_from_slice(&values);
-    Ok(Constrained { prep: out, summary, hoods, normals: orientation.normals })
+    out.values.extend(off_values(off, &data.points, &data.carrier, &data.norm));
+    out
+}
+
+/// The smallest and largest delta of `off` in the caller's units (`scale` per normalised unit).
+fn delta_range(off: &OffPoints, scale: f64) -> (f64, f64) {
+    if off.delta.is_empty() {
+        return (0.0, 0.0);
+    }
+    off.delta.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| (lo.min(d * scale), hi.max(d * scale)))
 }
 
 /// The fit `first` of `c.prep`, or, where rays through it turn patches of the normals (see
@@ -148,12 +157,10 @@ pub fn check_first_fit(
     if turned.turned > 0 {
         // the off points of the turned normals replace the first fit's
         let off = off_points(&data.centres, &c.normals, &c.hoods.tree, run.args.off_points);
-        let values = off_values(&off, &data.points, &data.carrier, &norm);
-        c.prep = data.clone();
-        c.prep.centres.extend_from_slice(&off.centres);
-        c.prep.values.extend_from_slice(&values);
+        c.prep = with_off_points(data, &off);
         c.summary.off_points = off.side.len();
         c.summary.dropped = off.dropped;
+        c.summary.delta = delta_range(&off, norm.scale);
     }
     let blobs = stages.time(Stage::Orient, || {
         let values = sample(run.comm, &lattice, &data.carrier, &first.spline);
