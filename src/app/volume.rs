@@ -15,9 +15,11 @@ use crate::frep::curvature::{curvature, Curvature};
 use crate::frep::Implicit;
 use crate::grid::{padded_box, Grid, GridSize};
 use crate::io::{self, vtkhdf};
+use crate::mesh::trim::{area, keep_triangles};
 use crate::mesh::{self, MeshPiece, SlabGrid, TriMesh};
 use crate::par::{on_root, Comm};
 use crate::spline::{Field, Provenance};
+use crate::surface::support::DataSupport;
 
 /// What writing the volume and the mesh produced.
 #[derive(Debug, Clone)]
@@ -29,6 +31,8 @@ pub struct VolumeSummary {
     pub ply_path: PathBuf,
     /// Kernel evaluations per grid node (for the throughput figures).
     pub evals_per_node: usize,
+    /// The trimmed surface, when asked for.
+    pub trimmed: Option<Trimmed>,
 }
 
 impl VolumeSummary {
@@ -52,6 +56,19 @@ impl VolumeSummary {
         report.figure("triangles", self.triangles);
         report.output(&self.hdf_path);
         report.output(&self.ply_path);
+        if let Some(t) = &self.trimmed {
+            report.line(format!(
+                "trimmed surface (--trim {}: triangles farther than {:.4e} from every data point left out): {} \
+                 triangles, {:.2} % of the area left out",
+                t.factor,
+                t.radius,
+                t.triangles,
+                100.0 * t.area_removed
+            ));
+            report.figure("trimmed_triangles", t.triangles);
+            report.figure("trimmed_area_removed", format!("{:e}", t.area_removed));
+            report.output(&t.path);
+        }
     }
 }
 
@@ -98,6 +115,25 @@ fn curvatures(solid: &dyn Implicit, points: &[[f64; 3]]) -> (Vec<f64>, Vec<f64>)
     (c.iter().map(|c| c.mean).collect(), c.iter().map(|c| c.gaussian).collect())
 }
 
+/// The surface without the triangles no data supports, written as `PREFIX.trimmed.ply` besides
+/// the closed one.
+pub struct Trim<'a> {
+    pub support: &'a DataSupport,
+    /// The multiple of the data's median spacing (`--trim F`), for the report.
+    pub factor: f64,
+}
+
+/// What trimming left of the surface.
+#[derive(Debug, Clone)]
+pub struct Trimmed {
+    pub factor: f64,
+    pub radius: f64,
+    pub triangles: usize,
+    /// The share of the surface's area left out.
+    pub area_removed: f64,
+    pub path: PathBuf,
+}
+
 /// Evaluates `field` on `grid` in z-slabs, writes `PREFIX.hdf` in parallel and `PREFIX.ply` from
 /// rank 0, both under this run's temporary names (see [`io::staging`]), with the curvatures of
 /// `curvature` (the same solid as `field`) when given. Collective.
@@ -107,6 +143,19 @@ pub fn write_volume(
     curvature: Option<&dyn Implicit>,
     grid: &Grid,
     prefix: &Path,
+    stages: &mut Stages,
+) -> Result<VolumeSummary> {
+    write_volume_with(comm, field, curvature, grid, prefix, None, stages)
+}
+
+/// [`write_volume`], and with `trim` the trimmed surface `PREFIX.trimmed.ply` too. Collective.
+pub fn write_volume_with(
+    comm: &dyn Comm,
+    field: &dyn Field,
+    curvature: Option<&dyn Implicit>,
+    grid: &Grid,
+    prefix: &Path,
+    trim: Option<&Trim<'_>>,
     stages: &mut Stages,
 ) -> Result<VolumeSummary> {
     let slabs = grid.slabs(comm.size());
@@ -174,6 +223,8 @@ pub fn write_volume(
     })?;
 
     let ply_path = output_path(prefix, ".ply");
+    let trimmed_path = output_path(prefix, ".trimmed.ply");
+    let mut trimmed = None;
     let mut counts = [0u64; 2];
     stages.time(Stage::Mesh, || -> Result<()> {
         let piece = mesh::polygonise(
@@ -191,10 +242,37 @@ pub fn write_volume(
             };
             io::write_atomically(&ply_path, |tmp| {
                 mesh::write_ply_with(tmp, &mesh, &props).map_err(|e| Error::io(tmp, &e))
-            })
+            })?;
+            if let Some(t) = trim {
+                let kept = keep_triangles(&mesh, |c| t.support.supports(c));
+                let whole = area(&mesh);
+                trimmed = Some(Trimmed {
+                    factor: t.factor,
+                    radius: t.support.radius,
+                    triangles: kept.triangles.len(),
+                    area_removed: if whole > 0.0 { 1.0 - area(&kept) / whole } else { 0.0 },
+                    path: trimmed_path.clone(),
+                });
+                io::write_atomically(&trimmed_path, |tmp| {
+                    mesh::write_ply(tmp, &kept).map_err(|e| Error::io(tmp, &e))
+                })?;
+            }
+            Ok(())
         })
     })?;
     comm.sum_u64(&mut counts);
+    // every rank reports what rank 0 trimmed
+    let trimmed = trim.map(|t| {
+        let mut figures = trimmed.as_ref().map_or([0.0, 0.0], |k| [k.triangles as f64, k.area_removed]);
+        comm.broadcast_f64(0, &mut figures);
+        Trimmed {
+            factor: t.factor,
+            radius: t.support.radius,
+            triangles: figures[0] as usize,
+            area_removed: figures[1],
+            path: trimmed_path.clone(),
+        }
+    });
     Ok(VolumeSummary {
         grid: *grid,
         triangles: counts[0] as usize,
@@ -202,6 +280,7 @@ pub fn write_volume(
         hdf_path,
         ply_path,
         evals_per_node,
+        trimmed,
     })
 }
 

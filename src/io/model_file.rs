@@ -6,7 +6,8 @@
 //!   kernel), `kernel_dim` (n), `kernel_order` (m; 2 for a Wendland kernel, whose polynomial part
 //!   is linear), `kernel` (name, e.g. "r" or "wendland2 (support 0.08)"), for a compactly
 //!   supported kernel `kernel_compact` (`wendland0`, `wendland2` or `wendland4`) and
-//!   `kernel_support` (R, normalised coordinates), `carrier` (spec, see `carrier`),
+//!   `kernel_support` (R, normalised coordinates), for a smoothing spline `kernel_smoothing`
+//!   (lambda, see `Kernel::nugget`; it shaped the weights and plays no part in evaluation), `carrier` (spec, see `carrier`),
 //!   `normalisation_centre` (3 doubles), `normalisation_scale`, and the provenance:
 //!   `input`, `data_box_lo`, `data_box_hi` (the input points' bounding box), `points_read`, `duplicates_merged`, `solver`, `residual`, `ranks`, `threads`,
 //!   `volspline_version`, `timing_stages` (comma-separated), `timing_seconds`;
@@ -79,6 +80,9 @@ fn write_level(a: &Attrs<'_>, prefix: &str, sp: &Spline) -> Result<()> {
     if let Some(w) = sp.kernel.wendland_part() {
         a.put_str(&format!("{prefix}kernel_compact"), w.kind.name())?;
         a.put_f64s(&format!("{prefix}kernel_support"), &[w.support])?;
+    }
+    if sp.kernel.smoothing() > 0.0 {
+        a.put_f64s(&format!("{prefix}kernel_smoothing"), &[sp.kernel.smoothing()])?;
     }
     let mut caller = vec![0.0; sp.centres.len()];
     for (c, pn) in caller.chunks_exact_mut(dim).zip(sp.centres.chunks_exact(dim)) {
@@ -159,6 +163,14 @@ fn read_level(a: &Attrs<'_>, prefix: &str, norm: Normalisation) -> Result<Spline
         )));
     }
     .map_err(|e| bad(e.to_string()))?;
+    let kernel = if f.attr(&name("kernel_smoothing")).is_ok() {
+        match a.f64s(&name("kernel_smoothing"))?[..] {
+            [lambda] => kernel.with_smoothing(lambda).map_err(|e| bad(e.to_string()))?,
+            _ => return Err(bad("kernel_smoothing must hold one number".into())),
+        }
+    } else {
+        kernel
+    };
     let dim = kernel.dim();
     let n = a.expect_shape(&name("centres_normalised"), &[None, Some(3)])?[0];
     if n == 0 {

@@ -5,7 +5,8 @@
 //! per-rank pieces into one deterministic mesh ([`weld()`]), PLY output
 //! ([`write_ply`]), exact point-to-mesh distances ([`point_mesh_distances`]) and
 //! topological checks ([`connected_components`], [`is_closed_manifold_edges`],
-//! [`signed_volume`]) and plane cuts into polylines ([`cut_by_plane`]).
+//! [`signed_volume`]), plane cuts into polylines ([`cut_by_plane`]) and trimming
+//! ([`trim::keep_triangles`]).
 //!
 //! Conventions shared by all submodules:
 //! - grid values are stored x fastest: `index = i + nx * (j + ny * k)`, node
@@ -20,6 +21,7 @@ pub mod marching_cubes;
 pub mod ply;
 pub mod slice;
 pub mod topology;
+pub mod trim;
 pub mod weld;
 
 pub use distance::point_mesh_distances;

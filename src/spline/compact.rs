@@ -201,7 +201,8 @@ pub fn assemble_lower(
             let mut cols = Vec::with_capacity(found.len());
             let mut vals = Vec::with_capacity(found.len());
             for &j in found.iter() {
-                let v = kernel.eval_r2(dist2(pi, &centres[3 * j..3 * j + 3]));
+                let v = kernel.eval_r2(dist2(pi, &centres[3 * j..3 * j + 3]))
+                    + if j == i { kernel.nugget() } else { 0.0 };
                 if v != 0.0 || j == i {
                     cols.push(j);
                     vals.push(v);
@@ -294,8 +295,14 @@ mod tests {
         // every 13th row, a few rows at the ends, and the polynomial rows of the dense system
         let mut rows: Vec<usize> = (0..n).step_by(13).collect();
         rows.extend([1, n - 2, n - 1]);
-        for (name, support) in [("wendland0", 0.05), ("wendland2", 0.1), ("wendland4", 0.03)] {
-            let kernel = wendland(name, support);
+        // the last with smoothing: both assemblies add it to the diagonal alone
+        for (name, support, lambda) in [
+            ("wendland0", 0.05, 0.0),
+            ("wendland2", 0.1, 0.0),
+            ("wendland4", 0.03, 0.0),
+            ("wendland2", 0.1, 0.25),
+        ] {
+            let kernel = wendland(name, support).with_smoothing(lambda).unwrap();
             let (a, stats) = assemble_lower(&kernel, &centres, &tree, &rows).unwrap();
             let width = system_size(&kernel, n) + 1;
             let mut dense = vec![0.0; rows.len() * width];
@@ -307,6 +314,11 @@ mod tests {
                 let want: Vec<(usize, f64)> =
                     (0..=i).filter(|&j| at(l, j) != 0.0 || j == i).map(|j| (j, at(l, j))).collect();
                 assert_eq!(stored, want, "{name}, row {i}");
+                assert_eq!(
+                    at(l, i),
+                    kernel.eval_r2(0.0) + lambda,
+                    "{name}: phi(0) plus the smoothing on the diagonal"
+                );
                 counts.push((0..n).filter(|&j| at(l, j) != 0.0).count());
             }
             assert_eq!(a.rows, rows);

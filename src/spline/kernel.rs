@@ -27,6 +27,8 @@ pub struct Kernel {
     dim: usize,
     order: usize,
     compact: Option<Wendland>,
+    /// The smoothing lambda >= 0 of the system (0: interpolation); see [`Kernel::nugget`].
+    smoothing: f64,
 }
 
 /// The smoothness of a Wendland function phi_{3,k} (C^0, C^2 or C^4 at the origin and at the
@@ -101,7 +103,7 @@ impl Kernel {
                 "kernel order m = {order} in dimension n = {dim}: need 2m > n and m <= 4"
             )));
         }
-        Ok(Kernel { dim, order, compact: None })
+        Ok(Kernel { dim, order, compact: None, smoothing: 0.0 })
     }
 
     /// The compactly supported kernel `name` (`wendland0`, `wendland2` or `wendland4`) with support
@@ -118,7 +120,7 @@ impl Kernel {
                 "kernel {name}: the support radius must be a positive number, not {support}"
             )));
         }
-        Ok(Kernel { dim: 3, order: 2, compact: Some(Wendland { kind, support }) })
+        Ok(Kernel { dim: 3, order: 2, compact: Some(Wendland { kind, support }), smoothing: 0.0 })
     }
 
     /// The Wendland function and its support when the kernel is compactly supported.
@@ -139,6 +141,32 @@ impl Kernel {
             "r3" => Kernel::new(3, 3),
             other => Err(Error::Usage(format!("unknown kernel '{other}' (expected r or r3)"))),
         }
+    }
+
+    /// The same kernel with smoothing `lambda` (a finite number >= 0; 0 interpolates): the
+    /// system's diagonal gets [`Kernel::nugget`], the values of the spline away from its centres
+    /// do not change.
+    pub fn with_smoothing(self, lambda: f64) -> Result<Self> {
+        if !(lambda >= 0.0 && lambda.is_finite()) {
+            return Err(Error::Usage(format!("smoothing must be a finite number >= 0, not {lambda}")));
+        }
+        Ok(Kernel { smoothing: lambda, ..self })
+    }
+
+    /// The smoothing lambda of the system (0 for an interpolating spline).
+    pub fn smoothing(&self) -> f64 {
+        self.smoothing
+    }
+
+    /// What smoothing adds to each diagonal entry A_ii of the system: s lambda, s the
+    /// [`Kernel::definiteness_sign`]. The smoothing spline minimises
+    /// sum_i (U(P_i) - r_i)^2 + lambda E(U) (E the energy that s G measures); its equations are
+    /// those of the interpolant with (s A + lambda I) in place of s A, that is A + s lambda I:
+    /// U(P_i) = r_i - s lambda lambda_i. The shift makes s A more definite, so every solver that
+    /// takes the interpolant takes the smoothing spline too.
+    #[inline]
+    pub fn nugget(&self) -> f64 {
+        self.definiteness_sign() * self.smoothing
     }
 
     pub fn dim(&self) -> usize {

@@ -220,6 +220,7 @@ fn fill_with(
         return;
     }
     let monomials = kernel.monomials();
+    let nugget = kernel.nugget();
     // column j is filled for all the rows at once: one parallel task per column
     out.par_chunks_mut(lc).zip(cols).for_each(|(col, &j)| {
         if j < n {
@@ -230,6 +231,11 @@ fn fill_with(
                 } else {
                     monomial(&monomials[g - n], pj)
                 };
+            }
+            if nugget != 0.0 {
+                if let Some(at) = rows.iter().position(|&g| g == j) {
+                    col[at] += nugget;
+                }
             }
         } else if j < n + k {
             for (v, &g) in col.iter_mut().zip(rows) {
@@ -296,6 +302,7 @@ pub fn residual_parts(
                     let r2: f64 = pg.iter().zip(pj).map(|(a, b)| (a - b) * (a - b)).sum();
                     s += kernel.eval_r2(r2) * x[j];
                 }
+                s += kernel.nugget() * x[g];
                 for (t, e) in monomials.iter().enumerate() {
                     s += monomial(e, pg) * x[n + t];
                 }

@@ -15,7 +15,8 @@
 //!   patches whose normals point inward (a false shell around a thin part), turned for a
 //!   second fit;
 //! - [`blobs`]: after a first fit, the regions it makes inside with no data to support them,
-//!   pinned outside by further points for a second fit.
+//!   pinned outside by further points for a second fit;
+//! - [`support`]: where the data support the reconstructed surface, for trimming it.
 //!
 //! Everything works in the normalised coordinates of the spline's centres (the data's box
 //! centred, its half-diagonal 1) and is identical on every rank, except the dense dipole sums,
@@ -27,6 +28,7 @@ pub mod normals;
 pub mod offsurface;
 pub mod orient;
 pub mod rays;
+pub mod support;
 
 pub use offsurface::{off_points, off_value_parts, off_values, OffPoints, DELTA};
 pub use orient::{orient, Orientation};

@@ -227,6 +227,7 @@ fn residual(
                     kernel.eval_r2(d2) * x[j]
                 })
                 .sum();
+            s += kernel.nugget() * x[i];
             s += (0..k).map(|l| p[i + l * n] * x[n + l]).sum::<f64>();
             let (d, b) = ((s - values[i]) * scale, values[i] * scale);
             [d * d, b * b]

@@ -124,7 +124,7 @@ pub fn fit(
     let keep = even_subsample(&prep.centres, coarse_points);
     let sub = restrict(prep, &keep);
     let mut constrained = constrain(run, &sub, &mut inner)?;
-    let r = Kernel::new(3, 2)?;
+    let r = Kernel::new(3, 2)?.with_smoothing(run.args.smooth)?;
     let mut refit = |p: &Prepared, st: &mut Stages| {
         dense::check(run.comm, &r, p.values.len(), run.args.precision)?;
         dense::fit(run, r, p, st)

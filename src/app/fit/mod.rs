@@ -17,7 +17,7 @@ use super::preflight::{available_per_rank, check_prefix, dense_fit_bytes};
 use super::render::{preview_view, write_picture};
 use super::report::{run_provenance, Report};
 use super::stages::{Stage, Stages};
-use super::volume::{check_grid, output_path, throughput_line, write_volume};
+use super::volume::{check_grid, output_path, throughput_line, write_volume_with, Trim};
 use crate::cli::{FitArgs, KernelChoice, Method};
 use crate::error::{Error, Result};
 use crate::frep::raycast::Colouring;
@@ -29,6 +29,7 @@ use crate::spline::compact::{default_support, DEFAULT_NEIGHBOURS};
 use crate::spline::hygiene::{prepare, Prepared};
 use crate::spline::system::power_of_two_below_inverse;
 use crate::spline::{Evaluator, Kernel, Model, Provenance, Spline};
+use crate::surface::support::DataSupport;
 
 pub use dense::{assemble, assemble_blocks};
 
@@ -82,8 +83,15 @@ fn wendland(a: &FitArgs, smoothness: u8, centres: &[f64]) -> Result<Kernel> {
     Kernel::wendland(name, support)
 }
 
-/// The method and the kernel of a run of `n` points on `ranks` ranks, and why they were chosen.
+/// The method and the kernel (with `--smooth`) of a run of `n` points on `ranks` ranks, and why
+/// they were chosen.
 fn choose(a: &FitArgs, n: usize, ranks: usize, centres: &[f64]) -> Result<(Method, Kernel, String)> {
+    let (method, kernel, why) = choose_kernel(a, n, ranks, centres)?;
+    Ok((method, kernel.with_smoothing(a.smooth)?, why))
+}
+
+/// [`choose`] before the smoothing.
+fn choose_kernel(a: &FitArgs, n: usize, ranks: usize, centres: &[f64]) -> Result<(Method, Kernel, String)> {
     let asked = || "as asked".to_string();
     match (a.method, a.kernel) {
         (Method::Csrbf, KernelChoice::Global(k)) => Err(Error::Usage(format!(
@@ -197,7 +205,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     };
     let levels: Vec<&Spline> = fitted.coarse.iter().chain(std::iter::once(&fitted.spline)).collect();
     let (rms, max_abs) = stages.time(Stage::Check, || at_points(comm, &levels, &prep));
-    let Prepared { carrier, box_lo: lo, box_hi: hi, merged, .. } = prep;
+    let Prepared { carrier, box_lo: lo, box_hi: hi, merged, points: prep_points, .. } = prep;
     let model = Model {
         carrier,
         spline: fitted.spline,
@@ -224,7 +232,9 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     })?;
     let solid = (a.grid.curvature || !a.no_preview).then(|| ModelSolid::new(model.clone()));
     let curvature = solid.as_ref().filter(|_| a.grid.curvature).map(|s| s as &dyn Implicit);
-    let volume = write_volume(comm, &model, curvature, &grid, &a.out, &mut stages)?;
+    let support = a.trim.map(|f| DataSupport::new(&prep_points, f));
+    let trim = support.as_ref().map(|support| Trim { support, factor: a.trim.unwrap_or_default() });
+    let volume = write_volume_with(comm, &model, curvature, &grid, &a.out, trim.as_ref(), &mut stages)?;
     let preview = output_path(&a.out, ".png");
     if let Some(s) = solid.as_ref().filter(|_| !a.no_preview) {
         write_picture(comm, s, &preview_view(), Colouring::Shading, &preview, &mut stages)?;
@@ -232,8 +242,12 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
 
     let mut r = Report::new("fit", &a.input);
     let method_name = if method == Method::Csrbf { "csrbf" } else { "dense" };
+    let smoothing = match kernel.smoothing() {
+        0.0 => String::new(),
+        l => format!(", smoothing {l} (|f| at the data is the misfit it allows)"),
+    };
     r.line(format!(
-        "N = {n} points ({points_read} read, {merged} duplicates merged), method {method_name} ({why}), kernel {}",
+        "N = {n} points ({points_read} read, {merged} duplicates merged), method {method_name} ({why}), kernel {}{smoothing}",
         kernel.name()
     ));
     r.line(surface_line(summary.as_ref(), two_level));
@@ -249,6 +263,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     r.figure("points", n);
     r.figure("method", method_name);
     r.figure("kernel", kernel.name());
+    r.figure("smoothing", kernel.smoothing());
     r.figure("surface", surface::name(off));
     r.figure("levels", if two_level { 2 } else { 1 });
     if let Some(s) = &summary {

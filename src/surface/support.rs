@@ -1,0 +1,83 @@
+//! Where the data support a reconstructed surface: within a distance of some data point. The
+//! distance is a multiple F of the data's median spacing (the median distance from a data point
+//! to its nearest other one), so that one F serves scans of every size and density.
+//!
+//! Trimming the triangles of the solid's surface that no data point supports (`fit --trim F`)
+//! opens the solid where the scan has holes, and removes what the spline invented away from the
+//! data (bulges over the thin parts, webs between them), as density trimming does for screened
+//! Poisson. The closed solid stays the model; the trimmed surface is a further output. Measured
+//! on the surface benchmark: F = 2 left out 5-12 % of the area and brought the mesh -> truth
+//! distance of the bunny at 1000 points from 0.65 to 0.34 % of the diagonal (far vertices 2.2 ->
+//! 0.4 %), and the cow at 2000 from 0.88 to 0.30 %, while truth -> mesh rose by at most 0.03 %
+//! on closed scans; on open scans the cut hole shows in truth -> mesh (the cow at 1000 points
+//! 1.09 -> 1.69 %).
+
+use rayon::prelude::*;
+
+use crate::spline::octree::{Octree, DEFAULT_LEAF_CAPACITY};
+
+/// The data points and the radius within which they support a surface.
+pub struct DataSupport {
+    tree: Octree,
+    /// The median distance from a data point to its nearest other data point.
+    pub spacing: f64,
+    /// F times the spacing.
+    pub radius: f64,
+}
+
+impl DataSupport {
+    /// The support of `points` (3 values per point, at least 2 distinct) at `factor` times their
+    /// median spacing.
+    pub fn new(points: &[f64], factor: f64) -> Self {
+        let tree = Octree::new(points, DEFAULT_LEAF_CAPACITY);
+        let n = points.len() / 3;
+        // the first search radius: the spacing of n points spread over a square of the box's
+        // diagonal, so that few searches are repeated and none takes every point
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for p in points.chunks_exact(3) {
+            for d in 0..3 {
+                lo[d] = lo[d].min(p[d]);
+                hi[d] = hi[d].max(p[d]);
+            }
+        }
+        let diag = (0..3).map(|d| (hi[d] - lo[d]).powi(2)).sum::<f64>().sqrt();
+        let guess = diag / (n.max(1) as f64).sqrt();
+        let mut nearest: Vec<f64> = (0..n)
+            .into_par_iter()
+            .map(|i| tree.kth_distance([points[3 * i], points[3 * i + 1], points[3 * i + 2]], 2, guess))
+            .filter(|d| *d > 0.0 && d.is_finite())
+            .collect();
+        let spacing = if nearest.is_empty() {
+            0.0
+        } else {
+            let mid = nearest.len() / 2;
+            *nearest.select_nth_unstable_by(mid, f64::total_cmp).1
+        };
+        DataSupport { tree, spacing, radius: factor * spacing }
+    }
+
+    /// Whether some data point lies within the radius of `x`.
+    pub fn supports(&self, x: &[f64; 3]) -> bool {
+        let mut found = Vec::new();
+        self.tree.within(*x, self.radius, &mut found);
+        !found.is_empty()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_grid_of_points_supports_its_neighbourhood_only() {
+        // a 10 x 10 grid of spacing 0.5 in the plane z = 0
+        let pts: Vec<f64> = (0..100).flat_map(|i| [0.5 * (i % 10) as f64, 0.5 * (i / 10) as f64, 0.0]).collect();
+        let s = DataSupport::new(&pts, 2.0);
+        assert_eq!(s.spacing, 0.5);
+        assert_eq!(s.radius, 1.0);
+        assert!(s.supports(&[2.25, 2.25, 0.9]));
+        assert!(s.supports(&[0.0, 0.0, 1.0]));
+        assert!(!s.supports(&[0.0, 0.0, 1.01]));
+        assert!(!s.supports(&[-1.0, -1.0, 0.0]));
+    }
+}
