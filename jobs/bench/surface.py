@@ -1,7 +1,7 @@
 """Surface quality on unoriented scans: volspline's methods against screened Poisson.
 
   python3 surface.py OUT [--check] [--quick] [--meshes bunny,cow] [--sizes 400,1000,2000,4000]
-                         [--variant-sizes 1000,2000] [--methods default,carrier,poisson]
+                         [--variant-sizes 1000,2000] [--methods default,trimmed,carrier,poisson]
                          [--ranks 2] [--grid 100] [--poisson-depth 8] [--sampling area|strided]
 
 Point sets. For each mesh (tests/data/bunny10k.obj, tests/data/cow.obj) and each size N: N
@@ -18,7 +18,9 @@ taken.
 
 Methods. `default`: `volspline fit` with no surface option (the new default); `carrier`: the
 plain carrier method of Savchenko et al. 1995 (`--surface carrier`); `offsurface`:
-`--surface offsurface`; `energy`: the default with `--orient-energy on` (patches of the normals
+`--surface offsurface`; `trimmed`: the default's surface trimmed by `--trim` (triangles farther
+than twice the data's median spacing from every data point left out: an open surface, whose
+targets are reported apart); `energy`: the default with `--orient-energy on` (patches of the normals
 turned by the spline's bending energy, src/surface/energy.rs); `side`: the default with
 `--orient-side on` (the side vote of src/surface/orient.rs). A binary whose `fit --help` has no `--surface` only has the plain method:
 then `carrier` runs it without the flag and `default`/`offsurface` are dropped with a note.
@@ -171,7 +173,8 @@ def run_volspline(args, flags, xyz, prefix):
     stages = [float(val) for key, val in kv.items() if key.startswith("stage_") and key.endswith("_max_s")]
     times = {"fit_s": f"{sum(stages):.3f}", "solve_s": kv.get("stage_solve_max_s", ""),
              "evaluate_s": kv.get("stage_evaluate_max_s", ""), "wall_s": f"{wall:.3f}"}
-    v, f = distance.read_mesh(prefix + ".ply")
+    # with --trim the trimmed surface is the one measured
+    v, f = distance.read_mesh(prefix + (".trimmed.ply" if "--trim" in flags else ".ply"))
     if len(f) == 0:
         return "empty", "no surface", None, times
     return "ok", kv.get("method", ""), (v, f), times
@@ -201,7 +204,8 @@ def run_poisson(args, pts):
 def method_list(args, has_surface):
     """[(label, kind, flags)] of the methods this binary can run, and a note on the choice."""
     if has_surface:
-        flags = {"default": [], "poisson": [], "energy": ["--orient-energy", "on"], "side": ["--orient-side", "on"]}
+        flags = {"default": [], "poisson": [], "energy": ["--orient-energy", "on"], "side": ["--orient-side", "on"],
+                 "trimmed": ["--trim"]}
         return [(m, "poisson" if m == "poisson" else "volspline",
                  flags.get(m, ["--surface", m])) for m in args.methods], ""
     # a binary without --surface has one method, the plain carrier method: run it once as `carrier`
@@ -222,7 +226,7 @@ def parse(argv):
     ap.add_argument("--meshes", type=lst(str), default=["bunny", "cow"])
     ap.add_argument("--sizes", type=lst(int), default=[400, 1000, 2000, 4000])
     ap.add_argument("--variant-sizes", type=lst(int), default=[1000, 2000])
-    ap.add_argument("--methods", type=lst(str), default=["default", "carrier", "poisson"])
+    ap.add_argument("--methods", type=lst(str), default=["default", "trimmed", "carrier", "poisson"])
     ap.add_argument("--ranks", type=int, default=2)
     ap.add_argument("--grid", type=int, default=100)
     ap.add_argument("--poisson-depth", type=int, default=8)
@@ -236,8 +240,8 @@ def parse(argv):
         if m not in MESHES:
             ap.error(f"unknown mesh {m} (one of {', '.join(MESHES)})")
     for m in args.methods:
-        if m not in ("default", "carrier", "offsurface", "energy", "side", "poisson"):
-            ap.error(f"unknown method {m} (default, carrier, offsurface, energy, side, poisson)")
+        if m not in ("default", "carrier", "offsurface", "energy", "side", "trimmed", "poisson"):
+            ap.error(f"unknown method {m} (default, carrier, offsurface, energy, side, trimmed, poisson)")
     if args.quick:
         args.sizes, args.variant_sizes, args.grid = [1000, 2000], [1000], 64
     return args
@@ -291,7 +295,8 @@ def main(argv):
                 row.update(times)
                 if rec is not None:
                     row.update(mesh_stats(rec[0], rec[1], truth, tv, tf, diag))
-                    results[label] = (kind, prefix, rec)
+                    # the trimmed surface is drawn as its mesh's cut: its volume is the default's closed solid
+                    results[label] = ("mesh" if "--trim" in flags else kind, prefix, rec)
                 writer.writerow(row)
                 rows.flush()
                 print(f"  {name:20s} {label:10s} {status:6s} t2m rms {row.get('t2m_rms_pct', '-'):>7s} "

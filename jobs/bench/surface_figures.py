@@ -14,7 +14,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
-COLOURS = {"default": "tab:blue", "carrier": "tab:orange", "offsurface": "tab:purple", "poisson": "tab:green"}
+COLOURS = {"default": "tab:blue", "carrier": "tab:orange", "offsurface": "tab:purple", "poisson": "tab:green",
+           "trimmed": "tab:cyan"}
 AXES = "xyz"
 
 

@@ -8,12 +8,8 @@ use super::TriMesh;
 
 /// The triangles of `mesh` whose centroid `keep` accepts, and their vertices.
 pub fn keep_triangles(mesh: &TriMesh, keep: impl Fn(&[f64; 3]) -> bool + Sync) -> TriMesh {
-    let kept: Vec<[u32; 3]> = mesh
-        .triangles
-        .par_iter()
-        .filter(|t| keep(&centroid(mesh, t)))
-        .copied()
-        .collect();
+    let kept: Vec<[u32; 3]> =
+        mesh.triangles.par_iter().filter(|t| keep(&centroid(mesh, t))).copied().collect();
     let mut new_index = vec![u32::MAX; mesh.vertices.len()];
     for t in &kept {
         for &v in t {

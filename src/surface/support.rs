@@ -71,7 +71,8 @@ mod tests {
     #[test]
     fn a_grid_of_points_supports_its_neighbourhood_only() {
         // a 10 x 10 grid of spacing 0.5 in the plane z = 0
-        let pts: Vec<f64> = (0..100).flat_map(|i| [0.5 * (i % 10) as f64, 0.5 * (i / 10) as f64, 0.0]).collect();
+        let pts: Vec<f64> =
+            (0..100).flat_map(|i| [0.5 * (i % 10) as f64, 0.5 * (i / 10) as f64, 0.0]).collect();
         let s = DataSupport::new(&pts, 2.0);
         assert_eq!(s.spacing, 0.5);
         assert_eq!(s.radius, 1.0);
