@@ -15,7 +15,7 @@ use crate::frep::curvature::{curvature, Curvature};
 use crate::frep::Implicit;
 use crate::grid::{padded_box, Grid, GridSize};
 use crate::io::{self, vtkhdf};
-use crate::mesh::trim::{area, keep_triangles};
+use crate::mesh::trim::{area, keep_triangles_indexed};
 use crate::mesh::{self, MeshPiece, SlabGrid, TriMesh};
 use crate::par::{on_root, Comm};
 use crate::spline::{Field, Provenance};
@@ -244,7 +244,12 @@ pub fn write_volume_with(
                 mesh::write_ply_with(tmp, &mesh, &props).map_err(|e| Error::io(tmp, &e))
             })?;
             if let Some(t) = trim {
-                let kept = keep_triangles(&mesh, |c| t.support.supports(c));
+                let (kept, from) = keep_triangles_indexed(&mesh, |c| t.support.supports(c));
+                // the kept vertices' curvatures
+                let kept_props: Vec<Vec<f64>> =
+                    props.iter().map(|(_, v)| from.iter().map(|&i| v[i]).collect()).collect();
+                let kept_props: Vec<mesh::VertexProperty<'_>> =
+                    props.iter().zip(&kept_props).map(|((name, _), v)| (*name, v.as_slice())).collect();
                 let whole = area(&mesh);
                 trimmed = Some(Trimmed {
                     factor: t.factor,
@@ -254,7 +259,7 @@ pub fn write_volume_with(
                     path: trimmed_path.clone(),
                 });
                 io::write_atomically(&trimmed_path, |tmp| {
-                    mesh::write_ply(tmp, &kept).map_err(|e| Error::io(tmp, &e))
+                    mesh::write_ply_with(tmp, &kept, &kept_props).map_err(|e| Error::io(tmp, &e))
                 })?;
             }
             Ok(())

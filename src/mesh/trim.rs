@@ -8,6 +8,15 @@ use super::TriMesh;
 
 /// The triangles of `mesh` whose centroid `keep` accepts, and their vertices.
 pub fn keep_triangles(mesh: &TriMesh, keep: impl Fn(&[f64; 3]) -> bool + Sync) -> TriMesh {
+    keep_triangles_indexed(mesh, keep).0
+}
+
+/// [`keep_triangles`], and for each vertex kept its index in `mesh` (to carry vertex properties
+/// over).
+pub fn keep_triangles_indexed(
+    mesh: &TriMesh,
+    keep: impl Fn(&[f64; 3]) -> bool + Sync,
+) -> (TriMesh, Vec<usize>) {
     let kept: Vec<[u32; 3]> =
         mesh.triangles.par_iter().filter(|t| keep(&centroid(mesh, t))).copied().collect();
     let mut new_index = vec![u32::MAX; mesh.vertices.len()];
@@ -16,15 +25,16 @@ pub fn keep_triangles(mesh: &TriMesh, keep: impl Fn(&[f64; 3]) -> bool + Sync) -
             new_index[v as usize] = 0;
         }
     }
-    let mut vertices = Vec::new();
+    let (mut vertices, mut from) = (Vec::new(), Vec::new());
     for (v, slot) in new_index.iter_mut().enumerate() {
         if *slot == 0 {
             *slot = vertices.len() as u32;
             vertices.push(mesh.vertices[v]);
+            from.push(v);
         }
     }
     let triangles = kept.iter().map(|t| t.map(|v| new_index[v as usize])).collect();
-    TriMesh { vertices, triangles }
+    (TriMesh { vertices, triangles }, from)
 }
 
 /// The centroid of triangle `t` of `mesh`.
@@ -78,6 +88,7 @@ mod tests {
         let one = keep_triangles(&m, |c| c[0] > 0.5 && c[0] < 5.0);
         assert_eq!(one.vertices, vec![[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]]);
         assert_eq!(one.triangles, vec![[0, 2, 1]]);
+        assert_eq!(keep_triangles_indexed(&m, |c| c[0] > 0.5 && c[0] < 5.0).1, vec![1, 2, 3]);
         assert!((area(&one) - 0.5).abs() < 1e-15);
         assert_eq!(keep_triangles(&m, |_| false), TriMesh::default());
         assert_eq!(keep_triangles(&m, |_| true), m);
