@@ -230,6 +230,10 @@ pub struct EvalArgs {
     /// Box to evaluate: xmin,ymin,zmin,xmax,ymax,zmax (default: the data's box plus --margin).
     #[arg(long, value_name = "BOX", allow_hyphen_values = true, value_parser = with(parse_bounds))]
     pub bounds: Option<([f64; 3], [f64; 3])>,
+    /// Also write PREFIX.trimmed.ply, as `fit --trim F` does, from the data points the model
+    /// records (a model of scattered points written by `fit`; F = 2 when no value is given).
+    #[arg(long, value_name = "F", num_args = 0..=1, default_missing_value = "2", value_parser = trim_factor)]
+    pub trim: Option<f64>,
     #[command(flatten)]
     pub grid: GridArgs,
 }

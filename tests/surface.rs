@@ -539,7 +539,20 @@ fn trimming_leaves_out_the_unsupported_surface_of_the_cow_and_keeps_the_rest() {
         let c = volspline::mesh::trim::centroid(&closed, t);
         assert_eq!(kept.contains(&key(&closed, t)), supported(&c), "triangle at {c:?}");
     }
-    // a factor that is not a positive number is refused before any work
+    // eval trims the saved model alike: the model records its data points
+    let model = dir.join("s.model.h5");
+    let again = dir.join("again");
+    let (m, o) = (model.to_str().unwrap(), again.to_str().unwrap());
+    common::run_ok(1, &["eval", m, "--out", o, "--grid", "64", "--trim"]);
+    assert_eq!(
+        common::load_mesh(&dir.join("again.trimmed.ply")),
+        trimmed,
+        "eval --trim differs from fit --trim"
+    );
+    // a factor that is not a positive number is refused before any work, and so is an expression
     let bad = common::run(1, &[&args[..], &["--trim", "0"]].concat());
     assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("not a trimming factor"));
+    let expr = format!("offset({m}, 0.1)");
+    let bad = common::run(1, &["eval", &expr, "--out", o, "--grid", "16", "--trim"]);
+    assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("not an expression"));
 }

@@ -8,7 +8,9 @@ use super::report::Report;
 use super::stages::{Stage, Stages};
 use std::path::Path;
 
-use super::volume::{check_grid, model_grid, throughput_line, write_volume, VolumeSummary};
+use super::volume::{
+    check_grid, model_grid, throughput_line, write_volume, write_volume_with, Trim, VolumeSummary,
+};
 use crate::cli::EvalArgs;
 use crate::error::{Error, Result};
 use crate::frep::{Expr, Implicit, ModelSolid};
@@ -17,6 +19,8 @@ use crate::io::contour_model_file::{self, read_contour_model};
 use crate::io::h5::format_of;
 use crate::io::model_file::read_model;
 use crate::par::{agree, Comm};
+use crate::spline::Model;
+use crate::surface::support::DataSupport;
 
 /// Runs `volspline eval`. Collective.
 pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
@@ -26,10 +30,21 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut r = Report::new("eval", Path::new(&text));
     r.figure("model", &text);
     let Some(path) = a.model.as_model() else {
+        if a.trim.is_some() {
+            return Err(Error::Usage(
+                "--trim needs one model written by `fit` (its data points), not an expression".into(),
+            ));
+        }
         return expression(a, comm, threads, r, stages);
     };
     // an unreadable file is left to the scattered-point reader to report
     let is_contour = format_of(path).is_ok_and(|f| f == contour_model_file::FORMAT);
+    if is_contour && a.trim.is_some() {
+        return Err(Error::Usage(format!(
+            "--trim needs a model of scattered points written by `fit`; {} is a contour model",
+            path.display()
+        )));
+    }
     let per_node;
     let volume = if is_contour {
         let model = stages.time(Stage::Read, || agree(comm, read_contour_model(path)))?;
@@ -54,9 +69,11 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         let grid = model_grid(a.grid.grid, a.bounds, a.grid.margin, &model.provenance)?;
         check_grid(comm, &grid)?;
         check_grid_field(comm, &model, &grid)?;
+        let support = a.trim.map(|f| data_support(&model, path, f)).transpose()?;
+        let trim = support.as_ref().map(|support| Trim { support, factor: a.trim.unwrap_or_default() });
         let solid = a.grid.curvature.then(|| ModelSolid::new(model.clone()));
         let curvature = solid.as_ref().map(|s| s as &dyn Implicit);
-        let volume = write_volume(comm, &model, curvature, &grid, &a.out, &mut stages)?;
+        let volume = write_volume_with(comm, &model, curvature, &grid, &a.out, trim.as_ref(), &mut stages)?;
         let n = model.centre_count();
         let levels = if model.coarse.is_empty() {
             String::new()
@@ -107,6 +124,18 @@ fn expression(
     let per_node = volume.evals_per_node;
     r.figure("kernel_evals", grid.node_count() as f64 * per_node as f64);
     finish(a, comm, threads, r, stages, volume, per_node)
+}
+
+/// The support of the data points `model` records (the first `data_points` centres of its finest
+/// level, in the caller's coordinates) at `factor` times their median spacing.
+fn data_support(model: &Model, path: &Path, factor: f64) -> Result<DataSupport> {
+    DataSupport::of_model(model, factor).ok_or_else(|| {
+        Error::Usage(format!(
+            "{} does not record which of its centres are the data points (a model written before \
+             volspline recorded them): fit it again with --trim",
+            path.display()
+        ))
+    })
 }
 
 fn finish(

@@ -103,7 +103,7 @@ impl Attrs<'_> {
     }
 
     /// Writes the provenance attributes: `input`, `data_box_lo`, `data_box_hi`, `points_read`,
-    /// `duplicates_merged`, `solver`, `residual`, `ranks`, `threads`, `volspline_version`,
+    /// `duplicates_merged`, `data_points` (only when known), `solver`, `residual`, `ranks`, `threads`, `volspline_version`,
     /// `timing_stages` (comma-separated) and `timing_seconds`.
     pub fn put_provenance(&self, p: &Provenance) -> Result<()> {
         self.put_str("input", &p.input)?;
@@ -111,6 +111,9 @@ impl Attrs<'_> {
         self.put_str("volspline_version", &p.version)?;
         self.put_int("points_read", p.points_read as i64)?;
         self.put_int("duplicates_merged", p.duplicates_merged as i64)?;
+        if p.data_points > 0 {
+            self.put_int("data_points", p.data_points as i64)?;
+        }
         self.put_int("ranks", p.ranks as i64)?;
         self.put_int("threads", p.threads as i64)?;
         self.put_f64s("residual", &[p.residual])?;
@@ -131,6 +134,7 @@ impl Attrs<'_> {
             box_hi: self.point("data_box_hi")?,
             points_read: self.int("points_read").unwrap_or(0) as usize,
             duplicates_merged: self.int("duplicates_merged").unwrap_or(0) as usize,
+            data_points: self.int("data_points").unwrap_or(0).max(0) as usize,
             solver: self.str("solver").unwrap_or_default(),
             residual: self.f64s("residual").ok().and_then(|v| v.first().copied()).unwrap_or(f64::NAN),
             ranks: self.int("ranks").unwrap_or(0) as usize,

@@ -9,7 +9,9 @@
 //!   `kernel_support` (R, normalised coordinates), for a smoothing spline `kernel_smoothing`
 //!   (lambda, see `Kernel::nugget`; it shaped the weights and plays no part in evaluation), `carrier` (spec, see `carrier`),
 //!   `normalisation_centre` (3 doubles), `normalisation_scale`, and the provenance:
-//!   `input`, `data_box_lo`, `data_box_hi` (the input points' bounding box), `points_read`, `duplicates_merged`, `solver`, `residual`, `ranks`, `threads`,
+//!   `input`, `data_box_lo`, `data_box_hi` (the input points' bounding box), `points_read`, `duplicates_merged`,
+//!   `data_points` (how many of the finest level's centres, first in order, are the data points;
+//!   absent in files written before it was recorded), `solver`, `residual`, `ranks`, `threads`,
 //!   `volspline_version`, `timing_stages` (comma-separated), `timing_seconds`;
 //! - datasets `centres` (N x n, input coordinates), `centres_normalised` (N x n, the ones the
 //!   system was built from), `weights` (lambda, N), `poly_coefficients` (c, k) and
@@ -267,10 +269,14 @@ mod tests {
             Kernel::wendland("wendland0", 0.3).unwrap(),
             Kernel::wendland("wendland2", 0.0800622707907602).unwrap(),
             Kernel::wendland("wendland4", 1.25).unwrap(),
+            // a smoothing spline keeps its lambda
+            Kernel::new(3, 2).unwrap().with_smoothing(0.25).unwrap(),
+            Kernel::wendland("wendland2", 0.2).unwrap().with_smoothing(1e-3).unwrap(),
         ];
         for (i, k) in kernels.into_iter().enumerate() {
             let path = temp(&format!("round-trip-{i}"));
-            let m = model(k);
+            let mut m = model(k);
+            m.provenance.data_points = i % 2;
             write_model(&path, &m).unwrap();
             let back = read_model(&path).unwrap();
             let f = hdf5::File::open(&path).unwrap();
@@ -283,6 +289,7 @@ mod tests {
             assert_eq!(back.spline.kernel, k, "{}", k.name());
             assert_eq!(back.spline, m.spline);
             assert_eq!(back.carrier, m.carrier);
+            assert_eq!(back.provenance.data_points, m.provenance.data_points);
         }
     }
 

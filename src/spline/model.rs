@@ -64,6 +64,10 @@ pub struct Provenance {
     pub box_hi: [f64; 3],
     pub points_read: usize,
     pub duplicates_merged: usize,
+    /// How many of the finest level's centres, first in its order, are the data points (the
+    /// others are off-surface and blob constraints); 0 where unknown (contour models, files
+    /// written before it was recorded).
+    pub data_points: usize,
     pub solver: String,
     pub residual: f64,
     pub ranks: usize,

@@ -15,6 +15,7 @@
 use rayon::prelude::*;
 
 use crate::spline::octree::{Octree, DEFAULT_LEAF_CAPACITY};
+use crate::spline::Model;
 
 /// The data points and the radius within which they support a surface.
 pub struct DataSupport {
@@ -54,6 +55,23 @@ impl DataSupport {
             *nearest.select_nth_unstable_by(mid, f64::total_cmp).1
         };
         DataSupport { tree, spacing, radius: factor * spacing }
+    }
+
+    /// The support of the data points `model` records (the first `data_points` centres of its
+    /// finest level, mapped back to the caller's coordinates), or None where it does not record
+    /// them. `fit --trim` and `eval --trim` both take it, so that they trim alike.
+    pub fn of_model(model: &Model, factor: f64) -> Option<Self> {
+        let n = model.provenance.data_points;
+        let sp = &model.spline;
+        if n == 0 || n > sp.len() || sp.kernel.dim() != 3 {
+            return None;
+        }
+        let norm = sp.norm;
+        let points: Vec<f64> = sp.centres[..3 * n]
+            .chunks_exact(3)
+            .flat_map(|c| (0..3).map(move |d| c[d] * norm.scale + norm.centre[d]))
+            .collect();
+        Some(DataSupport::new(&points, factor))
     }
 
     /// Whether some data point lies within the radius of `x`.

@@ -205,7 +205,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     };
     let levels: Vec<&Spline> = fitted.coarse.iter().chain(std::iter::once(&fitted.spline)).collect();
     let (rms, max_abs) = stages.time(Stage::Check, || at_points(comm, &levels, &prep));
-    let Prepared { carrier, box_lo: lo, box_hi: hi, merged, points: prep_points, .. } = prep;
+    let Prepared { carrier, box_lo: lo, box_hi: hi, merged, .. } = prep;
     let model = Model {
         carrier,
         spline: fitted.spline,
@@ -216,6 +216,8 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             box_hi: [hi[0], hi[1], hi[2]],
             points_read,
             duplicates_merged: merged,
+            // the data come first among the finest level's centres, the constraint points after
+            data_points: n,
             solver: fitted.solver.clone(),
             residual: fitted.residual,
             ..run_provenance(comm, threads, &stages)
@@ -232,7 +234,8 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     })?;
     let solid = (a.grid.curvature || !a.no_preview).then(|| ModelSolid::new(model.clone()));
     let curvature = solid.as_ref().filter(|_| a.grid.curvature).map(|s| s as &dyn Implicit);
-    let support = a.trim.map(|f| DataSupport::new(&prep_points, f));
+    let support =
+        a.trim.map(|f| DataSupport::of_model(&model, f).expect("a fitted model records its data points"));
     let trim = support.as_ref().map(|support| Trim { support, factor: a.trim.unwrap_or_default() });
     let volume = write_volume_with(comm, &model, curvature, &grid, &a.out, trim.as_ref(), &mut stages)?;
     let preview = output_path(&a.out, ".png");
