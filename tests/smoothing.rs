@@ -20,14 +20,8 @@ use volspline::spline::{Carrier, Kernel, Spline};
 /// coordinate.
 fn noisy_bunny(step: usize) -> Vec<f64> {
     let pts = common::bunny_subset(step, 0);
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    for p in pts.chunks_exact(3) {
-        for d in 0..3 {
-            lo[d] = lo[d].min(p[d]);
-            hi[d] = hi[d].max(p[d]);
-        }
-    }
-    let diag = (0..3).map(|d| (hi[d] - lo[d]).powi(2)).sum::<f64>().sqrt();
+    let (lo, hi) = volspline::spline::hygiene::bounding_box(&pts, 3);
+    let diag = volspline::spline::hygiene::diagonal(&lo, &hi);
     let mut r = Rng(41);
     pts.iter().map(|x| x + 0.005 * diag * r.normal()).collect()
 }

@@ -14,6 +14,7 @@
 
 use rayon::prelude::*;
 
+use crate::spline::hygiene::{bounding_box, diagonal};
 use crate::spline::octree::{Octree, DEFAULT_LEAF_CAPACITY};
 use crate::spline::Model;
 
@@ -34,14 +35,8 @@ impl DataSupport {
         let n = points.len() / 3;
         // the first search radius: the spacing of n points spread over a square of the box's
         // diagonal, so that few searches are repeated and none takes every point
-        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-        for p in points.chunks_exact(3) {
-            for d in 0..3 {
-                lo[d] = lo[d].min(p[d]);
-                hi[d] = hi[d].max(p[d]);
-            }
-        }
-        let diag = (0..3).map(|d| (hi[d] - lo[d]).powi(2)).sum::<f64>().sqrt();
+        let (lo, hi) = bounding_box(points, 3);
+        let diag = diagonal(&lo, &hi);
         let guess = diag / (n.max(1) as f64).sqrt();
         let mut nearest: Vec<f64> = (0..n)
             .into_par_iter()
