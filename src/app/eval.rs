@@ -9,7 +9,7 @@ use super::stages::{Stage, Stages};
 use std::path::Path;
 
 use super::volume::{
-    check_grid, model_grid, throughput_line, write_volume, write_volume_with, Trim, VolumeSummary,
+    check_grid, model_grid, throughput_line, write_volume, write_volume_with, VolumeSummary,
 };
 use crate::cli::EvalArgs;
 use crate::error::{Error, Result};
@@ -70,10 +70,10 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         check_grid(comm, &grid)?;
         check_grid_field(comm, &model, &grid)?;
         let support = a.trim.map(|f| data_support(&model, path, f)).transpose()?;
-        let trim = support.as_ref().map(|support| Trim { support, factor: a.trim.unwrap_or_default() });
         let solid = a.grid.curvature.then(|| ModelSolid::new(model.clone()));
         let curvature = solid.as_ref().map(|s| s as &dyn Implicit);
-        let volume = write_volume_with(comm, &model, curvature, &grid, &a.out, trim.as_ref(), &mut stages)?;
+        let volume =
+            write_volume_with(comm, &model, curvature, &grid, &a.out, support.as_ref(), &mut stages)?;
         let n = model.centre_count();
         let levels = if model.coarse.is_empty() {
             String::new()

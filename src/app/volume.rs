@@ -115,14 +115,6 @@ fn curvatures(solid: &dyn Implicit, points: &[[f64; 3]]) -> (Vec<f64>, Vec<f64>)
     (c.iter().map(|c| c.mean).collect(), c.iter().map(|c| c.gaussian).collect())
 }
 
-/// The surface without the triangles no data supports, written as `PREFIX.trimmed.ply` besides
-/// the closed one.
-pub struct Trim<'a> {
-    pub support: &'a DataSupport,
-    /// The multiple of the data's median spacing (`--trim F`), for the report.
-    pub factor: f64,
-}
-
 /// What trimming left of the surface.
 #[derive(Debug, Clone)]
 pub struct Trimmed {
@@ -148,14 +140,15 @@ pub fn write_volume(
     write_volume_with(comm, field, curvature, grid, prefix, None, stages)
 }
 
-/// [`write_volume`], and with `trim` the trimmed surface `PREFIX.trimmed.ply` too. Collective.
+/// [`write_volume`], and with `trim` the surface without the triangles no data supports too,
+/// `PREFIX.trimmed.ply`. Collective.
 pub fn write_volume_with(
     comm: &dyn Comm,
     field: &dyn Field,
     curvature: Option<&dyn Implicit>,
     grid: &Grid,
     prefix: &Path,
-    trim: Option<&Trim<'_>>,
+    trim: Option<&DataSupport>,
     stages: &mut Stages,
 ) -> Result<VolumeSummary> {
     let slabs = grid.slabs(comm.size());
@@ -224,7 +217,8 @@ pub fn write_volume_with(
 
     let ply_path = output_path(prefix, ".ply");
     let trimmed_path = output_path(prefix, ".trimmed.ply");
-    let mut trimmed = None;
+    // triangles kept and share of the area left out, on rank 0
+    let mut trim_figures = [0.0f64; 2];
     let mut counts = [0u64; 2];
     stages.time(Stage::Mesh, || -> Result<()> {
         let piece = mesh::polygonise(
@@ -243,21 +237,16 @@ pub fn write_volume_with(
             io::write_atomically(&ply_path, |tmp| {
                 mesh::write_ply_with(tmp, &mesh, &props).map_err(|e| Error::io(tmp, &e))
             })?;
-            if let Some(t) = trim {
-                let (kept, from) = keep_triangles_indexed(&mesh, |c| t.support.supports(c));
+            if let Some(support) = trim {
+                let (kept, from) = keep_triangles_indexed(&mesh, |c| support.supports(c));
                 // the kept vertices' curvatures
                 let kept_props: Vec<Vec<f64>> =
                     props.iter().map(|(_, v)| from.iter().map(|&i| v[i]).collect()).collect();
                 let kept_props: Vec<mesh::VertexProperty<'_>> =
                     props.iter().zip(&kept_props).map(|((name, _), v)| (*name, v.as_slice())).collect();
                 let whole = area(&mesh);
-                trimmed = Some(Trimmed {
-                    factor: t.factor,
-                    radius: t.support.radius,
-                    triangles: kept.triangles.len(),
-                    area_removed: if whole > 0.0 { 1.0 - area(&kept) / whole } else { 0.0 },
-                    path: trimmed_path.clone(),
-                });
+                let removed = if whole > 0.0 { 1.0 - area(&kept) / whole } else { 0.0 };
+                trim_figures = [kept.triangles.len() as f64, removed];
                 io::write_atomically(&trimmed_path, |tmp| {
                     mesh::write_ply_with(tmp, &kept, &kept_props).map_err(|e| Error::io(tmp, &e))
                 })?;
@@ -267,15 +256,14 @@ pub fn write_volume_with(
     })?;
     comm.sum_u64(&mut counts);
     // every rank reports what rank 0 trimmed
-    let trimmed = trim.map(|t| {
-        let mut figures = trimmed.as_ref().map_or([0.0, 0.0], |k| [k.triangles as f64, k.area_removed]);
-        comm.broadcast_f64(0, &mut figures);
+    let trimmed = trim.map(|support| {
+        comm.broadcast_f64(0, &mut trim_figures);
         Trimmed {
-            factor: t.factor,
-            radius: t.support.radius,
-            triangles: figures[0] as usize,
-            area_removed: figures[1],
-            path: trimmed_path.clone(),
+            factor: support.factor,
+            radius: support.radius,
+            triangles: trim_figures[0] as usize,
+            area_removed: trim_figures[1],
+            path: trimmed_path,
         }
     });
     Ok(VolumeSummary {

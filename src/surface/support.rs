@@ -23,8 +23,15 @@ pub struct DataSupport {
     tree: Octree,
     /// The median distance from a data point to its nearest other data point.
     pub spacing: f64,
+    /// F, the multiple of the spacing.
+    pub factor: f64,
     /// F times the spacing.
     pub radius: f64,
+}
+
+thread_local! {
+    /// Scratch space of [`DataSupport::supports`], one per thread.
+    static FOUND: std::cell::RefCell<Vec<usize>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 impl DataSupport {
@@ -49,7 +56,7 @@ impl DataSupport {
             let mid = nearest.len() / 2;
             *nearest.select_nth_unstable_by(mid, f64::total_cmp).1
         };
-        DataSupport { tree, spacing, radius: factor * spacing }
+        DataSupport { tree, spacing, factor, radius: factor * spacing }
     }
 
     /// The support of the data points `model` records (the first `data_points` centres of its
@@ -71,9 +78,10 @@ impl DataSupport {
 
     /// Whether some data point lies within the radius of `x`.
     pub fn supports(&self, x: &[f64; 3]) -> bool {
-        let mut found = Vec::new();
-        self.tree.within(*x, self.radius, &mut found);
-        !found.is_empty()
+        FOUND.with_borrow_mut(|found| {
+            self.tree.within(*x, self.radius, found);
+            !found.is_empty()
+        })
     }
 }
 
@@ -88,7 +96,7 @@ mod tests {
             (0..100).flat_map(|i| [0.5 * (i % 10) as f64, 0.5 * (i / 10) as f64, 0.0]).collect();
         let s = DataSupport::new(&pts, 2.0);
         assert_eq!(s.spacing, 0.5);
-        assert_eq!(s.radius, 1.0);
+        assert_eq!((s.factor, s.radius), (2.0, 1.0));
         assert!(s.supports(&[2.25, 2.25, 0.9]));
         assert!(s.supports(&[0.0, 0.0, 1.0]));
         assert!(!s.supports(&[0.0, 0.0, 1.01]));

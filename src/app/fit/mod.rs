@@ -17,7 +17,7 @@ use super::preflight::{available_per_rank, check_prefix, dense_fit_bytes};
 use super::render::{preview_view, write_picture};
 use super::report::{run_provenance, Report};
 use super::stages::{Stage, Stages};
-use super::volume::{check_grid, output_path, throughput_line, write_volume_with, Trim};
+use super::volume::{check_grid, output_path, throughput_line, write_volume_with};
 use crate::cli::{FitArgs, KernelChoice, Method};
 use crate::error::{Error, Result};
 use crate::frep::raycast::Colouring;
@@ -236,8 +236,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let curvature = solid.as_ref().filter(|_| a.grid.curvature).map(|s| s as &dyn Implicit);
     let support =
         a.trim.map(|f| DataSupport::of_model(&model, f).expect("a fitted model records its data points"));
-    let trim = support.as_ref().map(|support| Trim { support, factor: a.trim.unwrap_or_default() });
-    let volume = write_volume_with(comm, &model, curvature, &grid, &a.out, trim.as_ref(), &mut stages)?;
+    let volume = write_volume_with(comm, &model, curvature, &grid, &a.out, support.as_ref(), &mut stages)?;
     let preview = output_path(&a.out, ".png");
     if let Some(s) = solid.as_ref().filter(|_| !a.no_preview) {
         write_picture(comm, s, &preview_view(), Colouring::Shading, &preview, &mut stages)?;
