@@ -104,6 +104,23 @@ fn a_reconstructed_sphere_has_curvature_one_over_its_radius() {
     assert!((mean - 1.0).abs() < 0.02, "median mean curvature * R = {mean}");
     assert!((gauss - 1.0).abs() < 0.02, "median Gaussian curvature * R^2 = {gauss}");
 
+    // the trimmed surface keeps each kept vertex's curvatures (a small factor leaves some out)
+    let model = dir.join("s.model.h5");
+    let trim = dir.join("trim");
+    let t = trim.to_str().unwrap();
+    run_ok(1, &["eval", model.to_str().unwrap(), "--out", t, "--grid", "32", "--curvature", "--trim", "0.5"]);
+    let names = ["mean_curvature", "gaussian_curvature"];
+    let (all, all_props) = ply_vertices(&dir.join("trim.ply"), &names);
+    let (kept, kept_props) = ply_vertices(&dir.join("trim.trimmed.ply"), &names);
+    assert!(!kept.is_empty() && kept.len() < all.len(), "{} of {} vertices kept", kept.len(), all.len());
+    let key = |p: &[f64; 3]| p.map(f64::to_bits);
+    let at: std::collections::HashMap<[u64; 3], usize> =
+        all.iter().enumerate().map(|(i, p)| (key(p), i)).collect();
+    for (k, p) in kept.iter().enumerate() {
+        let i = at[&key(p)];
+        assert_eq!((kept_props[0][k], kept_props[1][k]), (all_props[0][i], all_props[1][i]), "vertex {p:?}");
+    }
+
     // the volume arrays: near the sphere the level surfaces are nearly spheres through each node
     let (grid, m) = read_image(&dir.join("s.hdf"), "mean_curvature").unwrap();
     let (_, k) = read_image(&dir.join("s.hdf"), "gaussian_curvature").unwrap();
