@@ -166,6 +166,12 @@ pub struct FitArgs {
     /// src/surface/rays.rs).
     #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub orient_rays: bool,
+    /// Where the blob search after the first fit pins different nodes with its wide clearance
+    /// (5 % of the diagonal) and a narrow one (2 median spacings of the data), make both second
+    /// fits and keep the one with less surface far from every data point (on, or off: the wide
+    /// clearance alone); see src/surface/choice.rs. It costs a third fit where it applies.
+    #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
+    pub blob_choice: bool,
     /// Points of level 0 of the two-level compactly supported fit (--method csrbf with --surface
     /// auto or offsurface): a dense off-surface fit of this many points chosen evenly over space,
     /// the carrier of the Wendland spline through all points.

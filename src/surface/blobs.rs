@@ -219,63 +219,118 @@ pub struct Blobs {
 /// The spurious nodes (see the module doc) of the fit whose `values` were sampled on `lattice`,
 /// for data `points` (normalised, the tree `tree` over them) with outward unit `normals`.
 pub fn find(lattice: &Lattice, values: &[f64], points: &[f64], normals: &[[f64; 3]], tree: &Octree) -> Blobs {
-    let n = normals.len();
-    let h = lattice.h;
-    let positive: Vec<bool> = values.iter().map(|&v| v > 0.0).collect();
-    // distance to the nearest data point and the outside vote of every positive node
-    let judged: Vec<Option<(f64, usize, f64)>> = (0..lattice.len())
-        .into_par_iter()
-        .map_init(Vec::new, |found, i| {
-            if !positive[i] {
-                return None;
+    Search::new(lattice, values, points, normals, tree).blobs(lattice, CLEARANCE)
+}
+
+/// What the rules ask of every positive node of a sampled fit, whatever the clearance of rule 2:
+/// [`Search::blobs`] then takes the spurious nodes for a clearance.
+pub struct Search {
+    /// Of every positive node: the distance to the nearest data point, that point, and the
+    /// fraction of its [`VOTERS`] nearest data points that see it outside.
+    judged: Vec<Option<(f64, usize, f64)>>,
+    /// Whether the positive node's region comes near the data (rule 1).
+    supported: Vec<bool>,
+    /// Whether the positive node lies in a thin unsupported sheet (rule 3).
+    thin: Vec<bool>,
+    /// Positive regions that come nowhere near the data.
+    regions: usize,
+    /// The number of data points.
+    n: usize,
+}
+
+impl Search {
+    /// The rules applied to the fit whose `values` were sampled on `lattice`, for data `points`
+    /// (normalised, the tree `tree` over them) with outward unit `normals`.
+    pub fn new(
+        lattice: &Lattice,
+        values: &[f64],
+        points: &[f64],
+        normals: &[[f64; 3]],
+        tree: &Octree,
+    ) -> Search {
+        let n = normals.len();
+        let h = lattice.h;
+        let k = VOTERS.min(n);
+        let positive: Vec<bool> = values.iter().map(|&v| v > 0.0).collect();
+        // distance to the nearest data point and the outside vote of every positive node, a row
+        // of the lattice at a time: the k-th nearest distance grows by at most h from one node
+        // to the next, so that bound is the radius of a single search
+        let mut judged = vec![None; lattice.len()];
+        let nx = lattice.dims[0];
+        judged.par_chunks_mut(nx).enumerate().for_each(|(row, out)| {
+            let (mut found, mut near) = (Vec::new(), Vec::<(f64, usize)>::new());
+            let mut bound = f64::INFINITY;
+            for (x, o) in out.iter_mut().enumerate() {
+                let i = row * nx + x;
+                if positive[i] && k > 0 {
+                    let q = lattice.node(i);
+                    let mut r = bound;
+                    tree.within(q, r, &mut found);
+                    if found.len() < k {
+                        r = tree.kth_distance(q, k, h);
+                        tree.within(q, r, &mut found);
+                    }
+                    near.clear();
+                    near.extend(found.iter().map(|&j| (dist2(&q, &points[3 * j..]), j)));
+                    let by_distance =
+                        |a: &(f64, usize), b: &(f64, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+                    if near.len() > k {
+                        near.select_nth_unstable_by(k - 1, by_distance);
+                        near.truncate(k);
+                    }
+                    near.sort_by(by_distance);
+                    let (d2, nearest) = near[0];
+                    let outside = near
+                        .iter()
+                        .filter(|&&(_, j)| {
+                            (0..3).map(|d| (q[d] - points[3 * j + d]) * normals[j][d]).sum::<f64>() > 0.0
+                        })
+                        .count();
+                    *o = Some((d2.sqrt(), nearest, outside as f64 / k as f64));
+                    bound = near[k - 1].0.sqrt();
+                }
+                bound += h;
             }
-            let q = lattice.node(i);
-            let r = tree.kth_distance(q, VOTERS.min(n), h);
-            tree.within(q, r, found);
-            let mut near: Vec<(f64, usize)> =
-                found.iter().map(|&j| (dist2(&q, &points[3 * j..]), j)).collect();
-            near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            near.truncate(VOTERS.min(n));
-            let (d2, nearest) = *near.first()?;
-            let outside = near
-                .iter()
-                .filter(|&&(_, j)| {
-                    (0..3).map(|d| (q[d] - points[3 * j + d]) * normals[j][d]).sum::<f64>() > 0.0
-                })
-                .count();
-            Some((d2.sqrt(), nearest, outside as f64 / near.len() as f64))
-        })
-        .collect();
-    // regions of positive nodes; a region is supported when one of its nodes is within a cell
-    // diagonal of the data
-    let reach = h * 3f64.sqrt();
-    let (region, count) = lattice.regions(&positive);
-    let mut supported = vec![false; count];
-    for (i, j) in judged.iter().enumerate() {
-        if j.is_some_and(|(d, _, _)| d <= reach) {
-            supported[region[i]] = true;
+        });
+        // regions of positive nodes; a region is supported when one of its nodes is within a
+        // cell diagonal of the data
+        let reach = h * 3f64.sqrt();
+        let (region, count) = lattice.regions(&positive);
+        let mut near_data = vec![false; count];
+        for (i, j) in judged.iter().enumerate() {
+            if j.is_some_and(|(d, _, _)| d <= reach) {
+                near_data[region[i]] = true;
+            }
         }
+        let supported = (0..lattice.len()).map(|i| positive[i] && near_data[region[i]]).collect();
+        let thin = thin_unsupported(lattice, values, tree, points);
+        let regions = near_data.iter().filter(|&&s| !s).count();
+        Search { judged, supported, thin, regions, n }
     }
-    let mut blobs = Blobs { regions: supported.iter().filter(|&&s| !s).count(), ..Default::default() };
-    let thin = thin_unsupported(lattice, values, tree, points);
-    for (i, j) in judged.iter().enumerate() {
-        let Some((d, nearest, outside)) = *j else { continue };
-        let spurious = !supported[region[i]] || (d > CLEARANCE && outside >= AGREE) || thin[i];
-        if spurious {
-            blobs.centres.extend_from_slice(&lattice.node(i));
-            blobs.distance.push(d);
-            blobs.source.push(nearest);
+
+    /// The spurious nodes with the clearance of rule 2 `clearance` (normalised; [`find`] takes
+    /// [`CLEARANCE`]).
+    pub fn blobs(&self, lattice: &Lattice, clearance: f64) -> Blobs {
+        let mut blobs = Blobs { regions: self.regions, ..Default::default() };
+        for (i, j) in self.judged.iter().enumerate() {
+            let Some((d, nearest, outside)) = *j else { continue };
+            let spurious = !self.supported[i] || (d > clearance && outside >= AGREE) || self.thin[i];
+            if spurious {
+                blobs.centres.extend_from_slice(&lattice.node(i));
+                blobs.distance.push(d);
+                blobs.source.push(nearest);
+            }
         }
+        blobs.found = blobs.source.len();
+        let cap = ((MAX_SHARE * self.n as f64) as usize).max(MIN_CAP);
+        if blobs.found > cap {
+            let keep: Vec<usize> = (0..cap).map(|k| k * blobs.found / cap).collect();
+            blobs.centres = keep.iter().flat_map(|&k| blobs.centres[3 * k..3 * k + 3].to_vec()).collect();
+            blobs.distance = keep.iter().map(|&k| blobs.distance[k]).collect();
+            blobs.source = keep.iter().map(|&k| blobs.source[k]).collect();
+        }
+        blobs
     }
-    blobs.found = blobs.source.len();
-    let cap = ((MAX_SHARE * n as f64) as usize).max(MIN_CAP);
-    if blobs.found > cap {
-        let keep: Vec<usize> = (0..cap).map(|k| k * blobs.found / cap).collect();
-        blobs.centres = keep.iter().flat_map(|&k| blobs.centres[3 * k..3 * k + 3].to_vec()).collect();
-        blobs.distance = keep.iter().map(|&k| blobs.distance[k]).collect();
-        blobs.source = keep.iter().map(|&k| blobs.source[k]).collect();
-    }
-    blobs
 }
 
 /// The positive nodes of rule 3 (see the module doc): inside a sheet of positive nodes at most

@@ -16,6 +16,8 @@
 //!   second fit;
 //! - [`blobs`]: after a first fit, the regions it makes inside with no data to support them,
 //!   pinned outside by further points for a second fit;
+//! - [`choice`]: of two second fits (a wide and a narrow clearance of the blob search), the one
+//!   with less surface that no data supports;
 //! - [`support`]: where the data support the reconstructed surface, for trimming it.
 //!
 //! Everything works in the normalised coordinates of the spline's centres (the data's box
@@ -23,6 +25,7 @@
 //! which the ranks share.
 
 pub mod blobs;
+pub mod choice;
 pub mod energy;
 pub mod normals;
 pub mod offsurface;

@@ -285,6 +285,13 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         }
         r.figure("blob_points", s.blob_points);
         r.figure("blob_regions", s.blob_regions);
+        if let Some(ch) = &s.choice {
+            r.figure("choice_wide_points", ch.wide_points);
+            r.figure("choice_narrow_points", ch.narrow_points);
+            r.figure("choice_wide_unsupported", format!("{:.5}", ch.wide_share));
+            r.figure("choice_narrow_unsupported", format!("{:.5}", ch.narrow_share));
+            r.figure("choice_kept", if ch.kept_narrow { "narrow" } else { "wide" });
+        }
         if let Some(k) = &s.rays {
             r.figure("rays_doubtful", k.doubtful);
             r.figure("rays_enclosed", k.enclosed);
@@ -364,10 +371,18 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
             format!("; blobs: {} constraint points ({} regions away from the data)", s.blob_points, s.blob_regions)
         } else {
             "; blobs: none".to_string()
-        } + if s.blob_points > 0 || s.rays.as_ref().is_some_and(|k| k.turned > 0) {
-            ", fitted twice"
-        } else {
-            ""
+        } + &match &s.choice {
+            Some(ch) => format!(
+                "; clearance: wide {} points, {:.1} % of the surface unsupported, narrow {} points, {:.1} %: \
+                 {} kept",
+                ch.wide_points,
+                100.0 * ch.wide_share,
+                ch.narrow_points,
+                100.0 * ch.narrow_share,
+                if ch.kept_narrow { "narrow" } else { "wide" }
+            ),
+            None if s.blob_points > 0 || s.rays.as_ref().is_some_and(|k| k.turned > 0) => ", fitted twice".into(),
+            None => String::new(),
         },
     }
 }

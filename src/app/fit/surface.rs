@@ -12,9 +12,11 @@ use crate::cli::Surface;
 use crate::error::Result;
 use crate::par::{agree, Comm};
 use crate::spline::hygiene::Prepared;
-use crate::surface::blobs::{blob_values, find, sample, Lattice};
+use crate::surface::blobs::{blob_values, sample, Blobs, Lattice, Search, CLEARANCE};
+use crate::surface::choice::{self, unsupported_share};
 use crate::surface::energy::{flip_by_energy, EnergyFlips};
 use crate::surface::rays::{self, RayCheck};
+use crate::surface::support::DataSupport;
 use crate::surface::{self, neighbourhoods, off_points, off_values, Neighbourhoods, OffPoints};
 
 /// Fewest points for which `--surface auto` adds off-surface constraints.
@@ -41,6 +43,22 @@ pub struct SurfaceSummary {
     pub blob_regions: usize,
     /// The ray test of the first fit (None: no first fit was checked).
     pub rays: Option<RayCheck>,
+    /// The choice between the blob search's wide and narrow clearances (None: not made, since
+    /// `--blob-choice off` or both pinned the same nodes).
+    pub choice: Option<ClearanceChoice>,
+}
+
+/// Two candidate fits, with the blob search's wide and narrow clearance of rule 2, and which was
+/// kept (see [`crate::surface::choice`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ClearanceChoice {
+    /// Constraint points of each candidate.
+    pub wide_points: usize,
+    pub narrow_points: usize,
+    /// The share of each candidate's surface that no data point supports.
+    pub wide_share: f64,
+    pub narrow_share: f64,
+    pub kept_narrow: bool,
 }
 
 /// The constrained points of a fit and what the blob search needs of the surface step.
@@ -103,6 +121,7 @@ pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<
         blob_points: 0,
         blob_regions: 0,
         rays: None,
+        choice: None,
     };
     Ok(Constrained { prep: with_off_points(prep, &off), summary, hoods, normals: orientation.normals })
 }
@@ -126,8 +145,11 @@ fn delta_range(off: &OffPoints, scale: f64) -> (f64, f64) {
 /// The fit `first` of `c.prep`, or, where rays through it turn patches of the normals (see
 /// [`crate::surface::rays`], unless `--orient-rays off`) or it is positive in regions no data
 /// supports (see [`crate::surface::blobs`]), the fit `refit` makes of `c.prep` with the turned
-/// patches' off points and constraint points in those regions (`c` is updated). `data` is the data alone; the lattice covers its box grown by
-/// the grid's margin. The search is timed as part of the orientation stage. Collective.
+/// patches' off points and constraint points in those regions (`c` is updated). Where the blob
+/// search's wide and narrow clearances pin different nodes (unless `--blob-choice off`), both
+/// second fits are made and the one with less unsupported surface is kept (see
+/// [`crate::surface::choice`]). `data` is the data alone; the lattice covers its box grown by the
+/// grid's margin. The search is timed as part of the orientation stage. Collective.
 pub fn check_first_fit(
     run: &Run<'_>,
     data: &Prepared,
@@ -162,19 +184,68 @@ pub fn check_first_fit(
         c.summary.dropped = off.dropped;
         c.summary.delta = delta_range(&off, norm.scale);
     }
-    let blobs = stages.time(Stage::Orient, || {
+    let support = DataSupport::new(&data.centres, choice::FACTOR);
+    let (values, wide, narrow) = stages.time(Stage::Orient, || {
         let values = sample(run.comm, &lattice, &data.carrier, &first.spline);
-        find(&lattice, &values, &data.centres, &c.normals, &c.hoods.tree)
+        let search = Search::new(&lattice, &values, &data.centres, &c.normals, &c.hoods.tree);
+        let wide = search.blobs(&lattice, CLEARANCE);
+        let narrow = run
+            .args
+            .blob_choice
+            .then(|| search.blobs(&lattice, choice::NARROW * support.spacing))
+            .filter(|b| b.centres != wide.centres);
+        (values, wide, narrow)
     });
-    c.summary.blob_regions = blobs.regions;
+    c.summary.blob_regions = wide.regions;
     c.summary.rays = run.args.orient_rays.then(|| turned.clone());
-    if blobs.source.is_empty() && turned.turned == 0 {
-        return Ok(first);
-    }
-    drop(first);
-    let values = blob_values(&blobs, &data.points, &data.carrier, &norm);
-    c.prep.centres.extend_from_slice(&blobs.centres);
-    c.prep.values.extend_from_slice(&values);
+    // the first fit is the candidate of a blob set where it pins nothing and no patch turned
+    let first_stands = |b: &Blobs| b.source.is_empty() && turned.turned == 0;
+    let Some(narrow) = narrow else {
+        if first_stands(&wide) {
+            return Ok(first);
+        }
+        drop(first);
+        c.prep = with_blobs(&c.prep, &wide, data);
+        c.summary.blob_points = wide.source.len();
+        return refit(&c.prep, stages);
+    };
+    // two candidates: each is the first fit or a second one, with the lattice values of each
+    // (neither candidate the first fit: it goes before the second systems are made)
+    let mut first = (first_stands(&wide) || first_stands(&narrow)).then_some((first, values));
+    let mut candidate = |blobs: &Blobs, stages: &mut Stages| -> Result<(Fitted, Vec<f64>)> {
+        if first_stands(blobs) {
+            return Ok(first.take().expect("one candidate at most is the first fit"));
+        }
+        let fit = refit(&with_blobs(&c.prep, blobs, data), stages)?;
+        let values = stages.time(Stage::Orient, || sample(run.comm, &lattice, &data.carrier, &fit.spline));
+        Ok((fit, values))
+    };
+    let (wide_fit, wide_values) = candidate(&wide, stages)?;
+    let (narrow_fit, narrow_values) = candidate(&narrow, stages)?;
+    let (wide_share, narrow_share) = stages.time(Stage::Orient, || {
+        (
+            unsupported_share(&lattice, &wide_values, &support).0,
+            unsupported_share(&lattice, &narrow_values, &support).0,
+        )
+    });
+    let kept_narrow = narrow_share < wide_share;
+    c.summary.choice = Some(ClearanceChoice {
+        wide_points: wide.source.len(),
+        narrow_points: narrow.source.len(),
+        wide_share,
+        narrow_share,
+        kept_narrow,
+    });
+    let (blobs, fit) = if kept_narrow { (&narrow, narrow_fit) } else { (&wide, wide_fit) };
+    c.prep = with_blobs(&c.prep, blobs, data);
     c.summary.blob_points = blobs.source.len();
-    refit(&c.prep, stages)
+    Ok(fit)
+}
+
+/// `prep` with the constraint points of `blobs` appended (`data` the data alone).
+fn with_blobs(prep: &Prepared, blobs: &Blobs, data: &Prepared) -> Prepared {
+    let mut out = prep.clone();
+    out.centres.extend_from_slice(&blobs.centres);
+    out.values.extend(blob_values(blobs, &data.points, &data.carrier, &data.norm));
+    out
 }
