@@ -169,8 +169,9 @@ pub struct FitArgs {
     /// Where the blob search after the first fit pins different nodes with its wide clearance
     /// (5 % of the diagonal) and a narrow one (2 median spacings of the data), make both second
     /// fits and keep the one with less surface far from every data point (on, or off: the wide
-    /// clearance alone); see src/surface/choice.rs. It costs a third fit where it applies.
-    #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
+    /// clearance alone). It costs a third fit where it applies and can take the cap over a hole
+    /// in an open scan for a bulge, so it is off by default (see src/surface/choice.rs).
+    #[arg(long, default_value = "off", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub blob_choice: bool,
     /// Points of level 0 of the two-level compactly supported fit (--method csrbf with --surface
     /// auto or offsurface): a dense off-surface fit of this many points chosen evenly over space,

@@ -113,7 +113,8 @@ def main(out):
         lines += ["", "The new default method did not run (see notes.txt), so its targets are not checked."]
     # the trimmed surface is open: its targets are reported apart from the default's
     for method, what in (("default", "the default method"),
-                         ("trimmed", "the trimmed surface (--trim, an open surface, reported apart)")):
+                         ("trimmed", "the trimmed surface (--trim, an open surface, reported apart)"),
+                         ("choice", "the clearance choice (--blob-choice on)")):
         if method not in methods:
             continue
         lines += ["", f"Targets of {what} per set (both distances at or below the better peer; "

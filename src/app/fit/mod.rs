@@ -285,6 +285,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         }
         r.figure("blob_points", s.blob_points);
         r.figure("blob_regions", s.blob_regions);
+        r.figure("fits", s.fits());
         if let Some(ch) = &s.choice {
             r.figure("choice_wide_points", ch.wide_points);
             r.figure("choice_narrow_points", ch.narrow_points);
@@ -379,10 +380,13 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
                 100.0 * ch.wide_share,
                 ch.narrow_points,
                 100.0 * ch.narrow_share,
-                if ch.kept_narrow { "narrow" } else { "wide" }
+                if ch.kept_narrow { "narrow" } else { "wide" },
             ),
-            None if s.blob_points > 0 || s.rays.as_ref().is_some_and(|k| k.turned > 0) => ", fitted twice".into(),
             None => String::new(),
+        } + match s.fits() {
+            1 => "",
+            2 => ", fitted twice",
+            _ => ", fitted three times",
         },
     }
 }

@@ -48,6 +48,18 @@ pub struct SurfaceSummary {
     pub choice: Option<ClearanceChoice>,
 }
 
+impl SurfaceSummary {
+    /// The fits made: one, a second where rays turned patches or blobs were pinned, or the first
+    /// and the candidates of the clearance choice.
+    pub fn fits(&self) -> usize {
+        match &self.choice {
+            Some(ch) => ch.fits,
+            None if self.blob_points > 0 || self.rays.as_ref().is_some_and(|k| k.turned > 0) => 2,
+            None => 1,
+        }
+    }
+}
+
 /// Two candidate fits, with the blob search's wide and narrow clearance of rule 2, and which was
 /// kept (see [`crate::surface::choice`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -59,6 +71,8 @@ pub struct ClearanceChoice {
     pub wide_share: f64,
     pub narrow_share: f64,
     pub kept_narrow: bool,
+    /// Fits made in all: the first and a second for each candidate that is not the first.
+    pub fits: usize,
 }
 
 /// The constrained points of a fit and what the blob search needs of the surface step.
@@ -211,7 +225,8 @@ pub fn check_first_fit(
     };
     // two candidates: each is the first fit or a second one, with the lattice values of each
     // (neither candidate the first fit: it goes before the second systems are made)
-    let mut first = (first_stands(&wide) || first_stands(&narrow)).then_some((first, values));
+    let reused = first_stands(&wide) || first_stands(&narrow);
+    let mut first = reused.then_some((first, values));
     let mut candidate = |blobs: &Blobs, stages: &mut Stages| -> Result<(Fitted, Vec<f64>)> {
         if first_stands(blobs) {
             return Ok(first.take().expect("one candidate at most is the first fit"));
@@ -235,6 +250,7 @@ pub fn check_first_fit(
         wide_share,
         narrow_share,
         kept_narrow,
+        fits: if reused { 2 } else { 3 },
     });
     let (blobs, fit) = if kept_narrow { (&narrow, narrow_fit) } else { (&wide, wide_fit) };
     c.prep = with_blobs(&c.prep, blobs, data);
