@@ -352,7 +352,8 @@ fn lu2d_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
     let want = oracle(&prep, &k, lu_solve);
     let want_qr = oracle(&prep, &k, householder_solve);
     let p = comm.size();
-    let shapes: Vec<(usize, usize)> = (1..=p).filter(|pr| p % pr == 0).map(|pr| (pr, p / pr)).collect();
+    let shapes: Vec<(usize, usize)> =
+        (1..=p).filter(|pr| p.is_multiple_of(*pr)).map(|pr| (pr, p / pr)).collect();
     // the same centres with the first one repeated at the end: two equal rows
     let mut centres = prep.centres.clone();
     centres.extend_from_slice(&prep.centres[..3]);
@@ -410,7 +411,7 @@ fn cholesky2d_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
     let b: Vec<f64> = (0..n).map(|i| ind[(i, n)]).collect();
     let want_lu = must(lu_solve(ind.as_ref().subcols(0, n), &b), "the dense LU oracle");
     let p = comm.size();
-    for shape in (1..=p).filter(|pr| p % pr == 0).map(|pr| (pr, p / pr)) {
+    for shape in (1..=p).filter(|pr| p.is_multiple_of(*pr)).map(|pr| (pr, p / pr)) {
         let grid = must(dist::ProcessGrid::new(comm, shape), "the process grid");
         for (nb, lookahead) in
             [(1, false), (3, true), (7, false), (7, true), (16, true), (64, false), (64, true)]

@@ -145,7 +145,7 @@ fn cube_points() -> Vec<f64> {
         .flat_map(|_| {
             let face = (next() * 6.0) as usize;
             let mut p = [2.0 * next() - 1.0, 2.0 * next() - 1.0, 2.0 * next() - 1.0];
-            p[face / 2] = if face % 2 == 0 { -1.0 } else { 1.0 };
+            p[face / 2] = if face.is_multiple_of(2) { -1.0 } else { 1.0 };
             p
         })
         .collect()

@@ -197,7 +197,7 @@ impl Kernel {
     }
 
     fn has_log(&self) -> bool {
-        self.dim % 2 == 0
+        self.dim.is_multiple_of(2)
     }
 
     /// The kernel as a function of the squared distance, so that callers never take a square root

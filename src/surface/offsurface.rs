@@ -73,12 +73,12 @@ fn sides(i: usize, per_point: f64) -> Vec<f64> {
         } else {
             // the index of this point among those not picked: alternate the side
             let k = i - (i as f64 * (per_point - 1.0)).floor() as usize;
-            vec![if k % 2 == 0 { 1.0 } else { -1.0 }]
+            vec![if k.is_multiple_of(2) { 1.0 } else { -1.0 }]
         }
     } else if picked(i, per_point) {
         // the index of this point among those picked: alternate the side
         let k = ((i + 1) as f64 * per_point).floor() as usize;
-        vec![if k % 2 == 0 { -1.0 } else { 1.0 }]
+        vec![if k.is_multiple_of(2) { -1.0 } else { 1.0 }]
     } else {
         vec![]
     }

@@ -182,7 +182,7 @@ impl Layout {
 /// column is the one that works alone, so it should be the taller side of the trade).
 pub fn squarest(ranks: usize) -> (usize, usize) {
     let mut pr = (ranks as f64).sqrt() as usize;
-    while pr > 1 && ranks % pr != 0 {
+    while pr > 1 && !ranks.is_multiple_of(pr) {
         pr -= 1;
     }
     let pr = pr.max(1);
