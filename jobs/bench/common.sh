@@ -11,9 +11,10 @@ cargo build --release --quiet
 BIN="$ROOT/target/release/volspline"
 export OMPI_MCA_rmaps_base_oversubscribe=1
 
-# bench_dir NAME ARGS...: creates bench-results/DATE-NAME/ and records the command and machine
+# bench_dir NAME ARGS...: creates bench-results/DATE-NAME/ (DATE-$BENCH_NAME where BENCH_NAME is
+# set, so that a second run of a day keeps the first) and records the command and machine
 bench_dir() {
-    local name=$1; shift
+    local name=${BENCH_NAME:-$1}; shift
     OUT="$ROOT/bench-results/$(date -u +%Y-%m-%d)-$name"
     mkdir -p "$OUT"
     printf '%s\n' "$*" > "$OUT/command.txt"
