@@ -198,15 +198,15 @@ pub fn check_first_fit(
         c.summary.dropped = off.dropped;
         c.summary.delta = delta_range(&off, norm.scale);
     }
-    let support = DataSupport::new(&data.centres, choice::FACTOR);
+    // the data's support, which the clearance choice alone needs
+    let support = run.args.blob_choice.then(|| DataSupport::new(&data.centres, choice::FACTOR));
     let (values, wide, narrow) = stages.time(Stage::Orient, || {
         let values = sample(run.comm, &lattice, &data.carrier, &first.spline);
         let search = Search::new(&lattice, &values, &data.centres, &c.normals, &c.hoods.tree);
         let wide = search.blobs(&lattice, CLEARANCE);
-        let narrow = run
-            .args
-            .blob_choice
-            .then(|| search.blobs(&lattice, choice::NARROW * support.spacing))
+        let narrow = support
+            .as_ref()
+            .map(|s| search.blobs(&lattice, choice::NARROW * s.spacing))
             .filter(|b| b.centres != wide.centres);
         (values, wide, narrow)
     });
@@ -214,7 +214,7 @@ pub fn check_first_fit(
     c.summary.rays = run.args.orient_rays.then(|| turned.clone());
     // the first fit is the candidate of a blob set where it pins nothing and no patch turned
     let first_stands = |b: &Blobs| b.source.is_empty() && turned.turned == 0;
-    let Some(narrow) = narrow else {
+    let (Some(narrow), Some(support)) = (narrow, support) else {
         if first_stands(&wide) {
             return Ok(first);
         }
@@ -223,20 +223,23 @@ pub fn check_first_fit(
         c.summary.blob_points = wide.source.len();
         return refit(&c.prep, stages);
     };
-    // two candidates: each is the first fit or a second one, with the lattice values of each
-    // (neither candidate the first fit: it goes before the second systems are made)
+    // two candidates: each is the first fit or a second one, with its points and the lattice
+    // values of its fit (neither candidate the first fit: it goes before the second systems are
+    // made)
     let reused = first_stands(&wide) || first_stands(&narrow);
     let mut first = reused.then_some((first, values));
-    let mut candidate = |blobs: &Blobs, stages: &mut Stages| -> Result<(Fitted, Vec<f64>)> {
+    let mut candidate = |blobs: &Blobs, stages: &mut Stages| -> Result<(Fitted, Vec<f64>, Prepared)> {
+        let prep = with_blobs(&c.prep, blobs, data);
         if first_stands(blobs) {
-            return Ok(first.take().expect("one candidate at most is the first fit"));
+            let (fit, values) = first.take().expect("one candidate at most is the first fit");
+            return Ok((fit, values, prep));
         }
-        let fit = refit(&with_blobs(&c.prep, blobs, data), stages)?;
+        let fit = refit(&prep, stages)?;
         let values = stages.time(Stage::Orient, || sample(run.comm, &lattice, &data.carrier, &fit.spline));
-        Ok((fit, values))
+        Ok((fit, values, prep))
     };
-    let (wide_fit, wide_values) = candidate(&wide, stages)?;
-    let (narrow_fit, narrow_values) = candidate(&narrow, stages)?;
+    let (wide_fit, wide_values, wide_prep) = candidate(&wide, stages)?;
+    let (narrow_fit, narrow_values, narrow_prep) = candidate(&narrow, stages)?;
     let (wide_share, narrow_share) = stages.time(Stage::Orient, || {
         (
             unsupported_share(&lattice, &wide_values, &support).0,
@@ -252,8 +255,9 @@ pub fn check_first_fit(
         kept_narrow,
         fits: if reused { 2 } else { 3 },
     });
-    let (blobs, fit) = if kept_narrow { (&narrow, narrow_fit) } else { (&wide, wide_fit) };
-    c.prep = with_blobs(&c.prep, blobs, data);
+    let (blobs, fit, prep) =
+        if kept_narrow { (&narrow, narrow_fit, narrow_prep) } else { (&wide, wide_fit, wide_prep) };
+    c.prep = prep;
     c.summary.blob_points = blobs.source.len();
     Ok(fit)
 }
