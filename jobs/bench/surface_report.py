@@ -65,6 +65,16 @@ def targets(name, variant, points, by_method, method="default"):
     return checks
 
 
+def recorded(out, names):
+    """Summary lines quoting the files `names` of the result folder `out` that exist."""
+    lines = []
+    for name in names:
+        path = os.path.join(out, name)
+        if os.path.exists(path):
+            lines += [f"{name}:", "```", open(path).read().strip(), "```\n"]
+    return lines
+
+
 def main(out):
     rows = list(csv.DictReader(open(os.path.join(out, "raw.csv"))))
     if not rows:
@@ -74,10 +84,7 @@ def main(out):
         sets.setdefault(r["set"], OrderedDict())[r["method"]] = r
     methods = list(OrderedDict.fromkeys(r["method"] for r in rows))
     lines = ["# bench-surface: reconstruction quality on unoriented scans\n"]
-    for name in ("command.txt", "machine.txt", "notes.txt"):
-        path = os.path.join(out, name)
-        if os.path.exists(path):
-            lines += [f"{name}:", "```", open(path).read().strip(), "```\n"]
+    lines += recorded(out, ("command.txt", "machine.txt", "notes.txt"))
     lines += ["Distances in % of the true mesh's bounding-box diagonal: truth->mesh (completeness: held-out "
               "samples of the true surface to the reconstruction), mesh->truth (spurious surface: the "
               "reconstruction's vertices to the true triangles). Cells: truth->mesh rms / mesh->truth rms / "

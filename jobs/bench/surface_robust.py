@@ -15,7 +15,7 @@ import sys
 from collections import OrderedDict
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from surface_report import PEERS, num, targets  # noqa: E402
+from surface_report import PEERS, num, recorded, targets  # noqa: E402
 
 
 def load(folder):
@@ -43,10 +43,7 @@ def main(out):
                 checks = targets(name, r["variant"], int(r["points"]), by, m)
                 met[m, s][name] = all(ok for _, ok, _ in checks)
     lines = ["# bench-surface-robust: the surface benchmark on several samplings of the same meshes\n"]
-    for name in ("command.txt", "machine.txt"):
-        path = os.path.join(out, name)
-        if os.path.exists(path):
-            lines += [f"{name}:", "```", open(path).read().strip(), "```\n"]
+    lines += recorded(out, ("command.txt", "machine.txt"))
     lines += ["Sets meeting every target (both distances at or below the better peer, at most 2 % far vertices "
               "on clean sets of at least 1000 points, fit time at most 3x the carrier method's; "
               "jobs/bench/surface_report.py), per sampling (each sub-folder has its own summary.md), "
