@@ -25,7 +25,15 @@
 //!    least [`AGREE`], that it is outside: (q - p_j) . n_j > 0. Inside a solid every nearby point
 //!    of the surface faces away from q; outside, towards it. Near the data (within the clearance)
 //!    the off points already decide, and a vote there is at the mercy of single normals; where
-//!    the voters disagree (a misoriented patch, a thin part) nothing is added; or
+//!    the voters disagree (a misoriented patch, a thin part) nothing is added. A node the vote
+//!    finds outside is still left alone when the data enclose it: when their winding number at
+//!    q (below) is at least [`WINDING`]. The vote is local and fails under a hole in a scan: a
+//!    node inside the solid below the hole has only rim points near it, 5-9 % of the diagonal
+//!    away, and on a curved flank a point far along a rim point's tangent plane lies above it,
+//!    so the rim votes "outside" and the pin pulls the cap over the hole deep into the body
+//!    (measured on the bunny at 1000 points with a hole: 10 such pins of 618 made truth -> mesh
+//!    1.36 % of the diagonal instead of 0.41 %). The winding number integrates all the oriented
+//!    data and sees such a node as mostly enclosed; or
 //! 3. it lies inside a thin sheet of positive nodes with no data on either face: along some
 //!    lattice axis the nearest non-positive nodes both ways are at most [`THIN`] nodes away,
 //!    both belong to one connected region of non-positive nodes (the sheet is a web or a fin in
@@ -44,6 +52,34 @@
 //!    0.84 -> 0.39, cow 1000 with a hole 0.77 -> 0.56, with 0.5 % noise 0.91 -> 0.75, bunny 2000
 //!    with 0.5 % noise 0.72 -> 0.46, cow 4000 0.25 -> 0.21; bunny 1000 0.64 -> 0.65 and with
 //!    0.5 % noise 1.04 -> 1.11; every other set within 0.01.
+//!
+//! # The winding number
+//!
+//! With outward normals n_j and a share a_j of the surface per data point, the data's winding
+//! number at q is
+//!
+//! ```text
+//!     w(q) = sum_j a_j (p_j - q) . n_j / (4 pi |p_j - q|^3),
+//! ```
+//!
+//! the solid angle the surface subtends at q as a fraction of the sphere (the surface elements'
+//! flux of the field of a unit charge at q): 1 inside a closed surface and 0 outside. Where the
+//! surface has a hole, the missing patch's share is missing from the sum: w(q) = 1 - Omega(q) /
+//! 4 pi inside and Omega(q) / 4 pi outside, Omega(q) the solid angle of the hole seen from q, so
+//! w passes 1/2 in the hole's mouth and goes to 1 inside and to 0 outside away from it.
+//!
+//! a_j = pi r_j^2 / k, r_j the distance to the k-th nearest other data point (k = [`VOTERS`]):
+//! the disc of the k nearest neighbours shared among them (unbiased for random samples; on a regular pattern it overestimates, by
+//! 15 % on a Fibonacci spiral, which scales w alike inside and out). The nodes judged lie farther
+//! than the clearance from every data point, so no term is near its singularity, but with sparse
+//! data the quadrature still errs: on 400 cow samples the nodes the vote rightly finds outside
+//! have w from -0.17 to 0.26. [`WINDING`] = 1/3 lies between those and the nodes under the
+//! bunny's hole above. Measured on those two sets: from 0.1 to 0.35 the bunny's cap is mended,
+//! at 0.4 it is not; from 0.3 up the cow keeps all its pins, at 0.25 it loses some (mesh ->
+//! truth 1.27 -> 1.44 % of the diagonal). w is computed only at the nodes the vote finds
+//! outside, N terms each (a few hundred to a few thousand nodes).
+//!
+//! # The pins
 //!
 //! Each spurious node q becomes a constraint point with the target t(q) = -g d, d the distance
 //! to the nearest data point and g = |grad f_c| at that point: the value a field with the
@@ -214,6 +250,9 @@ pub struct Blobs {
     pub regions: usize,
     /// Spurious nodes found (before the cap).
     pub found: usize,
+    /// The nodes rule 2's vote finds outside that the data's winding number keeps (enclosed
+    /// by at least [`WINDING`] of the sphere), 3 values each, normalised.
+    pub spared: Vec<f64>,
 }
 
 /// The spurious nodes (see the module doc) of the fit whose `values` were sampled on `lattice`,
@@ -228,6 +267,8 @@ pub struct Search {
     /// Of every positive node: the distance to the nearest data point, that point, and the
     /// fraction of its [`VOTERS`] nearest data points that see it outside.
     judged: Vec<Option<(f64, usize, f64)>>,
+    /// The winding number of the data at every node the vote finds outside (NaN elsewhere).
+    winding: Vec<f64>,
     /// Whether the positive node's region comes near the data (rule 1).
     supported: Vec<bool>,
     /// Whether the positive node lies in a thin unsupported sheet (rule 3).
@@ -305,7 +346,18 @@ impl Search {
         let supported = (0..lattice.len()).map(|i| positive[i] && near_data[region[i]]).collect();
         let thin = thin_unsupported(lattice, values, tree, points);
         let regions = near_data.iter().filter(|&&s| !s).count();
-        Search { judged, supported, thin, regions, n }
+        let area = point_areas(points, tree, h);
+        let winding = judged
+            .par_iter()
+            .enumerate()
+            .map(|(i, j)| match j {
+                Some((_, _, outside)) if *outside >= AGREE => {
+                    winding_number(lattice.node(i), points, normals, &area)
+                }
+                _ => f64::NAN,
+            })
+            .collect();
+        Search { judged, winding, supported, thin, regions, n }
     }
 
     /// The spurious nodes with the clearance of rule 2 `clearance` (normalised; [`find`] takes
@@ -314,7 +366,12 @@ impl Search {
         let mut blobs = Blobs { regions: self.regions, ..Default::default() };
         for (i, j) in self.judged.iter().enumerate() {
             let Some((d, nearest, outside)) = *j else { continue };
-            let spurious = !self.supported[i] || (d > clearance && outside >= AGREE) || self.thin[i];
+            let voted = d > clearance && outside >= AGREE;
+            let enclosed = self.winding[i] >= WINDING;
+            let spurious = !self.supported[i] || (voted && !enclosed) || self.thin[i];
+            if voted && enclosed && !spurious {
+                blobs.spared.extend_from_slice(&lattice.node(i));
+            }
             if spurious {
                 blobs.centres.extend_from_slice(&lattice.node(i));
                 blobs.distance.push(d);
@@ -331,6 +388,40 @@ impl Search {
         }
         blobs
     }
+}
+
+/// Winding number of the data from which rule 2 leaves a node alone, whatever the vote.
+pub const WINDING: f64 = 1.0 / 3.0;
+
+/// The share of the surface each data point stands for: pi r^2 / k with r the distance to its
+/// k-th nearest data point (k = [`VOTERS`]), the area of the disc of its k nearest neighbours
+/// shared among them.
+fn point_areas(points: &[f64], tree: &Octree, h: f64) -> Vec<f64> {
+    let n = points.len() / 3;
+    let k = VOTERS.min(n).max(1);
+    (0..n)
+        .into_par_iter()
+        .map(|j| {
+            let r = tree.kth_distance([points[3 * j], points[3 * j + 1], points[3 * j + 2]], k + 1, h);
+            std::f64::consts::PI * r * r / k as f64
+        })
+        .collect()
+}
+
+/// The generalised winding number of the oriented data at q: the solid angle the surface
+/// elements a_j n_j at p_j subtend, sum_j a_j (p_j - q) . n_j / (4 pi |p_j - q|^3). It is 1 inside
+/// a closed surface and 0 outside; over a hole it falls off smoothly with the solid angle the
+/// hole takes, so a node deep under a hole stays near 1.
+fn winding_number(q: [f64; 3], points: &[f64], normals: &[[f64; 3]], area: &[f64]) -> f64 {
+    let mut w = 0.0;
+    for (j, n) in normals.iter().enumerate() {
+        let d = [points[3 * j] - q[0], points[3 * j + 1] - q[1], points[3 * j + 2] - q[2]];
+        let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        if r2 > 0.0 {
+            w += area[j] * (d[0] * n[0] + d[1] * n[1] + d[2] * n[2]) / (r2 * r2.sqrt());
+        }
+    }
+    w / (4.0 * std::f64::consts::PI)
 }
 
 /// The positive nodes of rule 3 (see the module doc): inside a sheet of positive nodes at most
@@ -442,6 +533,52 @@ mod tests {
             normals.push(p);
         }
         (pts, normals)
+    }
+
+    #[test]
+    fn the_winding_number_is_one_inside_zero_outside_and_sees_a_hole() {
+        // uniform random points of the unit sphere, as a scan's samples are random (on a regular
+        // pattern the disc of the k nearest neighbours overestimates each share: 15 % on the
+        // Fibonacci spiral of the other tests)
+        let mut seed = 12345u64;
+        let mut unit = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut pts, mut normals) = (Vec::new(), Vec::new());
+        for _ in 0..4000 {
+            let (z, t) = (2.0 * unit() - 1.0, 2.0 * std::f64::consts::PI * unit());
+            let p = [(1.0 - z * z).sqrt() * t.cos(), (1.0 - z * z).sqrt() * t.sin(), z];
+            pts.extend_from_slice(&p);
+            normals.push(p);
+        }
+        let tree = Octree::new(&pts, 10);
+        let area = point_areas(&pts, &tree, 0.1);
+        // the shares add up to the sphere's area
+        let total: f64 = area.iter().sum();
+        assert!((total / (4.0 * std::f64::consts::PI) - 1.0).abs() < 0.05, "area {total}");
+        let w = |q, pts: &[f64], normals: &[[f64; 3]], area: &[f64]| winding_number(q, pts, normals, area);
+        for (q, expect) in
+            [([0.0; 3], 1.0), ([0.3, -0.2, 0.4], 1.0), ([0.0, 0.0, 3.0], 0.0), ([2.0, 1.0, 0.0], 0.0)]
+        {
+            let got = w(q, &pts, &normals, &area);
+            assert!((got - expect).abs() < 0.03, "w({q:?}) = {got}, not {expect}");
+        }
+        // the cap z > 1/2 cut off: seen from the centre the hole is a cone of half-angle 60
+        // degrees, solid angle 2 pi (1 - cos 60) = pi, a quarter of the sphere
+        let keep: Vec<usize> = (0..normals.len()).filter(|&j| pts[3 * j + 2] <= 0.5).collect();
+        let open_pts: Vec<f64> = keep.iter().flat_map(|&j| pts[3 * j..3 * j + 3].to_vec()).collect();
+        let open_normals: Vec<[f64; 3]> = keep.iter().map(|&j| normals[j]).collect();
+        let open_area: Vec<f64> = keep.iter().map(|&j| area[j]).collect();
+        let centre = w([0.0; 3], &open_pts, &open_normals, &open_area);
+        assert!((centre - 0.75).abs() < 0.03, "w at the centre of the open sphere {centre}");
+        // above the hole, outside: the hole's solid angle seen from (0, 0, 2) is 2 pi (1 - cos a),
+        // tan a = (sqrt 3 / 2) / (2 - 1/2)
+        let a = (0.75f64.sqrt() / 1.5).atan();
+        let above = w([0.0, 0.0, 2.0], &open_pts, &open_normals, &open_area);
+        let expect = (1.0 - a.cos()) / 2.0;
+        assert!((above - expect).abs() < 0.03, "w above the hole {above}, not {expect}");
+        assert!(centre > WINDING && above < WINDING);
     }
 
     fn count_within(blobs: &Blobs, c: [f64; 3], r: f64) -> usize {

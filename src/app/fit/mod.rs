@@ -285,6 +285,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         }
         r.figure("blob_points", s.blob_points);
         r.figure("blob_regions", s.blob_regions);
+        r.figure("blob_spared", s.blob_spared);
         r.figure("fits", s.fits());
         if let Some(ch) = &s.choice {
             r.figure("choice_wide_points", ch.wide_points);
@@ -372,6 +373,10 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
             format!("; blobs: {} constraint points ({} regions away from the data)", s.blob_points, s.blob_regions)
         } else {
             "; blobs: none".to_string()
+        } + &if s.blob_spared > 0 {
+            format!(", {} nodes enclosed by the data spared", s.blob_spared)
+        } else {
+            String::new()
         } + &match &s.choice {
             Some(ch) => format!(
                 "; clearance: wide {} points, {:.1} % of the surface unsupported, narrow {} points, {:.1} %: \

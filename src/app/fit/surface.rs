@@ -41,6 +41,8 @@ pub struct SurfaceSummary {
     pub blob_points: usize,
     /// Positive regions of the first fit that came nowhere near the data.
     pub blob_regions: usize,
+    /// Nodes the vote of the blob search found outside that the data enclose (spared).
+    pub blob_spared: usize,
     /// The ray test of the first fit (None: no first fit was checked).
     pub rays: Option<RayCheck>,
     /// The choice between the blob search's wide and narrow clearances (None: not made, since
@@ -134,6 +136,7 @@ pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<
         energy,
         blob_points: 0,
         blob_regions: 0,
+        blob_spared: 0,
         rays: None,
         choice: None,
     };
@@ -211,6 +214,7 @@ pub fn check_first_fit(
         (values, wide, narrow)
     });
     c.summary.blob_regions = wide.regions;
+    c.summary.blob_spared = wide.spared.len() / 3;
     c.summary.rays = run.args.orient_rays.then(|| turned.clone());
     // the first fit is the candidate of a blob set where it pins nothing and no patch turned
     let first_stands = |b: &Blobs| b.source.is_empty() && turned.turned == 0;
