@@ -1,0 +1,37 @@
+//! The rate of the local kernel volspline's factorisations are built on: faer's matrix product
+//! C -= A B (one thread), on the shapes of `micro_blas.c` (m = 2000 local rows, n = 4000 trailing
+//! columns, inner dimension k = 16..256, the panel width) and on the projected Cholesky's
+//! row-chunked update (96 rows, k = 384). Beside OpenBLAS's DGEMM rate it separates what the
+//! choice of local kernel costs from what the distribution costs. Prints CSV:
+//! kernel,m,n,k,seconds,gflops. Run by `jobs/bench-solve`.
+//!
+//!     cargo run --release --example gemm_rate
+
+use std::time::Instant;
+
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, Par};
+
+fn main() {
+    println!("kernel,m,n,k,seconds,gflops");
+    let shapes = [(2000, 4000, 16), (2000, 4000, 32), (2000, 4000, 64), (2000, 4000, 128), (2000, 4000, 256)];
+    for (m, n, k) in shapes.into_iter().chain([(96, 4000, 384)]) {
+        let a = Mat::<f64>::from_fn(m, k, |i, j| ((i * 7 + j * 3) % 11) as f64 * 0.1 - 0.5);
+        let b = Mat::<f64>::from_fn(k, n, |i, j| ((i * 5 + j * 13) % 17) as f64 * 0.05 - 0.4);
+        let mut c = Mat::<f64>::zeros(m, n);
+        // best of up to 5 repetitions, stopping once 0.5 s are spent (as micro_blas.c)
+        let (mut best, mut spent) = (f64::INFINITY, 0.0);
+        for _ in 0..5 {
+            let t = Instant::now();
+            matmul(c.as_mut(), Accum::Add, a.as_ref(), b.as_ref(), -1.0, Par::Seq);
+            let dt = t.elapsed().as_secs_f64();
+            best = best.min(dt);
+            spent += dt;
+            if spent > 0.5 {
+                break;
+            }
+        }
+        std::hint::black_box(&c);
+        println!("faer_gemm,{m},{n},{k},{best:.6e},{:.3}", 2.0 * (m * n * k) as f64 / best / 1e9);
+    }
+}
