@@ -73,15 +73,17 @@
 //! w passes 1/2 in the hole's mouth and goes to 1 inside and to 0 outside away from it.
 //!
 //! a_j = pi r_j^2 / k, r_j the distance to the k-th nearest other data point (k = [`VOTERS`]):
-//! the disc of the k nearest neighbours shared among them (unbiased for random samples; on a regular pattern it overestimates, by
-//! 15 % on a Fibonacci spiral, which scales w alike inside and out). The nodes judged lie farther
-//! than the clearance from every data point, so no term is near its singularity, but with sparse
+//! the disc of the k nearest neighbours shared among them (unbiased for random samples; on a
+//! regular pattern it overestimates, by 15 % on a Fibonacci spiral, which scales w alike inside
+//! and out). The nodes judged lie farther than the clearance (rule 2) or the unsupported
+//! distance (rule 3) from every data point, so no term is near its singularity, but with sparse
 //! data the quadrature still errs: on 400 cow samples the nodes the vote rightly finds outside
 //! have w from -0.17 to 0.26. [`WINDING`] = 1/3 lies between those and the nodes under the
 //! bunny's hole above. Measured on those two sets: from 0.1 to 0.35 the bunny's cap is mended,
 //! at 0.4 it is not; from 0.3 up the cow keeps all its pins, at 0.25 it loses some (mesh ->
 //! truth 1.27 -> 1.44 % of the diagonal). w is computed only at the nodes the vote finds
-//! outside, N terms each (a few hundred to a few thousand nodes).
+//! outside and at the nodes of thin unsupported sheets, N terms each (a few hundred to a few
+//! thousand nodes), on every rank alike.
 //!
 //! # The pins
 //!
