@@ -166,7 +166,7 @@ fn first_fit(read: &[f64]) -> FirstFit {
     // the blob search on the first fit (the default margin 0.05)
     let lattice = Lattice::of_fit(&data.box_lo, &data.box_hi, 0.05, &data.norm);
     let sampled = sample(&Solo, &lattice, &data.carrier, &first);
-    let search = Search::new(&lattice, &sampled, &data.centres, &normals, &hoods.tree);
+    let search = Search::new(&Solo, &lattice, &sampled, &data.centres, &normals, &hoods.tree);
     FirstFit { k, data, hoods, normals, prep, off_count, first, turned, lattice, sampled, search }
 }
 
@@ -182,7 +182,7 @@ fn serial_offsurface(read: &[f64], choose: bool) -> (Model, usize, RayCheck, Opt
     // the second fit of each and the one with less unsupported surface kept
     let support = DataSupport::new(&data.centres, choice::FACTOR);
     let wide = search.blobs(&lattice, CLEARANCE);
-    assert_eq!(wide, find(&lattice, &sampled, &data.centres, &normals, &hoods.tree));
+    assert_eq!(wide, find(&Solo, &lattice, &sampled, &data.centres, &normals, &hoods.tree));
     let narrow = search.blobs(&lattice, choice::NARROW * support.spacing);
     println!(
         "{} blob points (narrow clearance {}), {} detached regions; rays {turned:?}",

@@ -263,8 +263,15 @@ pub struct Blobs {
 
 /// The spurious nodes (see the module doc) of the fit whose `values` were sampled on `lattice`,
 /// for data `points` (normalised, the tree `tree` over them) with outward unit `normals`.
-pub fn find(lattice: &Lattice, values: &[f64], points: &[f64], normals: &[[f64; 3]], tree: &Octree) -> Blobs {
-    Search::new(lattice, values, points, normals, tree).blobs(lattice, CLEARANCE)
+pub fn find(
+    comm: &dyn Comm,
+    lattice: &Lattice,
+    values: &[f64],
+    points: &[f64],
+    normals: &[[f64; 3]],
+    tree: &Octree,
+) -> Blobs {
+    Search::new(comm, lattice, values, points, normals, tree).blobs(lattice, CLEARANCE)
 }
 
 /// What the rules ask of every positive node of a sampled fit, whatever the clearance of rule 2:
@@ -289,6 +296,7 @@ impl Search {
     /// The rules applied to the fit whose `values` were sampled on `lattice`, for data `points`
     /// (normalised, the tree `tree` over them) with outward unit `normals`.
     pub fn new(
+        comm: &dyn Comm,
         lattice: &Lattice,
         values: &[f64],
         points: &[f64],
@@ -350,19 +358,20 @@ impl Search {
             }
         }
         let supported = (0..lattice.len()).map(|i| positive[i] && near_data[region[i]]).collect();
-        let area = point_areas(points, tree, h);
-        let thin = thin_unsupported(lattice, values, tree, points, normals, &area);
         let regions = near_data.iter().filter(|&&s| !s).count();
-        let winding = judged
-            .par_iter()
-            .enumerate()
-            .map(|(i, j)| match j {
-                Some((_, _, outside)) if *outside >= AGREE => {
-                    winding_number(lattice.node(i), points, normals, &area)
-                }
-                _ => f64::NAN,
-            })
+        // the winding number where a rule asks for it: the nodes the vote finds outside and the
+        // candidates of rule 3
+        let mut thin = thin_unsupported(lattice, values, tree, points);
+        let asked: Vec<usize> = (0..lattice.len())
+            .filter(|&i| thin[i] || judged[i].is_some_and(|(_, _, outside)| outside >= AGREE))
             .collect();
+        let area = point_areas(points, tree, h);
+        let w = winding_at(comm, lattice, &asked, points, normals, &area);
+        let mut winding = vec![f64::NAN; lattice.len()];
+        for (&i, &wi) in asked.iter().zip(&w) {
+            winding[i] = wi;
+            thin[i] = thin[i] && wi < OPEN_SPACE;
+        }
         Search { judged, winding, supported, thin, regions, n }
     }
 
@@ -414,6 +423,36 @@ fn point_areas(points: &[f64], tree: &Octree, h: f64) -> Vec<f64> {
         .collect()
 }
 
+/// The winding numbers of the data (outward `normals`, surface shares `area`) at the lattice
+/// nodes `nodes`, the nodes dealt round-robin over the ranks and summed: every rank gets the same
+/// values, bit for bit, whatever the number of ranks (each value is computed by one rank and the
+/// others add zeros). Collective.
+fn winding_at(
+    comm: &dyn Comm,
+    lattice: &Lattice,
+    nodes: &[usize],
+    points: &[f64],
+    normals: &[[f64; 3]],
+    area: &[f64],
+) -> Vec<f64> {
+    let (rank, size) = (comm.rank(), comm.size());
+    let mut w: Vec<f64> = nodes
+        .par_iter()
+        .enumerate()
+        .map(
+            |(k, &i)| {
+                if k % size == rank {
+                    winding_number(lattice.node(i), points, normals, area)
+                } else {
+                    0.0
+                }
+            },
+        )
+        .collect();
+    comm.sum_f64(&mut w);
+    w
+}
+
 /// The generalised winding number of the oriented data at q: the solid angle the surface
 /// elements a_j n_j at p_j subtend, sum_j a_j (p_j - q) . n_j / (4 pi |p_j - q|^3). It is 1 inside
 /// a closed surface and 0 outside; over a hole it falls off smoothly with the solid angle the
@@ -430,19 +469,11 @@ fn winding_number(q: [f64; 3], points: &[f64], normals: &[[f64; 3]], area: &[f64
     w / (4.0 * std::f64::consts::PI)
 }
 
-/// The positive nodes of rule 3 (see the module doc): inside a sheet of positive nodes at most
-/// 2 [`THIN`] - 1 nodes across along some lattice axis, with one region of non-positive nodes on
-/// both sides and both faces farther than [`UNSUPPORTED`] from every data point, where the
-/// winding number of the data points (outward `normals`, surface shares `area`) is below
-/// [`OPEN_SPACE`].
-fn thin_unsupported(
-    lattice: &Lattice,
-    values: &[f64],
-    tree: &Octree,
-    points: &[f64],
-    normals: &[[f64; 3]],
-    area: &[f64],
-) -> Vec<bool> {
+/// The positive nodes that may fall under rule 3 (see the module doc): inside a sheet of positive
+/// nodes at most 2 [`THIN`] - 1 nodes across along some lattice axis, with one region of
+/// non-positive nodes on both sides and both faces farther than [`UNSUPPORTED`] from every data
+/// point. Rule 3 takes those where the data's winding number is below [`OPEN_SPACE`].
+fn thin_unsupported(lattice: &Lattice, values: &[f64], tree: &Octree, points: &[f64]) -> Vec<bool> {
     let positive: Vec<bool> = values.iter().map(|&v| v > 0.0).collect();
     let (w, u) = (THIN, UNSUPPORTED);
     if points.is_empty() {
@@ -490,7 +521,7 @@ fn thin_unsupported(
                     c
                 };
                 unsupported(at(up as f64 - 0.5), found) && unsupported(at(-(down as f64) + 0.5), found)
-            }) && winding_number(q, points, normals, area) < OPEN_SPACE
+            })
         })
         .collect()
 }
@@ -596,7 +627,7 @@ mod tests {
                 f.max(ball(&q, [1.6, 0.0, 0.0], 0.25)).max(ball(&q, [0.0, 0.0, -1.2], 0.5))
             })
             .collect();
-        let blobs = find(&lattice, &values, &pts, &normals, &tree);
+        let blobs = find(&Solo, &lattice, &values, &pts, &normals, &tree);
         assert_eq!(blobs.regions, 1, "one region comes nowhere near the data");
         // h = 0.125: the detached ball's nodes all count; of the bulge those beyond the clearance
         let detached = count_within(&blobs, [1.6, 0.0, 0.0], 0.25);
@@ -640,8 +671,8 @@ mod tests {
                 [(p[0] - c) / 0.4, p[1] / 0.4, p[2] / 0.4]
             })
             .collect();
-        let area = point_areas(&pts, &tree, lattice.h);
-        let thin = thin_unsupported(&lattice, &values, &tree, &pts, &normals, &area);
+        let search = Search::new(&Solo, &lattice, &values, &pts, &normals, &tree);
+        let thin = &search.thin;
         let flagged: Vec<[f64; 3]> =
             (0..lattice.len()).filter(|&i| thin[i]).map(|i| lattice.node(i)).collect();
         // h = 0.0375: the web is 3 nodes thick (|y| <= 0.0375) and 11 wide (|z| < 0.2), and its

@@ -205,7 +205,7 @@ pub fn check_first_fit(
     let support = run.args.blob_choice.then(|| DataSupport::new(&data.centres, choice::FACTOR));
     let (values, wide, narrow) = stages.time(Stage::Orient, || {
         let values = sample(run.comm, &lattice, &data.carrier, &first.spline);
-        let search = Search::new(&lattice, &values, &data.centres, &c.normals, &c.hoods.tree);
+        let search = Search::new(run.comm, &lattice, &values, &data.centres, &c.normals, &c.hoods.tree);
         let wide = search.blobs(&lattice, CLEARANCE);
         let narrow = support
             .as_ref()
