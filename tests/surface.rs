@@ -17,7 +17,7 @@ use volspline::mesh::{
 use volspline::par::Solo;
 use volspline::spline::hygiene::{prepare, Prepared};
 use volspline::spline::{Carrier, Kernel, Model, Spline};
-use volspline::surface::blobs::{blob_values, find, sample, Blobs, Lattice, Search, CLEARANCE};
+use volspline::surface::blobs::{blob_values, sample, Blobs, Lattice, Search, CLEARANCE};
 use volspline::surface::choice::{self, unsupported_share};
 use volspline::surface::energy::{flip_by_energy, pairs, patch_energy, ENERGY_LIMIT};
 use volspline::surface::rays::{self, RayCheck};
@@ -124,19 +124,16 @@ fn noisy_sphere_and_torus_are_reconstructed_with_their_topology() {
     }
 }
 
-/// The serial default fit up to the blob search: the data, their neighbourhoods and oriented
-/// normals (turned by the ray test), the first system and its fit, and the blob search on it.
+/// The serial default fit up to the blob search: the data, the first system (with the off points
+/// of the normals the ray test left) and its fit, what the ray test turned, and the blob search.
 struct FirstFit {
     k: Kernel,
     data: Prepared,
-    hoods: Neighbourhoods,
-    normals: Vec<[f64; 3]>,
     prep: Prepared,
     off_count: usize,
     first: Spline,
     turned: RayCheck,
     lattice: Lattice,
-    sampled: Vec<f64>,
     search: Search,
 }
 
@@ -167,7 +164,7 @@ fn first_fit(read: &[f64]) -> FirstFit {
     let lattice = Lattice::of_fit(&data.box_lo, &data.box_hi, 0.05, &data.norm);
     let sampled = sample(&Solo, &lattice, &data.carrier, &first);
     let search = Search::new(&Solo, &lattice, &sampled, &data.centres, &normals, &hoods.tree);
-    FirstFit { k, data, hoods, normals, prep, off_count, first, turned, lattice, sampled, search }
+    FirstFit { k, data, prep, off_count, first, turned, lattice, search }
 }
 
 /// The default fit of `read` (the kernel r, the default carrier) made serially from the
@@ -176,13 +173,11 @@ fn first_fit(read: &[f64]) -> FirstFit {
 /// Returns the model, the off-point count, what the ray test turned and the choice (None: not
 /// made; else whether the narrow clearance was kept).
 fn serial_offsurface(read: &[f64], choose: bool) -> (Model, usize, RayCheck, Option<bool>) {
-    let FirstFit { k, data, prep, off_count, first, turned, lattice, sampled, search, normals, hoods } =
-        first_fit(read);
+    let FirstFit { k, data, prep, off_count, first, turned, lattice, search, .. } = first_fit(read);
     // the second fit; with `choose`, where the wide and the narrow clearance pin different nodes,
     // the second fit of each and the one with less unsupported surface kept
     let support = DataSupport::new(&data.centres, choice::FACTOR);
     let wide = search.blobs(&lattice, CLEARANCE);
-    assert_eq!(wide, find(&Solo, &lattice, &sampled, &data.centres, &normals, &hoods.tree));
     let narrow = search.blobs(&lattice, choice::NARROW * support.spacing);
     println!(
         "{} blob points (narrow clearance {}), {} detached regions; rays {turned:?}",

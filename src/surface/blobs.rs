@@ -261,26 +261,15 @@ pub struct Blobs {
     pub spared: Vec<f64>,
 }
 
-/// The spurious nodes (see the module doc) of the fit whose `values` were sampled on `lattice`,
-/// for data `points` (normalised, the tree `tree` over them) with outward unit `normals`.
-pub fn find(
-    comm: &dyn Comm,
-    lattice: &Lattice,
-    values: &[f64],
-    points: &[f64],
-    normals: &[[f64; 3]],
-    tree: &Octree,
-) -> Blobs {
-    Search::new(comm, lattice, values, points, normals, tree).blobs(lattice, CLEARANCE)
-}
-
 /// What the rules ask of every positive node of a sampled fit, whatever the clearance of rule 2:
-/// [`Search::blobs`] then takes the spurious nodes for a clearance.
+/// [`Search::blobs`] then takes the spurious nodes (see the module doc) for a clearance, the
+/// default [`CLEARANCE`].
 pub struct Search {
     /// Of every positive node: the distance to the nearest data point, that point, and the
     /// fraction of its [`VOTERS`] nearest data points that see it outside.
     judged: Vec<Option<(f64, usize, f64)>>,
-    /// The winding number of the data at every node the vote finds outside (NaN elsewhere).
+    /// The winding number of the data at every node the vote finds outside and every candidate
+    /// of rule 3 (NaN elsewhere).
     winding: Vec<f64>,
     /// Whether the positive node's region comes near the data (rule 1).
     supported: Vec<bool>,
@@ -375,7 +364,7 @@ impl Search {
         Search { judged, winding, supported, thin, regions, n }
     }
 
-    /// The spurious nodes with the clearance of rule 2 `clearance` (normalised; [`find`] takes
+    /// The spurious nodes with the clearance of rule 2 `clearance` (normalised; the default is
     /// [`CLEARANCE`]).
     pub fn blobs(&self, lattice: &Lattice, clearance: f64) -> Blobs {
         let mut blobs = Blobs { regions: self.regions, ..Default::default() };
@@ -627,7 +616,7 @@ mod tests {
                 f.max(ball(&q, [1.6, 0.0, 0.0], 0.25)).max(ball(&q, [0.0, 0.0, -1.2], 0.5))
             })
             .collect();
-        let blobs = find(&Solo, &lattice, &values, &pts, &normals, &tree);
+        let blobs = Search::new(&Solo, &lattice, &values, &pts, &normals, &tree).blobs(&lattice, CLEARANCE);
         assert_eq!(blobs.regions, 1, "one region comes nowhere near the data");
         // h = 0.125: the detached ball's nodes all count; of the bulge those beyond the clearance
         let detached = count_within(&blobs, [1.6, 0.0, 0.0], 0.25);
