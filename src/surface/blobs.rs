@@ -118,6 +118,9 @@ pub const THIN: usize = 3;
 /// Distance from every data point beyond which a face of a thin sheet is unsupported, normalised
 /// (4 % of the box diagonal).
 pub const UNSUPPORTED: f64 = 0.08;
+/// Winding number of the data from which rule 2 leaves a node alone, whatever the vote.
+pub const WINDING: f64 = 1.0 / 3.0;
+
 /// Winding number of the data below which a thin sheet of rule 3 lies in open space.
 pub const OPEN_SPACE: f64 = 0.1;
 /// Most blob points, as a fraction of the data points (at least [`MIN_CAP`]).
@@ -393,9 +396,6 @@ impl Search {
         blobs
     }
 }
-
-/// Winding number of the data from which rule 2 leaves a node alone, whatever the vote.
-pub const WINDING: f64 = 1.0 / 3.0;
 
 /// The share of the surface each data point stands for: pi r^2 / k with r the distance to its
 /// k-th nearest data point (k = [`VOTERS`]), the area of the disc of its k nearest neighbours
