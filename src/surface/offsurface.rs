@@ -96,7 +96,7 @@ pub(crate) fn place(
     found: &mut Vec<usize>,
 ) -> Option<(f64, [f64; 3])> {
     let p = &points[3 * i..3 * i + 3];
-    let mut delta = std::env::var("VS_DELTA").ok().and_then(|v| v.parse().ok()).unwrap_or(DELTA);
+    let mut delta = DELTA;
     for _ in 0..=HALVINGS {
         let q = [0, 1, 2].map(|d| p[d] + side * delta * n[d]);
         let own = dist2(&q, p);
