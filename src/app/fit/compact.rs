@@ -142,6 +142,7 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
             ("fill".into(), format!("{:.4}", factored.stored as f64 / lower_nnz.max(1.0))),
             ("system_size".into(), (n + k).to_string()),
         ],
+        factor: None,
     })
 }
 

@@ -12,9 +12,9 @@ use crate::cli::FitArgs;
 use crate::error::Error;
 use crate::error::Result;
 use crate::linalg::dist::{
-    self, Job, Layout, LocalBlocks, LocalRows, Precision, ProcessGrid, RowCyclic, SolverKind,
+    self, Factored, Job, Layout, LocalBlocks, LocalRows, Precision, ProcessGrid, RowCyclic, SolverKind,
 };
-use crate::par::{CallKind, Comm, Timed};
+use crate::par::{agree, CallKind, Comm, Timed};
 use crate::spline::hygiene::Prepared;
 use crate::spline::{fill_block, fill_rows, residual_parts, Kernel, Spline};
 
@@ -25,6 +25,35 @@ pub fn assemble(kernel: &Kernel, centres: &[f64], values: &[f64], layout: RowCyc
     let globals: Vec<usize> = (0..layout.local_count()).map(|l| layout.global(l)).collect();
     fill_rows(kernel, centres, values, &globals, &mut rows.data);
     rows
+}
+
+/// The solution of the bordered system of `kernel` through `values` at `centres`, whose first
+/// `first.centres()` centres are those of the factored system `first` (the rest appended after
+/// them; every value may differ from the first system's), by bordering `first`'s factor
+/// ([`dist::extend_solve`]). Collective; `Error::NotDefinite` when the bordered block is not
+/// definite to working precision (then the whole system has to be solved).
+pub fn solve_extended(
+    job: &Job<'_>,
+    kernel: &Kernel,
+    centres: &[f64],
+    values: &[f64],
+    first: &Factored,
+) -> Result<Vec<f64>> {
+    let (n, k) = (first.centres(), kernel.poly_count());
+    assert!(values.len() >= n && k == first.border(), "the extended system keeps the first one's centres");
+    let m = values.len() - n;
+    let rows = first.local_centres();
+    let appended: Vec<usize> = (n..n + m).collect();
+    let poly_cols: Vec<usize> = (n + m..n + m + k).collect();
+    let mut cross = vec![0.0; rows.len() * m];
+    fill_block(kernel, centres, values, &rows, &appended, &mut cross);
+    let mut block = vec![0.0; m * m];
+    fill_block(kernel, centres, values, &appended, &appended, &mut block);
+    let mut poly_cm = vec![0.0; m * k];
+    fill_block(kernel, centres, values, &appended, &poly_cols, &mut poly_cm);
+    let poly: Vec<f64> = (0..m * k).map(|q| poly_cm[(q % k) * m + q / k]).collect();
+    let new = dist::Appended { cross: &cross, poly: &poly, block: &block, rhs: values };
+    agree(job.comm, dist::extend_solve(job, first, &new))
 }
 
 /// Whether the solvers look ahead: as asked, or by default (`auto`) on the row-cyclic layout
@@ -88,8 +117,81 @@ pub fn check(comm: &dyn Comm, kernel: &Kernel, n: usize, precision: Precision) -
     )
 }
 
-/// Fits the spline of `kernel` to the prepared points with the dense solvers. Collective.
-pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) -> Result<Fitted> {
+/// The factor of a first fit kept for a second one that appends centres, with the centres it
+/// was assembled from.
+pub struct KeptFactor {
+    factor: Factored,
+    centres: Vec<f64>,
+    /// Whether the first factorisation looked ahead (the report of the second fit says so).
+    lookahead: bool,
+}
+
+impl KeptFactor {
+    /// Whether `prep`'s system keeps this one's centres, in order, before any it appends.
+    pub fn extended_by(&self, prep: &Prepared) -> bool {
+        prep.centres.len() >= self.centres.len() && prep.centres[..self.centres.len()] == self.centres[..]
+    }
+}
+
+/// A fit after a first one whose factor was kept (`first`): where `prep` keeps the first fit's
+/// centres and appends more (or only changes values), by bordering that factor
+/// ([`solve_extended`]); otherwise, or when the bordered block is not definite, by a fresh dense
+/// fit, checked for memory with the kept factor still held. Collective.
+pub fn refit(
+    run: &Run<'_>,
+    kernel: Kernel,
+    prep: &Prepared,
+    first: Option<&KeptFactor>,
+    stages: &mut Stages,
+) -> Result<Fitted> {
+    let held = first.map_or(0, |f| f.factor.centres());
+    if let Some(first) = first.filter(|f| f.extended_by(prep)) {
+        match fit_bordered(run, kernel, prep, first, stages) {
+            Err(e) if e.is_not_definite() => {
+                if run.comm.rank() == 0 {
+                    eprintln!("volspline: bordered second fit: {}; factoring the whole system", e.root());
+                }
+            }
+            outcome => return outcome,
+        }
+    }
+    check(run.comm, &kernel, prep.values.len() + held, run.args.precision)?;
+    fit(run, kernel, prep, false, stages)
+}
+
+/// The second fit by bordering `first`'s factor, reported as the dense fit is.
+fn fit_bordered(
+    run: &Run<'_>,
+    kernel: Kernel,
+    prep: &Prepared,
+    first: &KeptFactor,
+    stages: &mut Stages,
+) -> Result<Fitted> {
+    let Run { comm, threads, .. } = *run;
+    let timed = Timed::new(comm);
+    let job = Job::on(&timed).par(Par::rayon(threads));
+    let t0 = std::time::Instant::now();
+    let x = stages.time(Stage::Solve, || solve_extended(&job, &kernel, &prep.centres, &prep.values, &first.factor));
+    stages.add(Stage::CommWait, timed.seconds());
+    let x = x?;
+    let seconds = t0.elapsed().as_secs_f64();
+    let solved = dist::Solved {
+        x,
+        used: SolverKind::Cholesky,
+        panel: first.factor.panel(),
+        fallback: None,
+        refinement: None,
+        mixed_fallback: None,
+    };
+    let layout = RowCyclic::new(prep.values.len() + kernel.poly_count(), comm.size(), comm.rank());
+    let bordered = (first.factor.centres(), seconds);
+    Ok(finish(run, kernel, prep, solved, (layout, first.lookahead, Some(bordered)), &timed, stages))
+}
+
+/// Fits the spline of `kernel` to the prepared points with the dense solvers; with `keep`, the
+/// factor of a row-cyclic projected Cholesky in f64 is kept in the result for [`refit`].
+/// Collective.
+pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, keep: bool, stages: &mut Stages) -> Result<Fitted> {
     let Run { args: a, comm, threads } = *run;
     let (centres, values) = (&prep.centres, &prep.values);
     let layout = RowCyclic::new(values.len() + kernel.poly_count(), comm.size(), comm.rank());
@@ -99,7 +201,18 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
     let rows = values.len() + kernel.poly_count();
     let lookahead = lookahead_for(a.lookahead.0, a.layout.shape(comm.size()), a.solver, rows);
     let job = Job::on(&timed).panel(a.panel).par(Par::rayon(threads)).progress(&report).lookahead(lookahead);
+    let mut kept = None;
     let solved = match a.layout {
+        Layout::RowCyclic if keep && a.precision == Precision::F64 => {
+            let rows = stages.time(Stage::Assemble, || assemble(&kernel, centres, values, layout));
+            stages.time(Stage::Solve, || {
+                let reassemble = || assemble(&kernel, centres, values, layout);
+                dist::solve_keeping(&job, a.solver, rows, reassemble, true).map(|(solved, factor)| {
+                    kept = factor.map(|factor| KeptFactor { factor, centres: centres.clone(), lookahead });
+                    solved
+                })
+            })
+        }
         Layout::RowCyclic => {
             let rows = stages.time(Stage::Assemble, || assemble(&kernel, centres, values, layout));
             stages.time(Stage::Solve, || {
@@ -123,11 +236,30 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
         }
     };
     stages.add(Stage::CommWait, timed.seconds());
+    let solved = solved?;
+    let mut fitted = finish(run, kernel, prep, solved, (layout, lookahead, None), &timed, stages);
+    fitted.factor = kept;
+    Ok(fitted)
+}
+
+/// The checks, the spline and the report of a dense solve `solved` of `prep`'s system on
+/// `layout` (`lookahead` as used; `bordered`: the centres of the first fit whose factor was
+/// bordered, and the seconds that took); `timed` counted its collectives. Collective.
+fn finish(
+    run: &Run<'_>,
+    kernel: Kernel,
+    prep: &Prepared,
+    solved: dist::Solved,
+    (layout, lookahead, bordered): (RowCyclic, bool, Option<(usize, f64)>),
+    timed: &Timed<'_>,
+    stages: &mut Stages,
+) -> Fitted {
+    let Run { args: a, comm, .. } = *run;
+    let (centres, values) = (&prep.centres, &prep.values);
     let calls = timed.calls();
     // the slowest rank's wait in each kind of call
     let mut by_kind: Vec<f64> = CallKind::ALL.iter().map(|&k| timed.seconds_in(k)).collect();
     comm.max_f64(&mut by_kind);
-    let solved = solved?;
     if let (Some(why), 0) = (&solved.mixed_fallback, comm.rank()) {
         eprintln!("volspline: precision mixed: {why}; solved in f64 with {}", solved.used.name());
     }
@@ -157,6 +289,12 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
         a.layout.name(comm.size()),
         solved.panel
     );
+    if let Some((first, seconds)) = bordered {
+        line.push_str(&format!(
+            "\n  second fit: the first fit's factor ({first} centres) bordered by {} appended centres in {seconds:.3} s",
+            values.len() - first
+        ));
+    }
     let kinds: Vec<String> =
         CallKind::ALL.iter().zip(&by_kind).map(|(k, s)| format!("{} {s:.3} s", k.name())).collect();
     line.push_str(&format!("\n  comm wait by kind (max over ranks): {}", kinds.join(", ")));
@@ -167,7 +305,7 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
         line.push_str(&format!("\n  precision mixed fell back to f64: {why}"));
     }
     let refinement = solved.refinement.as_ref();
-    Ok(Fitted {
+    Fitted {
         spline,
         coarse: Vec::new(),
         solver: if mixed {
@@ -197,6 +335,58 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
                 .zip(&by_kind)
                 .map(|(k, s)| (format!("comm_wait_{}_max_s", k.name()), format!("{s:.6}"))),
         )
+        .chain([("bordered_from".into(), bordered.map_or(0, |(first, _)| first).to_string())])
         .collect(),
-    })
+        factor: None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::linalg::dense::householder_solve;
+    use crate::par::Solo;
+    use crate::spline::full_system;
+    use faer::MatRef;
+
+    /// `count` points spread over a bumpy sphere and values in [-1, 1], deterministic.
+    fn points(count: usize) -> (Vec<f64>, Vec<f64>) {
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        let mut centres = Vec::new();
+        let mut values = Vec::new();
+        for i in 0..count {
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / count as f64;
+            let (r, a) = ((1.0 - z * z).sqrt(), golden * i as f64);
+            let bump = 1.0 + 0.1 * (3.0 * a).sin() * z;
+            centres.extend([bump * r * a.cos(), bump * r * a.sin(), bump * z]);
+            values.push(((i * 7919) % 211) as f64 / 105.0 - 1.0);
+        }
+        (centres, values)
+    }
+
+    /// The first 150 centres factored, then 0 or 50 more appended and a few of the first values
+    /// changed: the bordered solve matches a dense QR of the whole system, and the factor can be
+    /// bordered twice.
+    #[test]
+    fn bordering_the_factor_solves_the_extended_system() {
+        let kernel = Kernel::new(3, 2).unwrap();
+        let (centres, values) = points(200);
+        let n = 150;
+        let layout = RowCyclic::new(n + 4, 1, 0);
+        let job = Job::on(&Solo).panel(16);
+        let rows = assemble(&kernel, &centres[..3 * n], &values[..n], layout);
+        let (_, first) = dist::solve_keeping(&job, SolverKind::Cholesky, rows, || unreachable!(), true).unwrap();
+        let first = first.expect("the projected Cholesky keeps its factor");
+        for total in [n, 200] {
+            let mut v = values[..total].to_vec();
+            (0..n).step_by(9).for_each(|i| v[i] = -v[i]);
+            let x = solve_extended(&job, &kernel, &centres[..3 * total], &v, &first).unwrap();
+            let size = total + 4;
+            let (a, b) = full_system(&kernel, &centres[..3 * total], &v);
+            let want = householder_solve(MatRef::from_column_major_slice(&a, size, size), &b).unwrap();
+            let scale = want.iter().fold(0.0f64, |m, w| m.max(w.abs()));
+            let err = x.iter().zip(&want).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            assert!(err < 1e-9 * scale, "{total} centres: max error {err:e} against {scale:e}");
+        }
+    }
 }

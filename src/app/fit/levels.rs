@@ -125,11 +125,11 @@ pub fn fit(
     let sub = restrict(prep, &keep);
     let mut constrained = constrain(run, &sub, &mut inner)?;
     let r = Kernel::new(3, 2)?.with_smoothing(run.args.smooth)?;
-    let mut refit = |p: &Prepared, st: &mut Stages| {
-        dense::check(run.comm, &r, p.values.len(), run.args.precision)?;
-        dense::fit(run, r, p, st)
+    let mut refit = |p: &Prepared, first: Option<&dense::KeptFactor>, st: &mut Stages| {
+        dense::refit(run, r, p, first, st)
     };
-    let first = refit(&constrained.prep, &mut inner)?;
+    dense::check(run.comm, &r, constrained.prep.values.len(), run.args.precision)?;
+    let first = dense::fit(run, r, &constrained.prep, true, &mut inner)?;
     // level 0 decides the sign away from the data: its spurious blobs are cleared like a
     // single-level fit's
     let level0 = check_first_fit(run, &sub, &mut constrained, first, &mut inner, &mut refit)?;
@@ -168,6 +168,7 @@ pub fn fit(
             residual: level1.residual,
             line,
             figures,
+            factor: None,
         },
         summary,
     ))

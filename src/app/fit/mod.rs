@@ -55,6 +55,8 @@ pub struct Fitted {
     pub line: String,
     /// The method's own figures for the CSV record.
     pub figures: Vec<(String, String)>,
+    /// The factor of a dense first fit, kept for a second fit that borders it.
+    pub factor: Option<dense::KeptFactor>,
 }
 
 /// Reads the input points on rank 0 and gives them to every rank, 3 values per point.
@@ -187,14 +189,15 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         }
         check_grid(comm, &grid)?;
         // the second fit against spurious blobs has more rows: checked again
-        let mut fit_with = |p: &Prepared, stages: &mut Stages| match method {
-            Method::Dense | Method::Auto => {
-                dense::check(comm, &kernel, p.values.len(), a.precision)?;
-                dense::fit(&run, kernel, p, stages)
-            }
+        let mut fit_with = |p: &Prepared, first: Option<&dense::KeptFactor>, stages: &mut Stages| match method {
+            Method::Dense | Method::Auto => dense::refit(&run, kernel, p, first, stages),
             Method::Csrbf => compact::fit(&run, kernel, p, stages),
         };
-        let mut fitted = fit_with(fit_prep, &mut stages)?;
+        // a first fit that may be followed by a second keeps its factor for it
+        let mut fitted = match method {
+            Method::Dense | Method::Auto => dense::fit(&run, kernel, fit_prep, off, &mut stages)?,
+            Method::Csrbf => compact::fit(&run, kernel, fit_prep, &mut stages)?,
+        };
         if let Some(c) = constrained.as_mut() {
             fitted = surface::check_first_fit(&run, &prep, c, fitted, &mut stages, &mut fit_with)?;
         }

@@ -6,6 +6,7 @@
 //! negative ([`crate::surface::blobs`]), and where either changed something the spline is fitted
 //! once more.
 
+use super::dense::KeptFactor;
 use super::{Fitted, Run};
 use crate::app::stages::{Stage, Stages};
 use crate::cli::Surface;
@@ -84,6 +85,7 @@ pub struct Constrained {
     pub summary: SurfaceSummary,
     hoods: Neighbourhoods,
     normals: Vec<[f64; 3]>,
+    off: OffPoints,
 }
 
 /// The method `surface` resolves to for `n` points (true: off-surface constraints).
@@ -140,7 +142,7 @@ pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<
         rays: None,
         choice: None,
     };
-    Ok(Constrained { prep: with_off_points(prep, &off), summary, hoods, normals: orientation.normals })
+    Ok(Constrained { prep: with_off_points(prep, &off), summary, hoods, normals: orientation.normals, off })
 }
 
 /// `data` with the off points `off` and their values appended to its centres and values.
@@ -162,7 +164,10 @@ fn delta_range(off: &OffPoints, scale: f64) -> (f64, f64) {
 /// The fit `first` of `c.prep`, or, where rays through it turn patches of the normals (see
 /// [`crate::surface::rays`], unless `--orient-rays off`) or it is positive in regions no data
 /// supports (see [`crate::surface::blobs`]), the fit `refit` makes of `c.prep` with the turned
-/// patches' off points and constraint points in those regions (`c` is updated). Where the blob
+/// patches' off points and constraint points in those regions (`c` is updated). A turned
+/// patch's off points stay where they are and change side (p + delta n with n turned is the
+/// old p - delta n): the second system keeps the first one's centres and appends the blob
+/// points, so `refit` is given the first fit's factor, where it kept one, to border. Where the blob
 /// search's wide and narrow clearances pin different nodes (unless `--blob-choice off`), both
 /// second fits are made and the one with less unsupported surface is kept (see
 /// [`crate::surface::choice`]). `data` is the data alone; the lattice covers its box grown by the
@@ -171,11 +176,12 @@ pub fn check_first_fit(
     run: &Run<'_>,
     data: &Prepared,
     c: &mut Constrained,
-    first: Fitted,
+    mut first: Fitted,
     stages: &mut Stages,
-    refit: &mut dyn FnMut(&Prepared, &mut Stages) -> Result<Fitted>,
+    refit: &mut dyn FnMut(&Prepared, Option<&KeptFactor>, &mut Stages) -> Result<Fitted>,
 ) -> Result<Fitted> {
     let norm = data.norm;
+    let factor = first.factor.take();
     let lattice = Lattice::of_fit(&data.box_lo, &data.box_hi, run.args.grid.margin, &norm);
     let turned = stages.time(Stage::Orient, || {
         if !run.args.orient_rays {
@@ -191,15 +197,19 @@ pub fn check_first_fit(
             &c.hoods.tree,
             &spacing,
         );
-        rays::turn_doubtful_patches(&data.centres, &mut c.normals, &c.hoods.knn, c.hoods.kmax, &verdicts)
+        let before = c.normals.clone();
+        let turned =
+            rays::turn_doubtful_patches(&data.centres, &mut c.normals, &c.hoods.knn, c.hoods.kmax, &verdicts);
+        // the off points of the turned normals change side in place
+        for (side, &i) in c.off.side.iter_mut().zip(&c.off.source) {
+            if (0..3).map(|d| before[i][d] * c.normals[i][d]).sum::<f64>() < 0.0 {
+                *side = -*side;
+            }
+        }
+        turned
     });
     if turned.turned > 0 {
-        // the off points of the turned normals replace the first fit's
-        let off = off_points(&data.centres, &c.normals, &c.hoods.tree, run.args.off_points);
-        c.prep = with_off_points(data, &off);
-        c.summary.off_points = off.side.len();
-        c.summary.dropped = off.dropped;
-        c.summary.delta = delta_range(&off, norm.scale);
+        c.prep = with_off_points(data, &c.off);
     }
     // the data's support, which the clearance choice alone needs
     let support = run.args.blob_choice.then(|| DataSupport::new(&data.centres, choice::FACTOR));
@@ -225,7 +235,7 @@ pub fn check_first_fit(
         drop(first);
         c.prep = with_blobs(&c.prep, &wide, data);
         c.summary.blob_points = wide.source.len();
-        return refit(&c.prep, stages);
+        return refit(&c.prep, factor.as_ref(), stages);
     };
     // two candidates: each is the first fit or a second one, with its points and the lattice
     // values of its fit (neither candidate the first fit: it goes before the second systems are
@@ -238,7 +248,7 @@ pub fn check_first_fit(
             let (fit, values) = first.take().expect("one candidate at most is the first fit");
             return Ok((fit, values, prep));
         }
-        let fit = refit(&prep, stages)?;
+        let fit = refit(&prep, factor.as_ref(), stages)?;
         let values = stages.time(Stage::Orient, || sample(run.comm, &lattice, &data.carrier, &fit.spline));
         Ok((fit, values, prep))
     };

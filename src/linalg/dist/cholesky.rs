@@ -78,6 +78,12 @@ const COL_CHUNK: usize = 256;
 /// caller should fall back to LU on a freshly assembled system: `rows` is overwritten. `par` is
 /// the parallelism of the local GEMMs and triangular solves.
 pub fn cholesky_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>> {
+    factor_and_solve(job, rows).map(|(x, _, _)| x)
+}
+
+/// [`cholesky_solve`], which also returns the QR of the border and the sign s of the factored
+/// block (s B = L L^T): with the rows, what [`super::extend`] needs to border the factor.
+pub(super) fn factor_and_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<(Vec<f64>, Border, f64)> {
     let Job { comm, panel, par, .. } = *job;
     let lay = rows.layout;
     let border = Border::new(comm, rows)?;
@@ -86,14 +92,13 @@ pub fn cholesky_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>> {
     let ld = rows.ld();
     let rhs = rows.cols - 1;
     let la = lay.first_local_from(n); // this rank's rows of A are local 0..la
-    let gl: Vec<usize> = (0..la).map(|l| lay.global(l)).collect();
     let r = border.r();
 
     let (left, right) = border.projection(comm, rows, par);
     let a = MatMut::from_column_major_slice_with_stride_mut(&mut rows.data, la, n, ld);
     matmul(a, Accum::Add, left.as_ref(), right.as_ref(), -1.0, par);
     border.project_rhs(comm, rows);
-    factor_projected(job, rows, k, n)?;
+    let sign = factor_projected(job, rows, k, n)?;
 
     // forward substitution L z = y (y: the right-hand side rows k..n)
     let mut z = vec![0.0; n];
@@ -116,25 +121,7 @@ pub fn cholesky_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>> {
         }
         q0 = q1;
     }
-    // back substitution L^T mu = z
-    let mut mu = vec![0.0; n];
-    let mut q1 = n;
-    while q1 > k {
-        let q0 = q1.saturating_sub(nb).max(k);
-        let bs = q1 - q0;
-        let u0 = lay.first_local_from(q1);
-        let mut sums = vec![0.0; bs];
-        for (t, c) in (q0..q1).enumerate() {
-            sums[t] = (u0..la).map(|l| rows.data[l + c * ld] * mu[gl[l]]).sum();
-        }
-        comm.sum_f64(&mut sums);
-        let d = rows.gather_rows(comm, q0, q1, q0, q1);
-        for i in (0..bs).rev() {
-            let s: f64 = (i + 1..bs).map(|j| d[j * bs + i] * mu[q0 + j]).sum();
-            mu[q0 + i] = (z[q0 + i] - sums[i] - s) / d[i * bs + i];
-        }
-        q1 = q0;
-    }
+    let mu = back_substitute(comm, rows, (k, n), nb, &z);
 
     // lambda = Q [0; mu]
     let mut lambda = mu.clone();
@@ -155,7 +142,40 @@ pub fn cholesky_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>> {
         c[i] = (t[i] - s) / r[(i, i)];
     }
     lambda.extend(c);
-    Ok(lambda)
+    Ok((lambda, border, sign))
+}
+
+/// mu with L^T mu = z in entries k..n (entries 0..k zero), L the factor of the projected block
+/// in rows and columns k..n of `rows` ([`factor_projected`]), z replicated; the panels are nb
+/// wide. Collective; mu on every rank.
+pub(super) fn back_substitute(
+    comm: &dyn Comm,
+    rows: &LocalRows,
+    (k, n): (usize, usize),
+    nb: usize,
+    z: &[f64],
+) -> Vec<f64> {
+    let lay = rows.layout;
+    let (ld, la) = (rows.ld(), lay.first_local_from(n));
+    let mut mu = vec![0.0; n];
+    let mut q1 = n;
+    while q1 > k {
+        let q0 = q1.saturating_sub(nb).max(k);
+        let bs = q1 - q0;
+        let u0 = lay.first_local_from(q1);
+        let mut sums = vec![0.0; bs];
+        for (t, c) in (q0..q1).enumerate() {
+            sums[t] = (u0..la).map(|l| rows.data[l + c * ld] * mu[lay.global(l)]).sum();
+        }
+        comm.sum_f64(&mut sums);
+        let d = rows.gather_rows(comm, q0, q1, q0, q1);
+        for i in (0..bs).rev() {
+            let s: f64 = (i + 1..bs).map(|j| d[j * bs + i] * mu[q0 + j]).sum();
+            mu[q0 + i] = (z[q0 + i] - sums[i] - s) / d[i * bs + i];
+        }
+        q1 = q0;
+    }
+    mu
 }
 
 /// The Householder QR P = Q [R; 0] of the polynomial block, on every rank: R above the diagonal

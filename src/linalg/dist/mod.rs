@@ -7,6 +7,9 @@
 //! by classical refinement and GMRES-IR ([`mixed_solve`]), with a fallback to f64 when the f32
 //! factorisation fails or the refinement does not reach the accuracy of an f64 solve.
 //!
+//! [`extend_solve`] borders a kept projected Cholesky factor ([`solve_keeping`]) by appended
+//! centres, for a second fit that adds constraint points to the first.
+//!
 //! Every solver takes the panel width nb and a `faer::Par`. The panel kernels and the
 //! collectives are serial; the `Par` goes to the local GEMMs and triangular solves of the
 //! trailing updates, where the flops are: `Par::rayon(t)` gives each rank t threads.
@@ -14,6 +17,7 @@
 mod backsub;
 mod cholesky;
 mod cholesky2d;
+mod extend;
 mod grid;
 mod householder;
 mod householder2d;
@@ -29,6 +33,7 @@ mod system;
 
 pub use cholesky::cholesky_solve;
 pub use cholesky2d::cholesky2d_solve;
+pub use extend::{extend_solve, Appended, Factored};
 pub use grid::{squarest, BlockCyclic, Layout, LocalBlocks, ProcessGrid};
 pub use householder::householder_solve;
 pub use householder2d::householder2d_solve;
@@ -38,6 +43,6 @@ pub use lu2d::{lu2d_factor, lu2d_solve};
 pub use refine::{mixed_solve, Refinement};
 pub use scalar::Scalar;
 pub use solver::{
-    solve, solve_2d, solve_in, Job, Precision, Solved, SolverKind, AUTO_CHOLESKY_FROM, LOOKAHEAD,
+    solve, solve_2d, solve_in, solve_keeping, Job, Precision, Solved, SolverKind, AUTO_CHOLESKY_FROM, LOOKAHEAD,
 };
 pub use system::{all_gather_rows, GatherBuffers, LocalRows};

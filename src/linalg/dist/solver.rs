@@ -5,6 +5,8 @@
 
 use faer::Par;
 
+use super::cholesky::factor_and_solve;
+use super::extend::Factored;
 use super::{
     cholesky2d_solve, cholesky_solve, householder2d_solve, householder_solve, lu2d_solve, lu_solve,
     mixed_solve, LocalBlocks, LocalRows, ProcessGrid, Refinement,
@@ -250,35 +252,51 @@ pub fn solve_in(
 pub fn solve(
     job: &Job<'_>,
     kind: SolverKind,
-    mut rows: LocalRows,
+    rows: LocalRows,
     reassemble: impl FnOnce() -> LocalRows,
 ) -> Result<Solved> {
+    solve_keeping(job, kind, rows, reassemble, false).map(|(solved, _)| solved)
+}
+
+/// [`solve`], which with `keep` also returns the factor when the projected Cholesky solved the
+/// system (see [`super::extend`]): a second fit with centres appended can then border it.
+pub fn solve_keeping(
+    job: &Job<'_>,
+    kind: SolverKind,
+    mut rows: LocalRows,
+    reassemble: impl FnOnce() -> LocalRows,
+    keep: bool,
+) -> Result<(Solved, Option<Factored>)> {
     let comm = job.comm;
     let used = kind.resolve(rows.layout.n);
     let n = rows.layout.n;
     let panel_of = |k: SolverKind| if job.panel > 0 { job.panel } else { k.default_panel(n) };
-    match agree(comm, used.run(job, &mut rows)) {
-        Ok(x) => Ok(Solved {
-            x,
-            used,
-            panel: panel_of(used),
-            fallback: None,
-            refinement: None,
-            mixed_fallback: None,
-        }),
+    let keeps = keep && used == SolverKind::Cholesky && rows.border > 0;
+    let outcome = if keeps {
+        let panel = panel_of(used);
+        factor_and_solve(&Job { panel, ..*job }, &mut rows).map(|(x, border, sign)| (x, Some((border, sign))))
+    } else {
+        used.run(job, &mut rows).map(|x| (x, None))
+    };
+    match agree(comm, outcome) {
+        Ok((x, kept)) => Ok((
+            Solved { x, used, panel: panel_of(used), fallback: None, refinement: None, mixed_fallback: None },
+            kept.map(|(border, sign)| Factored::new(rows, border, sign, panel_of(used))),
+        )),
         Err(e) if e.is_not_definite() => {
             drop(rows);
             let mut rows = reassemble();
             let x = agree(comm, SolverKind::Lu.run(job, &mut rows))?;
             let panel = panel_of(SolverKind::Lu);
-            Ok(Solved {
+            let solved = Solved {
                 x,
                 used: SolverKind::Lu,
                 panel,
                 fallback: Some(e),
                 refinement: None,
                 mixed_fallback: None,
-            })
+            };
+            Ok((solved, None))
         }
         Err(e) => Err(e),
     }

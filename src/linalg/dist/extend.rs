@@ -1,0 +1,252 @@
+//! Bordering a projected Cholesky factor: the system of a fit with m centres appended after the
+//! n it had, solved from the factor of the first system in O(n^2 m) flops instead of a fresh
+//! O((n + m)^3) factorisation. The right-hand side of the first n rows may change too (a second
+//! fit that moves no centre but changes values is the case m = 0).
+//!
+//! # Why the first factor survives
+//!
+//! The projected Cholesky (see `cholesky`) factors s B = L L^T with B = Q2^T A Q2, where
+//! P = Q [R; 0] is the Householder QR of the polynomial block and Q2 its last n - k columns.
+//! Appending centres appends rows P_new (m x k) to P and rows and columns to A:
+//!
+//! ```text
+//!     A' = [A E; E^T F],   P' = [P; P_new],   E = (G(|x_i - y_j|)) (n x m), F (m x m).
+//! ```
+//!
+//! With T = diag(Q, I_m), T^T P' = [R; 0; P_new]: only the k rows of R and the m new rows are
+//! not yet zero. A second Householder QR of the small (k + m) x k matrix [R; P_new] =
+//! G [R'; 0] finishes it: with H the embedding of G on those k + m coordinates (the identity on
+//! the n - k others), Q' = T H is an orthogonal factor of P' = Q' [R'; 0]. H leaves the
+//! coordinates k..n alone, so the null-space basis Q2' of P'^T consists of the old Q2 (padded
+//! with zeros) and m new columns, and the new projected block is the old one bordered:
+//!
+//! ```text
+//!     B' = [B C; C^T D],   C = [M_{k..n,0..k}  (Q^T E)_{k..n}] G_n,
+//!                          D = G_n^T [M_{0..k,0..k} (Q^T E)_{0..k}; (Q^T E)_{0..k}^T F] G_n,
+//! ```
+//!
+//! with M = Q^T A Q (the first solve leaves its rows 0..k and columns 0..k in place) and G_n the
+//! last m columns of G. B' is definite with the same sign s (it is the projection of the same
+//! kernel onto the null space of the larger P'^T). Its factor is the old one bordered:
+//! s B' = [L 0; X^T L22] [L^T X; 0 L22^T] with L X = s C (a blocked forward substitution of m
+//! columns through the distributed L, n^2 m flops) and L22 L22^T = s D - X^T X (m x m, on every
+//! rank). When that last block is not definite to working precision the extension fails with
+//! `Error::NotDefinite` and the caller factors the whole system instead.
+//!
+//! The right-hand side follows the same way: y' = Q'^T r' is Q^T r_old at k..n and
+//! G^T [(Q^T r_old)_{0..k}; r_new] on the other k + m coordinates; mu' = [mu; mu_new] from the
+//! bordered factor, lambda' = Q' [0; mu'] and R' c = y'_{0..k} - (Q'^T A' Q')_{0..k, null} mu'.
+
+use faer::linalg::matmul::matmul;
+use faer::linalg::triangular_solve::{solve_lower_triangular_in_place, solve_upper_triangular_in_place};
+use faer::{Accum, Mat, MatRef};
+
+use super::cholesky::{back_substitute, cholesky_small, Border};
+use super::solver::Job;
+use super::system::{all_gather_rows, LocalRows};
+use crate::error::{Error, Result};
+use crate::linalg::reflector::qr_in_place;
+
+/// The factor of a solved projected Cholesky kept for bordering: the rows it overwrote (L of
+/// s B in rows and columns k..n, rows 0..k and columns 0..k of Q^T A Q as the projection left
+/// them), the QR of the border, s and the panel width.
+pub struct Factored {
+    rows: LocalRows,
+    border: Border,
+    sign: f64,
+    panel: usize,
+}
+
+impl Factored {
+    pub(super) fn new(rows: LocalRows, border: Border, sign: f64, panel: usize) -> Self {
+        Factored { rows, border, sign, panel }
+    }
+
+    /// The number of centres of the factored system.
+    pub fn centres(&self) -> usize {
+        self.border.n
+    }
+
+    /// The width k of the polynomial border.
+    pub fn border(&self) -> usize {
+        self.border.k
+    }
+
+    /// The panel width the factor was computed with (the bordering uses the same).
+    pub fn panel(&self) -> usize {
+        self.panel
+    }
+
+    /// This rank's rows of the factored system's centres (global indices, in local order): the
+    /// rows of [`Appended::cross`].
+    pub fn local_centres(&self) -> Vec<usize> {
+        let lay = self.rows.layout;
+        (0..lay.first_local_from(self.border.n)).map(|l| lay.global(l)).collect()
+    }
+}
+
+/// What m appended centres add to a factored system of n centres and border k.
+pub struct Appended<'a> {
+    /// E: the kernel between this rank's centres ([`Factored::local_centres`]) and the new ones,
+    /// column-major (local rows x m).
+    pub cross: &'a [f64],
+    /// P_new: the k polynomials at the new centres, row-major (m x k).
+    pub poly: &'a [f64],
+    /// F: the kernel among the new centres (m x m).
+    pub block: &'a [f64],
+    /// The whole right-hand side r' of the n + m centres (the first n may differ from the first
+    /// system's).
+    pub rhs: &'a [f64],
+}
+
+/// The solution [lambda (n); lambda_new (m); c (k)] of the first system bordered by `new`, from
+/// its factor, on every rank; `first` is left as it is, so it can be bordered again. Collective;
+/// `Error::NotDefinite` on every rank when the new block's Schur complement is not definite,
+/// `Error::Numerical` when the extended points are not unisolvent.
+pub fn extend_solve(job: &Job<'_>, first: &Factored, new: &Appended<'_>) -> Result<Vec<f64>> {
+    let Job { comm, par, .. } = *job;
+    let (k, n) = (first.border.k, first.border.n);
+    let m = new.rhs.len() - n;
+    let lay = first.rows.layout;
+    let la = lay.first_local_from(n);
+    let b0 = lay.first_local_from(k);
+    let s = first.sign;
+    let nb = first.panel.max(1);
+    assert_eq!(new.cross.len(), la * m, "the cross block has this rank's rows and m columns");
+    assert_eq!(new.poly.len(), m * k, "the new polynomial rows are m x k");
+    assert_eq!(new.block.len(), m * m, "the new block is m x m");
+
+    // Q^T E on this rank's rows (Q^T = I - V T^T V^T), and its rows 0..k on every rank
+    let (v, t) = first.border.wy();
+    let e = MatRef::from_column_major_slice(new.cross, la, m);
+    let v_loc = Mat::<f64>::from_fn(la, k, |l, j| v[(lay.global(l), j)]);
+    let mut vte = v_loc.transpose() * e;
+    let mut buf: Vec<f64> = (0..k * m).map(|x| vte[(x / m, x % m)]).collect();
+    comm.sum_f64(&mut buf);
+    vte = Mat::from_fn(k, m, |i, j| buf[i * m + j]);
+    let qte = e - &v_loc * (t.transpose() * &vte);
+    let mut qte_top = vec![0.0; k * m];
+    for i in (0..k).filter(|&i| lay.owner(i) == lay.rank) {
+        (0..m).for_each(|j| qte_top[i * m + j] = qte[(lay.local(i), j)]);
+    }
+    comm.sum_f64(&mut qte_top);
+    // rows 0..k of M = Q^T A Q, row-major k x n
+    let m_top = first.rows.gather_rows(comm, 0, k, 0, n);
+
+    // G: the QR of [R; P_new], with G^T itself and G^T [(Q^T r_old)_{0..k}; r_new] computed
+    // alongside (columns k.. of the same matrix receive G^T)
+    let w = k + m;
+    let mut a = vec![0.0; w * (k + w + 1)];
+    let r = first.border.r();
+    for j in 0..k {
+        (0..=j).for_each(|i| a[j * w + i] = r[(i, j)]);
+        (0..m).for_each(|i| a[j * w + k + i] = new.poly[i * k + j]);
+    }
+    (0..w).for_each(|j| a[(k + j) * w + j] = 1.0);
+    let mut y = new.rhs[..n].to_vec();
+    first.border.q_transpose(&mut y);
+    let yc = (k + w) * w;
+    a[yc..yc + k].copy_from_slice(&y[..k]);
+    a[yc + k..yc + w].copy_from_slice(&new.rhs[n..]);
+    qr_in_place(&mut a, w, k);
+    let r_new = Mat::<f64>::from_fn(k, k, |i, j| if i <= j { a[j * w + i] } else { 0.0 });
+    if (0..k).any(|j| !(r_new[(j, j)].abs() > 0.0)) {
+        return Err(Error::Numerical(format!(
+            "the polynomial block of the extended system has rank < {k}: points not unisolvent"
+        )));
+    }
+    let g = MatRef::from_column_major_slice(&a[k * w..(k + w) * w], w, w).transpose().to_owned();
+    let (g_first, g_null) = (g.as_ref().subcols(0, k), g.as_ref().subcols(k, m));
+    let y_s = &a[yc..yc + w];
+
+    // D = G_n^T Z G_n with Z the (k + m) x (k + m) block of T^T A' T on R's and the new rows
+    let z = Mat::<f64>::from_fn(w, w, |i, j| match (i < k, j < k) {
+        (true, true) => m_top[i * n + j],
+        (true, false) => qte_top[i * m + j - k],
+        (false, true) => qte_top[j * m + i - k],
+        (false, false) => new.block[(j - k) * m + i - k],
+    });
+    let zg = &z * g_null;
+    let d = g_null.transpose() * &zg;
+
+    // [s C | s y_old] on this rank's rows of B, then forward substitution through L
+    let mut x = LocalRows::zeros(lay, m + 1, 0);
+    let beside = Mat::<f64>::from_fn(la, w, |l, j| if j < k { first.rows.get(l, j) } else { qte[(l, j - k)] });
+    let c = &beside * g_null;
+    for l in b0..la {
+        (0..m).for_each(|j| x.set(l, j, s * c[(l, j)]));
+        x.set(l, m, s * y[lay.global(l)]);
+    }
+    let mut q0 = k;
+    while q0 < n {
+        let q1 = (q0 + nb).min(n);
+        let bs = q1 - q0;
+        let diag = first.rows.gather_rows(comm, q0, q1, q0, q1);
+        let rhs = x.gather_rows(comm, q0, q1, 0, m + 1);
+        // the lower triangle alone: above it the first solve may have left entries of B
+        let l11 = Mat::<f64>::from_fn(bs, bs, |i, j| if j <= i { diag[i * bs + j] } else { 0.0 });
+        let mut zb = Mat::<f64>::from_fn(bs, m + 1, |i, j| rhs[i * (m + 1) + j]);
+        solve_lower_triangular_in_place(l11.as_ref(), zb.as_mut(), faer::Par::Seq);
+        for l in lay.first_local_from(q0)..lay.first_local_from(q1) {
+            let i = lay.global(l) - q0;
+            (0..=m).for_each(|j| x.set(l, j, zb[(i, j)]));
+        }
+        let u0 = lay.first_local_from(q1);
+        if u0 < la {
+            let below = first.rows.view().submatrix(u0, q0, la - u0, bs);
+            let out = x.view_mut().submatrix_mut(u0, 0, la - u0, m + 1);
+            matmul(out, Accum::Add, below, zb.as_ref(), -1.0, par);
+        }
+        q0 = q1;
+    }
+
+    // L22 L22^T = s D - X^T X, then the new unknowns
+    let xl = x.view().submatrix(b0, 0, la - b0, m);
+    let z1 = x.view().submatrix(b0, m, la - b0, 1);
+    let (xtx, xtz) = (xl.transpose() * xl, xl.transpose() * z1);
+    let mut buf: Vec<f64> = (0..m * m).map(|q| xtx[(q / m, q % m)]).chain((0..m).map(|i| xtz[(i, 0)])).collect();
+    comm.sum_f64(&mut buf);
+    let schur: Vec<f64> = (0..m * m).map(|q| s * d[(q / m, q % m)] - buf[q]).collect();
+    let l22 = cholesky_small(&schur, m).ok_or_else(|| {
+        Error::NotDefinite(format!(
+            "the block of the {m} appended centres is not definite to working precision"
+        ))
+    })?;
+    let mut mu_new = Mat::<f64>::from_fn(m, 1, |i, _| s * y_s[k + i] - buf[m * m + i]);
+    solve_lower_triangular_in_place(l22.as_ref(), mu_new.as_mut(), faer::Par::Seq);
+    solve_upper_triangular_in_place(l22.transpose(), mu_new.as_mut(), faer::Par::Seq);
+
+    // L^T mu = z1 - X mu_new
+    let send: Vec<f64> =
+        (b0..la).map(|l| x.get(l, m) - (0..m).map(|j| x.get(l, j) * mu_new[(j, 0)]).sum::<f64>()).collect();
+    let mut zz = vec![0.0; n];
+    zz[k..].copy_from_slice(&all_gather_rows(comm, lay, &send, k..n, 1));
+    let mu = back_substitute(comm, &first.rows, (k, n), nb, &zz);
+
+    // lambda' = Q' [0; mu; 0; mu_new]: H puts G [0; mu_new] on R's and the new coordinates
+    let u = g_null * &mu_new;
+    let mut lambda = mu.clone();
+    (0..k).for_each(|i| lambda[i] = u[(i, 0)]);
+    first.border.q(&mut lambda);
+
+    // R' c = y'_{0..k} - G_first^T [M_{0..k,k..n} mu + (Z G_n mu_new)_{0..k};
+    //                               (Q^T E)_{k..n}^T mu + (Z G_n mu_new)_{k..}]
+    let zgm = &zg * &mu_new;
+    let mut h = vec![0.0; w];
+    for l in b0..la {
+        let mu_l = mu[lay.global(l)];
+        (0..m).for_each(|j| h[k + j] += qte[(l, j)] * mu_l);
+    }
+    comm.sum_f64(&mut h);
+    for i in 0..k {
+        h[i] = (k..n).map(|j| m_top[i * n + j] * mu[j]).sum::<f64>();
+    }
+    (0..w).for_each(|i| h[i] += zgm[(i, 0)]);
+    let hm = MatRef::from_column_major_slice(&h, w, 1);
+    let mut cc = Mat::<f64>::from_fn(k, 1, |i, _| y_s[i]) - g_first.transpose() * hm;
+    solve_upper_triangular_in_place(r_new.as_ref(), cc.as_mut(), faer::Par::Seq);
+
+    lambda.extend((0..m).map(|j| u[(k + j, 0)]));
+    lambda.extend((0..k).map(|i| cc[(i, 0)]));
+    Ok(lambda)
+}
