@@ -2,6 +2,7 @@
 //! collectives, the agreement on errors, the distributed solvers and the Cholesky -> LU fallback,
 //! the LU and the projected Cholesky on every 2D process grid of the ranks (also on 1 and 4
 //! ranks, those checks alone),
+//! the projected Cholesky's factor bordered by appended centres,
 //! the mixed-precision solve and its fallback to f64,
 //! the parallel VTKHDF writer, and the per-slice fits of `contours`.
 //!
@@ -19,7 +20,7 @@ use std::time::Duration;
 
 use faer::{Mat, MatRef};
 use volspline::app::contours::solve_sections;
-use volspline::app::fit::{assemble, assemble_blocks};
+use volspline::app::fit::{assemble, assemble_blocks, solve_extended};
 use volspline::contour::planes::{slice_mesh, PlaneFamily};
 use volspline::contour::SectionCarrier;
 use volspline::error::{Error, Result};
@@ -89,7 +90,7 @@ fn child() {
         drop(world);
         std::process::exit(i32::from(failed > 0));
     }
-    let checks: [(&str, Check); 15] = [
+    let checks: [(&str, Check); 16] = [
         ("typed collectives", typed_collectives),
         ("agree: one failing rank", agree_one_failing_rank),
         ("agree: two failing ranks, the lowest wins", agree_lowest_rank_wins),
@@ -98,6 +99,7 @@ fn child() {
         ("Householder and Cholesky with and without look-ahead", row_cyclic_lookahead_matches_the_oracle),
         checks_2d[0],
         checks_2d[1],
+        ("projected Cholesky factor bordered by appended centres", bordered_factor_matches_the_oracle),
         ("Cholesky -> LU fallback, 4 points", fallback_on_four_points),
         ("Cholesky -> LU fallback, indefinite block", fallback_on_an_indefinite_block),
         ("mixed precision vs the dense LU oracle", mixed_matches_the_oracle),
@@ -337,6 +339,40 @@ fn row_cyclic_lookahead_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
         log.check(r.converged, || format!("{what}: refinement {}", r.describe()));
         log.close(&x, &want, 1e-7, || what.clone());
         same_on_every_rank(comm, log, &x, &what);
+    }
+}
+
+/// The projected Cholesky of the first three quarters of the bunny system, its factor kept, then
+/// bordered by the remaining quarter of the centres (and by none), with every ninth of the first
+/// values negated: against the dense QR of the whole system, panels ending inside and beyond a
+/// rank's rows, and the same on every rank.
+fn bordered_factor_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
+    let k = Kernel::new(3, 2).unwrap();
+    let prep = bunny_system(&k);
+    let total = prep.values.len();
+    let n = total * 3 / 4;
+    for panel in [7, 16, 64] {
+        let job = Job::on(comm).panel(panel);
+        let layout = RowCyclic::new(n + k.poly_count(), comm.size(), comm.rank());
+        let rows = assemble(&k, &prep.centres[..3 * n], &prep.values[..n], layout);
+        let (_, first) = must(
+            dist::solve_keeping(&job, SolverKind::Cholesky, rows, || unreachable!(), true),
+            "the first projected Cholesky",
+        );
+        let first = first.expect("the projected Cholesky keeps its factor");
+        for count in [n, total] {
+            let mut values = prep.values[..count].to_vec();
+            (0..n).step_by(9).for_each(|i| values[i] = -values[i]);
+            let centres = &prep.centres[..3 * count];
+            let x = must(solve_extended(&job, &k, centres, &values, &first), "the bordered solve");
+            let size = system_size(&k, count);
+            let (a, b) = full_system(&k, centres, &values);
+            let want =
+                must(householder_solve(MatRef::from_column_major_slice(&a, size, size), &b), "the oracle");
+            let what = format!("panel {panel}: {n} centres bordered by {}", count - n);
+            log.close(&x, &want, 1e-9, || what.clone());
+            same_on_every_rank(comm, log, &x, &what);
+        }
     }
 }
 

@@ -171,7 +171,8 @@ fn fit_bordered(
     let timed = Timed::new(comm);
     let job = Job::on(&timed).par(Par::rayon(threads));
     let t0 = std::time::Instant::now();
-    let x = stages.time(Stage::Solve, || solve_extended(&job, &kernel, &prep.centres, &prep.values, &first.factor));
+    let x = stages
+        .time(Stage::Solve, || solve_extended(&job, &kernel, &prep.centres, &prep.values, &first.factor));
     stages.add(Stage::CommWait, timed.seconds());
     let x = x?;
     let seconds = t0.elapsed().as_secs_f64();
@@ -191,7 +192,13 @@ fn fit_bordered(
 /// Fits the spline of `kernel` to the prepared points with the dense solvers; with `keep`, the
 /// factor of a row-cyclic projected Cholesky in f64 is kept in the result for [`refit`].
 /// Collective.
-pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, keep: bool, stages: &mut Stages) -> Result<Fitted> {
+pub fn fit(
+    run: &Run<'_>,
+    kernel: Kernel,
+    prep: &Prepared,
+    keep: bool,
+    stages: &mut Stages,
+) -> Result<Fitted> {
     let Run { args: a, comm, threads } = *run;
     let (centres, values) = (&prep.centres, &prep.values);
     let layout = RowCyclic::new(values.len() + kernel.poly_count(), comm.size(), comm.rank());
@@ -375,7 +382,8 @@ mod tests {
         let layout = RowCyclic::new(n + 4, 1, 0);
         let job = Job::on(&Solo).panel(16);
         let rows = assemble(&kernel, &centres[..3 * n], &values[..n], layout);
-        let (_, first) = dist::solve_keeping(&job, SolverKind::Cholesky, rows, || unreachable!(), true).unwrap();
+        let (_, first) =
+            dist::solve_keeping(&job, SolverKind::Cholesky, rows, || unreachable!(), true).unwrap();
         let first = first.expect("the projected Cholesky keeps its factor");
         for total in [n, 200] {
             let mut v = values[..total].to_vec();

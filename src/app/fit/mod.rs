@@ -31,7 +31,7 @@ use crate::spline::system::power_of_two_below_inverse;
 use crate::spline::{Evaluator, Kernel, Model, Provenance, Spline};
 use crate::surface::support::DataSupport;
 
-pub use dense::{assemble, assemble_blocks};
+pub use dense::{assemble, assemble_blocks, solve_extended};
 
 /// What every method is given: the command's arguments, the ranks and the threads per rank.
 #[derive(Clone, Copy)]
@@ -189,7 +189,8 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         }
         check_grid(comm, &grid)?;
         // the second fit against spurious blobs has more rows: checked again
-        let mut fit_with = |p: &Prepared, first: Option<&dense::KeptFactor>, stages: &mut Stages| match method {
+        let mut fit_with = |p: &Prepared, first: Option<&dense::KeptFactor>, stages: &mut Stages| match method
+        {
             Method::Dense | Method::Auto => dense::refit(&run, kernel, p, first, stages),
             Method::Csrbf => compact::fit(&run, kernel, p, stages),
         };

@@ -161,6 +161,9 @@ fn delta_range(off: &OffPoints, scale: f64) -> (f64, f64) {
     off.delta.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| (lo.min(d * scale), hi.max(d * scale)))
 }
 
+/// A second fit of a system, given the first fit's factor where one was kept.
+pub type Refit<'a> = dyn FnMut(&Prepared, Option<&KeptFactor>, &mut Stages) -> Result<Fitted> + 'a;
+
 /// The fit `first` of `c.prep`, or, where rays through it turn patches of the normals (see
 /// [`crate::surface::rays`], unless `--orient-rays off`) or it is positive in regions no data
 /// supports (see [`crate::surface::blobs`]), the fit `refit` makes of `c.prep` with the turned
@@ -178,7 +181,7 @@ pub fn check_first_fit(
     c: &mut Constrained,
     mut first: Fitted,
     stages: &mut Stages,
-    refit: &mut dyn FnMut(&Prepared, Option<&KeptFactor>, &mut Stages) -> Result<Fitted>,
+    refit: &mut Refit<'_>,
 ) -> Result<Fitted> {
     let norm = data.norm;
     let factor = first.factor.take();

@@ -171,7 +171,8 @@ pub fn extend_solve(job: &Job<'_>, first: &Factored, new: &Appended<'_>) -> Resu
 
     // [s C | s y_old] on this rank's rows of B, then forward substitution through L
     let mut x = LocalRows::zeros(lay, m + 1, 0);
-    let beside = Mat::<f64>::from_fn(la, w, |l, j| if j < k { first.rows.get(l, j) } else { qte[(l, j - k)] });
+    let beside =
+        Mat::<f64>::from_fn(la, w, |l, j| if j < k { first.rows.get(l, j) } else { qte[(l, j - k)] });
     let c = &beside * g_null;
     for l in b0..la {
         (0..m).for_each(|j| x.set(l, j, s * c[(l, j)]));
@@ -204,7 +205,8 @@ pub fn extend_solve(job: &Job<'_>, first: &Factored, new: &Appended<'_>) -> Resu
     let xl = x.view().submatrix(b0, 0, la - b0, m);
     let z1 = x.view().submatrix(b0, m, la - b0, 1);
     let (xtx, xtz) = (xl.transpose() * xl, xl.transpose() * z1);
-    let mut buf: Vec<f64> = (0..m * m).map(|q| xtx[(q / m, q % m)]).chain((0..m).map(|i| xtz[(i, 0)])).collect();
+    let mut buf: Vec<f64> =
+        (0..m * m).map(|q| xtx[(q / m, q % m)]).chain((0..m).map(|i| xtz[(i, 0)])).collect();
     comm.sum_f64(&mut buf);
     let schur: Vec<f64> = (0..m * m).map(|q| s * d[(q / m, q % m)] - buf[q]).collect();
     let l22 = cholesky_small(&schur, m).ok_or_else(|| {

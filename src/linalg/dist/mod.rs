@@ -43,6 +43,7 @@ pub use lu2d::{lu2d_factor, lu2d_solve};
 pub use refine::{mixed_solve, Refinement};
 pub use scalar::Scalar;
 pub use solver::{
-    solve, solve_2d, solve_in, solve_keeping, Job, Precision, Solved, SolverKind, AUTO_CHOLESKY_FROM, LOOKAHEAD,
+    solve, solve_2d, solve_in, solve_keeping, Job, Precision, Solved, SolverKind, AUTO_CHOLESKY_FROM,
+    LOOKAHEAD,
 };
 pub use system::{all_gather_rows, GatherBuffers, LocalRows};
