@@ -168,10 +168,11 @@ pub struct FitArgs {
     pub orient_rays: bool,
     /// Where the blob search after the first fit pins different nodes with its wide clearance
     /// (5 % of the diagonal) and a narrow one (2 median spacings of the data), make both second
-    /// fits and keep the one with less surface far from every data point (on, or off: the wide
-    /// clearance alone). It costs a third fit where it applies and can take the cap over a hole
-    /// in an open scan for a bulge, so it is off by default (see src/surface/choice.rs).
-    #[arg(long, default_value = "off", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
+    /// fits and keep the one with less surface far from every data point, not counting surface
+    /// in the mouth of a hole (on, or off: the wide clearance alone). With the dense projected
+    /// Cholesky both second fits border the first fit's factor, so the choice costs little
+    /// (see src/surface/choice.rs).
+    #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub blob_choice: bool,
     /// Points of level 0 of the two-level compactly supported fit (--method csrbf with --surface
     /// auto or offsurface): a dense off-surface fit of this many points chosen evenly over space,

@@ -17,7 +17,7 @@ use volspline::mesh::{
 use volspline::par::Solo;
 use volspline::spline::hygiene::{prepare, Prepared};
 use volspline::spline::{Carrier, Kernel, Model, Spline};
-use volspline::surface::blobs::{blob_values, sample, Blobs, Lattice, Search, CLEARANCE};
+use volspline::surface::blobs::{blob_values, sample, winding_numbers, Blobs, Lattice, Search, CLEARANCE};
 use volspline::surface::choice::{self, unsupported_share};
 use volspline::surface::energy::{flip_by_energy, pairs, patch_energy, ENERGY_LIMIT};
 use volspline::surface::rays::{self, RayCheck};
@@ -136,6 +136,8 @@ struct FirstFit {
     turned: RayCheck,
     lattice: Lattice,
     search: Search,
+    /// The oriented normals after the ray test.
+    normals: Vec<[f64; 3]>,
 }
 
 /// [`FirstFit`] of `read` (the kernel r, the default carrier), from the library's steps.
@@ -172,7 +174,7 @@ fn first_fit(read: &[f64]) -> FirstFit {
     let lattice = Lattice::of_fit(&data.box_lo, &data.box_hi, 0.05, &data.norm);
     let sampled = sample(&Solo, &lattice, &data.carrier, &first);
     let search = Search::new(&Solo, &lattice, &sampled, &data.centres, &normals, &hoods.tree);
-    FirstFit { k, data, prep, off_count, first, turned, lattice, search }
+    FirstFit { k, data, prep, off_count, first, turned, lattice, search, normals }
 }
 
 /// The default fit of `read` (the kernel r, the default carrier) made serially from the
@@ -181,7 +183,7 @@ fn first_fit(read: &[f64]) -> FirstFit {
 /// Returns the model, the off-point count, what the ray test turned and the choice (None: not
 /// made; else whether the narrow clearance was kept).
 fn serial_offsurface(read: &[f64], choose: bool) -> (Model, usize, RayCheck, Option<bool>) {
-    let FirstFit { k, data, prep, off_count, first, turned, lattice, search, .. } = first_fit(read);
+    let FirstFit { k, data, prep, off_count, first, turned, lattice, search, normals } = first_fit(read);
     // the second fit; with `choose`, where the wide and the narrow clearance pin different nodes,
     // the second fit of each and the one with less unsupported surface kept
     let support = DataSupport::new(&data.centres, choice::FACTOR);
@@ -206,8 +208,10 @@ fn serial_offsurface(read: &[f64], choose: bool) -> (Model, usize, RayCheck, Opt
         (fit_with(&wide), None)
     } else {
         let (a, b) = (fit_with(&wide), fit_with(&narrow));
-        let share =
-            |s: &Spline| unsupported_share(&lattice, &sample(&Solo, &lattice, &data.carrier, s), &support).0;
+        let winding = |at: &[[f64; 3]]| winding_numbers(&Solo, at, &data.centres, &normals, search.areas());
+        let share = |s: &Spline| {
+            unsupported_share(&lattice, &sample(&Solo, &lattice, &data.carrier, s), &support, winding).0
+        };
         let narrower = share(&b) < share(&a);
         (if narrower { b } else { a }, Some(narrower))
     };

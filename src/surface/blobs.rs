@@ -282,6 +282,8 @@ pub struct Search {
     regions: usize,
     /// The number of data points.
     n: usize,
+    /// The share of the surface of each data point ([`point_areas`]).
+    area: Vec<f64>,
 }
 
 impl Search {
@@ -358,13 +360,19 @@ impl Search {
             .filter(|&i| thin[i] || judged[i].is_some_and(|(_, _, outside)| outside >= AGREE))
             .collect();
         let area = point_areas(points, tree, h);
-        let w = winding_at(comm, lattice, &asked, points, normals, &area);
+        let at: Vec<[f64; 3]> = asked.iter().map(|&i| lattice.node(i)).collect();
+        let w = winding_numbers(comm, &at, points, normals, &area);
         let mut winding = vec![f64::NAN; lattice.len()];
         for (&i, &wi) in asked.iter().zip(&w) {
             winding[i] = wi;
             thin[i] = thin[i] && wi < OPEN_SPACE;
         }
-        Search { judged, winding, supported, thin, regions, n }
+        Search { judged, winding, supported, thin, regions, n, area }
+    }
+
+    /// The share of the surface each data point stands for, as the winding number weighs it.
+    pub fn areas(&self) -> &[f64] {
+        &self.area
     }
 
     /// The spurious nodes with the clearance of rule 2 `clearance` (normalised; the default is
@@ -412,31 +420,22 @@ fn point_areas(points: &[f64], tree: &Octree, h: f64) -> Vec<f64> {
         .collect()
 }
 
-/// The winding numbers of the data (outward `normals`, surface shares `area`) at the lattice
-/// nodes `nodes`, the nodes dealt round-robin over the ranks and summed: every rank gets the same
-/// values, bit for bit, whatever the number of ranks (each value is computed by one rank and the
-/// others add zeros). Collective.
-fn winding_at(
+/// The winding numbers of the data (outward `normals`, surface shares `area`, see
+/// [`Search::areas`]) at the places `at`, dealt round-robin over the ranks and summed: every rank
+/// gets the same values, bit for bit, whatever the number of ranks (each value is computed by one
+/// rank and the others add zeros). Collective.
+pub fn winding_numbers(
     comm: &dyn Comm,
-    lattice: &Lattice,
-    nodes: &[usize],
+    at: &[[f64; 3]],
     points: &[f64],
     normals: &[[f64; 3]],
     area: &[f64],
 ) -> Vec<f64> {
     let (rank, size) = (comm.rank(), comm.size());
-    let mut w: Vec<f64> = nodes
+    let mut w: Vec<f64> = at
         .par_iter()
         .enumerate()
-        .map(
-            |(k, &i)| {
-                if k % size == rank {
-                    winding_number(lattice.node(i), points, normals, area)
-                } else {
-                    0.0
-                }
-            },
-        )
+        .map(|(k, &q)| if k % size == rank { winding_number(q, points, normals, area) } else { 0.0 })
         .collect();
     comm.sum_f64(&mut w);
     w

@@ -49,19 +49,22 @@ pub const FACTOR: f64 = 2.0;
 /// Median spacings of the data in the narrow candidate's clearance of rule 2 of the blob search.
 pub const NARROW: f64 = 2.0;
 
-/// The share of the surface crossings of the field `values` sampled on `lattice` (the lattice
-/// edges along which it changes sign, x fastest, positive inside) that `support` does not
-/// support, with the number of crossings: (0, 0) where f has no sign change on the lattice.
-/// `support` must be in the lattice's coordinates.
-pub fn unsupported_share(lattice: &Lattice, values: &[f64], support: &DataSupport) -> (f64, usize) {
+/// Winding numbers of the data between which (lower bound included) an unsupported surface
+/// crossing lies in the mouth of a hole and is not counted (see the module doc).
+pub const MOUTH: (f64, f64) = (0.1, 0.3);
+
+/// The surface crossings of the field `values` sampled on `lattice` (the lattice edges along
+/// which it changes sign, x fastest, positive inside) that `support` does not support, in lattice
+/// order, with the number of all crossings. `support` must be in the lattice's coordinates.
+pub fn unsupported_crossings(lattice: &Lattice, values: &[f64], support: &DataSupport) -> (Vec<[f64; 3]>, usize) {
     let [nx, ny, nz] = lattice.dims;
     let strides = [1, nx, nx * ny];
     let extent = [nx, ny, nz];
-    let (crossings, unsupported) = (0..lattice.len())
+    let per_node: Vec<(usize, Vec<[f64; 3]>)> = (0..lattice.len())
         .into_par_iter()
         .map(|i| {
             let idx = [i % nx, (i / nx) % ny, i / (nx * ny)];
-            let (mut all, mut far) = (0usize, 0usize);
+            let (mut all, mut far) = (0usize, Vec::new());
             for a in 0..3 {
                 if idx[a] + 1 >= extent[a] {
                     continue;
@@ -76,15 +79,34 @@ pub fn unsupported_share(lattice: &Lattice, values: &[f64], support: &DataSuppor
                 let mut q = lattice.node(i);
                 q[a] += t * lattice.h;
                 all += 1;
-                far += usize::from(!support.supports(&q));
+                if !support.supports(&q) {
+                    far.push(q);
+                }
             }
             (all, far)
         })
-        .reduce(|| (0, 0), |x, y| (x.0 + y.0, x.1 + y.1));
+        .collect();
+    let crossings = per_node.iter().map(|(all, _)| all).sum();
+    (per_node.into_iter().flat_map(|(_, far)| far).collect(), crossings)
+}
+
+/// The share of the surface crossings of `values` on `lattice` that `support` does not support
+/// and that do not lie in the mouth of a hole (the data's winding number there, as `winding`
+/// gives it for a list of places, within [`MOUTH`]), with the number of crossings: (0, 0) where f
+/// has no sign change on the lattice.
+pub fn unsupported_share(
+    lattice: &Lattice,
+    values: &[f64],
+    support: &DataSupport,
+    winding: impl FnOnce(&[[f64; 3]]) -> Vec<f64>,
+) -> (f64, usize) {
+    let (far, crossings) = unsupported_crossings(lattice, values, support);
     if crossings == 0 {
         return (0.0, 0);
     }
-    (unsupported as f64 / crossings as f64, crossings)
+    let w = winding(&far);
+    let counted = w.iter().filter(|&&w| !(MOUTH.0..MOUTH.1).contains(&w)).count();
+    (counted as f64 / crossings as f64, crossings)
 }
 
 #[cfg(test)]
@@ -99,6 +121,11 @@ mod tests {
             .collect()
     }
 
+    /// Winding numbers of data that enclose nothing.
+    fn open(q: &[[f64; 3]]) -> Vec<f64> {
+        vec![0.0; q.len()]
+    }
+
     #[test]
     fn a_slab_through_the_data_is_supported_and_a_ball_far_from_it_is_not() {
         let support = DataSupport::new(&plate(), FACTOR);
@@ -109,7 +136,7 @@ mod tests {
         // with |x|, |y| <= 0.55 (0.55 is 0.075 from the plate's edge), 23 x 23 of them, except
         // the 4 corners (0.108 from the plate's corner point)
         let slab: Vec<f64> = (0..lattice.len()).map(|i| 0.02 - lattice.node(i)[2].abs()).collect();
-        let (share, crossings) = unsupported_share(&lattice, &slab, &support);
+        let (share, crossings) = unsupported_share(&lattice, &slab, &support, open);
         assert_eq!(crossings, 2 * 41 * 41);
         let want = 1.0 - (23.0 * 23.0 - 4.0) / (41.0 * 41.0);
         assert!((share - want).abs() < 1e-12, "{share} vs {want}");
@@ -121,7 +148,7 @@ mod tests {
                 (0.02 - q[2].abs()).min(0.51 - q[0].abs()).min(0.51 - q[1].abs())
             })
             .collect();
-        let (none, cut_crossings) = unsupported_share(&lattice, &cut, &support);
+        let (none, cut_crossings) = unsupported_share(&lattice, &cut, &support, open);
         assert_eq!(none, 0.0);
         assert_eq!(cut_crossings, 2 * 21 * 21 + 4 * 21);
         // a ball of radius 0.2 at height 0.6 over the plate: every crossing of it unsupported
@@ -132,13 +159,19 @@ mod tests {
                 cut[i].max(0.2 - d)
             })
             .collect();
-        let (share, crossings) = unsupported_share(&lattice, &with_ball, &support);
+        let (share, crossings) = unsupported_share(&lattice, &with_ball, &support, open);
         let ball = crossings - cut_crossings;
         // the ball's crossings: about its area times the mean L1 norm of its normal (1.5) over h^2
         let expected = 4.0 * std::f64::consts::PI * 0.04 * 1.5 / 0.0025;
         assert!((ball as f64 - expected).abs() < 0.2 * expected, "{ball} crossings of the ball");
         assert!((share * crossings as f64 - ball as f64).abs() < 1e-9, "{share} of {crossings}");
+        // the same ball where the data would enclose a quarter of the sphere (the mouth of a
+        // hole) is not counted, where they enclose a half (sparse surface) it is
+        let mouth = |q: &[[f64; 3]]| vec![0.25; q.len()];
+        assert_eq!(unsupported_share(&lattice, &with_ball, &support, mouth), (0.0, crossings));
+        let half = |q: &[[f64; 3]]| vec![0.5; q.len()];
+        assert_eq!(unsupported_share(&lattice, &with_ball, &support, half), (share, crossings));
         // no surface at all
-        assert_eq!(unsupported_share(&lattice, &vec![-1.0; lattice.len()], &support), (0.0, 0));
+        assert_eq!(unsupported_share(&lattice, &vec![-1.0; lattice.len()], &support, open), (0.0, 0));
     }
 }

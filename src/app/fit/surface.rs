@@ -13,7 +13,7 @@ use crate::cli::Surface;
 use crate::error::Result;
 use crate::par::{agree, Comm};
 use crate::spline::hygiene::Prepared;
-use crate::surface::blobs::{blob_values, sample, Blobs, Lattice, Search, CLEARANCE};
+use crate::surface::blobs::{blob_values, sample, winding_numbers, Blobs, Lattice, Search, CLEARANCE};
 use crate::surface::choice::{self, unsupported_share};
 use crate::surface::energy::{flip_by_energy, EnergyFlips};
 use crate::surface::rays::{self, RayCheck};
@@ -216,7 +216,7 @@ pub fn check_first_fit(
     }
     // the data's support, which the clearance choice alone needs
     let support = run.args.blob_choice.then(|| DataSupport::new(&data.centres, choice::FACTOR));
-    let (values, wide, narrow) = stages.time(Stage::Orient, || {
+    let (values, wide, narrow, areas) = stages.time(Stage::Orient, || {
         let values = sample(run.comm, &lattice, &data.carrier, &first.spline);
         let search = Search::new(run.comm, &lattice, &values, &data.centres, &c.normals, &c.hoods.tree);
         let wide = search.blobs(&lattice, CLEARANCE);
@@ -224,7 +224,7 @@ pub fn check_first_fit(
             .as_ref()
             .map(|s| search.blobs(&lattice, choice::NARROW * s.spacing))
             .filter(|b| b.centres != wide.centres);
-        (values, wide, narrow)
+        (values, wide, narrow, search.areas().to_vec())
     });
     c.summary.blob_regions = wide.regions;
     c.summary.blob_spared = wide.spared.len() / 3;
@@ -258,10 +258,11 @@ pub fn check_first_fit(
     let (wide_fit, wide_values, wide_prep) = candidate(&wide, stages)?;
     let (narrow_fit, narrow_values, narrow_prep) = candidate(&narrow, stages)?;
     let (wide_share, narrow_share) = stages.time(Stage::Orient, || {
-        (
-            unsupported_share(&lattice, &wide_values, &support).0,
-            unsupported_share(&lattice, &narrow_values, &support).0,
-        )
+        let share = |values: &[f64]| {
+            let winding = |at: &[[f64; 3]]| winding_numbers(run.comm, at, &data.centres, &c.normals, &areas);
+            unsupported_share(&lattice, values, &support, winding).0
+        };
+        (share(&wide_values), share(&narrow_values))
     });
     let kept_narrow = narrow_share < wide_share;
     c.summary.choice = Some(ClearanceChoice {
