@@ -22,9 +22,10 @@ plain carrier method of Savchenko et al. 1995 (`--surface carrier`); `offsurface
 than twice the data's median spacing from every data point left out: an open surface, whose
 targets are reported apart); `energy`: the default with `--orient-energy on` (patches of the normals
 turned by the spline's bending energy, src/surface/energy.rs); `side`: the default with
-`--orient-side on` (the side vote of src/surface/orient.rs); `choice`: the default with
-`--blob-choice on` (two second fits, the one with less unsupported surface kept,
-src/surface/choice.rs). A binary whose `fit --help` has no `--surface` only has the plain method:
+`--orient-side on` (the side vote of src/surface/orient.rs); `choice`: `--blob-choice on` (two
+second fits, the one with less unsupported surface kept, src/surface/choice.rs: the default
+since it was measured as an option); `wide`: the default without it (`--blob-choice off`, the
+wide clearance of the blob search alone). A binary whose `fit --help` has no `--surface` only has the plain method:
 then `carrier` runs it without the flag and `default`/`offsurface` are dropped with a note.
 `poisson`: screened Poisson (Kazhdan and Hoppe 2013, pymeshlab, octree depth --poisson-depth)
 on normals estimated by PCA of the 10 nearest neighbours and oriented by MeshLab's propagation.
@@ -207,7 +208,7 @@ def method_list(args, has_surface):
     """[(label, kind, flags)] of the methods this binary can run, and a note on the choice."""
     if has_surface:
         flags = {"default": [], "poisson": [], "energy": ["--orient-energy", "on"], "side": ["--orient-side", "on"],
-                 "trimmed": ["--trim"], "choice": ["--blob-choice", "on"]}
+                 "trimmed": ["--trim"], "choice": ["--blob-choice", "on"], "wide": ["--blob-choice", "off"]}
         return [(m, "poisson" if m == "poisson" else "volspline",
                  flags.get(m, ["--surface", m])) for m in args.methods], ""
     # a binary without --surface has one method, the plain carrier method: run it once as `carrier`
@@ -242,8 +243,8 @@ def parse(argv):
         if m not in MESHES:
             ap.error(f"unknown mesh {m} (one of {', '.join(MESHES)})")
     for m in args.methods:
-        if m not in ("default", "carrier", "offsurface", "energy", "side", "trimmed", "choice", "poisson"):
-            ap.error(f"unknown method {m} (default, carrier, offsurface, energy, side, trimmed, choice, poisson)")
+        if m not in ("default", "carrier", "offsurface", "energy", "side", "trimmed", "choice", "wide", "poisson"):
+            ap.error(f"unknown method {m} (default, carrier, offsurface, energy, side, trimmed, choice, wide, poisson)")
     if args.quick:
         args.sizes, args.variant_sizes, args.grid = [1000, 2000], [1000], 64
     return args

@@ -15,7 +15,7 @@ from matplotlib.collections import LineCollection  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
 COLOURS = {"default": "tab:blue", "carrier": "tab:orange", "offsurface": "tab:purple", "poisson": "tab:green",
-           "trimmed": "tab:cyan", "choice": "tab:red"}
+           "trimmed": "tab:cyan", "choice": "tab:red", "wide": "tab:olive"}
 AXES = "xyz"
 
 

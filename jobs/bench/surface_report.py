@@ -121,7 +121,8 @@ def main(out):
     # the trimmed surface is open: its targets are reported apart from the default's
     for method, what in (("default", "the default method"),
                          ("trimmed", "the trimmed surface (--trim, an open surface, reported apart)"),
-                         ("choice", "the clearance choice (--blob-choice on)")):
+                         ("choice", "the clearance choice (--blob-choice on)"),
+                         ("wide", "the wide clearance alone (--blob-choice off)")):
         if method not in methods:
             continue
         lines += ["", f"Targets of {what} per set (both distances at or below the better peer; "
