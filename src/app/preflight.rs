@@ -29,6 +29,15 @@ pub fn dense_fit_bytes(system: usize, ranks: usize, precision: Precision) -> f64
     1.15 * rows * (system + 1) as f64 * bytes + 200e6
 }
 
+/// Memory per rank that bordering a kept factor of `n` centres by `m` more takes on top of it
+/// (border `k`): two blocks of this rank's rows by m columns (the cross block projected, the
+/// bordered rows) and a few (k + m) x (k + m) matrices on every rank.
+pub fn bordered_fit_bytes(n: usize, m: usize, k: usize, ranks: usize) -> f64 {
+    let rows = n.div_ceil(ranks.max(1)) as f64;
+    let w = (k + m) as f64;
+    1.15 * 8.0 * (3.0 * rows * (m + 1) as f64 + 5.0 * w * w)
+}
+
 /// Memory the volume outputs need on the rank with the thickest slab of `grid`: its values with
 /// a ghost layer, and about as much again for the marching-cubes piece and the welding of the mesh.
 pub fn grid_bytes(grid: &Grid, ranks: usize) -> f64 {

@@ -5,7 +5,7 @@
 use faer::Par;
 
 use super::{Fitted, Run};
-use crate::app::preflight::{check_memory, dense_fit_bytes};
+use crate::app::preflight::{bordered_fit_bytes, check_memory, dense_fit_bytes};
 use crate::app::progress::Progress;
 use crate::app::stages::{Stage, Stages};
 use crate::cli::FitArgs;
@@ -146,6 +146,13 @@ pub fn refit(
 ) -> Result<Fitted> {
     let held = first.map_or(0, |f| f.factor.centres());
     if let Some(first) = first.filter(|f| f.extended_by(prep)) {
+        let (n, m) = (first.factor.centres(), prep.values.len() - first.factor.centres());
+        check_memory(
+            run.comm,
+            bordered_fit_bytes(n, m, kernel.poly_count(), run.comm.size()),
+            &format!("bordering the first fit's factor ({n} centres) by {m} more"),
+            "use more ranks or nodes, --blob-choice off, or fewer points",
+        )?;
         match fit_bordered(run, kernel, prep, first, stages) {
             Err(e) if e.is_not_definite() => {
                 if run.comm.rank() == 0 {

@@ -171,12 +171,14 @@ pub fn extend_solve(job: &Job<'_>, first: &Factored, new: &Appended<'_>) -> Resu
 
     // [s C | s y_old] on this rank's rows of B, then forward substitution through L
     let mut x = LocalRows::zeros(lay, m + 1, 0);
-    let beside =
-        Mat::<f64>::from_fn(la, w, |l, j| if j < k { first.rows.get(l, j) } else { qte[(l, j - k)] });
-    let c = &beside * g_null;
-    for l in b0..la {
-        (0..m).for_each(|j| x.set(l, j, s * c[(l, j)]));
-        x.set(l, m, s * y[lay.global(l)]);
+    {
+        let beside =
+            Mat::<f64>::from_fn(la, w, |l, j| if j < k { first.rows.get(l, j) } else { qte[(l, j - k)] });
+        let c = &beside * g_null;
+        for l in b0..la {
+            (0..m).for_each(|j| x.set(l, j, s * c[(l, j)]));
+            x.set(l, m, s * y[lay.global(l)]);
+        }
     }
     let mut q0 = k;
     while q0 < n {
