@@ -217,21 +217,16 @@ pub fn fit(
     let job = Job::on(&timed).panel(a.panel).par(Par::rayon(threads)).progress(&report).lookahead(lookahead);
     let mut kept = None;
     let solved = match a.layout {
-        Layout::RowCyclic if keep && a.precision == Precision::F64 => {
+        Layout::RowCyclic => {
             let rows = stages.time(Stage::Assemble, || assemble(&kernel, centres, values, layout));
+            let reassemble = || assemble(&kernel, centres, values, layout);
             stages.time(Stage::Solve, || {
-                let reassemble = || assemble(&kernel, centres, values, layout);
+                if !(keep && a.precision == Precision::F64) {
+                    return dist::solve_in(&job, a.solver, a.precision, rows, reassemble);
+                }
                 dist::solve_keeping(&job, a.solver, rows, reassemble, true).map(|(solved, factor)| {
                     kept = factor.map(|factor| KeptFactor { factor, centres: centres.clone(), lookahead });
                     solved
-                })
-            })
-        }
-        Layout::RowCyclic => {
-            let rows = stages.time(Stage::Assemble, || assemble(&kernel, centres, values, layout));
-            stages.time(Stage::Solve, || {
-                dist::solve_in(&job, a.solver, a.precision, rows, || {
-                    assemble(&kernel, centres, values, layout)
                 })
             })
         }
