@@ -199,10 +199,7 @@ fn serial_offsurface(read: &[f64], choose: bool) -> (Model, usize, RayCheck, Opt
         if blobs.source.is_empty() && turned.turned == 0 {
             return first.clone();
         }
-        let mut prep = prep.clone();
-        prep.centres.extend_from_slice(&blobs.centres);
-        prep.values.extend(blob_values(blobs, &data.points, &data.carrier, &data.norm));
-        solve_serial(&prep, &k, SolverKind::Householder)
+        solve_serial(&second_system(&prep, &data, blobs), &k, SolverKind::Householder)
     };
     let (spline, kept_narrow) = if !choose || narrow.centres == wide.centres {
         (fit_with(&wide), None)
@@ -218,6 +215,15 @@ fn serial_offsurface(read: &[f64], choose: bool) -> (Model, usize, RayCheck, Opt
     let model =
         Model { carrier: data.carrier.clone(), spline, coarse: Vec::new(), provenance: Default::default() };
     (model, off_count, turned, kept_narrow)
+}
+
+/// The second system: the first one's centres and values (`prep`) with the constraint points of
+/// `blobs` appended (`data` the data alone).
+fn second_system(prep: &Prepared, data: &Prepared, blobs: &Blobs) -> Prepared {
+    let mut out = prep.clone();
+    out.centres.extend_from_slice(&blobs.centres);
+    out.values.extend(blob_values(blobs, &data.points, &data.carrier, &data.norm));
+    out
 }
 
 /// Fits `input` on 1, 2 and 3 ranks with `solver` (and the further options `extra`) and compares
@@ -459,22 +465,22 @@ fn with_hole(mesh: &volspline::mesh::TriMesh, n: usize, seed: u64) -> Vec<f64> {
     with_hole_centre(mesh, n, seed).0
 }
 
-/// [`with_hole`] and the centre of the ball left out.
-fn with_hole_centre(mesh: &volspline::mesh::TriMesh, n: usize, seed: u64) -> (Vec<f64>, Vec<f64>) {
+/// [`with_hole`], the centre of the ball left out and its radius.
+fn with_hole_centre(mesh: &volspline::mesh::TriMesh, n: usize, seed: u64) -> (Vec<f64>, Vec<f64>, f64) {
     let pts = area_samples(mesh, n, seed);
     let all: Vec<f64> = mesh.vertices.iter().flatten().copied().collect();
     let (lo, hi) = volspline::spline::hygiene::bounding_box(&all, 3);
     let diag = volspline::spline::hygiene::diagonal(&lo, &hi);
     let along = |p: &[f64]| (0..3).map(|d| (p[d] - lo[d]) / (hi[d] - lo[d])).sum::<f64>();
     let centre = pts.chunks_exact(3).max_by(|a, b| along(a).total_cmp(&along(b))).unwrap().to_vec();
-    let r2 = (0.15 * diag).powi(2);
+    let r = 0.15 * diag;
     let kept = pts
         .chunks_exact(3)
-        .filter(|p| (0..3).map(|d| (p[d] - centre[d]).powi(2)).sum::<f64>() > r2)
+        .filter(|p| (0..3).map(|d| (p[d] - centre[d]).powi(2)).sum::<f64>() > r * r)
         .flatten()
         .copied()
         .collect();
-    (kept, centre)
+    (kept, centre, r)
 }
 
 /// Bunny samples with a hole on which the vote of the blob search's rule 2 finds nodes inside the
@@ -528,16 +534,13 @@ fn the_clearance_choice_keeps_the_cap_over_a_hole_in_the_cow() {
     // 0.51 -> 0.58 of those nodes (a ball that takes the tip of a thin part leaves much of its
     // inside outside any fit)
     let truth = common::load_mesh(Path::new(common::COW));
-    let (pts, centre) = with_hole_centre(&truth, CAP_COW.0, CAP_COW.1);
+    let (pts, centre, r) = with_hole_centre(&truth, CAP_COW.0, CAP_COW.1);
     let f = first_fit(&pts);
     let support = DataSupport::new(&f.data.centres, choice::FACTOR);
     let wide = f.search.blobs(&f.lattice, CLEARANCE);
     let narrow = f.search.blobs(&f.lattice, choice::NARROW * support.spacing);
     let fit = |blobs: &Blobs| {
-        let mut prep = f.prep.clone();
-        prep.centres.extend_from_slice(&blobs.centres);
-        prep.values.extend(blob_values(blobs, &f.data.points, &f.data.carrier, &f.data.norm));
-        let spline = solve_serial(&prep, &f.k, SolverKind::Cholesky);
+        let spline = solve_serial(&second_system(&f.prep, &f.data, blobs), &f.k, SolverKind::Cholesky);
         sample(&Solo, &f.lattice, &f.data.carrier, &spline)
     };
     let (wide_f, narrow_f) = (fit(&wide), fit(&narrow));
@@ -549,9 +552,6 @@ fn the_clearance_choice_keeps_the_cap_over_a_hole_in_the_cow() {
     // fit leaves outside its solid
     let norm = &f.data.norm;
     let world = |q: [f64; 3]| -> [f64; 3] { std::array::from_fn(|d| norm.centre[d] + norm.scale * q[d]) };
-    let all: Vec<f64> = truth.vertices.iter().flatten().copied().collect();
-    let (lo, hi) = volspline::spline::hygiene::bounding_box(&all, 3);
-    let r = 0.15 * volspline::spline::hygiene::diagonal(&lo, &hi);
     let under: Vec<usize> = (0..f.lattice.len())
         .filter(|&i| {
             let q = world(f.lattice.node(i));
