@@ -223,9 +223,10 @@ elif mode == "eval":
         if "sqrt" in c:
             per_core = rate["volspline"] / float(rows[0]["threads_total"])
             lines.append(
-                f"- the square root's ceiling (sqrt_ceiling.csv: the evaluator's inner loop alone, one core): "
-                f"{float(c['sqrt']['kernel_evals_per_s']):.3e}/s with exactly rounded roots against volspline's "
-                f"{per_core:.3e}/s per thread; rsqrt14 + 2 Newton steps (full precision) "
+                f"- the hardware square root's ceiling (sqrt_ceiling.csv: the evaluator's inner loop alone, one core, "
+                f"every root from the hardware): {float(c['sqrt']['kernel_evals_per_s']):.3e}/s against volspline's "
+                f"{per_core:.3e}/s per thread (every third lane group's roots from multiply-adds, beside the "
+                f"hardware's); rsqrt14 + 2 Newton steps (full precision) "
                 f"{float(c['rsqrt14_newton2']['kernel_evals_per_s']):.3e}/s; rsqrt14 + 1 step "
                 f"{float(c['rsqrt14_newton1']['kernel_evals_per_s']):.3e}/s with a relative error of "
                 f"{float(c['rsqrt14_newton1']['max_rel_diff']):.1e} in the sums")

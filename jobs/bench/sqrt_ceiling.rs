@@ -1,9 +1,11 @@
-//! The ceiling the square root puts on grid evaluation: the inner loop of the evaluator (8 lanes,
-//! blocks of 512 centres, one core) with the kernel r computed three ways: the exactly rounded
-//! square root (what volspline uses), AVX-512's 14-bit reciprocal square root estimate refined
-//! by two Newton steps (full precision, not exactly rounded) and by one (about 28 bits, too few
-//! for sums whose weights cancel). Prints one CSV line per variant: name, kernel evaluations per
-//! second, largest relative difference from the exact sum. Run by `jobs/bench-eval`.
+//! The ceiling the hardware square root puts on grid evaluation: the inner loop of the evaluator
+//! (8 lanes, blocks of 512 centres, one core) with the kernel r computed three ways: the exactly
+//! rounded square root of the hardware for every centre (volspline takes every third lane group's
+//! roots from a multiply-add iteration instead, which runs beside it, and so passes this ceiling),
+//! AVX-512's 14-bit reciprocal square root estimate refined by two Newton steps (full precision,
+//! not exactly rounded) and by one (about 28 bits, too few for sums whose weights cancel). Prints
+//! one CSV line per variant: name, kernel evaluations per second, largest relative difference
+//! from the exact sum. Run by `jobs/bench-eval`.
 //!
 //!     cargo run --release --example sqrt_ceiling
 

@@ -2,8 +2,9 @@
 //! ray caster or a curvature sampler asks for them: one point at a time, from many threads.
 //!
 //! For the Green's functions r and r^3 the centres are kept in structure-of-arrays form and
-//! summed in lanes that the compiler keeps in vector registers (as the grid evaluator does), with
-//! a runtime switch to AVX2 code. For a compactly supported kernel a point sums only the centres
+//! summed in lanes that the compiler keeps in vector registers, with a runtime switch to AVX-512
+//! or AVX2 code; the value takes the grid evaluator's own sums, so that a point gets the same
+//! bits as a grid node at the same place. For a compactly supported kernel a point sums only the centres
 //! within the support, found with the octree: its cost is its neighbour count, not N. Other
 //! kernels take the plain sums of [`crate::spline::derivatives`].
 //!
@@ -12,7 +13,7 @@
 use crate::spline::derivatives::{
     add_radial_term, carrier_jet, denormalise, polynomial_jet, spline_jet, Jet,
 };
-use crate::spline::evaluator::{padded_lanes, reduce_lanes, Form, LANES};
+use crate::spline::evaluator::{lane_sums, padded_lanes, reduce_lanes, Form, LANES};
 use crate::spline::octree::{Octree, DEFAULT_LEAF_CAPACITY};
 use crate::spline::{Model, Spline};
 
@@ -160,13 +161,18 @@ fn polynomial_value(sp: &crate::spline::Spline, xn: &[f64; 3]) -> f64 {
     pv[..k].iter().zip(&sp.poly).map(|(a, b)| a * b).sum()
 }
 
-/// sum_i w_i G(|x - P_i|), lanes reduced in a fixed order; AVX2 where the CPU has it (the same
-/// portable code, so every path gives the same bits).
+/// sum_i w_i G(|x - P_i|), lanes reduced in a fixed order: the grid evaluator's sums
+/// ([`lane_sums`]), so that a point gets the bits a grid node there gets; AVX-512 or AVX2 code
+/// where the CPU has it (the same portable code, so every path gives the same bits).
 fn radial_value(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[f64], w: &[f64]) -> f64 {
     #[cfg(target_arch = "x86_64")]
     {
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above).
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU supports AVX-512F (checked just above).
+            return unsafe { radial_value_avx512(form, x, cx, cy, cz, w) };
+        }
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+            // SAFETY: the CPU supports AVX2 and FMA (checked just above).
             return unsafe { radial_value_avx2(form, x, cx, cy, cz, w) };
         }
     }
@@ -174,7 +180,13 @@ fn radial_value(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[f64], w: 
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx512f")]
+unsafe fn radial_value_avx512(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[f64], w: &[f64]) -> f64 {
+    radial_value_portable(form, x, cx, cy, cz, w)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
 unsafe fn radial_value_avx2(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[f64], w: &[f64]) -> f64 {
     radial_value_portable(form, x, cx, cy, cz, w)
 }
@@ -182,18 +194,7 @@ unsafe fn radial_value_avx2(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz:
 #[inline(always)]
 fn radial_value_portable(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[f64], w: &[f64]) -> f64 {
     let mut a = [0.0f64; LANES];
-    let lanes = cx.chunks_exact(LANES).zip(cy.chunks_exact(LANES)).zip(cz.chunks_exact(LANES));
-    for (((px, py), pz), pw) in lanes.zip(w.chunks_exact(LANES)) {
-        for l in 0..LANES {
-            let (dx, dy, dz) = (x[0] - px[l], x[1] - py[l], x[2] - pz[l]);
-            let r2 = (dx * dx + dy * dy) + dz * dz;
-            let g = match form {
-                Form::R1 => r2.sqrt(),
-                Form::R3 => r2 * r2.sqrt(),
-            };
-            a[l] += pw[l] * g;
-        }
-    }
+    lane_sums(form, x, cx, cy, cz, w, &mut a);
     reduce_lanes(&a)
 }
 
@@ -346,6 +347,31 @@ mod tests {
                     for j in 0..3 {
                         assert!(close(fast.hessian[i][j], slow.hessian[i][j]), "{}", kernel.name());
                     }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_point_gets_the_bits_of_the_grid_node_at_the_same_place() {
+        for kernel in [Kernel::new(3, 2).unwrap(), Kernel::new(3, 3).unwrap()] {
+            let model = bunny_model(kernel);
+            let sp = &model.spline;
+            // more centres than one block of the grid evaluator, not a whole number of periods
+            assert!(sp.len() > 576 && !sp.len().is_multiple_of(24));
+            let level = Level::new(sp);
+            let ev = crate::spline::evaluator::Evaluator::new(sp);
+            let xs: Vec<f64> = (0..41).map(|i| -1.9 + 0.09 * i as f64).collect();
+            let mut row = vec![0.0; xs.len()];
+            for (y, z) in [(0.3, -0.2), (1.1, 0.7), (-0.6, 0.05)] {
+                ev.eval_row(&xs, y, z, &mut row);
+                for (&x, &r) in xs.iter().zip(&row) {
+                    assert_eq!(
+                        level.value(&[x, y, z]).to_bits(),
+                        r.to_bits(),
+                        "{} at ({x}, {y}, {z})",
+                        kernel.name()
+                    );
                 }
             }
         }
