@@ -3,7 +3,7 @@
   python3 eval.py compare POINTS.xyz SPEC F.hdf THREADS
       -> reads volspline's grid with VTK, evaluates scipy's RBFInterpolator(kernel='linear',
          degree=1) interpolating the same carrier values at the same nodes, prints a raw.csv row
-         with its time and the largest difference of the spline U relative to max |U|."""
+         with its time (the best of three) and the largest difference of the spline U relative to max |U|."""
 import sys
 import time
 
@@ -35,8 +35,10 @@ k, j, i = np.meshgrid(np.arange(nz), np.arange(ny), np.arange(nx), indexing="ij"
 nodes = o + np.stack([i.ravel(), j.ravel(), k.ravel()], axis=1) * h
 u_ours = carrier(nodes) - f
 interp = RBFInterpolator(pts, carrier(pts), kernel="linear", degree=1)
-t = time.perf_counter()
-u_scipy = interp(nodes)
-secs = time.perf_counter() - t
+secs = float("inf")
+for _ in range(3):  # the best of three, as volspline's side
+    t = time.perf_counter()
+    u_scipy = interp(nodes)
+    secs = min(secs, time.perf_counter() - t)
 diff = np.abs(u_ours - u_scipy).max() / np.abs(u_scipy).max()
 print(f"scipy,{len(pts)},{len(nodes)},{threads},{secs:.6f},{float(len(nodes)) * len(pts):.6e},{diff:.3e}")
