@@ -1,7 +1,8 @@
 """LAPACK side of jobs/bench-solve: builds volspline's bordered system (kernel r, automatic ball
 carrier, normalised coordinates, exactly as `volspline fit` does) from a point file and times
 scipy.linalg.solve on it, and LAPACK dgetrf / dgeqrf (optimal workspace) on the same matrix.
-Prints raw.csv rows. Usage: python3 lapack.py POINTS.xyz THREADS"""
+Prints raw.csv rows, each time the best of REPEAT runs (2 if not given). Usage:
+python3 lapack.py POINTS.xyz THREADS [REPEAT]"""
 import sys
 import time
 
@@ -12,6 +13,7 @@ from scipy.spatial.distance import cdist
 
 pts = np.loadtxt(sys.argv[1])
 threads = sys.argv[2]
+repeat = int(sys.argv[3]) if len(sys.argv) > 3 else 2
 lo, hi = pts.min(axis=0), pts.max(axis=0)
 centre, scale = 0.5 * (lo + hi), 0.5 * np.linalg.norm(hi - lo)
 x = (pts - centre) / scale
@@ -26,7 +28,7 @@ b = np.concatenate([radius**2 - ((pts - centre) ** 2).sum(axis=1), np.zeros(k)])
 size = n + k
 
 
-def timed(f, repeat=2):
+def timed(f):
     """Best of `repeat` runs, after a small warm-up call that starts the BLAS threads."""
     best, out = float("inf"), None
     for _ in range(repeat):

@@ -199,7 +199,8 @@ elif mode == "solve":
     ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(f"{out}/gflops.png", dpi=110)
-    lines.append("\nNominal flops: LU 2/3 n^3, QR 4/3 n^3, Cholesky 1/3 n^3 (the projection's O(k n^2) not counted). "
+    lines.append("\nTimes: the best of REPEAT runs of each (command.txt; single runs before REPEAT was added). "
+                 "Nominal flops: LU 2/3 n^3, QR 4/3 n^3, Cholesky 1/3 n^3 (the projection's O(k n^2) not counted). "
                  "pdpotrf: PDPOTRF + PDPOTRS of one right-hand side on a symmetric positive definite matrix of the same "
                  "size (symmetrised random matrix + n I). Grid PRxPC: ScaLAPACK's process grid (blocks of NB); "
                  "volspline's rows are row-cyclic (P x 1, blocks of one row); volspline-2d: its three solvers "
