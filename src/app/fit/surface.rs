@@ -18,7 +18,7 @@ use crate::surface::choice::{self, unsupported_share};
 use crate::surface::energy::{flip_by_energy, EnergyFlips};
 use crate::surface::rays::{self, RayCheck};
 use crate::surface::support::DataSupport;
-use crate::surface::{self, neighbourhoods, off_points, off_values, Neighbourhoods, OffPoints};
+use crate::surface::{self, neighbourhoods, off_points_by_trust, off_values, Neighbourhoods, OffPoints};
 
 /// Fewest points for which `--surface auto` adds off-surface constraints.
 pub const AUTO_MIN_POINTS: usize = 50;
@@ -28,6 +28,8 @@ pub const AUTO_MIN_POINTS: usize = 50;
 pub struct SurfaceSummary {
     pub off_points: usize,
     pub dropped: usize,
+    /// Data points whose normals disagree with their neighbours' (a reduced off-point rate).
+    pub doubtful: usize,
     /// Smallest and largest delta in the caller's units.
     pub delta: (f64, f64),
     pub components: usize,
@@ -113,22 +115,23 @@ pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<
     let hoods = stages.time(Stage::Normals, || agree(comm, neighbourhoods(&prep.centres)))?;
     let (orientation, off) = stages.time(Stage::Orient, || -> Result<_> {
         let o = surface::oriented_with(comm, &prep.centres, &hoods, run.args.orient_side)?;
-        let off = off_points(&prep.centres, &o.normals, &hoods.tree, run.args.off_points);
+        let off = by_trust(prep, &hoods, &o.normals, run.args.off_points);
         Ok((o, off))
     })?;
-    let (mut orientation, mut off) = (orientation, off);
+    let (mut orientation, (mut off, mut doubtful)) = (orientation, off);
     let mut energy = None;
     if run.args.orient_energy {
         let e =
             stages.time(Stage::Orient, || flip_by_energy(comm, prep, &hoods, &mut orientation.normals))?;
         if e.flipped > 0 {
-            off = off_points(&prep.centres, &orientation.normals, &hoods.tree, run.args.off_points);
+            (off, doubtful) = by_trust(prep, &hoods, &orientation.normals, run.args.off_points);
         }
         energy = Some(e);
     }
     let summary = SurfaceSummary {
         off_points: off.side.len(),
         dropped: off.dropped,
+        doubtful,
         delta: delta_range(&off, prep.norm.scale),
         components: orientation.components,
         patches: orientation.patches,
@@ -143,6 +146,12 @@ pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<
         choice: None,
     };
     Ok(Constrained { prep: with_off_points(prep, &off), summary, hoods, normals: orientation.normals, off })
+}
+
+/// The off points at `rate` on the points of `prep` whose oriented `normals` are trusted, and how
+/// many are doubtful.
+fn by_trust(prep: &Prepared, hoods: &Neighbourhoods, normals: &[[f64; 3]], rate: f64) -> (OffPoints, usize) {
+    off_points_by_trust(&prep.centres, normals, &hoods.tree, &hoods.knn, hoods.kmax, rate)
 }
 
 /// `data` with the off points `off` and their values appended to its centres and values.
