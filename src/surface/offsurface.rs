@@ -128,7 +128,7 @@ pub fn off_points(points: &[f64], normals: &[[f64; 3]], tree: &Octree, per_point
 }
 
 /// The cosine above which the oriented normals of two neighbours agree.
-pub const AGREE: f64 = 0.9;
+pub const AGREE: f64 = 0.0;
 /// How many nearest neighbours a normal must agree with to be trusted.
 pub const AGREE_NEIGHBOURS: usize = 8;
 /// The share of the off-point rate a data point with a doubtful normal gets.
