@@ -130,11 +130,16 @@ pub struct FitArgs {
     pub surface: Surface,
     /// Off-surface points per data point for --surface offsurface: 2 (both sides of every point,
     /// 3N rows), 1 (one side, alternating), below 1 (one side on a strided subset). Points whose
-    /// normals disagree with their 8 nearest neighbours' get 0.4 of it. The default 0.5 keeps the
-    /// dense factorisation within 1.5^3 = 3.4 times the plain method's (about 2.5 times for the
-    /// usual share of doubtful normals).
+    /// normals disagree with their 8 nearest neighbours' get --doubtful-share of it. The default
+    /// 0.5 keeps the dense factorisation within 1.5^3 = 3.4 times the plain method's (about 2.5
+    /// times for the usual share of doubtful normals).
     #[arg(long, allow_hyphen_values = true, default_value = "0.5", value_name = "F", value_parser = off_rate)]
     pub off_points: f64,
+    /// The share of --off-points that a data point gets when its oriented normal disagrees
+    /// (cosine 0.9 or less) with one of its 8 nearest neighbours' (thin parts, noise): 0 gives
+    /// such points no off points, 1 treats every point alike.
+    #[arg(long, allow_hyphen_values = true, default_value = "0.4", value_name = "S", value_parser = share)]
+    pub doubtful_share: f64,
     /// Smoothing lambda for noisy scans (0: the spline interpolates). The spline minimises
     /// sum_i (U(P_i) - r_i)^2 + lambda E(U) instead of interpolating, as scipy's RBFInterpolator
     /// does with `smoothing`: lambda is added to the diagonal of the kernel matrix, in the
@@ -502,6 +507,13 @@ fn off_rate(s: &str) -> Parsed<f64> {
     }
 }
 
+fn share(s: &str) -> Parsed<f64> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if (0.0..=1.0).contains(&v) => Ok(v),
+        _ => Err(format!("'{s}' is not a share in [0, 1]")),
+    }
+}
+
 fn smoothing(s: &str) -> Parsed<f64> {
     match s.trim().parse::<f64>() {
         Ok(v) if v >= 0.0 && v.is_finite() => Ok(v),
@@ -661,7 +673,7 @@ mod tests {
         assert_eq!(a.leaf, 10);
         assert_eq!(a.grid.grid, GridSize::Longest(64));
         assert_eq!(a.merge_tol, 1e-6);
-        assert_eq!((a.surface, a.off_points), (Surface::Auto, 0.4));
+        assert_eq!((a.surface, a.off_points, a.doubtful_share), (Surface::Auto, 0.5, 0.4));
         assert!(a.carrier.to_string().starts_with("ball:"));
         let cli =
             parse(&["fit", "a.xyz", "--out", "o", "--surface", "carrier", "--off-points", "2"]).unwrap();

@@ -49,7 +49,7 @@ fn two_levels_put_the_surface_on_the_bunny_on_one_and_two_ranks() {
         assert_eq!(model.coarse[0].kernel.name(), "r");
         assert!(model.spline.kernel.is_compact().is_some());
         assert_eq!(model.spline.len(), 12_000);
-        // the level-0 subsample (at most 2000 points) and its off-surface points (0.4 per point)
+        // the level-0 subsample (at most 2000 points) and its off-surface points (at most 0.5 per point)
         let coarse = model.coarse[0].len();
         assert!((1500..=2800).contains(&coarse), "{coarse} level-0 centres");
         // the model file's levels are the ones the grid was evaluated with

@@ -117,11 +117,16 @@ fn eval_reproduces_the_fit_grid_and_mesh_exactly() {
     let rec = std::fs::read_to_string(&csv).unwrap();
     let get = |k: &str| rec.lines().find_map(|l| l.strip_prefix(&format!("{k},"))).map(String::from);
     assert_eq!(get("ranks").as_deref(), Some("2"));
-    // 505 points, 202 off-surface points (the default 0.4 per point), the constraint points of the
-    // second fit against spurious blobs, and 4 polynomial terms
+    // 505 points, their off-surface points (the default 0.5 per point where the normal is
+    // trusted, 0.2 elsewhere), the constraint points of the second fit against spurious blobs,
+    // and 4 polynomial terms
     let blobs: usize = get("blob_points").unwrap().parse().unwrap();
     assert!(blobs > 0 && blobs <= 505 / 4 + 64, "{blobs} blob points");
-    assert_eq!(get("system_size"), Some((711 + blobs).to_string()));
+    let off: usize = get("off_points").unwrap().parse().unwrap();
+    let doubtful: usize = get("off_doubtful_normals").unwrap().parse().unwrap();
+    let want = 0.5 * (505 - doubtful) as f64 + 0.2 * doubtful as f64;
+    assert!((off as f64 - want).abs() <= 0.05 * want + 2.0, "{off} off points, {doubtful} doubtful normals");
+    assert_eq!(get("system_size"), Some((505 + off + 4 + blobs).to_string()));
     assert_eq!(get("solver").as_deref(), Some("householder")); // auto, below 1000 rows
     assert!(get("residual").unwrap().parse::<f64>().unwrap() < 1e-10);
     assert!(get("stage_solve_max_s").unwrap().parse::<f64>().unwrap() > 0.0);
@@ -280,7 +285,7 @@ fn help_documents_every_option_with_its_default() {
 #[test]
 fn mixed_precision_reaches_the_f64_residual_or_falls_back() {
     let dir = common::temp_dir("mixed");
-    // 2000 bunny points: a system of 2004 rows
+    // 2000 bunny points, with their off-surface and blob constraint points
     let bunny: Vec<f64> = common::bunny_subset(2, 0).into_iter().take(6000).collect();
     // the same with every 4th point again 1e-5 of the box diagonal (25) away: singular in f32
     let mut near = bunny.clone();
@@ -313,7 +318,7 @@ fn mixed_precision_reaches_the_f64_residual_or_falls_back() {
         };
         (text, get("residual").parse::<f64>().unwrap(), get)
     };
-    // the default solver (auto: the projected Cholesky at 2004 rows) factors in f32 by the
+    // the default solver (auto: the projected Cholesky at this size) factors in f32 by the
     // projected Cholesky, --solver lu by LU
     for (solver, factor) in [("auto", "cholesky"), ("lu", "lu")] {
         let (_, f64_residual, _) = fit("bunny", &bunny, 1, "f64", solver);

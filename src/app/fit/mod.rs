@@ -351,7 +351,7 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
             s.off_points,
             s.dropped,
             s.doubtful,
-            crate::surface::offsurface::DOUBTFUL_SHARE,
+            s.doubtful_share,
             s.delta.0,
             s.delta.1,
             s.components,

@@ -9,7 +9,7 @@
 use super::dense::KeptFactor;
 use super::{Fitted, Run};
 use crate::app::stages::{Stage, Stages};
-use crate::cli::Surface;
+use crate::cli::{FitArgs, Surface};
 use crate::error::Result;
 use crate::par::{agree, Comm};
 use crate::spline::hygiene::Prepared;
@@ -28,8 +28,10 @@ pub const AUTO_MIN_POINTS: usize = 50;
 pub struct SurfaceSummary {
     pub off_points: usize,
     pub dropped: usize,
-    /// Data points whose normals disagree with their neighbours' (a reduced off-point rate).
+    /// Data points whose normals disagree with their neighbours' (a reduced off-point rate), and
+    /// the share of the rate they get.
     pub doubtful: usize,
+    pub doubtful_share: f64,
     /// Smallest and largest delta in the caller's units.
     pub delta: (f64, f64),
     pub components: usize,
@@ -115,7 +117,7 @@ pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<
     let hoods = stages.time(Stage::Normals, || agree(comm, neighbourhoods(&prep.centres)))?;
     let (orientation, off) = stages.time(Stage::Orient, || -> Result<_> {
         let o = surface::oriented_with(comm, &prep.centres, &hoods, run.args.orient_side)?;
-        let off = by_trust(prep, &hoods, &o.normals, run.args.off_points);
+        let off = by_trust(prep, &hoods, &o.normals, run.args);
         Ok((o, off))
     })?;
     let (mut orientation, (mut off, mut doubtful)) = (orientation, off);
@@ -124,7 +126,7 @@ pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<
         let e =
             stages.time(Stage::Orient, || flip_by_energy(comm, prep, &hoods, &mut orientation.normals))?;
         if e.flipped > 0 {
-            (off, doubtful) = by_trust(prep, &hoods, &orientation.normals, run.args.off_points);
+            (off, doubtful) = by_trust(prep, &hoods, &orientation.normals, run.args);
         }
         energy = Some(e);
     }
@@ -132,6 +134,7 @@ pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<
         off_points: off.side.len(),
         dropped: off.dropped,
         doubtful,
+        doubtful_share: run.args.doubtful_share,
         delta: delta_range(&off, prep.norm.scale),
         components: orientation.components,
         patches: orientation.patches,
@@ -148,10 +151,16 @@ pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<
     Ok(Constrained { prep: with_off_points(prep, &off), summary, hoods, normals: orientation.normals, off })
 }
 
-/// The off points at `rate` on the points of `prep` whose oriented `normals` are trusted, and how
-/// many are doubtful.
-fn by_trust(prep: &Prepared, hoods: &Neighbourhoods, normals: &[[f64; 3]], rate: f64) -> (OffPoints, usize) {
-    off_points_by_trust(&prep.centres, normals, &hoods.tree, &hoods.knn, hoods.kmax, rate)
+/// The off points of `prep` at the rates of `args` (--off-points, --doubtful-share), and how many
+/// of its points have doubtful normals.
+fn by_trust(
+    prep: &Prepared,
+    hoods: &Neighbourhoods,
+    normals: &[[f64; 3]],
+    args: &FitArgs,
+) -> (OffPoints, usize) {
+    let knn = (&hoods.knn[..], hoods.kmax);
+    off_points_by_trust(&prep.centres, normals, &hoods.tree, knn, args.off_points, args.doubtful_share)
 }
 
 /// `data` with the off points `off` and their values appended to its centres and values.
