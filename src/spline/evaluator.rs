@@ -189,7 +189,7 @@ fn radial_sums_portable(row: &Row<'_>, acc: &mut [[f64; LANES]]) {
         let b1 = (b0 + BLOCK).min(n);
         let (bx, by, bz, bw) = (&cx[b0..b1], &cy[b0..b1], &cz[b0..b1], &w[b0..b1]);
         for (&x, a) in xn.iter().zip(acc.iter_mut()) {
-            lane_sums(form, [x, y, z], bx, by, bz, bw, a);
+            lane_sums(form, [x, y, z], [bx, by, bz, bw], a);
         }
         b0 = b1;
     }
@@ -208,29 +208,19 @@ const PERIOD: usize = 3;
 /// and while it works the multiply-add units wait. Every [`PERIOD`]-th lane group therefore takes
 /// its roots from [`soft_sqrt`], which runs on those units beside it. Which root a centre gets
 /// depends only on its index, so every blocking and every path agree.
+/// `centres` are the x, y, z and weight arrays, in that order.
 #[inline(always)]
-pub(crate) fn lane_sums(
-    form: Form,
-    x: [f64; 3],
-    cx: &[f64],
-    cy: &[f64],
-    cz: &[f64],
-    w: &[f64],
-    acc: &mut [f64; LANES],
-) {
+pub(crate) fn lane_sums(form: Form, x: [f64; 3], centres: [&[f64]; 4], acc: &mut [f64; LANES]) {
     match form {
-        Form::R1 => periods(x, cx, cy, cz, w, acc, |_, r| r),
-        Form::R3 => periods(x, cx, cy, cz, w, acc, |r2, r| r2 * r),
+        Form::R1 => periods(x, centres, acc, |_, r| r),
+        Form::R3 => periods(x, centres, acc, |r2, r| r2 * r),
     }
 }
 
 #[inline(always)]
 fn periods(
     x: [f64; 3],
-    cx: &[f64],
-    cy: &[f64],
-    cz: &[f64],
-    w: &[f64],
+    [cx, cy, cz, w]: [&[f64]; 4],
     acc: &mut [f64; LANES],
     g: impl Fn(f64, f64) -> f64 + Copy,
 ) {

@@ -194,7 +194,7 @@ unsafe fn radial_value_avx2(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz:
 #[inline(always)]
 fn radial_value_portable(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[f64], w: &[f64]) -> f64 {
     let mut a = [0.0f64; LANES];
-    lane_sums(form, x, cx, cy, cz, w, &mut a);
+    lane_sums(form, x, [cx, cy, cz, w], &mut a);
     reduce_lanes(&a)
 }
 
