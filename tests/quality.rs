@@ -78,9 +78,9 @@ fn held_out_bunny_vertices_lie_on_the_reconstruction() {
 fn off_surface_constraints_remove_the_spurious_surface() {
     let ((c_mean, c_p95, c_max), (s_mean, s_p95, s_max), beyond, mesh) = quarter_bunny("quality-off", &[]);
     // measured (2 ranks, grid 96, the default --surface auto = offsurface, with the former default
-    // of 0.4 off points for every point): completeness mean 0.00242, p95 0.0069, max 0.0269; mesh -> bunny mean 0.00219, p95
-    // 0.0072, max 0.035, 1.2 % of the vertices beyond 2 % of the diagonal, one component (the
-    // plain method: 0.020, 0.104, 0.188, 26 %, 3 components)
+    // of 0.4 off points for every point): completeness mean 0.00242, p95 0.0069, max 0.0269; mesh
+    // -> bunny mean 0.00219, p95 0.0072, max 0.035, 1.2 % of the vertices beyond 2 % of the
+    // diagonal, one component (the plain method: 0.020, 0.104, 0.188, 26 %, 3 components)
     assert_eq!(connected_components(&mesh), 1, "extra components");
     assert!(c_mean < 0.003 && c_p95 < 0.009 && c_max < 0.035, "completeness {c_mean} {c_p95} {c_max}");
     assert!(
