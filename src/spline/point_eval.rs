@@ -4,9 +4,9 @@
 //! For the Green's functions r and r^3 the centres are kept in structure-of-arrays form and
 //! summed in lanes that the compiler keeps in vector registers, with a runtime switch to AVX-512
 //! or AVX2 code; the value takes the grid evaluator's own sums, so that a point gets the same
-//! bits as a grid node at the same place. For a compactly supported kernel a point sums only the centres
-//! within the support, found with the octree: its cost is its neighbour count, not N. Other
-//! kernels take the plain sums of [`crate::spline::derivatives`].
+//! bits as a grid node at the same place. For a compactly supported kernel a point sums only the
+//! centres within the support, found with the octree: its cost is its neighbour count, not N.
+//! Other kernels take the plain sums of [`crate::spline::derivatives`].
 //!
 //! The value at a point depends on nothing but the point: the same bits from any thread or rank.
 

@@ -49,6 +49,7 @@
 use rayon::prelude::*;
 
 use super::normals::dist2;
+use super::orient::dot;
 use crate::spline::carrier::Carrier;
 use crate::spline::hygiene::merge_indices;
 use crate::spline::octree::Octree;
@@ -143,13 +144,7 @@ pub const DOUBTFUL_SHARE: f64 = 0.4;
 pub fn trusted(normals: &[[f64; 3]], knn: &[usize], kmax: usize) -> Vec<bool> {
     let k = AGREE_NEIGHBOURS.min(kmax);
     (0..normals.len())
-        .map(|i| {
-            let a = normals[i];
-            knn[i * kmax..i * kmax + k].iter().all(|&j| {
-                let b = normals[j];
-                a[0] * b[0] + a[1] * b[1] + a[2] * b[2] > AGREE
-            })
-        })
+        .map(|i| knn[i * kmax..i * kmax + k].iter().all(|&j| dot(&normals[i], &normals[j]) > AGREE))
         .collect()
 }
 
