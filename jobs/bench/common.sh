@@ -3,12 +3,35 @@
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 cd "$ROOT"
-source jobs/setup.sh
-# peers measured side by side: ScaLAPACK over OpenBLAS (serial, one thread per rank), scipy
-ensure_debs libscalapack-openmpi-dev libopenblas0-serial
-python3 -c 'import scipy, matplotlib' 2>/dev/null || python3 -m pip install -q --disable-pip-version-check scipy matplotlib
-cargo build --release --quiet
-BIN="$ROOT/target/release/volspline"
+if [ -n "${VOLSPLINE_PREBUILT:-}" ]; then
+    # a node without compilers or Debian packages: the programs come from a bundle made by
+    # jobs/bundle (its env.sh sets VOLSPLINE_PREBUILT, PATH and the libraries)
+    BIN="$VOLSPLINE_PREBUILT/volspline"
+    [ -x "$BIN" ] || { echo "bench: no volspline in VOLSPLINE_PREBUILT=$VOLSPLINE_PREBUILT" >&2; exit 2; }
+else
+    source jobs/setup.sh
+    # peers measured side by side: ScaLAPACK over OpenBLAS (serial, one thread per rank), scipy
+    ensure_debs libscalapack-openmpi-dev libopenblas0-serial
+    python3 -c 'import scipy, matplotlib' 2>/dev/null || python3 -m pip install -q --disable-pip-version-check scipy matplotlib
+    cargo build --release --quiet
+    BIN="$ROOT/target/release/volspline"
+fi
+
+# tool NAME DEST: the helper program NAME (scalapack, micro_blas, micro_mpi, gemm_rate) at DEST,
+# built here from jobs/bench/, or copied from the bundle on a node without compilers
+tool() {
+    if [ -n "${VOLSPLINE_PREBUILT:-}" ]; then
+        cp "$VOLSPLINE_PREBUILT/$1" "$2"
+        return
+    fi
+    case $1 in
+        scalapack) mpicc -O2 jobs/bench/scalapack_driver.c -o "$2" -lscalapack-openmpi ;;
+        micro_blas) gcc -O2 jobs/bench/micro_blas.c -o "$2" -l:liblapack.so.3 -l:libblas.so.3 ;;
+        micro_mpi) mpicc -O2 jobs/bench/micro_mpi.c -o "$2" ;;
+        gemm_rate) cargo build --release --quiet --example gemm_rate && cp "$ROOT/target/release/examples/gemm_rate" "$2" ;;
+        *) echo "bench: unknown tool $1" >&2; exit 2 ;;
+    esac
+}
 export OMPI_MCA_rmaps_base_oversubscribe=1
 
 # bench_dir NAME ARGS...: creates bench-results/DATE-NAME/ (DATE-$BENCH_NAME where BENCH_NAME is
@@ -20,7 +43,13 @@ bench_dir() {
     printf '%s\n' "$*" > "$OUT/command.txt"
     {
         echo "date_utc: $(date -u +%Y-%m-%dT%H:%M:%SZ)"
-        echo "git_revision: $(git -C "$ROOT" rev-parse HEAD)$(git -C "$ROOT" diff --quiet || echo ' (with uncommitted changes)')"
+        if [ -n "${VOLSPLINE_PREBUILT:-}" ]; then
+            echo "bundle: $VOLSPLINE_PREBUILT (programs and runtime built elsewhere, below)"
+            sed 's/^/bundle_/' "$VOLSPLINE_PREBUILT/../MANIFEST"
+            echo "host: $(. /etc/os-release; echo "$PRETTY_NAME"), $(ldd --version | head -1)"
+        else
+            echo "git_revision: $(git -C "$ROOT" rev-parse HEAD)$(git -C "$ROOT" diff --quiet || echo ' (with uncommitted changes)')"
+        fi
         echo "cpu: $(lscpu | sed -n 's/^Model name: *//p')"
         echo "cores: $(nproc)"
         echo "flags: $(grep -o -w -E 'avx2|avx512f|fma' /proc/cpuinfo | sort -u | tr '\n' ' ')"
