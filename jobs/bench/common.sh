@@ -34,6 +34,24 @@ tool() {
 }
 export OMPI_MCA_rmaps_base_oversubscribe=1
 
+# OpenBLAS (ScaLAPACK's and the micro-benchmarks' BLAS) picks its kernels by processor model. A
+# processor newer than the OpenBLAS release (a recent Xeon under Debian 12's 0.3.21) gets generic
+# SSE kernels at a fifth of the rate, which would make every peer look slow. Where the processor
+# has AVX-512 and OpenBLAS chose no AVX-512 kernels, its Skylake-X kernels are taken; a
+# OPENBLAS_CORETYPE set by the user is kept. The core in use goes into machine.txt.
+openblas_core() {
+    python3 -c "import ctypes; l = ctypes.CDLL('libopenblas.so.0'); l.openblas_get_corename.restype = ctypes.c_char_p; print(l.openblas_get_corename().decode())" 2>/dev/null || echo unknown
+}
+OPENBLAS_CORE=$(openblas_core)
+if [ -z "${OPENBLAS_CORETYPE:-}" ] && grep -qw avx512f /proc/cpuinfo; then
+    case ${OPENBLAS_CORE,,} in
+        skylakex|cooperlake|sapphirerapids|unknown) ;;
+        *) echo "bench: OpenBLAS chose '$OPENBLAS_CORE' kernels on an AVX-512 processor; taking SkylakeX" >&2
+           export OPENBLAS_CORETYPE=SkylakeX
+           OPENBLAS_CORE="$(openblas_core) (forced: OpenBLAS chose $OPENBLAS_CORE)" ;;
+    esac
+fi
+
 # bench_dir NAME ARGS...: creates bench-results/DATE-NAME/ (DATE-$BENCH_NAME where BENCH_NAME is
 # set, so that a second run of a day keeps the first) and records the command and machine
 bench_dir() {
@@ -57,6 +75,7 @@ bench_dir() {
         echo "kernel: $(uname -r)"
         echo "mpi: $(mpirun --version 2>&1 | head -1)"
         echo "hdf5: $(dpkg-query -W -f='${Package} ${Version}' libhdf5-openmpi-dev 2>/dev/null)"
+        echo "openblas_core: $OPENBLAS_CORE"
         echo "scalapack: $(dpkg-query -W -f='${Package} ${Version}' libscalapack-openmpi-dev 2>/dev/null) over $(readlink -f /usr/lib/x86_64-linux-gnu/libblas.so.3)"
         echo "python: $(python3 --version 2>&1), numpy $(python3 -c 'import numpy; print(numpy.__version__)'), scipy $(python3 -c 'import scipy; print(scipy.__version__)')"
         echo "rustc: $(rustc --version)"
