@@ -138,7 +138,8 @@ pub struct FitArgs {
     pub off_points: f64,
     /// The share of --off-points that a data point gets when its oriented normal disagrees
     /// (cosine 0.9 or less) with one of its 8 nearest neighbours' (thin parts, noise): 0 gives
-    /// such points no off points, 1 treats every point alike.
+    /// such points no off points, 1 treats every point alike. Where more than 70 % of the normals
+    /// are doubtful (sparse or row-wise samples) the share rises linearly to 1 at 100 %.
     #[arg(long, allow_hyphen_values = true, default_value = "0.4", value_name = "S", value_parser = share)]
     pub doubtful_share: f64,
     /// Smoothing lambda for noisy scans (0: the spline interpolates). The spline minimises

@@ -33,7 +33,10 @@ pub mod orient;
 pub mod rays;
 pub mod support;
 
-pub use offsurface::{off_points, off_points_by_trust, off_value_parts, off_values, OffPoints, DELTA};
+pub use offsurface::{
+    doubtful_share_in_effect, off_points, off_points_by_trust, off_value_parts, off_values, Doubt, OffPoints,
+    DELTA,
+};
 pub use orient::{orient, Orientation};
 
 use crate::error::{Error, Result};

@@ -276,6 +276,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         r.figure("off_points", s.off_points);
         r.figure("off_dropped", s.dropped);
         r.figure("off_doubtful_normals", s.doubtful);
+        r.figure("off_doubtful_share", s.doubtful_share);
         r.figure("delta_min", format!("{:e}", s.delta.0));
         r.figure("delta_max", format!("{:e}", s.delta.1));
         r.figure("orient_components", s.components);
@@ -345,7 +346,7 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
     match summary {
         None => "surface carrier: the spline interpolates the carrier at the data alone".to_string(),
         Some(s) => format!(
-            "surface offsurface{}: {} off-surface points ({} dropped; {} data points with doubtful normals at {} of the \
+            "surface offsurface{}: {} off-surface points ({} dropped; {} data points with doubtful normals at {:.2} of the \
              rate), delta {:.3e} to {:.3e}; orientation: {} graph components, {}",
             if two_level { " (level 0)" } else { "" },
             s.off_points,

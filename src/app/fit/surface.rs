@@ -18,7 +18,9 @@ use crate::surface::choice::{self, unsupported_share};
 use crate::surface::energy::{flip_by_energy, EnergyFlips};
 use crate::surface::rays::{self, RayCheck};
 use crate::surface::support::DataSupport;
-use crate::surface::{self, neighbourhoods, off_points_by_trust, off_values, Neighbourhoods, OffPoints};
+use crate::surface::{
+    self, neighbourhoods, off_points_by_trust, off_values, Doubt, Neighbourhoods, OffPoints,
+};
 
 /// Fewest points for which `--surface auto` adds off-surface constraints.
 pub const AUTO_MIN_POINTS: usize = 50;
@@ -133,8 +135,8 @@ pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<
     let summary = SurfaceSummary {
         off_points: off.side.len(),
         dropped: off.dropped,
-        doubtful,
-        doubtful_share: run.args.doubtful_share,
+        doubtful: doubtful.count,
+        doubtful_share: doubtful.share,
         delta: delta_range(&off, prep.norm.scale),
         components: orientation.components,
         patches: orientation.patches,
@@ -151,14 +153,14 @@ pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<
     Ok(Constrained { prep: with_off_points(prep, &off), summary, hoods, normals: orientation.normals, off })
 }
 
-/// The off points of `prep` at the rates of `args` (--off-points, --doubtful-share), and how many
-/// of its points have doubtful normals.
+/// The off points of `prep` at the rates of `args` (--off-points, --doubtful-share), how many of
+/// its points have doubtful normals and the share of the rate they got.
 fn by_trust(
     prep: &Prepared,
     hoods: &Neighbourhoods,
     normals: &[[f64; 3]],
     args: &FitArgs,
-) -> (OffPoints, usize) {
+) -> (OffPoints, Doubt) {
     let knn = (&hoods.knn[..], hoods.kmax);
     off_points_by_trust(&prep.centres, normals, &hoods.tree, knn, args.off_points, args.doubtful_share)
 }
