@@ -118,13 +118,15 @@ fn eval_reproduces_the_fit_grid_and_mesh_exactly() {
     let get = |k: &str| rec.lines().find_map(|l| l.strip_prefix(&format!("{k},"))).map(String::from);
     assert_eq!(get("ranks").as_deref(), Some("2"));
     // 505 points, their off-surface points (the default 0.5 per point where the normal is
-    // trusted, 0.2 elsewhere), the constraint points of the second fit against spurious blobs,
-    // and 4 polynomial terms
+    // trusted, 0.2 elsewhere, more where most normals are doubtful: here about 77 % are), the
+    // constraint points of the second fit against spurious blobs, and 4 polynomial terms
     let blobs: usize = get("blob_points").unwrap().parse().unwrap();
     assert!(blobs > 0 && blobs <= 505 / 4 + 64, "{blobs} blob points");
     let off: usize = get("off_points").unwrap().parse().unwrap();
     let doubtful: usize = get("off_doubtful_normals").unwrap().parse().unwrap();
-    let want = 0.5 * (505 - doubtful) as f64 + 0.2 * doubtful as f64;
+    let share: f64 = get("off_doubtful_share").unwrap().parse().unwrap();
+    assert_eq!(share, volspline::surface::doubtful_share_in_effect(0.4, doubtful, 505));
+    let want = 0.5 * (505 - doubtful) as f64 + 0.5 * share * doubtful as f64;
     assert!((off as f64 - want).abs() <= 0.05 * want + 2.0, "{off} off points, {doubtful} doubtful normals");
     assert_eq!(get("system_size"), Some((505 + off + 4 + blobs).to_string()));
     assert_eq!(get("solver").as_deref(), Some("householder")); // auto, below 1000 rows
