@@ -430,7 +430,7 @@ fn readers_refuse_random_and_mutated_bytes_without_panicking() {
             let at = rng.below(v.len());
             v[at] = rng.next() as u8;
         }
-        no_panic(&mdir.join(format!("mutated-{}.model.h5", i % 4)), &v, &read_model);
+        no_panic(&mdir.join(format!("mutated-{i}.model.h5")), &v, &read_model);
     }
     let attrs = [
         "carrier",
@@ -441,8 +441,11 @@ fn readers_refuse_random_and_mutated_bytes_without_panicking() {
         "format_version",
         "normalisation_scale",
     ];
+    // a file of its own for each round: HDF5 opens its files without close-on-exec and locks
+    // them, so a binary that another test of this process starts meanwhile inherits the lock,
+    // and a file name used again could not be opened for writing until that binary ends
     for i in 0..150 {
-        let path = mdir.join(format!("edited-{}.model.h5", i % 4));
+        let path = mdir.join(format!("edited-{i}.model.h5"));
         std::fs::copy(&model, &path).unwrap();
         {
             let f = hdf5::File::open_rw(&path).unwrap();
