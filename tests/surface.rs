@@ -24,7 +24,7 @@ use volspline::surface::offsurface::{trusted, DOUBTFUL_SHARE};
 use volspline::surface::rays::{self, RayCheck};
 use volspline::surface::support::DataSupport;
 use volspline::surface::{
-    neighbourhoods, off_points_by_trust, off_value_parts, off_values, oriented, oriented_with,
+    neighbourhoods, off_points_by_trust, off_value_parts, off_values, oriented, oriented_with, Doubt,
     Neighbourhoods, OffPoints,
 };
 
@@ -670,22 +670,13 @@ fn off_points_go_where_the_oriented_normals_are_trusted_on_the_cow() {
     // 413 trusted, 98.3 % on the true side; 587 doubtful, 90.8 %)
     assert!(bad.len() > 100 && good.len() > 300, "{} trusted, {} doubtful", good.len(), bad.len());
     assert!(a > 0.97 && b < a - 0.05, "trusted {a}, doubtful {b}");
-    let (off, doubt) = off_points_by_trust(
-        &prep.centres,
-        &normals,
-        &hoods.tree,
-        (&hoods.knn, hoods.kmax),
-        RATE,
-        DOUBTFUL_SHARE,
-    );
+    let (off, doubt) = default_off_points(&prep, &hoods, &normals);
     // 58.7 % doubtful: below FADE_FROM, so the asked share holds
     assert_eq!((doubt.count, doubt.share), (bad.len(), DOUBTFUL_SHARE));
     // the full rate from trusted points, DOUBTFUL_SHARE of it from the others (less what is dropped)
     let from = |want: bool| off.source.iter().filter(|&&i| trust[i] == want).count() as f64;
     let (want_good, want_bad) = (RATE * good.len() as f64, DOUBTFUL_SHARE * RATE * bad.len() as f64);
-    // (the rate is dealt by striding through the point indices of each kind: within 5 %)
-    let near =
-        |got: f64, want: f64| got <= 1.05 * want + 2.0 && got >= 0.95 * want - off.dropped as f64 - 2.0;
+    let near = |got: f64, want: f64| near_rate(got, want, off.dropped);
     assert!(near(from(true), want_good), "{} from trusted, {want_good} wanted", from(true));
     assert!(near(from(false), want_bad), "{} from doubtful, {want_bad} wanted", from(false));
 }
@@ -709,14 +700,7 @@ fn where_most_normals_are_doubtful_the_doubtful_points_get_more_of_the_rate() {
     println!("cow's own vertices: {bad} of {m} normals doubtful ({:.1} %)", 100.0 * frac);
     // measured: 870 of 1000 (the 1000 area-uniform samples of the test above: 587)
     assert!(frac > 0.8, "{bad} of {m} doubtful");
-    let (off, doubt) = off_points_by_trust(
-        &prep.centres,
-        &normals,
-        &hoods.tree,
-        (&hoods.knn, hoods.kmax),
-        RATE,
-        DOUBTFUL_SHARE,
-    );
+    let (off, doubt) = default_off_points(&prep, &hoods, &normals);
     // the share rises linearly from DOUBTFUL_SHARE at 70 % doubtful to 1 at 100 %
     let want = DOUBTFUL_SHARE + (1.0 - DOUBTFUL_SHARE) * (frac - 0.7) / 0.3;
     assert_eq!(doubt.count, bad);
@@ -724,9 +708,21 @@ fn where_most_normals_are_doubtful_the_doubtful_points_get_more_of_the_rate() {
     let from_bad = off.source.iter().filter(|&&i| !trust[i]).count() as f64;
     let want_bad = doubt.share * RATE * bad as f64;
     assert!(
-        from_bad <= 1.05 * want_bad + 2.0 && from_bad >= 0.95 * want_bad - off.dropped as f64 - 2.0,
+        near_rate(from_bad, want_bad, off.dropped),
         "{from_bad} off points from doubtful normals, {want_bad} wanted"
     );
+}
+
+/// The fit's off points at the default rates (`RATE`, [`DOUBTFUL_SHARE`]) from `normals`.
+fn default_off_points(prep: &Prepared, hoods: &Neighbourhoods, normals: &[[f64; 3]]) -> (OffPoints, Doubt) {
+    let knn = (&hoods.knn[..], hoods.kmax);
+    off_points_by_trust(&prep.centres, normals, &hoods.tree, knn, RATE, DOUBTFUL_SHARE)
+}
+
+/// Whether `got` off points are the `want` a rate asks for: the rate is dealt by striding through
+/// the point indices of each kind, so within 5 %, less the `dropped` ones.
+fn near_rate(got: f64, want: f64, dropped: usize) -> bool {
+    got <= 1.05 * want + 2.0 && got >= 0.95 * want - dropped as f64 - 2.0
 }
 
 /// The fraction of `normals` on the side of `truth`.
@@ -790,8 +786,7 @@ fn side_vote_and_energy_orientation_give_the_same_signs_on_one_two_and_three_ran
     let e = flip_by_energy(&Solo, &prep, &hoods, &mut normals).unwrap();
     assert!(e.flipped > 0, "{e:?}");
     // the fit's off points (the default rate) from the serially oriented normals
-    let knn = (&hoods.knn[..], hoods.kmax);
-    let (off, _) = off_points_by_trust(&prep.centres, &normals, &hoods.tree, knn, RATE, DOUBTFUL_SHARE);
+    let (off, _) = default_off_points(&prep, &hoods, &normals);
     let dir = common::temp_dir("orient-ranks");
     let input = dir.join("cow1000.xyz");
     common::write_xyz(&input, &pts);
