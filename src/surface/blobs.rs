@@ -303,10 +303,12 @@ impl Search {
         let positive: Vec<bool> = values.iter().map(|&v| v > 0.0).collect();
         // distance to the nearest data point and the outside vote of every positive node, a row
         // of the lattice at a time: the k-th nearest distance grows by at most h from one node
-        // to the next, so that bound is the radius of a single search
+        // to the next, so that bound is the radius of a single search. The rows are dealt
+        // round-robin over the ranks and the three figures summed, as `sample` does
         let mut judged = vec![None; lattice.len()];
         let nx = lattice.dims[0];
-        judged.par_chunks_mut(nx).enumerate().for_each(|(row, out)| {
+        let (rank, size) = (comm.rank(), comm.size());
+        judged.par_chunks_mut(nx).enumerate().filter(|(row, _)| row % size == rank).for_each(|(row, out)| {
             let (mut found, mut near) = (Vec::new(), Vec::<(f64, usize)>::new());
             let mut bound = f64::INFINITY;
             for (x, o) in out.iter_mut().enumerate() {
@@ -341,6 +343,16 @@ impl Search {
                 bound += h;
             }
         });
+        let mut figures: Vec<f64> = judged
+            .iter()
+            .flat_map(|j| j.map_or([0.0; 3], |(d, nearest, outside)| [d, nearest as f64, outside]))
+            .collect();
+        comm.sum_f64(&mut figures);
+        for (i, (j, f)) in judged.iter_mut().zip(figures.chunks_exact(3)).enumerate() {
+            if positive[i] && k > 0 {
+                *j = Some((f[0], f[1] as usize, f[2]));
+            }
+        }
         // regions of positive nodes; a region is supported when one of its nodes is within a
         // cell diagonal of the data
         let reach = h * 3f64.sqrt();

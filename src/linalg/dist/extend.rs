@@ -38,6 +38,7 @@
 //! bordered factor, lambda' = Q' [0; mu'] and R' c = y'_{0..k} - (Q'^T A' Q')_{0..k, null} mu'.
 
 use faer::linalg::matmul::matmul;
+use faer::linalg::matmul::triangular::{self, BlockStructure};
 use faer::linalg::triangular_solve::{solve_lower_triangular_in_place, solve_upper_triangular_in_place};
 use faer::{Accum, Mat, MatRef};
 
@@ -45,7 +46,7 @@ use super::cholesky::{back_substitute, cholesky_small, Border};
 use super::solver::Job;
 use super::system::{all_gather_rows, LocalRows};
 use crate::error::{Error, Result};
-use crate::linalg::reflector::qr_in_place;
+use crate::linalg::reflector::{explicit_v, qr_in_place, wy_t};
 
 /// The factor of a solved projected Cholesky kept for bordering: the rows it overwrote (L of
 /// s B in rows and columns k..n, rows 0..k and columns 0..k of Q^T A Q as the projection left
@@ -148,7 +149,7 @@ pub fn extend_solve(job: &Job<'_>, first: &Factored, new: &Appended<'_>) -> Resu
     let yc = (k + w) * w;
     a[yc..yc + k].copy_from_slice(&y[..k]);
     a[yc + k..yc + w].copy_from_slice(&new.rhs[n..]);
-    qr_in_place(&mut a, w, k);
+    let taus = qr_in_place(&mut a, w, k);
     let r_new = Mat::<f64>::from_fn(k, k, |i, j| if i <= j { a[j * w + i] } else { 0.0 });
     if (0..k).any(|j| !(r_new[(j, j)].abs() > 0.0)) {
         return Err(Error::Numerical(format!(
@@ -158,6 +159,14 @@ pub fn extend_solve(job: &Job<'_>, first: &Factored, new: &Appended<'_>) -> Resu
     let g = MatRef::from_column_major_slice(&a[k * w..(k + w) * w], w, w).transpose().to_owned();
     let (g_first, g_null) = (g.as_ref().subcols(0, k), g.as_ref().subcols(k, m));
     let y_s = &a[yc..yc + w];
+    // G = I - V T V^T (its k reflectors in compact WY form), so that products with G_n, the last
+    // m columns of G, cost O(k) per entry instead of O(m): x G_n = x_{.., k..} - (x V) T V_n^T
+    // and G_n^T y = y_{k.., ..} - V_n T^T (V^T y), V_n the last m rows of V
+    let gv = explicit_v(MatRef::from_column_major_slice(&a[..k * w], w, k), k);
+    let tvn = wy_t(&taus, (gv.transpose() * &gv).as_ref()) * gv.as_ref().subrows(k, m).transpose();
+    let times_g_null = |x: MatRef<'_, f64>| -> Mat<f64> { x.subcols(k, m) - (x * &gv) * &tvn };
+    let g_null_t_times =
+        |y: MatRef<'_, f64>| -> Mat<f64> { y.subrows(k, m) - tvn.transpose() * (gv.transpose() * y) };
 
     // D = G_n^T Z G_n with Z the (k + m) x (k + m) block of T^T A' T on R's and the new rows
     let z = Mat::<f64>::from_fn(w, w, |i, j| match (i < k, j < k) {
@@ -166,15 +175,15 @@ pub fn extend_solve(job: &Job<'_>, first: &Factored, new: &Appended<'_>) -> Resu
         (false, true) => qte_top[j * m + i - k],
         (false, false) => new.block[(j - k) * m + i - k],
     });
-    let zg = &z * g_null;
-    let d = g_null.transpose() * &zg;
+    let zg = times_g_null(z.as_ref());
+    let d = g_null_t_times(zg.as_ref());
 
     // [s C | s y_old] on this rank's rows of B, then forward substitution through L
     let mut x = LocalRows::zeros(lay, m + 1, 0);
     {
         let beside =
             Mat::<f64>::from_fn(la, w, |l, j| if j < k { first.rows.get(l, j) } else { qte[(l, j - k)] });
-        let c = &beside * g_null;
+        let c = times_g_null(beside.as_ref());
         for l in b0..la {
             (0..m).for_each(|j| x.set(l, j, s * c[(l, j)]));
             x.set(l, m, s * y[lay.global(l)]);
@@ -206,7 +215,14 @@ pub fn extend_solve(job: &Job<'_>, first: &Factored, new: &Appended<'_>) -> Resu
     // L22 L22^T = s D - X^T X, then the new unknowns
     let xl = x.view().submatrix(b0, 0, la - b0, m);
     let z1 = x.view().submatrix(b0, m, la - b0, 1);
-    let (xtx, xtz) = (xl.transpose() * xl, xl.transpose() * z1);
+    // X^T X is symmetric: its lower triangle alone, then mirrored
+    let mut xtx = Mat::<f64>::zeros(m, m);
+    let (lower, full) = (BlockStructure::TriangularLower, BlockStructure::Rectangular);
+    triangular::matmul(xtx.as_mut(), lower, Accum::Replace, xl.transpose(), full, xl, full, 1.0, par);
+    for j in 1..m {
+        (0..j).for_each(|i| xtx[(i, j)] = xtx[(j, i)]);
+    }
+    let xtz = xl.transpose() * z1;
     let mut buf: Vec<f64> =
         (0..m * m).map(|q| xtx[(q / m, q % m)]).chain((0..m).map(|i| xtz[(i, 0)])).collect();
     comm.sum_f64(&mut buf);
