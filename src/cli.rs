@@ -109,13 +109,16 @@ pub struct FitArgs {
     /// trailing update), off with one.
     #[arg(long, default_value = "auto", value_name = "auto|on|off", value_parser = on_off_auto)]
     pub lookahead: LookAhead,
-    /// Distribution of the dense system over the ranks: row-cyclic (global row g on rank
+    /// Distribution of the dense system over the ranks: auto, row-cyclic (global row g on rank
     /// g mod p; every solver), 2d (blocks of --panel rows and columns on the
     /// squarest process grid, as ScaLAPACK deals them; every solver, in f64) or an explicit
     /// process grid PRxPC whose product is the rank count. On one 16-core node, 2d on 16 ranks
-    /// (4x4) solved 1.2-2x faster than row-cyclic from N = 4000 on; on 4 and 8 ranks the two were
-    /// within about 15 %.
-    #[arg(long, default_value = "row-cyclic", value_name = "row-cyclic|2d|PRxPC", value_parser = with(Layout::parse))]
+    /// (4x4) solved 1.2-2x faster than row-cyclic from N = 2000 on; on 4 and 8 ranks the two were
+    /// within about 15 %. So auto takes 2d from 16 ranks on, where the squarest grid has at least
+    /// 4 process rows and the system at least 2000 rows, and row-cyclic otherwise, and always for
+    /// --precision mixed and off-surface fits (their second fits border the first fit's
+    /// row-cyclic factor instead of factoring anew).
+    #[arg(long, default_value = "auto", value_name = "auto|row-cyclic|2d|PRxPC", value_parser = with(Layout::parse))]
     pub layout: Layout,
     /// Points closer than this fraction of the bounding-box diagonal are merged into one.
     #[arg(long, allow_hyphen_values = true, default_value = "1e-6", value_name = "F", value_parser = merge_tol)]

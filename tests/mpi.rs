@@ -271,7 +271,7 @@ fn help_documents_every_option_with_its_default() {
         "[default: 0.05]",
         "--panel",
         "--layout",
-        "[default: row-cyclic]",
+        "--layout <auto|row-cyclic|2d|PRxPC>",
         "--off-points",
         "[default: 0.5]",
         "--doubtful-share",
@@ -392,4 +392,48 @@ fn the_2d_layout_matches_the_serial_oracles_and_refuses_what_it_cannot_do() {
         .filter(|e| e.as_ref().unwrap().file_name().to_string_lossy().starts_with("refused"))
         .count();
     assert_eq!(left, 0, "refused runs must leave no output");
+}
+
+#[test]
+fn the_auto_layout_distributes_in_2d_on_sixteen_ranks_and_row_cyclic_below() {
+    // every second bunny vertex: 2526 points, above the 2000 rows from which auto takes 2D
+    let dir = common::temp_dir("layout-auto");
+    let input = dir.join("bunny2526.xyz");
+    common::write_xyz(&input, &common::bunny_subset(2, 0));
+    let k = Kernel::new(3, 2).unwrap();
+    let read: Vec<f64> =
+        volspline::io::points::read_points(&input).unwrap().points.iter().flatten().copied().collect();
+    let prep = prepare(&read, &k, &Carrier::AutoBall, 1e-6).unwrap();
+    assert!(prep.values.len() >= 2000, "{} points", prep.values.len());
+    let oracle = oracle_model(&prep, &k, SolverKind::Cholesky);
+    // 16 ranks (oversubscribed here): the 4x4 grid, the same spline as the serial oracle's; on 3
+    // ranks and with off-surface constraints on 16, row-cyclic
+    for (ranks, surface, expect) in [
+        (16, "carrier", "solver cholesky (dense, 2D block-cyclic 4x4), panel 16"),
+        (3, "carrier", "solver cholesky (dense, row-cyclic), panel 16"),
+    ] {
+        let prefix = dir.join(format!("auto-{ranks}-{surface}"));
+        let what = format!("--layout auto on {ranks} ranks, {surface}");
+        let extra = ["--layout", "auto", "--solver", "cholesky", "--no-preview"];
+        let (model, out) = fit_like_the_oracle(ranks, &input, &prefix, &extra, &oracle, &what);
+        assert!(out.contains(expect), "{what}:\n{out}");
+        assert_eq!(model.spline.weights.len(), prep.values.len());
+    }
+    let p = dir.join("auto-16-offsurface");
+    let args = [
+        "fit",
+        input.to_str().unwrap(),
+        "--out",
+        p.to_str().unwrap(),
+        "--grid",
+        "20",
+        "--no-preview",
+        "--blob-choice",
+        "off",
+        "--orient-rays",
+        "off",
+    ];
+    let out = common::run_ok(16, &args);
+    assert!(out.contains("surface offsurface"), "{out}");
+    assert!(out.contains("(dense, row-cyclic)"), "an off-surface fit keeps its factor row-cyclic:\n{out}");
 }

@@ -57,7 +57,7 @@ fn name(s: SparseSolver) -> &'static str {
 
 /// Fits the compactly supported spline of `kernel` to the prepared points. Collective.
 pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) -> Result<Fitted> {
-    let Run { args: a, comm, threads } = *run;
+    let Run { args: a, comm, threads, .. } = *run;
     let support = kernel.is_compact().expect("a compactly supported kernel");
     let solver = resolve(a.sparse_solver, comm.size())?;
     let (centres, values) = (&prep.centres, &prep.values);

@@ -206,18 +206,18 @@ pub fn fit(
     keep: bool,
     stages: &mut Stages,
 ) -> Result<Fitted> {
-    let Run { args: a, comm, threads } = *run;
+    let Run { args: a, comm, threads, layout: dense_layout } = *run;
     let (centres, values) = (&prep.centres, &prep.values);
     let layout = RowCyclic::new(values.len() + kernel.poly_count(), comm.size(), comm.rank());
     let progress = Progress::new("solve", comm);
     let timed = Timed::new(comm);
     let report = |d, t| progress.update(d, t);
     let rows = values.len() + kernel.poly_count();
-    let lookahead = lookahead_for(a.lookahead.0, a.layout.shape(comm.size()), a.solver, rows);
+    let lookahead = lookahead_for(a.lookahead.0, dense_layout.shape(comm.size()), a.solver, rows);
     let job = Job::on(&timed).panel(a.panel).par(Par::rayon(threads)).progress(&report).lookahead(lookahead);
     let mut kept = None;
-    let solved = match a.layout {
-        Layout::RowCyclic => {
+    let solved = match dense_layout {
+        Layout::RowCyclic | Layout::Auto => {
             let rows = stages.time(Stage::Assemble, || assemble(&kernel, centres, values, layout));
             let reassemble = || assemble(&kernel, centres, values, layout);
             stages.time(Stage::Solve, || {
@@ -231,7 +231,7 @@ pub fn fit(
             })
         }
         Layout::BlockCyclic(_) => {
-            let shape = a.layout.shape(comm.size()).expect("a 2D layout has a grid");
+            let shape = dense_layout.shape(comm.size()).expect("a 2D layout has a grid");
             let grid = ProcessGrid::new(&timed, shape)?;
             let nb = if a.panel > 0 {
                 a.panel
@@ -263,7 +263,7 @@ fn finish(
     timed: &Timed<'_>,
     stages: &mut Stages,
 ) -> Fitted {
-    let Run { args: a, comm, .. } = *run;
+    let Run { comm, .. } = *run;
     let (centres, values) = (&prep.centres, &prep.values);
     let calls = timed.calls();
     // the slowest rank's wait in each kind of call
@@ -295,7 +295,7 @@ fn finish(
     let mut line = format!(
         "solver {} (dense, {}), panel {}{lookahead}, precision {precision}",
         solved.used.name(),
-        a.layout.name(comm.size()),
+        run.layout.name(comm.size()),
         solved.panel
     );
     if let Some((first, seconds)) = bordered {
@@ -328,7 +328,7 @@ fn finish(
             ("solver".into(), solved.used.name().into()),
             ("panel".into(), solved.panel.to_string()),
             ("lookahead".into(), lookahead_used.to_string()),
-            ("layout".into(), a.layout.name(comm.size())),
+            ("layout".into(), run.layout.name(comm.size())),
             ("comm_calls".into(), calls.to_string()),
             ("system_size".into(), layout.n.to_string()),
             ("precision".into(), if mixed { "mixed" } else { "f64" }.into()),

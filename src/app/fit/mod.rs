@@ -24,6 +24,7 @@ use crate::frep::raycast::Colouring;
 use crate::frep::{Implicit, ModelSolid};
 use crate::grid::{padded_box, Grid};
 use crate::io::{self, model_file, points};
+use crate::linalg::dist::Layout;
 use crate::par::{agree, on_root, Comm};
 use crate::spline::compact::{default_support, DEFAULT_NEIGHBOURS};
 use crate::spline::hygiene::{prepare, Prepared};
@@ -39,6 +40,8 @@ pub struct Run<'a> {
     pub args: &'a FitArgs,
     pub comm: &'a dyn Comm,
     pub threads: usize,
+    /// The dense layout, `--layout` with `auto` resolved for this fit.
+    pub layout: Layout,
 }
 
 /// What a method produced.
@@ -140,8 +143,9 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     };
     let prep = prepare(&raw, &base, &a.carrier, a.merge_tol)?;
     let n = prep.values.len();
-    let run = Run { args: a, comm, threads };
     let off = surface::with_off_surface(a.surface, n);
+    let layout = a.layout.resolve(comm.size(), n + base.poly_count(), a.precision, off);
+    let run = Run { args: a, comm, threads, layout };
     let (plo, phi) = padded_box(&prep.box_lo, &prep.box_hi, a.grid.margin);
     let grid = Grid::covering(plo, phi, a.grid.grid)?;
     // the compactly supported method with off-surface constraints fits two levels: a dense

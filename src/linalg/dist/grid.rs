@@ -12,7 +12,8 @@
 //! of one process column. For p = 64 and a square grid that is a quarter of the traffic and
 //! an eighth of the ranks per pivot search. Measured on one 16-core node, a 4x4 grid already
 //! solved 1.2-2x faster than row-cyclic at n = 4000 and 8000, while 2x2 and 2x4 grids were
-//! within about 15 % of it either way. The price: the panel
+//! within about 15 % of it either way; hence `--layout auto` ([`Layout::resolve`]). The price:
+//! the panel
 //! factorisation runs on one process column while the others wait, and the right-hand side and
 //! the solution move block by block in the back substitution.
 //!
@@ -31,6 +32,7 @@
 //! Rank (i, j) of the grid is world rank i pc + j; it holds the rows of process row i and the
 //! columns of process column j, column-major with its local row count as leading dimension.
 
+use super::solver::Precision;
 use super::system::RowIndex;
 use crate::error::{Error, Result};
 use crate::par::Comm;
@@ -137,19 +139,34 @@ impl<'a> ProcessGrid<'a> {
     }
 }
 
+/// Fewest ranks from which `--layout auto` distributes in 2D: on one 16-core node the 4x4 grid
+/// solved 1.2-2x faster than row-cyclic at 2000 to 8000 rows, while on 4 and 8 ranks the two
+/// layouts were within about 15 % either way.
+pub const AUTO_2D_RANKS: usize = 16;
+/// Fewest process rows of the squarest grid for `--layout auto` to take it: grids of one or two
+/// rows (a prime rank count, twice a prime) were no faster than row-cyclic.
+pub const AUTO_2D_GRID_ROWS: usize = 4;
+/// Fewest rows of the system for `--layout auto` to distribute it in 2D (the smallest measured).
+pub const AUTO_2D_SYSTEM: usize = 2000;
+
 /// How the dense system is distributed over the ranks.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Layout {
     /// Global row g on rank g mod p (every solver).
     RowCyclic,
-    /// nb x nb blocks on a pr x pc process grid (LU only); None: the squarest grid.
+    /// nb x nb blocks on a pr x pc process grid (every solver, in f64); None: the squarest grid.
     BlockCyclic(Option<(usize, usize)>),
+    /// Row-cyclic or the squarest 2D grid, by the rank count and the fit ([`Layout::resolve`]);
+    /// until resolved it distributes as row-cyclic.
+    Auto,
 }
 
 impl Layout {
-    /// `row-cyclic`, `2d` (the squarest grid for the job's ranks) or an explicit grid `PRxPC`.
+    /// `auto`, `row-cyclic`, `2d` (the squarest grid for the job's ranks) or an explicit grid
+    /// `PRxPC`.
     pub fn parse(s: &str) -> Result<Self> {
         match s {
+            "auto" => return Ok(Layout::Auto),
             "row-cyclic" | "rows" => return Ok(Layout::RowCyclic),
             "2d" => return Ok(Layout::BlockCyclic(None)),
             _ => {}
@@ -166,12 +183,33 @@ impl Layout {
     /// The process grid for `ranks` ranks (None for row-cyclic).
     pub fn shape(&self, ranks: usize) -> Option<(usize, usize)> {
         match *self {
-            Layout::RowCyclic => None,
+            Layout::RowCyclic | Layout::Auto => None,
             Layout::BlockCyclic(shape) => Some(shape.unwrap_or_else(|| squarest(ranks))),
         }
     }
 
+    /// The layout `auto` stands for, for a system of `rows` rows on `ranks` ranks solved in
+    /// `precision`, and whether its factor must stay row-cyclic (`keeps_rows`: an off-surface
+    /// fit, whose second fits border the first fit's row-cyclic factor in O(n^2 m) instead of
+    /// factoring anew): the squarest 2D grid from [`AUTO_2D_RANKS`] ranks with at least
+    /// [`AUTO_2D_GRID_ROWS`] process rows and [`AUTO_2D_SYSTEM`] rows, in f64, where no factor is
+    /// kept; row-cyclic otherwise. Any other layout is returned as it is.
+    pub fn resolve(self, ranks: usize, rows: usize, precision: Precision, keeps_rows: bool) -> Layout {
+        if self != Layout::Auto {
+            return self;
+        }
+        let wide = ranks >= AUTO_2D_RANKS && squarest(ranks).0 >= AUTO_2D_GRID_ROWS;
+        if wide && rows >= AUTO_2D_SYSTEM && precision == Precision::F64 && !keeps_rows {
+            Layout::BlockCyclic(None)
+        } else {
+            Layout::RowCyclic
+        }
+    }
+
     pub fn name(&self, ranks: usize) -> String {
+        if *self == Layout::Auto {
+            return "auto".into();
+        }
         match self.shape(ranks) {
             None => "row-cyclic".into(),
             Some((pr, pc)) => format!("2D block-cyclic {pr}x{pc}"),
@@ -317,6 +355,32 @@ mod tests {
         for bad in ["", "x", "0x2", "2x", "2x-1", "square", "2*2"] {
             assert!(Layout::parse(bad).is_err(), "{bad}");
         }
+    }
+
+    #[test]
+    fn auto_takes_the_squarest_grid_from_sixteen_ranks_for_large_f64_systems_without_a_kept_factor() {
+        let f64 = Precision::F64;
+        let auto = |ranks, rows, precision, keeps| Layout::Auto.resolve(ranks, rows, precision, keeps);
+        assert_eq!(auto(16, 2000, f64, false), Layout::BlockCyclic(None));
+        assert_eq!(Layout::BlockCyclic(None).shape(16), Some((4, 4)));
+        assert_eq!(auto(64, 100_000, f64, false), Layout::BlockCyclic(None));
+        assert_eq!(auto(24, 8000, f64, false), Layout::BlockCyclic(None), "4x6");
+        for (ranks, rows, precision, keeps, why) in [
+            (15, 8000, f64, false, "too few ranks"),
+            (17, 8000, f64, false, "a prime: 1x17"),
+            (22, 8000, f64, false, "2x11"),
+            (16, 1999, f64, false, "too few rows"),
+            (16, 8000, Precision::Mixed, false, "mixed precision runs row-cyclic"),
+            (16, 8000, f64, true, "an off-surface fit borders its row-cyclic factor"),
+        ] {
+            assert_eq!(auto(ranks, rows, precision, keeps), Layout::RowCyclic, "{why}");
+        }
+        // an explicit layout stays as asked
+        for asked in [Layout::RowCyclic, Layout::BlockCyclic(Some((1, 2)))] {
+            assert_eq!(asked.resolve(16, 8000, f64, false), asked);
+        }
+        assert_eq!(Layout::parse("auto").unwrap(), Layout::Auto);
+        assert_eq!(Layout::Auto.shape(16), None);
     }
 
     #[test]
