@@ -855,6 +855,15 @@ fn trimming_leaves_out_the_unsupported_surface_of_the_cow_and_keeps_the_rest() {
     );
     assert!(text.contains("trimmed surface (--trim 2:"), "{text}");
     assert!(removed > 0.01 && removed < 0.25, "{removed} of the area left out");
+    // the steps of the off-surface method have stages of their own in the table and the timings
+    let timings = std::fs::read_to_string(&t).unwrap();
+    for stage in ["normals", "orient", "rays", "blobs"] {
+        let key = format!("stage_{stage}_max_s,");
+        let seconds: f64 =
+            timings.lines().find_map(|l| l.strip_prefix(key.as_str())).expect(&key).parse().unwrap();
+        assert!(seconds > 0.0, "{stage}: {seconds} s");
+        assert!(text.lines().any(|l| l.trim_start().starts_with(stage)), "no {stage} row:\n{text}");
+    }
     assert!(
         rms_trimmed < 0.8 * rms_closed && far_trimmed < 0.35 * far_closed,
         "mesh -> cow rms {rms_closed} -> {rms_trimmed}, far {far_closed} -> {far_trimmed}"

@@ -16,6 +16,11 @@ pub enum Stage {
     Assemble,
     Factor,
     Solve,
+    /// The ray test of an off-surface fit's normals through its first fit.
+    Rays,
+    /// The blob search of an off-surface fit: the first fit sampled on a lattice, the spurious
+    /// nodes found, and the clearance choice between the candidate fits.
+    Blobs,
     Check,
     Evaluate,
     Mesh,
@@ -27,7 +32,7 @@ pub enum Stage {
 }
 
 impl Stage {
-    pub const ALL: [Stage; 15] = [
+    pub const ALL: [Stage; 17] = [
         Stage::Read,
         Stage::Normals,
         Stage::Orient,
@@ -36,6 +41,8 @@ impl Stage {
         Stage::Assemble,
         Stage::Factor,
         Stage::Solve,
+        Stage::Rays,
+        Stage::Blobs,
         Stage::Check,
         Stage::Evaluate,
         Stage::Mesh,
@@ -55,6 +62,8 @@ impl Stage {
             Stage::Assemble => "assemble",
             Stage::Factor => "factor",
             Stage::Solve => "solve",
+            Stage::Rays => "rays",
+            Stage::Blobs => "blobs",
             Stage::Check => "check",
             Stage::Evaluate => "evaluate",
             Stage::Mesh => "mesh",

@@ -194,7 +194,7 @@ pub type Refit<'a> = dyn FnMut(&Prepared, Option<&KeptFactor>, &mut Stages) -> R
 /// search's wide and narrow clearances pin different nodes (unless `--blob-choice off`), both
 /// second fits are made and the one with less unsupported surface is kept (see
 /// [`crate::surface::choice`]). `data` is the data alone; the lattice covers its box grown by the
-/// grid's margin. The search is timed as part of the orientation stage. Collective.
+/// grid's margin. The rays and the search (with the choice) have stages of their own. Collective.
 pub fn check_first_fit(
     run: &Run<'_>,
     data: &Prepared,
@@ -206,7 +206,7 @@ pub fn check_first_fit(
     let norm = data.norm;
     let factor = first.factor.take();
     let lattice = Lattice::of_fit(&data.box_lo, &data.box_hi, run.args.grid.margin, &norm);
-    let turned = stages.time(Stage::Orient, || {
+    let turned = stages.time(Stage::Rays, || {
         if !run.args.orient_rays {
             return RayCheck::default();
         }
@@ -236,7 +236,7 @@ pub fn check_first_fit(
     }
     // the data's support, which the clearance choice alone needs
     let support = run.args.blob_choice.then(|| DataSupport::new(&data.centres, choice::FACTOR));
-    let (values, wide, narrow, areas) = stages.time(Stage::Orient, || {
+    let (values, wide, narrow, areas) = stages.time(Stage::Blobs, || {
         let values = sample(run.comm, &lattice, &data.carrier, &first.spline);
         let search = Search::new(run.comm, &lattice, &values, &data.centres, &c.normals, &c.hoods.tree);
         let wide = search.blobs(&lattice, CLEARANCE);
@@ -272,12 +272,12 @@ pub fn check_first_fit(
             return Ok((fit, values, prep));
         }
         let fit = refit(&prep, factor.as_ref(), stages)?;
-        let values = stages.time(Stage::Orient, || sample(run.comm, &lattice, &data.carrier, &fit.spline));
+        let values = stages.time(Stage::Blobs, || sample(run.comm, &lattice, &data.carrier, &fit.spline));
         Ok((fit, values, prep))
     };
     let (wide_fit, wide_values, wide_prep) = candidate(&wide, stages)?;
     let (narrow_fit, narrow_values, narrow_prep) = candidate(&narrow, stages)?;
-    let (wide_share, narrow_share) = stages.time(Stage::Orient, || {
+    let (wide_share, narrow_share) = stages.time(Stage::Blobs, || {
         let share = |values: &[f64]| {
             let winding = |at: &[[f64; 3]]| winding_numbers(run.comm, at, &data.centres, &c.normals, &areas);
             unsupported_share(&lattice, values, &support, winding).0
