@@ -15,11 +15,16 @@ use volspline::linalg::dist::SolverKind;
 use volspline::spline::hygiene::{prepare, Prepared};
 use volspline::spline::{Carrier, Kernel, Model};
 
-/// Every 20th bunny vertex written to `dir`/bunny253.xyz and prepared as the binary prepares it
-/// (the points go through the .xyz text and back): the input of the oracle comparisons.
+/// Every 20th bunny vertex (253 points), as [`bunny_every`]: the input of the oracle comparisons.
 fn bunny253(dir: &Path) -> (std::path::PathBuf, Kernel, Prepared) {
-    let input = dir.join("bunny253.xyz");
-    common::write_xyz(&input, &common::bunny_subset(20, 0));
+    bunny_every(dir, 20)
+}
+
+/// Every `step`-th bunny vertex written to `dir`/bunny-STEP.xyz and prepared as the binary
+/// prepares it (the points go through the .xyz text and back).
+fn bunny_every(dir: &Path, step: usize) -> (std::path::PathBuf, Kernel, Prepared) {
+    let input = dir.join(format!("bunny-{step}.xyz"));
+    common::write_xyz(&input, &common::bunny_subset(step, 0));
     let k = Kernel::new(3, 2).unwrap();
     let read: Vec<f64> =
         volspline::io::points::read_points(&input).unwrap().points.iter().flatten().copied().collect();
@@ -398,12 +403,7 @@ fn the_2d_layout_matches_the_serial_oracles_and_refuses_what_it_cannot_do() {
 fn the_auto_layout_distributes_in_2d_on_sixteen_ranks_and_row_cyclic_below() {
     // every second bunny vertex: 2526 points, above the 2000 rows from which auto takes 2D
     let dir = common::temp_dir("layout-auto");
-    let input = dir.join("bunny2526.xyz");
-    common::write_xyz(&input, &common::bunny_subset(2, 0));
-    let k = Kernel::new(3, 2).unwrap();
-    let read: Vec<f64> =
-        volspline::io::points::read_points(&input).unwrap().points.iter().flatten().copied().collect();
-    let prep = prepare(&read, &k, &Carrier::AutoBall, 1e-6).unwrap();
+    let (input, k, prep) = bunny_every(&dir, 2);
     assert!(prep.values.len() >= 2000, "{} points", prep.values.len());
     let oracle = oracle_model(&prep, &k, SolverKind::Cholesky);
     // 16 ranks (oversubscribed here): the 4x4 grid, the same spline as the serial oracle's; on 3
