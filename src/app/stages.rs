@@ -21,6 +21,9 @@ pub enum Stage {
     /// The blob search of an off-surface fit: the first fit sampled on a lattice, the spurious
     /// nodes found, and the clearance choice between the candidate fits.
     Blobs,
+    /// The patches of an off-surface fit's normals tried against the unsupported surface (their
+    /// fits are counted in the solve).
+    Turns,
     Check,
     Evaluate,
     Mesh,
@@ -32,7 +35,7 @@ pub enum Stage {
 }
 
 impl Stage {
-    pub const ALL: [Stage; 17] = [
+    pub const ALL: [Stage; 18] = [
         Stage::Read,
         Stage::Normals,
         Stage::Orient,
@@ -43,6 +46,7 @@ impl Stage {
         Stage::Solve,
         Stage::Rays,
         Stage::Blobs,
+        Stage::Turns,
         Stage::Check,
         Stage::Evaluate,
         Stage::Mesh,
@@ -64,6 +68,7 @@ impl Stage {
             Stage::Solve => "solve",
             Stage::Rays => "rays",
             Stage::Blobs => "blobs",
+            Stage::Turns => "turns",
             Stage::Check => "check",
             Stage::Evaluate => "evaluate",
             Stage::Mesh => "mesh",

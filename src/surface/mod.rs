@@ -18,6 +18,7 @@
 //!   pinned outside by further points for a second fit;
 //! - [`choice`]: of two second fits (a wide and a narrow clearance of the blob search), the one
 //!   with less surface that no data supports;
+//! - [`turns`]: last, the small patches of normals whose turn shrinks that surface, turned;
 //! - [`support`]: where the data support the reconstructed surface, for trimming it.
 //!
 //! Everything works in the normalised coordinates of the spline's centres (the data's box
@@ -32,6 +33,7 @@ pub mod offsurface;
 pub mod orient;
 pub mod rays;
 pub mod support;
+pub mod turns;
 
 pub use offsurface::{
     doubtful_share_in_effect, off_points, off_points_by_trust, off_value_parts, off_values, Doubt, OffPoints,

@@ -381,6 +381,12 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
                 k.doubtful, k.enclosed, k.turned, k.turned_points
             ),
             None => String::new(),
+        } + &match &s.turns {
+            Some(t) => format!(
+                "; turns: {} of {} patches tried ({} points) turned, unsupported crossings {} -> {}",
+                t.turned, t.tried, t.turned_points, t.before, t.after
+            ),
+            None => String::new(),
         } + &if s.blob_points > 0 {
             format!("; blobs: {} constraint points ({} regions away from the data)", s.blob_points, s.blob_regions)
         } else {
@@ -400,10 +406,11 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
                 if ch.kept_narrow { "narrow" } else { "wide" },
             ),
             None => String::new(),
-        } + match s.fits() {
-            1 => "",
-            2 => ", fitted twice",
-            _ => ", fitted three times",
+        } + &match s.fits() {
+            1 => String::new(),
+            2 => ", fitted twice".to_string(),
+            3 => ", fitted three times".to_string(),
+            k => format!(", fitted {k} times"),
         },
     }
 }

@@ -18,6 +18,7 @@ use crate::surface::choice::{self, unsupported_share};
 use crate::surface::energy::{flip_by_energy, EnergyFlips};
 use crate::surface::rays::{self, RayCheck};
 use crate::surface::support::DataSupport;
+use crate::surface::turns::{self, TurnCheck};
 use crate::surface::{
     self, neighbourhoods, off_points_by_trust, off_values, Doubt, Neighbourhoods, OffPoints,
 };
@@ -55,17 +56,22 @@ pub struct SurfaceSummary {
     /// The choice between the blob search's wide and narrow clearances (None: not made, since
     /// `--blob-choice off` or both pinned the same nodes).
     pub choice: Option<ClearanceChoice>,
+    /// The patches turned by the unsupported surface (None: not run, since `--orient-turns off`
+    /// or no factor of the first fit was kept to border).
+    pub turns: Option<TurnCheck>,
 }
 
 impl SurfaceSummary {
     /// The fits made: one, a second where rays turned patches or blobs were pinned, or the first
     /// and the candidates of the clearance choice.
     pub fn fits(&self) -> usize {
-        match &self.choice {
-            Some(ch) => ch.fits,
-            None if self.blob_points > 0 || self.rays.as_ref().is_some_and(|k| k.turned > 0) => 2,
-            None => 1,
-        }
+        let tried = self.turns.as_ref().map_or(0, |t| t.tried);
+        tried
+            + match &self.choice {
+                Some(ch) => ch.fits,
+                None if self.blob_points > 0 || self.rays.as_ref().is_some_and(|k| k.turned > 0) => 2,
+                None => 1,
+            }
     }
 }
 
@@ -149,6 +155,7 @@ pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<
         blob_spared: 0,
         rays: None,
         choice: None,
+        turns: None,
     };
     Ok(Constrained { prep: with_off_points(prep, &off), summary, hoods, normals: orientation.normals, off })
 }
@@ -193,8 +200,11 @@ pub type Refit<'a> = dyn FnMut(&Prepared, Option<&KeptFactor>, &mut Stages) -> R
 /// points, so `refit` is given the first fit's factor, where it kept one, to border. Where the blob
 /// search's wide and narrow clearances pin different nodes (unless `--blob-choice off`), both
 /// second fits are made and the one with less unsupported surface is kept (see
-/// [`crate::surface::choice`]). `data` is the data alone; the lattice covers its box grown by the
-/// grid's margin. The rays and the search (with the choice) have stages of their own. Collective.
+/// [`crate::surface::choice`]). Last, where the first fit's factor was kept (unless
+/// `--orient-turns off`), small patches of the normals whose turn shrinks the surface no data
+/// supports are turned, each tried by one more bordered fit (see [`crate::surface::turns`]).
+/// `data` is the data alone; the lattice covers its box grown by the grid's margin. The rays,
+/// the search (with the choice) and the turns have stages of their own. Collective.
 pub fn check_first_fit(
     run: &Run<'_>,
     data: &Prepared,
@@ -203,9 +213,28 @@ pub fn check_first_fit(
     stages: &mut Stages,
     refit: &mut Refit<'_>,
 ) -> Result<Fitted> {
-    let norm = data.norm;
     let factor = first.factor.take();
-    let lattice = Lattice::of_fit(&data.box_lo, &data.box_hi, run.args.grid.margin, &norm);
+    let lattice = Lattice::of_fit(&data.box_lo, &data.box_hi, run.args.grid.margin, &data.norm);
+    let fit = rays_and_blobs(run, data, c, first, stages, refit, (factor.as_ref(), &lattice))?;
+    match factor.as_ref() {
+        Some(factor) if run.args.orient_turns => {
+            turn_by_surface(run, data, c, fit, stages, refit, (factor, &lattice))
+        }
+        _ => Ok(fit),
+    }
+}
+
+/// The ray test and the blob search with the clearance choice of [`check_first_fit`] (`factor`:
+/// the first fit's, where it was kept). Collective.
+fn rays_and_blobs(
+    run: &Run<'_>,
+    data: &Prepared,
+    c: &mut Constrained,
+    first: Fitted,
+    stages: &mut Stages,
+    refit: &mut Refit<'_>,
+    (factor, lattice): (Option<&KeptFactor>, &Lattice),
+) -> Result<Fitted> {
     let turned = stages.time(Stage::Rays, || {
         if !run.args.orient_rays {
             return RayCheck::default();
@@ -237,12 +266,12 @@ pub fn check_first_fit(
     // the data's support, which the clearance choice alone needs
     let support = run.args.blob_choice.then(|| DataSupport::new(&data.centres, choice::FACTOR));
     let (values, wide, narrow, areas) = stages.time(Stage::Blobs, || {
-        let values = sample(run.comm, &lattice, &data.carrier, &first.spline);
-        let search = Search::new(run.comm, &lattice, &values, &data.centres, &c.normals, &c.hoods.tree);
-        let wide = search.blobs(&lattice, CLEARANCE);
+        let values = sample(run.comm, lattice, &data.carrier, &first.spline);
+        let search = Search::new(run.comm, lattice, &values, &data.centres, &c.normals, &c.hoods.tree);
+        let wide = search.blobs(lattice, CLEARANCE);
         let narrow = support
             .as_ref()
-            .map(|s| search.blobs(&lattice, choice::NARROW * s.spacing))
+            .map(|s| search.blobs(lattice, choice::NARROW * s.spacing))
             .filter(|b| b.centres != wide.centres);
         (values, wide, narrow, search.areas().to_vec())
     });
@@ -258,7 +287,7 @@ pub fn check_first_fit(
         drop(first);
         c.prep = with_blobs(&c.prep, &wide, data);
         c.summary.blob_points = wide.source.len();
-        return refit(&c.prep, factor.as_ref(), stages);
+        return refit(&c.prep, factor, stages);
     };
     // two candidates: each is the first fit or a second one, with its points and the lattice
     // values of its fit (neither candidate the first fit: it goes before the second systems are
@@ -271,8 +300,8 @@ pub fn check_first_fit(
             let (fit, values) = first.take().expect("one candidate at most is the first fit");
             return Ok((fit, values, prep));
         }
-        let fit = refit(&prep, factor.as_ref(), stages)?;
-        let values = stages.time(Stage::Blobs, || sample(run.comm, &lattice, &data.carrier, &fit.spline));
+        let fit = refit(&prep, factor, stages)?;
+        let values = stages.time(Stage::Blobs, || sample(run.comm, lattice, &data.carrier, &fit.spline));
         Ok((fit, values, prep))
     };
     let (wide_fit, wide_values, wide_prep) = candidate(&wide, stages)?;
@@ -280,7 +309,7 @@ pub fn check_first_fit(
     let (wide_share, narrow_share) = stages.time(Stage::Blobs, || {
         let share = |values: &[f64]| {
             let winding = |at: &[[f64; 3]]| winding_numbers(run.comm, at, &data.centres, &c.normals, &areas);
-            unsupported_share(&lattice, values, &support, winding).0
+            unsupported_share(lattice, values, &support, winding).0
         };
         (share(&wide_values), share(&narrow_values))
     });
@@ -297,6 +326,59 @@ pub fn check_first_fit(
         if kept_narrow { (&narrow, narrow_fit, narrow_prep) } else { (&wide, wide_fit, wide_prep) };
     c.prep = prep;
     c.summary.blob_points = blobs.source.len();
+    Ok(fit)
+}
+
+/// `fit` of `c.prep` after the small patches of the normals whose turn shrinks the surface no
+/// data supports are turned, one candidate after the other (see [`crate::surface::turns`]): each
+/// candidate changes only the values of its off points, so its fit borders the first fit's
+/// `factor`. The lattice is the blob search's. Collective.
+fn turn_by_surface(
+    run: &Run<'_>,
+    data: &Prepared,
+    c: &mut Constrained,
+    mut fit: Fitted,
+    stages: &mut Stages,
+    refit: &mut Refit<'_>,
+    (factor, lattice): (&KeptFactor, &Lattice),
+) -> Result<Fitted> {
+    let support = DataSupport::new(&data.centres, choice::FACTOR);
+    let unsupported = |fit: &Fitted| {
+        let values = sample(run.comm, lattice, &data.carrier, &fit.spline);
+        choice::unsupported_crossings(lattice, &values, &support).0
+    };
+    let mut far = stages.time(Stage::Turns, || unsupported(&fit));
+    let candidates = stages.time(Stage::Turns, || {
+        let knn = (&c.hoods.knn[..], c.hoods.kmax);
+        turns::candidates(&data.centres, &c.normals, knn, &c.hoods.tree, &far, lattice.h)
+    });
+    let mut check = TurnCheck { tried: candidates.len(), before: far.len(), ..Default::default() };
+    let nd = data.values.len();
+    for members in candidates {
+        let mut member = vec![false; c.normals.len()];
+        members.iter().for_each(|&i| member[i] = true);
+        let mut normals = c.normals.clone();
+        members.iter().for_each(|&i| normals[i] = normals[i].map(|v| -v));
+        // the off points of the patch change side where they stand
+        let mut off = c.off.clone();
+        for (side, &i) in off.side.iter_mut().zip(&off.source) {
+            if member[i] {
+                *side = -*side;
+            }
+        }
+        let mut prep = c.prep.clone();
+        let values = off_values(&off, &data.points, &data.carrier, &data.norm);
+        prep.values[nd..nd + values.len()].copy_from_slice(&values);
+        let candidate = refit(&prep, Some(factor), stages)?;
+        let after = stages.time(Stage::Turns, || unsupported(&candidate));
+        if turns::gains(far.len(), after.len()) {
+            (c.normals, c.off, c.prep, fit, far) = (normals, off, prep, candidate, after);
+            check.turned += 1;
+            check.turned_points += members.len();
+        }
+    }
+    check.after = far.len();
+    c.summary.turns = Some(check);
     Ok(fit)
 }
 
