@@ -191,7 +191,7 @@ pub struct FitArgs {
     /// that borders the first fit's factor, and keep a turn that removes at least 5 % of that
     /// surface: a patch turned on a sheet thinner than the sampling (an ear) holds up a bulge
     /// beside it that the ray test cannot see. It made no measured fit worse and mended several,
-    /// but each try costs a fit and a lattice sampling (about 0.3 s at 1000 points on 2 ranks),
+    /// but each try costs a fit and a lattice sampling (about 0.1 s at 1000 points on 2 ranks),
     /// so it is off by default until the tries are made cheaper (see src/surface/turns.rs).
     #[arg(long, default_value = "off", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub orient_turns: bool,

@@ -40,8 +40,9 @@
 //!
 //! Each try is a bordered fit of the whole system (the forward substitution of the appended
 //! blob points' columns through the first fit's factor is repeated, though only values
-//! changed) and a sampling of the whole lattice: about 0.1 s a try at 1000 points on 2 ranks,
-//! about 0.3 s with the first sampling. That would take the default past 3 times the plain
+//! changed) and a sampling of the whole lattice: about 0.1 s a try at 1000 points on 2 ranks
+//! (the fit before the tries reuses the blob search's sampling where it made one), 0.3 s for
+//! three tries. That would take the default past 3 times the plain
 //! method's time on the benchmark's 2000-point sets, so `--orient-turns` is off by default. The
 //! way to make it cheap: keep the bordered factor of the chosen fit, so that a try is two
 //! triangular solves, and sample only the lattice around the tried patch.

@@ -215,17 +215,18 @@ pub fn check_first_fit(
 ) -> Result<Fitted> {
     let factor = first.factor.take();
     let lattice = Lattice::of_fit(&data.box_lo, &data.box_hi, run.args.grid.margin, &data.norm);
-    let fit = rays_and_blobs(run, data, c, first, stages, refit, (factor.as_ref(), &lattice))?;
+    let (fit, values) = rays_and_blobs(run, data, c, first, stages, refit, (factor.as_ref(), &lattice))?;
     match factor.as_ref() {
         Some(factor) if run.args.orient_turns => {
-            turn_by_surface(run, data, c, fit, stages, refit, (factor, &lattice))
+            turn_by_surface(run, data, c, (fit, values), stages, refit, (factor, &lattice))
         }
         _ => Ok(fit),
     }
 }
 
 /// The ray test and the blob search with the clearance choice of [`check_first_fit`] (`factor`:
-/// the first fit's, where it was kept). Collective.
+/// the first fit's, where it was kept): the fit kept, with its values on the lattice where they
+/// were sampled. Collective.
 fn rays_and_blobs(
     run: &Run<'_>,
     data: &Prepared,
@@ -234,7 +235,7 @@ fn rays_and_blobs(
     stages: &mut Stages,
     refit: &mut Refit<'_>,
     (factor, lattice): (Option<&KeptFactor>, &Lattice),
-) -> Result<Fitted> {
+) -> Result<(Fitted, Option<Vec<f64>>)> {
     let turned = stages.time(Stage::Rays, || {
         if !run.args.orient_rays {
             return RayCheck::default();
@@ -282,12 +283,12 @@ fn rays_and_blobs(
     let first_stands = |b: &Blobs| b.source.is_empty() && turned.turned == 0;
     let (Some(narrow), Some(support)) = (narrow, support) else {
         if first_stands(&wide) {
-            return Ok(first);
+            return Ok((first, Some(values)));
         }
         drop(first);
         c.prep = with_blobs(&c.prep, &wide, data);
         c.summary.blob_points = wide.source.len();
-        return refit(&c.prep, factor, stages);
+        return Ok((refit(&c.prep, factor, stages)?, None));
     };
     // two candidates: each is the first fit or a second one, with its points and the lattice
     // values of its fit (neither candidate the first fit: it goes before the second systems are
@@ -322,32 +323,34 @@ fn rays_and_blobs(
         kept_narrow,
         fits: if reused { 2 } else { 3 },
     });
-    let (blobs, fit, prep) =
-        if kept_narrow { (&narrow, narrow_fit, narrow_prep) } else { (&wide, wide_fit, wide_prep) };
+    let (blobs, fit, prep, values) = if kept_narrow {
+        (&narrow, narrow_fit, narrow_prep, narrow_values)
+    } else {
+        (&wide, wide_fit, wide_prep, wide_values)
+    };
     c.prep = prep;
     c.summary.blob_points = blobs.source.len();
-    Ok(fit)
+    Ok((fit, Some(values)))
 }
 
 /// `fit` of `c.prep` after the small patches of the normals whose turn shrinks the surface no
 /// data supports are turned, one candidate after the other (see [`crate::surface::turns`]): each
 /// candidate changes only the values of its off points, so its fit borders the first fit's
-/// `factor`. The lattice is the blob search's. Collective.
+/// `factor`. The lattice is the blob search's; `values`, the fit's values on it where the search
+/// sampled them. Collective.
 fn turn_by_surface(
     run: &Run<'_>,
     data: &Prepared,
     c: &mut Constrained,
-    mut fit: Fitted,
+    (mut fit, values): (Fitted, Option<Vec<f64>>),
     stages: &mut Stages,
     refit: &mut Refit<'_>,
     (factor, lattice): (&KeptFactor, &Lattice),
 ) -> Result<Fitted> {
     let support = DataSupport::new(&data.centres, choice::FACTOR);
-    let unsupported = |fit: &Fitted| {
-        let values = sample(run.comm, lattice, &data.carrier, &fit.spline);
-        choice::unsupported_crossings(lattice, &values, &support).0
-    };
-    let mut far = stages.time(Stage::Turns, || unsupported(&fit));
+    let sampled = |fit: &Fitted| sample(run.comm, lattice, &data.carrier, &fit.spline);
+    let unsupported = |values: &[f64]| choice::unsupported_crossings(lattice, values, &support).0;
+    let mut far = stages.time(Stage::Turns, || unsupported(&values.unwrap_or_else(|| sampled(&fit))));
     let candidates = stages.time(Stage::Turns, || {
         let knn = (&c.hoods.knn[..], c.hoods.kmax);
         turns::candidates(&data.centres, &c.normals, knn, &c.hoods.tree, &far, lattice.h)
@@ -370,7 +373,7 @@ fn turn_by_surface(
         let values = off_values(&off, &data.points, &data.carrier, &data.norm);
         prep.values[nd..nd + values.len()].copy_from_slice(&values);
         let candidate = refit(&prep, Some(factor), stages)?;
-        let after = stages.time(Stage::Turns, || unsupported(&candidate));
+        let after = stages.time(Stage::Turns, || unsupported(&sampled(&candidate)));
         if turns::gains(far.len(), after.len()) {
             (c.normals, c.off, c.prep, fit, far) = (normals, off, prep, candidate, after);
             check.turned += 1;
