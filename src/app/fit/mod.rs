@@ -381,12 +381,6 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
                 k.doubtful, k.enclosed, k.turned, k.turned_points
             ),
             None => String::new(),
-        } + &match &s.turns {
-            Some(t) => format!(
-                "; turns: {} of {} patches tried ({} points) turned, unsupported crossings {} -> {}",
-                t.turned, t.tried, t.turned_points, t.before, t.after
-            ),
-            None => String::new(),
         } + &if s.blob_points > 0 {
             format!("; blobs: {} constraint points ({} regions away from the data)", s.blob_points, s.blob_regions)
         } else {
@@ -404,6 +398,12 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
                 ch.narrow_points,
                 100.0 * ch.narrow_share,
                 if ch.kept_narrow { "narrow" } else { "wide" },
+            ),
+            None => String::new(),
+        } + &match &s.turns {
+            Some(t) => format!(
+                "; turns: {} of {} patches tried ({} points) turned, unsupported crossings {} -> {}",
+                t.turned, t.tried, t.turned_points, t.before, t.after
             ),
             None => String::new(),
         } + &match s.fits() {
