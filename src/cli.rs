@@ -187,13 +187,12 @@ pub struct FitArgs {
     #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub blob_choice: bool,
     /// Last, where the dense fit kept its factor, try turning the small patches of normals
-    /// nearest to the surface no data supports (on, or off), at most 3, each by one more fit
-    /// that borders the first fit's factor, and keep a turn that removes at least 5 % of that
-    /// surface: a patch turned on a sheet thinner than the sampling (an ear) holds up a bulge
-    /// beside it that the ray test cannot see. It made no measured fit worse and mended several,
-    /// but each try costs a fit and a lattice sampling (about 0.1 s at 1000 points on 2 ranks),
-    /// so it is off by default until the tries are made cheaper (see src/surface/turns.rs).
-    #[arg(long, default_value = "off", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
+    /// nearest to the surface no data supports (on, or off), at most 3, and keep a turn that
+    /// removes at least 5 % of that surface: a patch turned on a sheet thinner than the sampling
+    /// (an ear) holds up a bulge beside it that the ray test cannot see. A try changes only
+    /// values, so it is solved with the kept fit's own factor (two triangular solves) and only
+    /// the lattice around the patch is sampled again (see src/surface/turns.rs).
+    #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub orient_turns: bool,
     /// Points of level 0 of the two-level compactly supported fit (--method csrbf with --surface
     /// auto or offsurface): a dense off-surface fit of this many points chosen evenly over space,

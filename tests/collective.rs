@@ -344,7 +344,8 @@ fn row_cyclic_lookahead_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
 
 /// The projected Cholesky of the first three quarters of the bunny system, its factor kept, then
 /// bordered by the remaining quarter of the centres (and by none), with every ninth of the first
-/// values negated: against the dense QR of the whole system, panels ending inside and beyond a
+/// values negated, and the bordered factor solved again for values with every fifth negated:
+/// against the dense QR of the whole system, panels ending inside and beyond a
 /// rank's rows, and the same on every rank.
 fn bordered_factor_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
     let k = Kernel::new(3, 2).unwrap();
@@ -364,12 +365,23 @@ fn bordered_factor_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
             let mut values = prep.values[..count].to_vec();
             (0..n).step_by(9).for_each(|i| values[i] = -values[i]);
             let centres = &prep.centres[..3 * count];
-            let x = must(solve_extended(&job, &k, centres, &values, &first), "the bordered solve");
+            let (x, bordered) =
+                must(solve_extended(&job, &k, centres, &values, &first), "the bordered solve");
             let size = system_size(&k, count);
             let (a, b) = full_system(&k, centres, &values);
             let want =
                 must(householder_solve(MatRef::from_column_major_slice(&a, size, size), &b), "the oracle");
             let what = format!("panel {panel}: {n} centres bordered by {}", count - n);
+            log.close(&x, &want, 1e-9, || what.clone());
+            same_on_every_rank(comm, log, &x, &what);
+            // other values of the same centres (every fifth negated, the appended ones too),
+            // solved with the bordered factor alone
+            (0..count).step_by(5).for_each(|i| values[i] = -values[i]);
+            let x = dist::solve_bordered(&job, &first, &bordered, &values);
+            let (_, b) = full_system(&k, centres, &values);
+            let want =
+                must(householder_solve(MatRef::from_column_major_slice(&a, size, size), &b), "the oracle");
+            let what = format!("{what}, other values by the bordered factor");
             log.close(&x, &want, 1e-9, || what.clone());
             same_on_every_rank(comm, log, &x, &what);
         }

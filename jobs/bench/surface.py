@@ -25,7 +25,8 @@ turned by the spline's bending energy, src/surface/energy.rs); `side`: the defau
 `--orient-side on` (the side vote of src/surface/orient.rs); `choice`: `--blob-choice on` (two
 second fits, the one with less unsupported surface kept, src/surface/choice.rs: the default
 since it was measured as an option); `wide`: the default without it (`--blob-choice off`, the
-wide clearance of the blob search alone). A binary whose `fit --help` has no `--surface` only has the plain method:
+wide clearance of the blob search alone); `turns` and `noturns`: `--orient-turns on` and `off` (patches
+turned where that shrinks the surface no data supports, src/surface/turns.rs). A binary whose `fit --help` has no `--surface` only has the plain method:
 then `carrier` runs it without the flag and `default`/`offsurface` are dropped with a note.
 `poisson`: screened Poisson (Kazhdan and Hoppe 2013, pymeshlab, octree depth --poisson-depth)
 on normals estimated by PCA of the 10 nearest neighbours and oriented by MeshLab's propagation.
@@ -213,7 +214,8 @@ def method_list(args, has_surface):
     """[(label, kind, flags)] of the methods this binary can run, and a note on the choice."""
     if has_surface:
         flags = {"default": [], "poisson": [], "energy": ["--orient-energy", "on"], "side": ["--orient-side", "on"],
-                 "trimmed": ["--trim"], "choice": ["--blob-choice", "on"], "wide": ["--blob-choice", "off"]}
+                 "trimmed": ["--trim"], "choice": ["--blob-choice", "on"], "wide": ["--blob-choice", "off"],
+                 "turns": ["--orient-turns", "on"], "noturns": ["--orient-turns", "off"]}
         return [(m, "poisson" if m == "poisson" else "volspline",
                  flags.get(m, ["--surface", m])) for m in args.methods], ""
     # a binary without --surface has one method, the plain carrier method: run it once as `carrier`
@@ -250,8 +252,10 @@ def parse(argv):
         if m not in MESHES:
             ap.error(f"unknown mesh {m} (one of {', '.join(MESHES)})")
     for m in args.methods:
-        if m not in ("default", "carrier", "offsurface", "energy", "side", "trimmed", "choice", "wide", "poisson"):
-            ap.error(f"unknown method {m} (default, carrier, offsurface, energy, side, trimmed, choice, wide, poisson)")
+        if m not in ("default", "carrier", "offsurface", "energy", "side", "trimmed", "choice", "wide", "turns",
+                     "noturns", "poisson"):
+            ap.error(f"unknown method {m} (default, carrier, offsurface, energy, side, trimmed, choice, wide, turns, "
+                     "noturns, poisson)")
     if args.quick:
         args.sizes, args.variant_sizes, args.grid = [1000, 2000], [1000], 64
     return args

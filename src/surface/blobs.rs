@@ -94,6 +94,8 @@
 //! [`MAX_SHARE`] of the data's count are added (evenly strided otherwise), so the second system
 //! stays close to the first.
 
+use std::ops::Range;
+
 use rayon::prelude::*;
 
 use super::normals::dist2;
@@ -244,6 +246,44 @@ pub fn sample(comm: &dyn Comm, lattice: &Lattice, carrier: &Carrier, spline: &Sp
     debug_assert_eq!(values.len(), nx * ny * nz);
     comm.sum_f64(&mut values);
     values
+}
+
+/// [`sample`] on the nodes of `lattice` within the index ranges `window` alone, written into
+/// `values` (the whole lattice's); the others are left as they are. The window's rows are dealt
+/// round-robin over the ranks and summed, so every rank gets the same values, bit for bit.
+/// Collective.
+pub fn sample_window(
+    comm: &dyn Comm,
+    lattice: &Lattice,
+    window: &[Range<usize>; 3],
+    (carrier, spline): (&Carrier, &Spline),
+    values: &mut [f64],
+) {
+    let [nx, ny, _] = lattice.dims;
+    let [wx, wy, wz] = window.clone();
+    let (len, rows) = (wx.len(), wy.len() * wz.len());
+    let norm = &spline.norm;
+    let ev = Evaluator::new(spline);
+    let xs: Vec<f64> = wx.clone().map(|i| norm.centre[0] + norm.scale * lattice.node(i)[0]).collect();
+    let mut part = vec![0.0; len * rows];
+    let (rank, size) = (comm.rank(), comm.size());
+    part.par_chunks_mut(len.max(1)).enumerate().filter(|(row, _)| row % size == rank).for_each(
+        |(row, out)| {
+            let (y, z) = (wy.start + row % wy.len(), wz.start + row / wy.len());
+            let p = lattice.node(wx.start + nx * (y + ny * z));
+            let (y, z) = (norm.centre[1] + norm.scale * p[1], norm.centre[2] + norm.scale * p[2]);
+            ev.eval_row(&xs, y, z, out);
+            for (v, &x) in out.iter_mut().zip(&xs) {
+                *v = carrier.eval(&[x, y, z]) - *v;
+            }
+        },
+    );
+    comm.sum_f64(&mut part);
+    for (row, got) in part.chunks(len.max(1)).enumerate().take(rows) {
+        let (y, z) = (wy.start + row % wy.len(), wz.start + row / wy.len());
+        let at = wx.start + nx * (y + ny * z);
+        values[at..at + len].copy_from_slice(got);
+    }
 }
 
 /// The spurious nodes of a sampled fit.
@@ -708,6 +748,17 @@ mod tests {
                 lattice.node(i).iter().zip(&norm.centre).map(|(x, c)| c + norm.scale * x).collect();
             let want = carrier.eval(&q) - spline.eval(&q);
             assert!((v - want).abs() < 1e-12 * want.abs().max(1.0), "node {i}: {v} vs {want}");
+        }
+        // a window of the lattice sampled again over other values: those nodes alone change,
+        // to the whole sampling's values
+        let mut partial = vec![7.0; values.len()];
+        let window = [1..4, 2..7, 0..3];
+        sample_window(&Solo, &lattice, &window, (&carrier, &spline), &mut partial);
+        let [nx, ny, _] = lattice.dims;
+        for (i, v) in partial.iter().enumerate() {
+            let inside =
+                window.iter().zip([i % nx, (i / nx) % ny, i / (nx * ny)]).all(|(r, x)| r.contains(&x));
+            assert_eq!(*v, if inside { values[i] } else { 7.0 }, "node {i}");
         }
     }
 }

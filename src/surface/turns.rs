@@ -47,6 +47,9 @@
 //! way to make it cheap: keep the bordered factor of the chosen fit, so that a try is two
 //! triangular solves, and sample only the lattice around the tried patch.
 
+use std::ops::Range;
+
+use super::blobs::Lattice;
 use super::normals::dist2;
 use super::orient::{orientation_edges, tangent_patches};
 use super::rays::PATCH_SHARE;
@@ -58,6 +61,9 @@ pub const MIN_HITS: usize = 5;
 pub const TRIES: usize = 3;
 /// The share of the unsupported crossings a turn must remove to be kept.
 pub const GAIN: f64 = 0.05;
+/// How far around a tried patch (and the crossings charged to it) the lattice is sampled again,
+/// in multiples of the longest side of their box.
+pub const WINDOW: f64 = 1.0;
 
 /// What the turns did, for the report.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -71,11 +77,35 @@ pub struct TurnCheck {
     pub after: usize,
 }
 
+/// A patch to try: its members and the box (normalised coordinates) around them and the
+/// crossings charged to them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Candidate {
+    pub members: Vec<usize>,
+    pub lo: [f64; 3],
+    pub hi: [f64; 3],
+}
+
+impl Candidate {
+    /// The nodes of `lattice` whose values a turn of this patch may change: those of the box
+    /// grown by [`WINDOW`] times its longest side and 2 lattice spacings on every side, as index
+    /// ranges along x, y and z.
+    pub fn window(&self, lattice: &Lattice) -> [Range<usize>; 3] {
+        let side = (0..3).map(|d| self.hi[d] - self.lo[d]).fold(0.0, f64::max);
+        let grow = WINDOW * side + 2.0 * lattice.h;
+        [0, 1, 2].map(|d| {
+            let at = |x: f64| ((x - lattice.lo[d]) / lattice.h).clamp(0.0, (lattice.dims[d] - 1) as f64);
+            let a = at(self.lo[d] - grow).floor() as usize;
+            let b = at(self.hi[d] + grow).ceil() as usize;
+            a..b + 1
+        })
+    }
+}
+
 /// The candidate patches of `points` (normalised, `tree` over them) with oriented `normals` and
 /// `kmax` nearest neighbours each in `knn`, given the unsupported surface crossings `far` of a
-/// fit: the members of each small patch charged with at least [`MIN_HITS`] crossings, the most
-/// charged first, at most [`TRIES`]. `h` is the lattice spacing (a first guess of the distance
-/// to the nearest point).
+/// fit: each small patch charged with at least [`MIN_HITS`] crossings, the most charged first, at
+/// most [`TRIES`]. `h` is the lattice spacing (a first guess of the distance to the nearest point).
 pub fn candidates(
     points: &[f64],
     normals: &[[f64; 3]],
@@ -83,15 +113,16 @@ pub fn candidates(
     tree: &Octree,
     far: &[[f64; 3]],
     h: f64,
-) -> Vec<Vec<usize>> {
+) -> Vec<Candidate> {
     let n = normals.len();
     let edges = orientation_edges(knn, kmax);
     let (patch, count) = tangent_patches(points, normals, &edges);
     let mut size = vec![0usize; count];
     patch.iter().for_each(|&p| size[p] += 1);
     let mut hits = vec![0usize; count];
+    let mut charged = vec![usize::MAX; far.len()];
     let mut found = Vec::new();
-    for q in far {
+    for (c, q) in far.iter().enumerate() {
         let r = tree.kth_distance(*q, 1, h);
         tree.within(*q, r * (1.0 + 1e-9) + 1e-15, &mut found);
         let by_distance = |a: &&usize, b: &&usize| {
@@ -99,13 +130,29 @@ pub fn candidates(
         };
         if let Some(&j) = found.iter().min_by(by_distance) {
             hits[patch[j]] += 1;
+            charged[c] = patch[j];
         }
     }
     let small = (PATCH_SHARE * n as f64).floor() as usize;
     let mut chosen: Vec<usize> = (0..count).filter(|&p| size[p] <= small && hits[p] >= MIN_HITS).collect();
     chosen.sort_by(|&a, &b| hits[b].cmp(&hits[a]).then(a.cmp(&b)));
     chosen.truncate(TRIES);
-    chosen.iter().map(|&p| (0..n).filter(|&i| patch[i] == p).collect()).collect()
+    chosen
+        .iter()
+        .map(|&p| {
+            let members: Vec<usize> = (0..n).filter(|&i| patch[i] == p).collect();
+            let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+            let mut cover = |q: &[f64]| {
+                for d in 0..3 {
+                    lo[d] = lo[d].min(q[d]);
+                    hi[d] = hi[d].max(q[d]);
+                }
+            };
+            members.iter().for_each(|&i| cover(&points[3 * i..3 * i + 3]));
+            far.iter().zip(&charged).filter(|(_, &c)| c == p).for_each(|(q, _)| cover(q));
+            Candidate { members, lo, hi }
+        })
+        .collect()
 }
 
 /// Whether a fit with `after` unsupported crossings is kept over one with `before`.
@@ -174,6 +221,12 @@ mod tests {
             .collect();
         let got = candidates(&more, &more_normals, (&knn_more, kmax), &tree, &far, 0.1);
         assert_eq!(got.len(), 1, "{got:?}");
-        assert_eq!(got[0], (100..200).collect::<Vec<_>>());
+        assert_eq!(got[0].members, (100..200).collect::<Vec<_>>());
+        // the box holds the upper sheet and the crossings above it
+        assert_eq!((got[0].lo, got[0].hi), ([0.0, 0.0, 1.0], [0.1 * 9.0, 0.1 * 9.0, 1.3]));
+        // grown by its longest side (0.9) and two lattice spacings (z: -0.1..2.4), clamped to the
+        // lattice in x and y
+        let lattice = Lattice { lo: [-1.05; 3], h: 0.1, dims: [31, 31, 41] };
+        assert_eq!(got[0].window(&lattice), [0..31, 0..31, 9..36]);
     }
 }

@@ -2,6 +2,8 @@
 //! Green's function (or of any kernel: a compactly supported one gives the dense oracle of the
 //! sparse method), and the distributed dense solvers factor it without ever gathering it.
 
+use std::rc::Rc;
+
 use faer::Par;
 
 use super::{Fitted, Run};
@@ -12,7 +14,8 @@ use crate::cli::FitArgs;
 use crate::error::Error;
 use crate::error::Result;
 use crate::linalg::dist::{
-    self, Factored, Job, Layout, LocalBlocks, LocalRows, Precision, ProcessGrid, RowCyclic, SolverKind,
+    self, Bordered, Factored, Job, Layout, LocalBlocks, LocalRows, Precision, ProcessGrid, RowCyclic,
+    SolverKind,
 };
 use crate::par::{agree, CallKind, Comm, Timed};
 use crate::spline::hygiene::Prepared;
@@ -30,7 +33,8 @@ pub fn assemble(kernel: &Kernel, centres: &[f64], values: &[f64], layout: RowCyc
 /// The solution of the bordered system of `kernel` through `values` at `centres`, whose first
 /// `first.centres()` centres are those of the factored system `first` (the rest appended after
 /// them; every value may differ from the first system's), by bordering `first`'s factor
-/// ([`dist::extend_solve`]). Collective; `Error::NotDefinite` when the bordered block is not
+/// ([`dist::extend_solve`]), with the bordered factor for further values of the same centres
+/// ([`dist::solve_bordered`]). Collective; `Error::NotDefinite` when the bordered block is not
 /// definite to working precision (then the whole system has to be solved).
 pub fn solve_extended(
     job: &Job<'_>,
@@ -38,7 +42,7 @@ pub fn solve_extended(
     centres: &[f64],
     values: &[f64],
     first: &Factored,
-) -> Result<Vec<f64>> {
+) -> Result<(Vec<f64>, Bordered)> {
     let (n, k) = (first.centres(), kernel.poly_count());
     assert!(values.len() >= n && k == first.border(), "the extended system keeps the first one's centres");
     let m = values.len() - n;
@@ -117,26 +121,39 @@ pub fn check(comm: &dyn Comm, kernel: &Kernel, n: usize, precision: Precision) -
     )
 }
 
-/// The factor of a first fit kept for a second one that appends centres, with the centres it
-/// was assembled from.
+/// The factor of a first fit kept for later fits that append centres to it, with the centres of
+/// the system it solves; after a bordered fit, also the bordered factor, for further fits of the
+/// same centres with other values.
 pub struct KeptFactor {
-    factor: Factored,
+    /// The first fit's factor, shared by the bordered fits made from it.
+    factor: Rc<Factored>,
+    /// The centres of the solved system: the first fit's, then those `bordered` appends.
     centres: Vec<f64>,
+    bordered: Option<Bordered>,
     /// Whether the first factorisation looked ahead (the report of the second fit says so).
     lookahead: bool,
 }
 
 impl KeptFactor {
-    /// Whether `prep`'s system keeps this one's centres, in order, before any it appends.
+    /// Whether `prep`'s system keeps the first fit's centres, in order, before any it appends.
     pub fn extended_by(&self, prep: &Prepared) -> bool {
-        prep.centres.len() >= self.centres.len() && prep.centres[..self.centres.len()] == self.centres[..]
+        let n = 3 * self.factor.centres();
+        prep.centres.len() >= n && prep.centres[..n] == self.centres[..n]
+    }
+
+    /// Whether `prep`'s system has exactly the centres of this bordered factor (only values may
+    /// differ).
+    fn solves(&self, prep: &Prepared) -> bool {
+        self.bordered.is_some() && prep.centres == self.centres
     }
 }
 
-/// A fit after a first one whose factor was kept (`first`): where `prep` keeps the first fit's
-/// centres and appends more (or only changes values), by bordering that factor
-/// ([`solve_extended`]); otherwise, or when the bordered block is not definite, by a fresh dense
-/// fit, checked for memory with the kept factor still held. Collective.
+/// A fit after a first one whose factor was kept (`first`): where `prep` has the centres of a
+/// bordered factor `first` holds (only values changed), by a solve with it; where `prep` keeps
+/// the first fit's centres and appends more (or only changes values), by bordering the first
+/// factor ([`solve_extended`]; the result keeps the bordered factor); otherwise, or when the
+/// bordered block is not definite, by a fresh dense fit, checked for memory with the kept factor
+/// still held. Collective.
 pub fn refit(
     run: &Run<'_>,
     kernel: Kernel,
@@ -145,6 +162,9 @@ pub fn refit(
     stages: &mut Stages,
 ) -> Result<Fitted> {
     let held = first.map_or(0, |f| f.factor.centres());
+    if let Some(first) = first.filter(|f| f.solves(prep)) {
+        return fit_bordered(run, kernel, prep, first, stages);
+    }
     if let Some(first) = first.filter(|f| f.extended_by(prep)) {
         let (n, m) = (first.factor.centres(), prep.values.len() - first.factor.centres());
         check_memory(
@@ -166,7 +186,9 @@ pub fn refit(
     fit(run, kernel, prep, false, stages)
 }
 
-/// The second fit by bordering `first`'s factor, reported as the dense fit is.
+/// A fit from `first`'s factor, reported as the dense fit is: with its bordered factor where
+/// `prep` has those centres (only values changed), else by bordering the first factor with the
+/// centres `prep` appends, the new bordered factor kept in the result.
 fn fit_bordered(
     run: &Run<'_>,
     kernel: Kernel,
@@ -178,10 +200,26 @@ fn fit_bordered(
     let timed = Timed::new(comm);
     let job = Job::on(&timed).par(Par::rayon(threads));
     let t0 = std::time::Instant::now();
-    let x = stages
-        .time(Stage::Solve, || solve_extended(&job, &kernel, &prep.centres, &prep.values, &first.factor));
+    let n = first.factor.centres();
+    let outcome = match &first.bordered {
+        Some(bordered) if first.solves(prep) => Ok((
+            stages.time(Stage::Solve, || dist::solve_bordered(&job, &first.factor, bordered, &prep.values)),
+            None,
+        )),
+        _ => stages
+            .time(Stage::Solve, || solve_extended(&job, &kernel, &prep.centres, &prep.values, &first.factor))
+            .map(|(x, bordered)| {
+                let kept = KeptFactor {
+                    factor: Rc::clone(&first.factor),
+                    centres: prep.centres.clone(),
+                    bordered: Some(bordered),
+                    lookahead: first.lookahead,
+                };
+                (x, Some(kept))
+            }),
+    };
     stages.add(Stage::CommWait, timed.seconds());
-    let x = x?;
+    let (x, kept) = outcome?;
     let seconds = t0.elapsed().as_secs_f64();
     let solved = dist::Solved {
         x,
@@ -192,8 +230,15 @@ fn fit_bordered(
         mixed_fallback: None,
     };
     let layout = RowCyclic::new(prep.values.len() + kernel.poly_count(), comm.size(), comm.rank());
-    let bordered = (first.factor.centres(), seconds);
-    Ok(finish(run, kernel, prep, solved, (layout, first.lookahead, Some(bordered)), &timed, stages))
+    let m = prep.values.len() - n;
+    let how = format!(
+        "the first fit's factor ({n} centres) bordered by {m} appended centres{}",
+        if kept.is_some() { "" } else { ", solved again for new values," }
+    );
+    let bordered = Some((n, format!("{how} in {seconds:.3} s")));
+    let mut fitted = finish(run, kernel, prep, solved, (layout, first.lookahead, bordered), &timed, stages);
+    fitted.factor = kept;
+    Ok(fitted)
 }
 
 /// Fits the spline of `kernel` to the prepared points with the dense solvers; with `keep`, the
@@ -225,7 +270,12 @@ pub fn fit(
                     return dist::solve_in(&job, a.solver, a.precision, rows, reassemble);
                 }
                 dist::solve_keeping(&job, a.solver, rows, reassemble, true).map(|(solved, factor)| {
-                    kept = factor.map(|factor| KeptFactor { factor, centres: centres.clone(), lookahead });
+                    kept = factor.map(|factor| KeptFactor {
+                        factor: Rc::new(factor),
+                        centres: centres.clone(),
+                        bordered: None,
+                        lookahead,
+                    });
                     solved
                 })
             })
@@ -253,13 +303,13 @@ pub fn fit(
 
 /// The checks, the spline and the report of a dense solve `solved` of `prep`'s system on
 /// `layout` (`lookahead` as used; `bordered`: the centres of the first fit whose factor was
-/// bordered, and the seconds that took); `timed` counted its collectives. Collective.
+/// bordered, and how and in how many seconds); `timed` counted its collectives. Collective.
 fn finish(
     run: &Run<'_>,
     kernel: Kernel,
     prep: &Prepared,
     solved: dist::Solved,
-    (layout, lookahead, bordered): (RowCyclic, bool, Option<(usize, f64)>),
+    (layout, lookahead, bordered): (RowCyclic, bool, Option<(usize, String)>),
     timed: &Timed<'_>,
     stages: &mut Stages,
 ) -> Fitted {
@@ -298,11 +348,8 @@ fn finish(
         run.layout.name(comm.size()),
         solved.panel
     );
-    if let Some((first, seconds)) = bordered {
-        line.push_str(&format!(
-            "\n  second fit: the first fit's factor ({first} centres) bordered by {} appended centres in {seconds:.3} s",
-            values.len() - first
-        ));
+    if let Some((_, how)) = &bordered {
+        line.push_str(&format!("\n  second fit: {how}"));
     }
     let kinds: Vec<String> =
         CallKind::ALL.iter().zip(&by_kind).map(|(k, s)| format!("{} {s:.3} s", k.name())).collect();
@@ -390,7 +437,7 @@ mod tests {
         for total in [n, 200] {
             let mut v = values[..total].to_vec();
             (0..n).step_by(9).for_each(|i| v[i] = -v[i]);
-            let x = solve_extended(&job, &kernel, &centres[..3 * total], &v, &first).unwrap();
+            let (x, _) = solve_extended(&job, &kernel, &centres[..3 * total], &v, &first).unwrap();
             let size = total + 4;
             let (a, b) = full_system(&kernel, &centres[..3 * total], &v);
             let want = householder_solve(MatRef::from_column_major_slice(&a, size, size), &b).unwrap();

@@ -13,7 +13,9 @@ use crate::cli::{FitArgs, Surface};
 use crate::error::Result;
 use crate::par::{agree, Comm};
 use crate::spline::hygiene::Prepared;
-use crate::surface::blobs::{blob_values, sample, winding_numbers, Blobs, Lattice, Search, CLEARANCE};
+use crate::surface::blobs::{
+    blob_values, sample, sample_window, winding_numbers, Blobs, Lattice, Search, CLEARANCE,
+};
 use crate::surface::choice::{self, unsupported_share};
 use crate::surface::energy::{flip_by_energy, EnergyFlips};
 use crate::surface::rays::{self, RayCheck};
@@ -215,10 +217,12 @@ pub fn check_first_fit(
 ) -> Result<Fitted> {
     let factor = first.factor.take();
     let lattice = Lattice::of_fit(&data.box_lo, &data.box_hi, run.args.grid.margin, &data.norm);
-    let (fit, values) = rays_and_blobs(run, data, c, first, stages, refit, (factor.as_ref(), &lattice))?;
-    match factor.as_ref() {
-        Some(factor) if run.args.orient_turns => {
-            turn_by_surface(run, data, c, (fit, values), stages, refit, (factor, &lattice))
+    let (mut fit, values) = rays_and_blobs(run, data, c, first, stages, refit, (factor.as_ref(), &lattice))?;
+    // the kept fit's own bordered factor where it has one (a second fit), else the first fit's
+    let basis = fit.factor.take().or(factor);
+    match basis.as_ref() {
+        Some(basis) if run.args.orient_turns => {
+            turn_by_surface(run, data, c, (fit, values), stages, refit, (basis, &lattice))
         }
         _ => Ok(fit),
     }
@@ -335,9 +339,10 @@ fn rays_and_blobs(
 
 /// `fit` of `c.prep` after the small patches of the normals whose turn shrinks the surface no
 /// data supports are turned, one candidate after the other (see [`crate::surface::turns`]): each
-/// candidate changes only the values of its off points, so its fit borders the first fit's
-/// `factor`. The lattice is the blob search's; `values`, the fit's values on it where the search
-/// sampled them. Collective.
+/// candidate changes only the values of its off points, so its fit is a solve with `factor`, the
+/// fit's own (bordered) factor, and only the lattice around the patch is sampled again. The
+/// lattice is the blob search's; `values`, the fit's values on it where the search sampled them.
+/// Collective.
 fn turn_by_surface(
     run: &Run<'_>,
     data: &Prepared,
@@ -348,20 +353,23 @@ fn turn_by_surface(
     (factor, lattice): (&KeptFactor, &Lattice),
 ) -> Result<Fitted> {
     let support = DataSupport::new(&data.centres, choice::FACTOR);
-    let sampled = |fit: &Fitted| sample(run.comm, lattice, &data.carrier, &fit.spline);
     let unsupported = |values: &[f64]| choice::unsupported_crossings(lattice, values, &support).0;
-    let mut far = stages.time(Stage::Turns, || unsupported(&values.unwrap_or_else(|| sampled(&fit))));
+    let (mut values, mut far) = stages.time(Stage::Turns, || {
+        let values = values.unwrap_or_else(|| sample(run.comm, lattice, &data.carrier, &fit.spline));
+        let far = unsupported(&values);
+        (values, far)
+    });
     let candidates = stages.time(Stage::Turns, || {
         let knn = (&c.hoods.knn[..], c.hoods.kmax);
         turns::candidates(&data.centres, &c.normals, knn, &c.hoods.tree, &far, lattice.h)
     });
     let mut check = TurnCheck { tried: candidates.len(), before: far.len(), ..Default::default() };
     let nd = data.values.len();
-    for members in candidates {
+    for candidate in candidates {
         let mut member = vec![false; c.normals.len()];
-        members.iter().for_each(|&i| member[i] = true);
+        candidate.members.iter().for_each(|&i| member[i] = true);
         let mut normals = c.normals.clone();
-        members.iter().for_each(|&i| normals[i] = normals[i].map(|v| -v));
+        candidate.members.iter().for_each(|&i| normals[i] = normals[i].map(|v| -v));
         // the off points of the patch change side where they stand
         let mut off = c.off.clone();
         for (side, &i) in off.side.iter_mut().zip(&off.source) {
@@ -370,14 +378,20 @@ fn turn_by_surface(
             }
         }
         let mut prep = c.prep.clone();
-        let values = off_values(&off, &data.points, &data.carrier, &data.norm);
-        prep.values[nd..nd + values.len()].copy_from_slice(&values);
-        let candidate = refit(&prep, Some(factor), stages)?;
-        let after = stages.time(Stage::Turns, || unsupported(&sampled(&candidate)));
+        let off_values = off_values(&off, &data.points, &data.carrier, &data.norm);
+        prep.values[nd..nd + off_values.len()].copy_from_slice(&off_values);
+        let tried = refit(&prep, Some(factor), stages)?;
+        let (tried_values, after) = stages.time(Stage::Turns, || {
+            let mut tried_values = values.clone();
+            let window = candidate.window(lattice);
+            sample_window(run.comm, lattice, &window, (&data.carrier, &tried.spline), &mut tried_values);
+            let after = unsupported(&tried_values);
+            (tried_values, after)
+        });
         if turns::gains(far.len(), after.len()) {
-            (c.normals, c.off, c.prep, fit, far) = (normals, off, prep, candidate, after);
+            (c.normals, c.off, c.prep, fit, far, values) = (normals, off, prep, tried, after, tried_values);
             check.turned += 1;
-            check.turned_points += members.len();
+            check.turned_points += candidate.members.len();
         }
     }
     check.after = far.len();

@@ -100,11 +100,41 @@ pub struct Appended<'a> {
     pub rhs: &'a [f64],
 }
 
+/// A factor of the first system bordered by m appended centres, kept so that further right-hand
+/// sides of the same bordered system cost two distributed triangular solves through L and a few
+/// small products ([`solve_bordered`]), instead of the n^2 m flops of bordering again: X and L22
+/// of the bordered factor, the border's new QR (G and R') and the blocks the solution's last steps
+/// multiply by.
+pub struct Bordered {
+    /// The appended centres' count m.
+    m: usize,
+    /// X = s L^{-1} C in this rank's rows k..n of columns 0..m (column m is scratch).
+    x: LocalRows,
+    /// L22 of the bordered factor (m x m).
+    l22: Mat<f64>,
+    /// G of the QR [R; P_new] = G [R'; 0] ((k + m) x (k + m)) and R' (k x k).
+    g: Mat<f64>,
+    r_new: Mat<f64>,
+    /// Z G_n ((k + m) x m), Q^T E on this rank's rows (local rows x m) and rows 0..k of
+    /// M = Q^T A Q (row-major k x n).
+    zg: Mat<f64>,
+    qte: Mat<f64>,
+    m_top: Vec<f64>,
+}
+
+impl Bordered {
+    /// The number of appended centres.
+    pub fn appended(&self) -> usize {
+        self.m
+    }
+}
+
 /// The solution [lambda (n); lambda_new (m); c (k)] of the first system bordered by `new`, from
-/// its factor, on every rank; `first` is left as it is, so it can be bordered again. Collective;
+/// its factor, on every rank, with the bordered factor for further right-hand sides
+/// ([`solve_bordered`]); `first` is left as it is, so it can be bordered again. Collective;
 /// `Error::NotDefinite` on every rank when the new block's Schur complement is not definite,
 /// `Error::Numerical` when the extended points are not unisolvent.
-pub fn extend_solve(job: &Job<'_>, first: &Factored, new: &Appended<'_>) -> Result<Vec<f64>> {
+pub fn extend_solve(job: &Job<'_>, first: &Factored, new: &Appended<'_>) -> Result<(Vec<f64>, Bordered)> {
     let Job { comm, par, .. } = *job;
     let (k, n) = (first.border.k, first.border.n);
     let m = new.rhs.len() - n;
@@ -112,7 +142,6 @@ pub fn extend_solve(job: &Job<'_>, first: &Factored, new: &Appended<'_>) -> Resu
     let la = lay.first_local_from(n);
     let b0 = lay.first_local_from(k);
     let s = first.sign;
-    let nb = first.panel.max(1);
     assert_eq!(new.cross.len(), la * m, "the cross block has this rank's rows and m columns");
     assert_eq!(new.poly.len(), m * k, "the new polynomial rows are m x k");
     assert_eq!(new.block.len(), m * m, "the new block is m x m");
@@ -134,21 +163,16 @@ pub fn extend_solve(job: &Job<'_>, first: &Factored, new: &Appended<'_>) -> Resu
     // rows 0..k of M = Q^T A Q, row-major k x n
     let m_top = first.rows.gather_rows(comm, 0, k, 0, n);
 
-    // G: the QR of [R; P_new], with G^T itself and G^T [(Q^T r_old)_{0..k}; r_new] computed
-    // alongside (columns k.. of the same matrix receive G^T)
+    // G: the QR of [R; P_new], with G^T itself computed alongside (columns k.. of the same matrix
+    // receive it)
     let w = k + m;
-    let mut a = vec![0.0; w * (k + w + 1)];
+    let mut a = vec![0.0; w * (k + w)];
     let r = first.border.r();
     for j in 0..k {
         (0..=j).for_each(|i| a[j * w + i] = r[(i, j)]);
         (0..m).for_each(|i| a[j * w + k + i] = new.poly[i * k + j]);
     }
     (0..w).for_each(|j| a[(k + j) * w + j] = 1.0);
-    let mut y = new.rhs[..n].to_vec();
-    first.border.q_transpose(&mut y);
-    let yc = (k + w) * w;
-    a[yc..yc + k].copy_from_slice(&y[..k]);
-    a[yc + k..yc + w].copy_from_slice(&new.rhs[n..]);
     let taus = qr_in_place(&mut a, w, k);
     let r_new = Mat::<f64>::from_fn(k, k, |i, j| if i <= j { a[j * w + i] } else { 0.0 });
     if (0..k).any(|j| !(r_new[(j, j)].abs() > 0.0)) {
@@ -157,8 +181,6 @@ pub fn extend_solve(job: &Job<'_>, first: &Factored, new: &Appended<'_>) -> Resu
         )));
     }
     let g = MatRef::from_column_major_slice(&a[k * w..(k + w) * w], w, w).transpose().to_owned();
-    let (g_first, g_null) = (g.as_ref().subcols(0, k), g.as_ref().subcols(k, m));
-    let y_s = &a[yc..yc + w];
     // G = I - V T V^T (its k reflectors in compact WY form), so that products with G_n, the last
     // m columns of G, cost O(k) per entry instead of O(m): x G_n = x_{.., k..} - (x V) T V_n^T
     // and G_n^T y = y_{k.., ..} - V_n T^T (V^T y), V_n the last m rows of V
@@ -178,7 +200,9 @@ pub fn extend_solve(job: &Job<'_>, first: &Factored, new: &Appended<'_>) -> Resu
     let zg = times_g_null(z.as_ref());
     let d = g_null_t_times(zg.as_ref());
 
-    // [s C | s y_old] on this rank's rows of B, then forward substitution through L
+    // [s C | s y_old] on this rank's rows of B, then forward substitution through L: the right-hand
+    // side rides along with X in column m
+    let (y, y_s) = projected_rhs(first, &g, new.rhs);
     let mut x = LocalRows::zeros(lay, m + 1, 0);
     {
         let beside =
@@ -189,32 +213,10 @@ pub fn extend_solve(job: &Job<'_>, first: &Factored, new: &Appended<'_>) -> Resu
             x.set(l, m, s * y[lay.global(l)]);
         }
     }
-    let mut q0 = k;
-    while q0 < n {
-        let q1 = (q0 + nb).min(n);
-        let bs = q1 - q0;
-        let diag = first.rows.gather_rows(comm, q0, q1, q0, q1);
-        let rhs = x.gather_rows(comm, q0, q1, 0, m + 1);
-        // the lower triangle alone: above it the first solve may have left entries of B
-        let l11 = Mat::<f64>::from_fn(bs, bs, |i, j| if j <= i { diag[i * bs + j] } else { 0.0 });
-        let mut zb = Mat::<f64>::from_fn(bs, m + 1, |i, j| rhs[i * (m + 1) + j]);
-        solve_lower_triangular_in_place(l11.as_ref(), zb.as_mut(), faer::Par::Seq);
-        for l in lay.first_local_from(q0)..lay.first_local_from(q1) {
-            let i = lay.global(l) - q0;
-            (0..=m).for_each(|j| x.set(l, j, zb[(i, j)]));
-        }
-        let u0 = lay.first_local_from(q1);
-        if u0 < la {
-            let below = first.rows.view().submatrix(u0, q0, la - u0, bs);
-            let out = x.view_mut().submatrix_mut(u0, 0, la - u0, m + 1);
-            matmul(out, Accum::Add, below, zb.as_ref(), -1.0, par);
-        }
-        q0 = q1;
-    }
+    forward_substitute(job, first, &mut x);
 
-    // L22 L22^T = s D - X^T X, then the new unknowns
+    // L22 L22^T = s D - X^T X
     let xl = x.view().submatrix(b0, 0, la - b0, m);
-    let z1 = x.view().submatrix(b0, m, la - b0, 1);
     // X^T X is symmetric: its lower triangle alone, then mirrored
     let mut xtx = Mat::<f64>::zeros(m, m);
     let (lower, full) = (BlockStructure::TriangularLower, BlockStructure::Rectangular);
@@ -222,9 +224,7 @@ pub fn extend_solve(job: &Job<'_>, first: &Factored, new: &Appended<'_>) -> Resu
     for j in 1..m {
         (0..j).for_each(|i| xtx[(i, j)] = xtx[(j, i)]);
     }
-    let xtz = xl.transpose() * z1;
-    let mut buf: Vec<f64> =
-        (0..m * m).map(|q| xtx[(q / m, q % m)]).chain((0..m).map(|i| xtz[(i, 0)])).collect();
+    let mut buf: Vec<f64> = (0..m * m).map(|q| xtx[(q / m, q % m)]).collect();
     comm.sum_f64(&mut buf);
     let schur: Vec<f64> = (0..m * m).map(|q| s * d[(q / m, q % m)] - buf[q]).collect();
     let l22 = cholesky_small(&schur, m).ok_or_else(|| {
@@ -232,41 +232,127 @@ pub fn extend_solve(job: &Job<'_>, first: &Factored, new: &Appended<'_>) -> Resu
             "the block of the {m} appended centres is not definite to working precision"
         ))
     })?;
-    let mut mu_new = Mat::<f64>::from_fn(m, 1, |i, _| s * y_s[k + i] - buf[m * m + i]);
-    solve_lower_triangular_in_place(l22.as_ref(), mu_new.as_mut(), faer::Par::Seq);
-    solve_upper_triangular_in_place(l22.transpose(), mu_new.as_mut(), faer::Par::Seq);
+    let bordered = Bordered { m, x, l22, g, r_new, zg, qte, m_top };
+    let z1: Vec<f64> = (b0..la).map(|l| bordered.x.get(l, m)).collect();
+    let lambda = bordered.finish(job, first, &z1, &y_s);
+    Ok((lambda, bordered))
+}
 
-    // L^T mu = z1 - X mu_new
-    let send: Vec<f64> =
-        (b0..la).map(|l| x.get(l, m) - (0..m).map(|j| x.get(l, j) * mu_new[(j, 0)]).sum::<f64>()).collect();
-    let mut zz = vec![0.0; n];
-    zz[k..].copy_from_slice(&all_gather_rows(comm, lay, &send, k..n, 1));
-    let mu = back_substitute(comm, &first.rows, (k, n), nb, &zz);
+/// The solution of the system `bordered` (the first system bordered by the centres it appended)
+/// for the right-hand side `rhs` of its n + m centres, on every rank, as [`extend_solve`] gave it
+/// for the first one: a forward and a back substitution through the first factor and small
+/// products. Collective.
+pub fn solve_bordered(job: &Job<'_>, first: &Factored, bordered: &Bordered, rhs: &[f64]) -> Vec<f64> {
+    let (k, n) = (first.border.k, first.border.n);
+    assert_eq!(rhs.len(), n + bordered.m, "the right-hand side has the bordered system's centres");
+    let lay = first.rows.layout;
+    let (la, b0) = (lay.first_local_from(n), lay.first_local_from(k));
+    let (y, y_s) = projected_rhs(first, &bordered.g, rhs);
+    let mut z = LocalRows::zeros(lay, 1, 0);
+    (b0..la).for_each(|l| z.set(l, 0, first.sign * y[lay.global(l)]));
+    forward_substitute(job, first, &mut z);
+    let z1: Vec<f64> = (b0..la).map(|l| z.get(l, 0)).collect();
+    bordered.finish(job, first, &z1, &y_s)
+}
 
-    // lambda' = Q' [0; mu; 0; mu_new]: H puts G [0; mu_new] on R's and the new coordinates
-    let u = g_null * &mu_new;
-    let mut lambda = mu.clone();
-    (0..k).for_each(|i| lambda[i] = u[(i, 0)]);
-    first.border.q(&mut lambda);
+/// y = Q^T r_old (n) and y' = G^T [y_{0..k}; r_new] (k + m) of the right-hand side `rhs` of the
+/// n + m centres, on every rank.
+fn projected_rhs(first: &Factored, g: &Mat<f64>, rhs: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let (k, n) = (first.border.k, first.border.n);
+    let mut y = rhs[..n].to_vec();
+    first.border.q_transpose(&mut y);
+    let top: Vec<f64> = y[..k].iter().chain(&rhs[n..]).copied().collect();
+    let y_s = g.transpose() * MatRef::from_column_major_slice(&top, top.len(), 1);
+    (y, (0..top.len()).map(|i| y_s[(i, 0)]).collect())
+}
 
-    // R' c = y'_{0..k} - G_first^T [M_{0..k,k..n} mu + (Z G_n mu_new)_{0..k};
-    //                               (Q^T E)_{k..n}^T mu + (Z G_n mu_new)_{k..}]
-    let zgm = &zg * &mu_new;
-    let mut h = vec![0.0; w];
-    for l in b0..la {
-        let mu_l = mu[lay.global(l)];
-        (0..m).for_each(|j| h[k + j] += qte[(l, j)] * mu_l);
+/// Blocked forward substitution of `x`'s columns (this rank's rows k..n) through L of the first
+/// factor, in place. Collective.
+fn forward_substitute(job: &Job<'_>, first: &Factored, x: &mut LocalRows) {
+    let Job { comm, par, .. } = *job;
+    let (k, n) = (first.border.k, first.border.n);
+    let lay = first.rows.layout;
+    let la = lay.first_local_from(n);
+    let cols = x.cols;
+    let nb = first.panel.max(1);
+    let mut q0 = k;
+    while q0 < n {
+        let q1 = (q0 + nb).min(n);
+        let bs = q1 - q0;
+        let diag = first.rows.gather_rows(comm, q0, q1, q0, q1);
+        let rhs = x.gather_rows(comm, q0, q1, 0, cols);
+        // the lower triangle alone: above it the first solve may have left entries of B
+        let l11 = Mat::<f64>::from_fn(bs, bs, |i, j| if j <= i { diag[i * bs + j] } else { 0.0 });
+        let mut zb = Mat::<f64>::from_fn(bs, cols, |i, j| rhs[i * cols + j]);
+        solve_lower_triangular_in_place(l11.as_ref(), zb.as_mut(), faer::Par::Seq);
+        for l in lay.first_local_from(q0)..lay.first_local_from(q1) {
+            let i = lay.global(l) - q0;
+            (0..cols).for_each(|j| x.set(l, j, zb[(i, j)]));
+        }
+        let u0 = lay.first_local_from(q1);
+        if u0 < la {
+            let below = first.rows.view().submatrix(u0, q0, la - u0, bs);
+            let out = x.view_mut().submatrix_mut(u0, 0, la - u0, cols);
+            matmul(out, Accum::Add, below, zb.as_ref(), -1.0, par);
+        }
+        q0 = q1;
     }
-    comm.sum_f64(&mut h);
-    for i in 0..k {
-        h[i] = (k..n).map(|j| m_top[i * n + j] * mu[j]).sum::<f64>();
-    }
-    (0..w).for_each(|i| h[i] += zgm[(i, 0)]);
-    let hm = MatRef::from_column_major_slice(&h, w, 1);
-    let mut cc = Mat::<f64>::from_fn(k, 1, |i, _| y_s[i]) - g_first.transpose() * hm;
-    solve_upper_triangular_in_place(r_new.as_ref(), cc.as_mut(), faer::Par::Seq);
+}
 
-    lambda.extend((0..m).map(|j| u[(k + j, 0)]));
-    lambda.extend((0..k).map(|i| cc[(i, 0)]));
-    Ok(lambda)
+impl Bordered {
+    /// The solution from z1 = s L^{-1} y_{k..n} (this rank's rows k..n) and y' of a right-hand
+    /// side. Collective.
+    fn finish(&self, job: &Job<'_>, first: &Factored, z1: &[f64], y_s: &[f64]) -> Vec<f64> {
+        let comm = job.comm;
+        let (k, n, m) = (first.border.k, first.border.n, self.m);
+        let lay = first.rows.layout;
+        let (la, b0) = (lay.first_local_from(n), lay.first_local_from(k));
+        let s = first.sign;
+        let w = k + m;
+        let nb = first.panel.max(1);
+
+        // L22 mu_new = s y'_{k..} - X^T z1, through L22 L22^T
+        let xl = self.x.view().submatrix(b0, 0, la - b0, m);
+        let xtz = xl.transpose() * MatRef::from_column_major_slice(z1, la - b0, 1);
+        let mut buf: Vec<f64> = (0..m).map(|i| xtz[(i, 0)]).collect();
+        comm.sum_f64(&mut buf);
+        let mut mu_new = Mat::<f64>::from_fn(m, 1, |i, _| s * y_s[k + i] - buf[i]);
+        solve_lower_triangular_in_place(self.l22.as_ref(), mu_new.as_mut(), faer::Par::Seq);
+        solve_upper_triangular_in_place(self.l22.transpose(), mu_new.as_mut(), faer::Par::Seq);
+
+        // L^T mu = z1 - X mu_new
+        let xm = xl * &mu_new;
+        let send: Vec<f64> = (0..la - b0).map(|i| z1[i] - xm[(i, 0)]).collect();
+        let mut zz = vec![0.0; n];
+        zz[k..].copy_from_slice(&all_gather_rows(comm, lay, &send, k..n, 1));
+        let mu = back_substitute(comm, &first.rows, (k, n), nb, &zz);
+
+        // lambda' = Q' [0; mu; 0; mu_new]: H puts G [0; mu_new] on R's and the new coordinates
+        let (g_first, g_null) = (self.g.as_ref().subcols(0, k), self.g.as_ref().subcols(k, m));
+        let u = g_null * &mu_new;
+        let mut lambda = mu.clone();
+        (0..k).for_each(|i| lambda[i] = u[(i, 0)]);
+        first.border.q(&mut lambda);
+
+        // R' c = y'_{0..k} - G_first^T [M_{0..k,k..n} mu + (Z G_n mu_new)_{0..k};
+        //                               (Q^T E)_{k..n}^T mu + (Z G_n mu_new)_{k..}]
+        let zgm = &self.zg * &mu_new;
+        let mut h = vec![0.0; w];
+        for l in b0..la {
+            let mu_l = mu[lay.global(l)];
+            (0..m).for_each(|j| h[k + j] += self.qte[(l, j)] * mu_l);
+        }
+        comm.sum_f64(&mut h);
+        for i in 0..k {
+            h[i] = (k..n).map(|j| self.m_top[i * n + j] * mu[j]).sum::<f64>();
+        }
+        (0..w).for_each(|i| h[i] += zgm[(i, 0)]);
+        let hm = MatRef::from_column_major_slice(&h, w, 1);
+        let mut cc = Mat::<f64>::from_fn(k, 1, |i, _| y_s[i]) - g_first.transpose() * hm;
+        solve_upper_triangular_in_place(self.r_new.as_ref(), cc.as_mut(), faer::Par::Seq);
+
+        lambda.extend((0..m).map(|j| u[(k + j, 0)]));
+        lambda.extend((0..k).map(|i| cc[(i, 0)]));
+        lambda
+    }
 }

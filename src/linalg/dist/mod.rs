@@ -8,7 +8,8 @@
 //! factorisation fails or the refinement does not reach the accuracy of an f64 solve.
 //!
 //! [`extend_solve`] borders a kept projected Cholesky factor ([`solve_keeping`]) by appended
-//! centres, for a second fit that adds constraint points to the first.
+//! centres, for a second fit that adds constraint points to the first; [`solve_bordered`] solves
+//! the bordered system again for other values of the same centres.
 //!
 //! Every solver takes the panel width nb and a `faer::Par`. The panel kernels and the
 //! collectives are serial; the `Par` goes to the local GEMMs and triangular solves of the
@@ -33,7 +34,7 @@ mod system;
 
 pub use cholesky::cholesky_solve;
 pub use cholesky2d::cholesky2d_solve;
-pub use extend::{extend_solve, Appended, Factored};
+pub use extend::{extend_solve, solve_bordered, Appended, Bordered, Factored};
 pub use grid::{squarest, BlockCyclic, Layout, LocalBlocks, ProcessGrid};
 pub use householder::householder_solve;
 pub use householder2d::householder2d_solve;
