@@ -190,8 +190,10 @@ pub struct FitArgs {
     /// nearest to the surface no data supports (on, or off), at most 3, and keep a turn that
     /// removes at least 5 % of that surface: a patch turned on a sheet thinner than the sampling
     /// (an ear) holds up a bulge beside it that the ray test cannot see. A try changes only
-    /// values, so it is solved with the kept fit's own factor (two triangular solves) and only
-    /// the lattice around the patch is sampled again (see src/surface/turns.rs).
+    /// values, so it is solved with the kept fit's own factor (two triangular solves; systems
+    /// below 1000 rows, which keep none, are fitted afresh) and only the lattice around the patch
+    /// is sampled again; a large system solved without the projected Cholesky skips this step
+    /// (see src/surface/turns.rs).
     #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub orient_turns: bool,
     /// Points of level 0 of the two-level compactly supported fit (--method csrbf with --surface

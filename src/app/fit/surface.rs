@@ -11,6 +11,7 @@ use super::{Fitted, Run};
 use crate::app::stages::{Stage, Stages};
 use crate::cli::{FitArgs, Surface};
 use crate::error::Result;
+use crate::linalg::dist::AUTO_CHOLESKY_FROM;
 use crate::par::{agree, Comm};
 use crate::spline::hygiene::Prepared;
 use crate::surface::blobs::{
@@ -202,9 +203,10 @@ pub type Refit<'a> = dyn FnMut(&Prepared, Option<&KeptFactor>, &mut Stages) -> R
 /// points, so `refit` is given the first fit's factor, where it kept one, to border. Where the blob
 /// search's wide and narrow clearances pin different nodes (unless `--blob-choice off`), both
 /// second fits are made and the one with less unsupported surface is kept (see
-/// [`crate::surface::choice`]). Last, where the first fit's factor was kept (unless
-/// `--orient-turns off`), small patches of the normals whose turn shrinks the surface no data
-/// supports are turned, each tried by one more bordered fit (see [`crate::surface::turns`]).
+/// [`crate::surface::choice`]). Last (unless `--orient-turns off`), small patches of the
+/// normals whose turn shrinks the surface no data supports are turned, each tried by a solve
+/// with the kept fit's bordered factor, or by a fresh fit where the system is too small for the
+/// projected Cholesky that keeps one (see [`crate::surface::turns`]).
 /// `data` is the data alone; the lattice covers its box grown by the grid's margin. The rays,
 /// the search (with the choice) and the turns have stages of their own. Collective.
 pub fn check_first_fit(
@@ -220,12 +222,13 @@ pub fn check_first_fit(
     let (mut fit, values) = rays_and_blobs(run, data, c, first, stages, refit, (factor.as_ref(), &lattice))?;
     // the kept fit's own bordered factor where it has one (a second fit), else the first fit's
     let basis = fit.factor.take().or(factor);
-    match basis.as_ref() {
-        Some(basis) if run.args.orient_turns => {
-            turn_by_surface(run, data, c, (fit, values), stages, refit, (basis, &lattice))
-        }
-        _ => Ok(fit),
+    // without a kept factor a try is a fresh fit: affordable below the size from which the
+    // projected Cholesky, whose factor is kept, is the default solver
+    let affordable = basis.is_some() || c.prep.values.len() < AUTO_CHOLESKY_FROM;
+    if run.args.orient_turns && affordable {
+        return turn_by_surface(run, data, c, (fit, values), stages, refit, (basis.as_ref(), &lattice));
     }
+    Ok(fit)
 }
 
 /// The ray test and the blob search with the clearance choice of [`check_first_fit`] (`factor`:
@@ -340,9 +343,9 @@ fn rays_and_blobs(
 /// `fit` of `c.prep` after the small patches of the normals whose turn shrinks the surface no
 /// data supports are turned, one candidate after the other (see [`crate::surface::turns`]): each
 /// candidate changes only the values of its off points, so its fit is a solve with `factor`, the
-/// fit's own (bordered) factor, and only the lattice around the patch is sampled again. The
-/// lattice is the blob search's; `values`, the fit's values on it where the search sampled them.
-/// Collective.
+/// fit's own (bordered) factor, where there is one (else a fresh fit of a small system), and only
+/// the lattice around the patch is sampled again. The lattice is the blob search's; `values`, the
+/// fit's values on it where the search sampled them. Collective.
 fn turn_by_surface(
     run: &Run<'_>,
     data: &Prepared,
@@ -350,7 +353,7 @@ fn turn_by_surface(
     (mut fit, values): (Fitted, Option<Vec<f64>>),
     stages: &mut Stages,
     refit: &mut Refit<'_>,
-    (factor, lattice): (&KeptFactor, &Lattice),
+    (factor, lattice): (Option<&KeptFactor>, &Lattice),
 ) -> Result<Fitted> {
     let support = DataSupport::new(&data.centres, choice::FACTOR);
     let unsupported = |values: &[f64]| choice::unsupported_crossings(lattice, values, &support).0;
@@ -380,7 +383,7 @@ fn turn_by_surface(
         let mut prep = c.prep.clone();
         let off_values = off_values(&off, &data.points, &data.carrier, &data.norm);
         prep.values[nd..nd + off_values.len()].copy_from_slice(&off_values);
-        let tried = refit(&prep, Some(factor), stages)?;
+        let tried = refit(&prep, factor, stages)?;
         let (tried_values, after) = stages.time(Stage::Turns, || {
             let mut tried_values = values.clone();
             let window = candidate.window(lattice);
