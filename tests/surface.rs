@@ -5,7 +5,7 @@
 
 mod common;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use common::{area_samples, area_samples_with_normals, solve_serial, Rng};
 use volspline::io::model_file::read_model;
@@ -326,6 +326,15 @@ fn fits_match_the_oracle(
     }
 }
 
+/// `n` area-uniform samples (seed `seed` of the tests' sampler) of the mesh at `mesh`, written to
+/// `file` in a new temporary folder `name`: the folder and the file.
+fn sampled_input(name: &str, file: &str, mesh: &str, (n, seed): (usize, u64)) -> (PathBuf, PathBuf) {
+    let dir = common::temp_dir(name);
+    let input = dir.join(file);
+    common::write_xyz(&input, &area_samples(&common::load_mesh(Path::new(mesh)), n, seed));
+    (dir, input)
+}
+
 /// The points of `input` as the binary reads them.
 fn read_back(input: &Path) -> Vec<f64> {
     volspline::io::points::read_points(input).unwrap().points.iter().flatten().copied().collect()
@@ -349,10 +358,7 @@ const RAYS_COW: usize = 2000;
 /// ranks as in the serial oracle.
 #[test]
 fn patches_turned_by_the_ray_test_are_the_same_on_one_two_and_three_ranks() {
-    let dir = common::temp_dir("rays-oracle");
-    let input = dir.join("cow.xyz");
-    let truth = common::load_mesh(Path::new(common::COW));
-    common::write_xyz(&input, &area_samples(&truth, RAYS_COW, 7));
+    let (dir, input) = sampled_input("rays-oracle", "cow.xyz", common::COW, (RAYS_COW, 7));
     let (oracle, off_count, turned, _, turns) = serial_offsurface(&read_back(&input), false, true);
     assert!(turned.turned > 0, "{turned:?}");
     // then the turns by unsupported surface turn patches too (measured: 2 of 3 tried, 408 -> 324
@@ -368,10 +374,7 @@ const CHOICE_COW: (usize, u64) = (2000, 8);
 
 #[test]
 fn the_clearance_choice_is_the_same_on_one_two_and_three_ranks() {
-    let dir = common::temp_dir("choice-oracle");
-    let input = dir.join("cow.xyz");
-    let truth = common::load_mesh(Path::new(common::COW));
-    common::write_xyz(&input, &area_samples(&truth, CHOICE_COW.0, CHOICE_COW.1));
+    let (dir, input) = sampled_input("choice-oracle", "cow.xyz", common::COW, (CHOICE_COW.0, CHOICE_COW.1));
     let (oracle, off_count, _, kept_narrow, _) = serial_offsurface(&read_back(&input), true, true);
     assert_eq!(kept_narrow, Some(true));
     // the default: the choice on
@@ -1008,10 +1011,12 @@ const SMALL_TURNS_BUNNY: (usize, u64) = (400, 5);
 #[test]
 fn the_turns_of_a_small_system_refit_afresh_alike_on_one_two_and_three_ranks() {
     // about 560 rows, solved by Householder QR: no factor is kept, so each try is a fresh fit
-    let dir = common::temp_dir("small-turns-oracle");
-    let input = dir.join("bunny.xyz");
-    let truth = common::load_mesh(Path::new(common::BUNNY));
-    common::write_xyz(&input, &area_samples(&truth, SMALL_TURNS_BUNNY.0, SMALL_TURNS_BUNNY.1));
+    let (dir, input) = sampled_input(
+        "small-turns-oracle",
+        "bunny.xyz",
+        common::BUNNY,
+        (SMALL_TURNS_BUNNY.0, SMALL_TURNS_BUNNY.1),
+    );
     let (oracle, off_count, _, _, turns) = serial_offsurface(&read_back(&input), true, true);
     // measured: 1 of 3 patches (19 points) turned, unsupported crossings 467 -> 231
     assert!(turns.turned > 0 && turns.after < turns.before, "{turns:?}");
