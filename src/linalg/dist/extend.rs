@@ -36,6 +36,11 @@
 //! The right-hand side follows the same way: y' = Q'^T r' is Q^T r_old at k..n and
 //! G^T [(Q^T r_old)_{0..k}; r_new] on the other k + m coordinates; mu' = [mu; mu_new] from the
 //! bordered factor, lambda' = Q' [0; mu'] and R' c = y'_{0..k} - (Q'^T A' Q')_{0..k, null} mu'.
+//!
+//! Only the right-hand side depends on the values, so the pieces that do not (X, L22, G, R' and
+//! the blocks Z G_n, Q^T E, M_{0..k}) are kept in a [`Bordered`]: another right-hand side of the
+//! same n + m centres then costs a forward substitution of s y_{k..n} through L, the small solve
+//! with L22 and the back substitution, O(n^2) flops in all ([`solve_bordered`]).
 
 use faer::linalg::matmul::matmul;
 use faer::linalg::matmul::triangular::{self, BlockStructure};
@@ -108,7 +113,8 @@ pub struct Appended<'a> {
 pub struct Bordered {
     /// The appended centres' count m.
     m: usize,
-    /// X = s L^{-1} C in this rank's rows k..n of columns 0..m (column m is scratch).
+    /// X = s L^{-1} C in this rank's rows k..n of columns 0..m (column m: the first right-hand
+    /// side's s L^{-1} y, carried through the same substitution).
     x: LocalRows,
     /// L22 of the bordered factor (m x m).
     l22: Mat<f64>,
