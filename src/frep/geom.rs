@@ -81,7 +81,7 @@ pub(crate) fn mul_t(r: &[[f64; 3]; 3], p: [f64; 3]) -> [f64; 3] {
     [0, 1, 2].map(|i| r[0][i] * p[0] + r[1][i] * p[1] + r[2][i] * p[2])
 }
 
-/// The box grown by a tenth of its size on every side (as [`Implicit::bounds`] of a model).
+/// The box grown by a tenth of its size on every side (as [`crate::frep::Implicit::bounds`] of a model).
 pub fn widened((lo, hi): Box3) -> Box3 {
     let pad = [0, 1, 2].map(|d| 0.1 * (hi[d] - lo[d]).abs().max(f64::MIN_POSITIVE));
     ([0, 1, 2].map(|d| lo[d] - pad[d]), [0, 1, 2].map(|d| hi[d] + pad[d]))

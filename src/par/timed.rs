@@ -14,7 +14,7 @@ use super::{Comm, RawComm};
 pub enum CallKind {
     /// Reductions, broadcasts, gathers to one rank, barriers.
     Reduce,
-    /// All-gathers of at most [`SMALL`] values in all (the pivot searches of LU).
+    /// All-gathers of at most `SMALL` values in all (the pivot searches of LU).
     SmallGather,
     /// Larger all-gathers (the block rows of the factorisations).
     LargeGather,

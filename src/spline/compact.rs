@@ -252,7 +252,7 @@ pub fn poly_block(kernel: &Kernel, centres: &[f64], rows: &[usize]) -> Vec<f64> 
     p
 }
 
-/// `data` (records of `width` values) in the order `perm` (perm[new] = old), e.g. centres
+/// `data` (records of `width` values) in the order `perm` (`perm[new] = old`), e.g. centres
 /// (width 3) or values (width 1) renumbered by [`Octree::order`].
 pub fn permuted(data: &[f64], width: usize, perm: &[usize]) -> Vec<f64> {
     assert_eq!(data.len(), width * perm.len(), "one record per index");

@@ -57,7 +57,7 @@ impl CompactRows {
         &self.tree
     }
 
-    /// The kernel part sum_i lambda_i phi(|x - P_i| / R) at the normalised points (xn[j], y, z)
+    /// The kernel part sum_i lambda_i phi(|x - P_i| / R) at the normalised points (`xn[j]`, y, z)
     /// into `out`.
     pub fn radial_row(&self, spline: &Spline, xn: &[f64], y: f64, z: f64, out: &mut [f64]) {
         let (lo, hi) = xn.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));

@@ -6,7 +6,7 @@
 //! own, and the explicit multiply-adds ([`f64::mul_add`]) are fused on every path (in software
 //! where the CPU has no FMA), so the AVX-512, AVX2 and portable code round identically. The
 //! square roots, the limit of these sums, are shared between the hardware and a multiply-add
-//! iteration ([`lane_sums`]).
+//! iteration (`lane_sums`).
 //!
 //! A compactly supported kernel takes another path ([`crate::spline::compact_eval`]): each point
 //! sums only the centres within the support, gathered with the octree once per row, again in an

@@ -1,6 +1,6 @@
 //! Orientation of whole patches by the bending energy of the spline they make.
 //!
-//! The nearest-neighbour and dipole steps of [`super::orient`] leave whole, internally
+//! The nearest-neighbour and dipole steps of [`mod@super::orient`] leave whole, internally
 //! consistent patches turned the wrong way where the surface is thin or folded (legs, ears,
 //! horns). Such a patch puts its off-surface points on the wrong side of the data: the
 //! interpolant has to turn its sign across a thin sheet the wrong way and bends more. This step

@@ -7,7 +7,7 @@
 //! normals that point consistently outward. Scans rarely come with them, so they are made here:
 //! - [`normals`]: unoriented normals by local principal component analysis, each point taking
 //!   the most planar of several neighbourhood sizes;
-//! - [`orient`]: a consistent global orientation (the smallest eigenvector of a signed graph
+//! - [`mod@orient`]: a consistent global orientation (the smallest eigenvector of a signed graph
 //!   Laplacian, corrected patch by patch by the dipole field) made outward by the divergence
 //!   theorem;
 //! - [`offsurface`]: the off points and the values the spline takes there;
@@ -74,7 +74,7 @@ pub fn neighbourhoods(points: &[f64]) -> Result<Neighbourhoods> {
 }
 
 /// Oriented outward normals of `points` from their neighbourhoods, without the side vote of
-/// [`orient`] (the default of `fit`). Collective.
+/// [`mod@orient`] (the default of `fit`). Collective.
 pub fn oriented(comm: &dyn Comm, points: &[f64], hoods: &Neighbourhoods) -> Result<Orientation> {
     orient(comm, points, &hoods.normals, &hoods.knn, hoods.kmax, false)
 }

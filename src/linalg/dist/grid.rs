@@ -191,8 +191,8 @@ impl Layout {
     /// The layout `auto` stands for, for a system of `rows` rows on `ranks` ranks solved in
     /// `precision`, and whether its factor must stay row-cyclic (`keeps_rows`: an off-surface
     /// fit, whose second fits border the first fit's row-cyclic factor in O(n^2 m) instead of
-    /// factoring anew): the squarest 2D grid from [`AUTO_2D_RANKS`] ranks with at least
-    /// [`AUTO_2D_GRID_ROWS`] process rows and [`AUTO_2D_SYSTEM`] rows, in f64, where no factor is
+    /// factoring anew): the squarest 2D grid from `AUTO_2D_RANKS` ranks with at least
+    /// `AUTO_2D_GRID_ROWS` process rows and `AUTO_2D_SYSTEM` rows, in f64, where no factor is
     /// kept; row-cyclic otherwise. Any other layout is returned as it is.
     pub fn resolve(self, ranks: usize, rows: usize, precision: Precision, keeps_rows: bool) -> Layout {
         if self != Layout::Auto {

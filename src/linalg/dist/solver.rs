@@ -259,7 +259,7 @@ pub fn solve(
 }
 
 /// [`solve`], which with `keep` also returns the factor when the projected Cholesky solved the
-/// system (see [`super::extend`]): a second fit with centres appended can then border it.
+/// system (see `extend`): a second fit with centres appended can then border it.
 pub fn solve_keeping(
     job: &Job<'_>,
     kind: SolverKind,

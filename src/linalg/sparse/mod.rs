@@ -24,7 +24,7 @@ pub use ordering::reverse_cuthill_mckee;
 use crate::error::Result;
 
 /// The lower triangle (diagonal included) of a symmetric n x n matrix in compressed sparse rows:
-/// row i holds the entries (i, cols[k]) = vals[k] for k in row_ptr[i]..row_ptr[i + 1], with
+/// row i holds the entries `(i, cols[k]) = vals[k]` for k in `row_ptr[i]..row_ptr[i + 1]`, with
 /// column indices strictly increasing and at most i. For a distributed matrix, `rows` lists the
 /// global rows held here (row_ptr has rows.len() + 1 entries); on one process it is 0..n.
 #[derive(Debug, Clone, Default, PartialEq)]
