@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
 # Sets up a fresh machine (jobs/setup.sh) and runs the whole test suite: unit and property tests,
 # distributed-vs-serial runs of the real binary under mpirun -n 1, 2 and 3, reconstruction quality
-# on the bunny, and the VTKHDF read-back through VTK's own reader.
+# on the bunny, the VTKHDF read-back through VTK's own reader; then rustdoc with warnings as errors.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source jobs/setup.sh
 export OMPI_MCA_rmaps_base_oversubscribe=1   # the 3-rank tests run on 2 cores
 export RAYON_NUM_THREADS=${RAYON_NUM_THREADS:-1}
 cargo test --release "$@"
+# the API documentation builds without broken or private links
+RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --quiet
