@@ -65,7 +65,7 @@ use crate::spline::octree::Octree;
 
 /// Fewest unsupported crossings charged to a patch for it to be tried.
 pub const MIN_HITS: usize = 5;
-/// Most patches tried (each costs a bordered fit and a lattice sampling).
+/// Most patches tried (each costs a solve and a sampling of the lattice around the patch).
 pub const TRIES: usize = 3;
 /// The share of the unsupported crossings a turn must remove to be kept.
 pub const GAIN: f64 = 0.05;

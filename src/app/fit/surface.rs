@@ -60,7 +60,7 @@ pub struct SurfaceSummary {
     /// `--blob-choice off` or both pinned the same nodes).
     pub choice: Option<ClearanceChoice>,
     /// The patches turned by the unsupported surface (None: not run, since `--orient-turns off`
-    /// or no factor of the first fit was kept to border).
+    /// or the system is too large to refit afresh and kept no factor).
     pub turns: Option<TurnCheck>,
 }
 

@@ -128,13 +128,6 @@ pub struct Bordered {
     m_top: Vec<f64>,
 }
 
-impl Bordered {
-    /// The number of appended centres.
-    pub fn appended(&self) -> usize {
-        self.m
-    }
-}
-
 /// The solution [lambda (n); lambda_new (m); c (k)] of the first system bordered by `new`, from
 /// its factor, on every rank, with the bordered factor for further right-hand sides
 /// ([`solve_bordered`]); `first` is left as it is, so it can be bordered again. Collective;
