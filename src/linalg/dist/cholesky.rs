@@ -38,19 +38,21 @@
 //! rows 0..k, columns k..N are Q1^T A Q2, so Q1^T A lambda = (Q1^T A Q2) mu is read off the
 //! owners of those rows and R c = Q1^T r - (Q1^T A Q2) mu is a k x k triangular solve. B is
 //! factored by a blocked, right-looking, row-cyclic Cholesky that only updates the lower
-//! triangle (L11 L11^T = B11, L21 = B21 L11^-T, B22 <- B22 - L21 L21^T, one GEMM per chunk of
-//! local rows); forward and back substitution give mu, and lambda = Q [0; mu] applies the k
+//! triangle (L11 L11^T = B11, L21 = B21 L11^-T, B22 <- B22 - L21 L21^T); the update runs by
+//! blocks of columns, so the block of L21^T that a GEMM reads stays in cache while the rank's rows
+//! below the diagonal stream past it (a row chunk against all trailing columns would read all of
+//! L21^T from memory for every chunk); forward and back substitution give mu, and lambda = Q [0; mu] applies the k
 //! reflectors to a vector, last one first.
 //!
 //! Look-ahead: every rank holds rows of every panel, so every rank prepares the next panel
 //! itself. With `job.lookahead`, once L21 of panel k is on every rank, each rank updates the
 //! columns of panel k+1 in its rows first, then gathers panel k+1's diagonal block, factors it,
 //! solves for its L21 and all-gathers that, both gathers non-blocking
-//! ([`Comm::all_gather_f64_while`]), while the rest of panel k's update runs a row chunk at a
-//! time between the tests; what is left runs before panel k+1's own update. Exact: panel k+1 reads
-//! and writes only its own columns, which are updated before it; the other columns get the same
-//! GEMMs (no piece a single column, see `householder`): the factors are the same, bit for bit in
-//! the tests on two and three ranks.
+//! ([`Comm::all_gather_f64_while`]), while the rest of panel k's update runs a GEMM at a time
+//! between the tests; what is left runs before panel k+1's own update. Exact: panel k+1 reads
+//! and writes only its own columns, which are updated before it, and both orders run the same
+//! GEMMs on the same pieces: the factors are the same, bit for bit in the tests on two and three
+//! ranks.
 
 use faer::linalg::matmul::matmul;
 use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
@@ -60,14 +62,23 @@ use faer::{Accum, Mat, MatMut, MatRef, Par};
 use super::layout::RowCyclic;
 use super::scalar::Scalar;
 use super::solver::Job;
-use super::system::{all_gather_rows, gather_rows_while, GatherBuffers, LocalRows};
+use super::system::{all_gather_packed_while, all_gather_rows, gather_rows_while, GatherBuffers, LocalRows};
 use crate::error::{Error, Result};
 use crate::linalg::reflector::{apply, explicit_v, qr_in_place, wy_t};
 use crate::par::Comm;
 
-/// Local rows updated per GEMM of the trailing update: small enough that the triangle is followed
-/// closely, large enough for BLAS-3 speed.
+/// Local rows per GEMM of the trailing update where a column block meets the diagonal: small
+/// enough that the triangle is followed closely, large enough for BLAS-3 speed.
 const ROW_CHUNK: usize = 96;
+
+/// Columns per block of the trailing update: the block of L21^T a GEMM reads (panel x 512, 1.5 MB
+/// at the default panel of 384) stays in a core's cache while the rows below the diagonal stream
+/// past it, where a chunk of rows against all trailing columns streams all of L21^T from memory.
+const COL_BLOCK: usize = 512;
+
+/// Local rows per GEMM below the diagonal block: pieces of a few milliseconds, so the
+/// non-blocking gathers of the look-ahead are tested often.
+const ROW_BLOCK: usize = 1024;
 
 /// Columns rounded per GEMM when the projection of an f64 matrix is written to a narrower type.
 const COL_CHUNK: usize = 256;
@@ -371,57 +382,63 @@ pub(super) fn factor_projected<T: Scalar>(
         }
         let (pb1, t0) = (nb.min(n - p1), lay.first_local_from(p1));
         // all of L21, transposed: every rank needs it for its rows of B22 -= L21 L21^T
-        let lt = MatRef::from_column_major_slice(&bufs.out, pb, n - p1);
+        // L21^T, every rank's rows of it in turn (as gathered: a column block of the update
+        // needs P strided column sets of the output, each a contiguous block of one rank's part)
+        let lt = MatRef::from_column_major_slice(bufs.by_rank(), pb, n - p1);
+        let from: Vec<usize> = (0..lay.ranks)
+            .scan(0, |acc, r| {
+                let at = *acc;
+                *acc += lay.count_in_on(r, p1, n);
+                Some(at)
+            })
+            .collect();
+        let split = p1 + pb1;
+        let pieces = trailing_pieces(lay, (p1, split, n));
+        // the pieces in the next panel's columns come first: they are what it reads
+        let ahead = pieces.iter().take_while(|piece| piece.cols.1 <= split).count();
+        // this rank's rows of L21, apart from the columns the next panel writes
+        let l21 = rows.view().submatrix(t0, p0, la - t0, pb).to_owned();
+        // data: this rank's rows from global column `base` on
+        let update = |data: &mut [T], base: usize, piece: &Piece| {
+            let (a, b) = piece.rows;
+            let l = l21.as_ref().subrows(a - t0, b - a);
+            let (c0, c1) = piece.cols;
+            for r in 0..lay.ranks {
+                let cnt = lay.count_in_on(r, c0, c1);
+                if cnt == 0 {
+                    continue;
+                }
+                let first = c0 + (r + lay.ranks - c0 % lay.ranks) % lay.ranks;
+                let at = from[r] + lay.count_in_on(r, p1, c0);
+                let stride = lay.ranks * ld;
+                let cols = MatMut::from_column_major_slice_with_stride_mut(
+                    &mut data[(first - base) * ld..],
+                    ld,
+                    cnt,
+                    stride,
+                );
+                let out = cols.submatrix_mut(a, 0, b - a, cnt);
+                matmul(out, Accum::Add, l, lt.subcols(at, cnt), T::of(-1.0), par);
+            }
+        };
         if !lookahead {
-            let mut a = t0;
-            while a < la {
-                let b = (a + ROW_CHUNK).min(la);
-                let ncols = lay.global(b - 1) + 1 - p1;
-                let m = rows.view_mut().submatrix_mut(a, 0, b - a, p1 + ncols);
-                let (left, right) = m.split_at_col_mut(p1);
-                matmul(right, Accum::Add, left.rb().subcols(p0, pb), lt.subcols(0, ncols), T::of(-1.0), par);
-                a = b;
+            for piece in &pieces {
+                update(&mut rows.data, 0, piece);
             }
-            prepare_panel(comm, lay, &mut rows.data, (p1, p1 + pb1, n), par, &mut next_bufs, None)?;
+            prepare_panel(comm, lay, &mut rows.data, (p1, split, n), par, &mut next_bufs, None)?;
         } else {
-            // this rank's rows of L21, apart from the columns the next panel writes
-            let l21 = rows.view().submatrix(t0, p0, la - t0, pb).to_owned();
-            let split = p1 + pb1;
-            // a chunk's rows, the end of its columns and where its columns after the next panel
-            // begin: no piece is a single column (faer computes a matrix-vector product in
-            // another order than the same column of a wider product)
-            let chunk = |a: usize| {
-                let b = (a + ROW_CHUNK).min(la);
-                let c1 = lay.global(b - 1) + 1;
-                let s = split.max(p1 + 2).min(c1);
-                (b, c1, if s + 1 >= c1 { c1 } else { s })
-            };
-            let update = |data: &mut [T], base: usize, (a, b): (usize, usize), (c0, c1): (usize, usize)| {
-                if c0 >= c1 {
-                    return;
-                }
-                let all = MatMut::from_column_major_slice_mut(data, ld, data.len() / ld);
-                let out = all.submatrix_mut(a, c0 - base, b - a, c1 - c0);
-                let l = l21.as_ref().subrows(a - t0, b - a);
-                matmul(out, Accum::Add, l, lt.subcols(c0 - p1, c1 - c0), T::of(-1.0), par);
-            };
-            // the next panel's columns first, every row chunk of them
-            let mut a = t0;
-            while a < la {
-                let (b, _, s) = chunk(a);
-                update(&mut rows.data, 0, (a, b), (p1, s));
-                a = b;
+            for piece in &pieces[..ahead] {
+                update(&mut rows.data, 0, piece);
             }
-            // the other columns a row chunk at a time, in the windows of the next panel's gathers
+            // the other pieces one at a time, in the windows of the next panel's gathers
             let (left, right) = rows.data.split_at_mut(split * ld);
-            let mut a = t0;
-            let mut work = || {
-                if a < la {
-                    let (b, c1, s) = chunk(a);
-                    update(right, split, (a, b), (s, c1));
-                    a = b;
+            let mut rest = pieces[ahead..].iter();
+            let mut work = || match rest.next() {
+                Some(piece) => {
+                    update(right, split, piece);
+                    true
                 }
-                a < la
+                None => false,
             };
             prepare_panel(comm, lay, left, (p1, split, n), par, &mut next_bufs, Some(&mut work))?;
             while work() {}
@@ -430,6 +447,41 @@ pub(super) fn factor_projected<T: Scalar>(
         std::mem::swap(&mut bufs, &mut next_bufs);
         (p0, pb) = (p1, pb1);
     }
+}
+
+/// One GEMM of the trailing update: local rows `rows.0..rows.1`, global columns `cols.0..cols.1`.
+struct Piece {
+    rows: (usize, usize),
+    cols: (usize, usize),
+}
+
+/// The GEMMs of the update B22 -= L21 L21^T after a panel that ends at column p1, in the lower
+/// triangle of this rank's rows: the columns of the next panel (p1..split) first, then blocks of
+/// [`COL_BLOCK`] columns up to n. Within a block c0..c1 the rows whose global index lies in the
+/// block take the columns up to their diagonal, [`ROW_CHUNK`] rows at a time; the rows below it
+/// take the whole block, [`ROW_BLOCK`] rows at a time. Every lower-triangle entry of rows and
+/// columns p1..n is in exactly one piece.
+fn trailing_pieces(lay: RowCyclic, (p1, split, n): (usize, usize, usize)) -> Vec<Piece> {
+    let la = lay.first_local_from(n);
+    let mut pieces = Vec::new();
+    let mut c0 = p1;
+    while c0 < n {
+        let c1 = if c0 == p1 { split } else { (c0 + COL_BLOCK).min(n) };
+        let (r0, r1) = (lay.first_local_from(c0), lay.first_local_from(c1));
+        let mut a = r0;
+        while a < r1 {
+            let b = (a + ROW_CHUNK).min(r1);
+            pieces.push(Piece { rows: (a, b), cols: (c0, c1.min(lay.global(b - 1) + 1)) });
+            a = b;
+        }
+        while a < la {
+            let b = (a + ROW_BLOCK).min(la);
+            pieces.push(Piece { rows: (a, b), cols: (c0, c1) });
+            a = b;
+        }
+        c0 = c1;
+    }
+    pieces
 }
 
 /// The panel p0..p1 of B, updated by every panel before it: factors its diagonal block L11 L11^T
@@ -468,16 +520,19 @@ fn prepare_panel<T: Scalar>(
         return Ok(());
     }
     let t0 = lay.first_local_from(p1);
-    if ld > 0 {
-        // L21 = B21 L11^-T, i.e. L11 L21^T = B21^T
-        // (solved on a column-major copy of B21^T: faer's blocked path wants unit row stride)
+    // L21 = B21 L11^-T, i.e. L11 L21^T = B21^T, solved on a column-major copy of B21^T (faer's
+    // blocked path wants unit row stride). That copy, once solved, holds this rank's rows of L21
+    // row-major: what the gather of L21 sends, so it is made in the gather's send buffer.
+    let send = bufs.send_buffer((la - t0) * pb);
+    if la > t0 {
         let all = MatMut::from_column_major_slice_mut(data, ld, data.len() / ld);
         let mut b21 = all.submatrix_mut(t0, p0, la - t0, pb);
-        let mut bt = b21.rb().transpose().to_owned();
+        let mut bt = MatMut::from_column_major_slice_mut(send, pb, la - t0);
+        bt.copy_from(b21.rb().transpose());
         solve_lower_triangular_in_place(l11.as_ref(), bt.as_mut(), par);
         b21.copy_from(bt.transpose());
     }
-    gather_rows_while(comm, lay, data, (p1, n), (p0, p1), bufs, work);
+    all_gather_packed_while(comm, lay, (p1, n, pb), bufs, false, work);
     Ok(())
 }
 
@@ -509,4 +564,53 @@ pub(super) fn cholesky_small<T: Scalar>(d: &[T], m: usize) -> Option<Mat<T>> {
         }
     }
     Some(l)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every entry of the lower triangle of rows and columns p1..n on a rank is updated by exactly
+    /// one piece, the next panel's columns by the leading pieces alone, and no piece leaves the
+    /// trailing block: on 1, 2, 3 and 5 ranks, with the blocks of rows and columns ending inside
+    /// and at the end, and the next panel of one column, of a block and of all columns left.
+    #[test]
+    fn the_trailing_pieces_cover_the_lower_triangle_once() {
+        for ranks in [1, 2, 3, 5] {
+            for n in [7, 700, 2 * COL_BLOCK + 37, 2 * ROW_BLOCK * ranks + 11] {
+                for (p1, width) in [(3, 1), (5, 64), (1, n - 1), (n / 2, 97)] {
+                    let split = (p1 + width).min(n);
+                    for rank in 0..ranks {
+                        let lay = RowCyclic::new(n, ranks, rank);
+                        let pieces = trailing_pieces(lay, (p1, split, n));
+                        let (t0, la) = (lay.first_local_from(p1), lay.first_local_from(n));
+                        let mut count = vec![0u8; (la - t0) * (n - p1)];
+                        let mut ahead = true;
+                        for piece in &pieces {
+                            let ((a, b), (c0, c1)) = (piece.rows, piece.cols);
+                            assert!(t0 <= a && a < b && b <= la && p1 <= c0 && c0 < c1 && c1 <= n);
+                            ahead &= c1 <= split;
+                            assert!(ahead || c0 >= split, "the next panel's pieces come first");
+                            for l in a..b {
+                                for c in c0..c1 {
+                                    count[(l - t0) * (n - p1) + c - p1] += 1;
+                                }
+                            }
+                        }
+                        for l in t0..la {
+                            for c in p1..=lay.global(l) {
+                                let seen = count[(l - t0) * (n - p1) + c - p1];
+                                assert_eq!(
+                                    seen,
+                                    1,
+                                    "ranks {ranks} n {n} p1 {p1} row {} column {c}",
+                                    lay.global(l)
+                                );
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
 }

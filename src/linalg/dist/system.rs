@@ -241,15 +241,49 @@ pub(crate) fn gather_rows_while<T: Scalar>(
     let (l0, l1) = (lay.first_local_from(g0), lay.first_local_from(g1));
     let ld = lay.local_count();
     let send = &mut bufs.send;
-    send.clear();
-    send.resize((l1 - l0) * w, T::of(0.0));
-    // column by column through the local matrix (contiguous), row-major into the buffer
-    for c in c0..c1 {
-        for (t, v) in data[l0 + c * ld..l1 + c * ld].iter().enumerate() {
-            send[t * w + (c - c0)] = *v;
+    set_len(send, (l1 - l0) * w);
+    // row-major into the buffer, a block of rows at a time: the block's lines of the buffer stay
+    // in the first-level cache while every column of the block is read (contiguous) and spread
+    for t0 in (0..l1 - l0).step_by(PACK_ROWS) {
+        let t1 = (t0 + PACK_ROWS).min(l1 - l0);
+        for c in c0..c1 {
+            let col = &data[l0 + c * ld..l1 + c * ld];
+            for (t, v) in col[t0..t1].iter().enumerate() {
+                send[(t0 + t) * w + (c - c0)] = *v;
+            }
         }
     }
-    all_gather_rows_into(comm, lay, &bufs.send, (g0, g1, w), (&mut bufs.recv, &mut bufs.out), work);
+    all_gather_packed_while(comm, lay, (g0, g1, w), bufs, true, work);
+}
+
+/// Rows packed per block when local rows are copied row-major into a gather's buffer.
+const PACK_ROWS: usize = 32;
+
+/// [`gather_rows_while`] for a caller that has written this rank's rows g0..g1, row-major, `w`
+/// values each, into [`GatherBuffers::send_buffer`] itself. With `ordered`, the rows end in
+/// global order in `out`; without, they stay in rank order ([`GatherBuffers::by_rank`]), which
+/// spares a copy of all of them for a caller that can read them so.
+pub(crate) fn all_gather_packed_while<T: Scalar>(
+    comm: &dyn Comm,
+    lay: RowCyclic,
+    (g0, g1, w): (usize, usize, usize),
+    bufs: &mut GatherBuffers<T>,
+    ordered: bool,
+    work: Option<&mut (dyn FnMut() -> bool + '_)>,
+) {
+    let out = if ordered { Some(&mut bufs.out) } else { None };
+    all_gather_rows_into(comm, lay, &bufs.send, (g0, g1, w), (&mut bufs.recv, out), work);
+}
+
+/// Gives a reused buffer the length `len`, for a caller that then writes every entry: only where
+/// it grows are entries filled (with zeros). A panel factorisation's gathers shrink from panel to
+/// panel, so after the first one nothing is filled twice.
+fn set_len<T: Scalar>(buf: &mut Vec<T>, len: usize) {
+    if buf.len() >= len {
+        buf.truncate(len);
+    } else {
+        buf.resize(len, T::of(0.0));
+    }
 }
 
 /// Buffers reused by [`LocalRows::gather_rows_with`].
@@ -259,6 +293,21 @@ pub struct GatherBuffers<T = f64> {
     recv: Vec<T>,
     /// The gathered rows, row-major in global order.
     pub out: Vec<T>,
+}
+
+impl<T: Scalar> GatherBuffers<T> {
+    /// The rows of the last gather without `ordered`, in rank order: rank 0's rows of the range
+    /// in local order, then rank 1's, and so on.
+    pub(crate) fn by_rank(&self) -> &[T] {
+        &self.recv
+    }
+
+    /// The send buffer with `len` entries, for [`all_gather_packed_while`]; its contents are
+    /// whatever the last gather left.
+    pub(crate) fn send_buffer(&mut self, len: usize) -> &mut [T] {
+        set_len(&mut self.send, len);
+        &mut self.send
+    }
 }
 
 impl<T> Default for GatherBuffers<T> {
@@ -278,28 +327,29 @@ pub fn all_gather_rows<T: Scalar>(
     w: usize,
 ) -> Vec<T> {
     let (mut recv, mut out) = (Vec::new(), Vec::new());
-    all_gather_rows_into(comm, lay, send, (rows.start, rows.end, w), (&mut recv, &mut out), None);
+    all_gather_rows_into(comm, lay, send, (rows.start, rows.end, w), (&mut recv, Some(&mut out)), None);
     out
 }
 
-/// [`all_gather_rows`] of rows g0..g1 of width w, into reused buffers, with `work` run while the
-/// gather is in flight where there is some.
+/// [`all_gather_rows`] of rows g0..g1 of width w, into reused buffers (`out` in global order
+/// where given, else only `recv` in rank order), with `work` run while the gather is in flight
+/// where there is some.
 fn all_gather_rows_into<T: Scalar>(
     comm: &dyn Comm,
     lay: RowCyclic,
     send: &[T],
     (g0, g1, w): (usize, usize, usize),
-    (recv, out): (&mut Vec<T>, &mut Vec<T>),
+    (recv, out): (&mut Vec<T>, Option<&mut Vec<T>>),
     work: Option<&mut (dyn FnMut() -> bool + '_)>,
 ) {
     let counts: Vec<usize> = (0..lay.ranks).map(|r| lay.count_in_on(r, g0, g1) * w).collect();
-    recv.clear();
-    recv.resize((g1 - g0) * w, T::of(0.0));
+    set_len(recv, (g1 - g0) * w);
     match work {
         None => T::all_gather(comm, send, &counts, recv),
         Some(work) => T::all_gather_while(comm, send, &counts, recv, work),
     }
-    out.clear();
-    out.resize((g1 - g0) * w, T::of(0.0));
-    lay.to_global_order(recv, g0, g1, w, out);
+    if let Some(out) = out {
+        set_len(out, (g1 - g0) * w);
+        lay.to_global_order(recv, g0, g1, w, out);
+    }
 }
