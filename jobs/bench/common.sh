@@ -36,19 +36,27 @@ export OMPI_MCA_rmaps_base_oversubscribe=1
 
 # OpenBLAS (ScaLAPACK's and the micro-benchmarks' BLAS) picks its kernels by processor model. A
 # processor newer than the OpenBLAS release (a recent Xeon under Debian 12's 0.3.21) gets generic
-# SSE kernels at a fifth of the rate, which would make every peer look slow. Where the processor
-# has AVX-512 and OpenBLAS chose no AVX-512 kernels, its Skylake-X kernels are taken; a
-# OPENBLAS_CORETYPE set by the user is kept. The core in use goes into machine.txt.
+# SSE kernels at a fifth of the rate, and a recent AMD processor gets the AVX2 (Haswell) kernels
+# at 60 % of the AVX-512 rate; some machines also set OPENBLAS_CORETYPE=Haswell in their
+# environment. Either would make every peer look slow. Where the processor has AVX-512 and the
+# kernels in effect have none (chosen by OpenBLAS or set in the environment), its Skylake-X
+# kernels are taken; BENCH_OPENBLAS_CORETYPE=NAME takes NAME instead, whatever the processor. The
+# core in use goes into machine.txt.
 openblas_core() {
     python3 -c "import ctypes; l = ctypes.CDLL('libopenblas.so.0'); l.openblas_get_corename.restype = ctypes.c_char_p; print(l.openblas_get_corename().decode())" 2>/dev/null || echo unknown
 }
 OPENBLAS_CORE=$(openblas_core)
-if [ -z "${OPENBLAS_CORETYPE:-}" ] && grep -qw avx512f /proc/cpuinfo; then
+if [ -n "${BENCH_OPENBLAS_CORETYPE:-}" ]; then
+    export OPENBLAS_CORETYPE=$BENCH_OPENBLAS_CORETYPE
+    OPENBLAS_CORE="$(openblas_core) (BENCH_OPENBLAS_CORETYPE=$BENCH_OPENBLAS_CORETYPE)"
+elif grep -qw avx512f /proc/cpuinfo; then
     case ${OPENBLAS_CORE,,} in
         skylakex|cooperlake|sapphirerapids|unknown) ;;
-        *) echo "bench: OpenBLAS chose '$OPENBLAS_CORE' kernels on an AVX-512 processor; taking SkylakeX" >&2
+        *) chosen="OpenBLAS chose $OPENBLAS_CORE"
+           [ -n "${OPENBLAS_CORETYPE:-}" ] && chosen="the environment set OPENBLAS_CORETYPE=$OPENBLAS_CORETYPE"
+           echo "bench: $chosen on an AVX-512 processor; taking SkylakeX" >&2
            export OPENBLAS_CORETYPE=SkylakeX
-           OPENBLAS_CORE="$(openblas_core) (forced: OpenBLAS chose $OPENBLAS_CORE)" ;;
+           OPENBLAS_CORE="$(openblas_core) (forced: $chosen)" ;;
     esac
 fi
 
