@@ -250,12 +250,21 @@ fn sum_while(
     }
 }
 
-/// Unblocked Householder QR of the panel columns k..k+kb (rows k..n) of a column-major local
-/// matrix (leading dimension `ld`, the local row count) whose rows are spread over `comm` as
-/// `rows` says, global column k at local column `lc0`: the row-cyclic layout over all ranks, or
-/// one process column of the 2D layout. With `work`, the all-reduces are non-blocking and `work`
-/// runs while each is in flight (see [`sum_while`]). Returns the tau of each reflector H = I - tau v v^T
-/// (v(0) = 1, its tail stored below the diagonal; R on and above it).
+/// Panels at most this wide are factored column by column; wider ones are split in two halves
+/// ([`factor_panel`]).
+const LEAF: usize = 16;
+
+/// Householder QR of the panel columns k..k+kb (rows k..n) of a column-major local matrix
+/// (leading dimension `ld`, the local row count) whose rows are spread over `comm` as `rows`
+/// says, global column k at local column `lc0`: the row-cyclic layout over all ranks, or one
+/// process column of the 2D layout. Recursive, as LAPACK's dgeqrt3: the left half is factored,
+/// its reflectors are applied to the right half in compact-WY form (I - V T^T V^T, the sums
+/// V^T V and V^T A_right in one all-reduce, the update one GEMM), then the right half is
+/// factored; panels of at most [`LEAF`] columns column by column ([`factor_columns`]). So the
+/// work of a wide panel is mostly BLAS-3, where column by column it is all matrix-vector work
+/// and grows with the panel's width. With `work`, the all-reduces are non-blocking and `work`
+/// runs while each is in flight (see [`sum_while`]). Returns the tau of each reflector
+/// H = I - tau v v^T (v(0) = 1, its tail stored below the diagonal; R on and above it).
 pub(super) fn factor_panel(
     comm: &dyn Comm,
     rows: &dyn RowIndex,
@@ -263,7 +272,100 @@ pub(super) fn factor_panel(
     ld: usize,
     (k, kb): (usize, usize),
     lc0: usize,
-    mut work: Option<&mut dyn FnMut() -> bool>,
+    mut work: Option<&mut (dyn FnMut() -> bool + '_)>,
+) -> Vec<f64> {
+    if kb <= LEAF {
+        return factor_columns(comm, rows, data, ld, (k, kb), lc0, work);
+    }
+    let h = (kb / 2).div_ceil(LEAF) * LEAF;
+    let mut taus = factor_panel(comm, rows, data, ld, (k, h), lc0, work.as_deref_mut());
+    apply_left_half(comm, rows, data, ld, (k, h, kb), lc0, &taus, work.as_deref_mut());
+    taus.extend(factor_panel(comm, rows, data, ld, (k + h, kb - h), lc0 + h, work));
+    taus
+}
+
+/// Applies the reflectors of the factored columns k..k+h (taus `taus`) to the panel columns
+/// k+h..k+kb of the same rows: A_right <- (I - V T^T V^T) A_right over rows k..n. Collective
+/// over `comm` (one all-reduce of V^T V and V^T A_right).
+#[allow(clippy::too_many_arguments)]
+fn apply_left_half(
+    comm: &dyn Comm,
+    rows: &dyn RowIndex,
+    data: &mut [f64],
+    ld: usize,
+    (k, h, kb): (usize, usize, usize),
+    lc0: usize,
+    taus: &[f64],
+    work: Option<&mut (dyn FnMut() -> bool + '_)>,
+) {
+    let w = kb - h;
+    let r0 = rows.first_local_from(k);
+    let mr = ld - r0;
+    // V explicit: zeros above the diagonal, one on it (the diagonal row is the first local row at
+    // or below it, on its owner)
+    let me = comm.rank();
+    let mut v = vec![0.0; mr * h];
+    for c in 0..h {
+        let d = rows.first_local_from(k + c);
+        let col = &data[(lc0 + c) * ld..(lc0 + c + 1) * ld];
+        for l in d..ld {
+            v[l - r0 + c * mr] = col[l];
+        }
+        if rows.owner(k + c) == me && d < ld {
+            v[d - r0 + c * mr] = 1.0;
+        }
+    }
+    let vref = MatRef::from_column_major_slice(&v, mr, h);
+    // [V^T V | V^T A_right], h x (h + w), summed over the ranks at once
+    let mut sums = vec![0.0; h * (h + w)];
+    {
+        let (gram, wsum) = sums.split_at_mut(h * h);
+        matmul(
+            MatMut::from_column_major_slice_mut(gram, h, h),
+            Accum::Replace,
+            vref.transpose(),
+            vref,
+            1.0,
+            Par::Seq,
+        );
+        let right = MatRef::from_column_major_slice_with_stride(&data[(lc0 + h) * ld + r0..], mr, w, ld);
+        matmul(
+            MatMut::from_column_major_slice_mut(wsum, h, w),
+            Accum::Replace,
+            vref.transpose(),
+            right,
+            1.0,
+            Par::Seq,
+        );
+    }
+    sum_while(comm, &mut sums, work, &mut Vec::new());
+    let t = wy_t(taus, MatRef::from_column_major_slice(&sums[..h * h], h, h));
+    let mut tw = faer::Mat::<f64>::zeros(h, w);
+    matmul(
+        tw.as_mut(),
+        Accum::Replace,
+        t.as_ref().transpose(),
+        MatRef::from_column_major_slice(&sums[h * h..], h, w),
+        1.0,
+        Par::Seq,
+    );
+    if mr > 0 {
+        let right =
+            MatMut::from_column_major_slice_with_stride_mut(&mut data[(lc0 + h) * ld + r0..], mr, w, ld);
+        matmul(right, Accum::Add, vref, tw.as_ref(), -1.0, Par::Seq);
+    }
+}
+
+/// Unblocked Householder QR of the panel columns k..k+kb, column by column ([`factor_panel`]'s
+/// leaves): one all-reduce per column.
+fn factor_columns(
+    comm: &dyn Comm,
+    rows: &dyn RowIndex,
+    data: &mut [f64],
+    ld: usize,
+    (k, kb): (usize, usize),
+    lc0: usize,
+    mut work: Option<&mut (dyn FnMut() -> bool + '_)>,
 ) -> Vec<f64> {
     let me = comm.rank();
     let mut recv = Vec::new();

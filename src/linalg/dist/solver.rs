@@ -118,12 +118,12 @@ impl SolverKind {
     /// AVX-512 machine, 2 ranks: Cholesky gains from wide panels (its trailing GEMMs get a longer
     /// inner dimension) as n grows: 256 is best at 2000 and 4000 rows (384 is 3-10 % slower
     /// there), 384 at 8000 (2.20-2.23 s against 2.30-2.34 s with 256); LU is best at 128 (equal
-    /// at 8000, 7 % faster at 4000, where the panel's collectives weigh more); Householder's
-    /// per-column all-reduces favour 64 (48 to 96 take the same time at 8000).
+    /// at 8000, 7 % faster at 4000, where the panel's collectives weigh more); Householder, whose
+    /// panel is factored recursively, too (at 8000 4.24-4.42 s against 4.69-4.72 s with 64 and
+    /// 4.56 s with 256; 7 % faster at 4000, equal at 2000).
     pub fn default_panel(&self, n: usize) -> usize {
         match self {
-            SolverKind::Householder => 64,
-            SolverKind::Lu => 128,
+            SolverKind::Householder | SolverKind::Lu => 128,
             SolverKind::Cholesky | SolverKind::Auto if n >= CHOLESKY_WIDE_FROM => 384,
             SolverKind::Cholesky | SolverKind::Auto => 256,
         }
@@ -133,13 +133,10 @@ impl SolverKind {
     /// resolves to on `n` rows; measured at N+k = 8000 on 2 ranks (1x2 and 2x1 grids): LU and the
     /// projected Cholesky gain from 128 over ScaLAPACK's usual 64 (LU 3.99-4.08 s against
     /// 4.36-4.45 s, Cholesky 2.49-2.57 s against 2.55-2.66 s; 256 helps LU a little more and
-    /// Cholesky not at all), Householder's unblocked panel keeps it at 64 (8.81-8.94 s against
-    /// 8.88-9.64 s with 128). Blocks much wider would unbalance large grids.
-    pub fn default_block_2d(&self, n: usize) -> usize {
-        match self.resolve(n) {
-            SolverKind::Householder => 64,
-            _ => 128,
-        }
+    /// Cholesky not at all), and so does Householder with its recursive panel (1x2 4.22 s against
+    /// 4.89 s, 2x1 4.48 against 5.07). Blocks much wider would unbalance large grids.
+    pub fn default_block_2d(&self, _n: usize) -> usize {
+        128
     }
 
     /// Runs this one solver (resolved for the size) on `rows` without any fallback; a panel of 0
