@@ -26,7 +26,8 @@ turned by the spline's bending energy, src/surface/energy.rs); `side`: the defau
 second fits, the one with less unsupported surface kept, src/surface/choice.rs: the default
 since it was measured as an option); `wide`: the default without it (`--blob-choice off`, the
 wide clearance of the blob search alone); `turns` and `noturns`: `--orient-turns on` and `off` (patches
-turned where that shrinks the surface no data supports, src/surface/turns.rs). A binary whose `fit --help` has no `--surface` only has the plain method:
+turned where that shrinks the surface no data supports, src/surface/turns.rs); `denoise`: `--denoise on`
+(the points moved onto quadrics of their same-sheet neighbours first, src/surface/denoise.rs). A binary whose `fit --help` has no `--surface` only has the plain method:
 then `carrier` runs it without the flag and `default`/`offsurface` are dropped with a note.
 `poisson`: screened Poisson (Kazhdan and Hoppe 2013, pymeshlab, octree depth --poisson-depth)
 on normals estimated by PCA of the 10 nearest neighbours and oriented by MeshLab's propagation.
@@ -215,7 +216,8 @@ def method_list(args, has_surface):
     if has_surface:
         flags = {"default": [], "poisson": [], "energy": ["--orient-energy", "on"], "side": ["--orient-side", "on"],
                  "trimmed": ["--trim"], "choice": ["--blob-choice", "on"], "wide": ["--blob-choice", "off"],
-                 "turns": ["--orient-turns", "on"], "noturns": ["--orient-turns", "off"]}
+                 "turns": ["--orient-turns", "on"], "noturns": ["--orient-turns", "off"],
+                 "denoise": ["--denoise", "on"]}
         return [(m, "poisson" if m == "poisson" else "volspline",
                  flags.get(m, ["--surface", m])) for m in args.methods], ""
     # a binary without --surface has one method, the plain carrier method: run it once as `carrier`
@@ -253,9 +255,9 @@ def parse(argv):
             ap.error(f"unknown mesh {m} (one of {', '.join(MESHES)})")
     for m in args.methods:
         if m not in ("default", "carrier", "offsurface", "energy", "side", "trimmed", "choice", "wide", "turns",
-                     "noturns", "poisson"):
+                     "noturns", "denoise", "poisson"):
             ap.error(f"unknown method {m} (default, carrier, offsurface, energy, side, trimmed, choice, wide, turns, "
-                     "noturns, poisson)")
+                     "noturns, denoise, poisson)")
     if args.quick:
         args.sizes, args.variant_sizes, args.grid = [1000, 2000], [1000], 64
     return args

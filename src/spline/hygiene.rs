@@ -155,6 +155,26 @@ pub struct Prepared {
     pub box_hi: Vec<f64>,
 }
 
+impl Prepared {
+    /// The same data with every point moved to `centres` (normalised, one per point, in order):
+    /// the points in the caller's coordinates and the carrier's values there follow.
+    pub fn with_centres(&self, centres: Vec<f64>) -> Result<Prepared> {
+        assert_eq!(centres.len(), self.centres.len(), "one new centre per point");
+        let points: Vec<f64> = centres
+            .chunks_exact(3)
+            .flat_map(|c| (0..3).map(move |d| self.norm.centre[d] + self.norm.scale * c[d]))
+            .collect();
+        let values: Vec<f64> = points.chunks_exact(3).map(|p| self.carrier.eval(p)).collect();
+        if values.iter().any(|v| !v.is_finite()) {
+            return Err(Error::Numerical(format!(
+                "the carrier '{}' is not finite at the moved points",
+                self.carrier
+            )));
+        }
+        Ok(Prepared { points, centres, values, ..self.clone() })
+    }
+}
+
 /// Data hygiene, deterministic so that every rank gets the same result:
 /// merge points closer than `merge_tol` times the bounding-box diagonal, normalise, check that the
 /// polynomial part is determined, resolve the carrier and take its values at the points.

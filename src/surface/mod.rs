@@ -10,6 +10,8 @@
 //! - [`mod@orient`]: a consistent global orientation (the smallest eigenvector of a signed graph
 //!   Laplacian, corrected patch by patch by the dipole field) made outward by the divergence
 //!   theorem;
+//! - [`denoise`]: optionally, noisy points moved onto quadrics fitted to their same-sheet
+//!   neighbours, before everything else is made again from them;
 //! - [`offsurface`]: the off points and the values the spline takes there;
 //! - [`rays`]: after a first fit, rays inward and outward from every data point find the small
 //!   patches whose normals point inward (a false shell around a thin part), turned for a
@@ -27,6 +29,7 @@
 
 pub mod blobs;
 pub mod choice;
+pub mod denoise;
 pub mod energy;
 pub mod normals;
 pub mod offsurface;

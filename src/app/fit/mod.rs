@@ -154,6 +154,29 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     // monotone in the rows), so a dense choice below holds once they are known
     let most_rows = n + (a.off_points * n as f64).ceil() as usize;
     let two_level = off && choose(a, most_rows, comm.size(), &prep.centres)?.0 == Method::Csrbf;
+    if a.denoise && (!off || two_level) {
+        return Err(Error::Usage(format!(
+            "--denoise on moves the data of the dense off-surface fit; this fit is {} (use --surface \
+             offsurface with --method dense, or leave --denoise off)",
+            if off { "the two-level compactly supported one" } else { "the plain carrier method" }
+        )));
+    }
+    let prep = if a.denoise {
+        let (moved, d) = surface::denoise(&run, &prep, &mut stages)?;
+        if comm.rank() == 0 {
+            eprintln!(
+                "volspline fit: denoise: {} of {n} points moved onto quadrics of their same-sheet neighbours, \
+                 noise estimate {:.3e} ({:.3} % of the diagonal), longest move {:.3e}",
+                d.moved,
+                d.noise * prep.norm.scale,
+                100.0 * d.noise / 2.0,
+                d.max_move * prep.norm.scale
+            );
+        }
+        moved
+    } else {
+        prep
+    };
     let (fitted, summary, method, kernel, why) = if two_level {
         let (method, kernel, why) = choose(a, n, comm.size(), &prep.centres)?;
         if comm.rank() == 0 {

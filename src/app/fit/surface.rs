@@ -18,6 +18,7 @@ use crate::surface::blobs::{
     blob_values, sample, sample_window, winding_numbers, Blobs, Lattice, Search, CLEARANCE,
 };
 use crate::surface::choice::{self, unsupported_share};
+use crate::surface::denoise::Denoised;
 use crate::surface::energy::{flip_by_energy, EnergyFlips};
 use crate::surface::rays::{self, RayCheck};
 use crate::surface::support::DataSupport;
@@ -119,6 +120,22 @@ pub fn name(off: bool) -> &'static str {
     } else {
         "carrier"
     }
+}
+
+/// `prep` with its data points moved onto quadrics fitted to their same-sheet neighbours
+/// (`--denoise on`, [`crate::surface::denoise`]) and what the projection did: the normals are
+/// estimated and oriented once for it, and everything after it ([`constrain`] on) is made again
+/// from the moved points. Collective; every rank computes the same.
+pub fn denoise(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<(Prepared, Denoised)> {
+    let comm: &dyn Comm = run.comm;
+    let hoods = stages.time(Stage::Normals, || agree(comm, neighbourhoods(&prep.centres)))?;
+    let o = stages.time(Stage::Orient, || {
+        surface::oriented_with(comm, &prep.centres, &hoods, run.args.orient_side)
+    })?;
+    let moved =
+        stages.time(Stage::Normals, || surface::denoise::project(&prep.centres, &o.normals, &hoods.knn, hoods.kmax));
+    let out = prep.with_centres(moved.points.clone())?;
+    Ok((out, moved))
 }
 
 /// `prep` with the off-surface points appended to its centres and values (its data points are
