@@ -1062,14 +1062,24 @@ fn denoising_brings_a_noisy_bunny_closer_on_one_and_three_ranks_alike() {
     common::write_xyz(&input, &pts);
     let run = |ranks: usize, tag: &str| {
         let prefix = dir.join(tag);
-        let args = ["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--grid", "64", "--denoise", "on"];
+        let args = [
+            "fit",
+            input.to_str().unwrap(),
+            "--out",
+            prefix.to_str().unwrap(),
+            "--grid",
+            "64",
+            "--denoise",
+            "on",
+        ];
         let text = common::run_ok(ranks, &args);
         let line = text.lines().find(|l| l.contains("denoise:")).unwrap_or_default().to_string();
         (common::load_mesh(&dir.join(format!("{tag}.ply"))), line)
     };
     let (one, line_one) = run(1, "one");
     let (three, line_three) = run(3, "three");
-    let ((rms_plain, far_plain), (rms_one, far_one)) = (mesh_to_cow(&truth, &plain), mesh_to_cow(&truth, &one));
+    let ((rms_plain, far_plain), (rms_one, far_one)) =
+        (mesh_to_cow(&truth, &plain), mesh_to_cow(&truth, &one));
     println!("plain: rms {rms_plain:.5} far {far_plain:.4}\ndenoised: rms {rms_one:.5} far {far_one:.4}\n{line_one}");
     // measured: 1961 of 2000 points moved (39 with fewer than 8 same-sheet neighbours), noise
     // estimate 0.441 % of the diagonal; mesh -> bunny rms 0.466 -> 0.390 %
@@ -1078,7 +1088,11 @@ fn denoising_brings_a_noisy_bunny_closer_on_one_and_three_ranks_alike() {
     // every rank projects alike: the same report and the same surface
     assert_eq!(line_one, line_three);
     assert_eq!(one.vertices.len(), three.vertices.len());
-    let d = one.vertices.iter().zip(&three.vertices).map(|(a, b)| (0..3).map(|k| (a[k] - b[k]).abs()).fold(0.0, f64::max));
+    let d = one
+        .vertices
+        .iter()
+        .zip(&three.vertices)
+        .map(|(a, b)| (0..3).map(|k| (a[k] - b[k]).abs()).fold(0.0, f64::max));
     assert!(d.fold(0.0, f64::max) < 1e-6, "the surfaces on 1 and 3 ranks differ");
 }
 
@@ -1089,10 +1103,23 @@ fn denoise_is_refused_where_it_does_not_apply() {
     let input = dir.join("p.xyz");
     common::write_xyz(&input, &pts[..3 * 500]);
     let prefix = dir.join("s");
-    let args = ["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--surface", "carrier", "--denoise", "on"];
+    let args = [
+        "fit",
+        input.to_str().unwrap(),
+        "--out",
+        prefix.to_str().unwrap(),
+        "--surface",
+        "carrier",
+        "--denoise",
+        "on",
+    ];
     let out = common::run(1, &args);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
-    assert!(err.contains("--denoise on moves the data of the dense off-surface fit") && err.contains("plain carrier"), "{err}");
+    assert!(
+        err.contains("--denoise on moves the data of the dense off-surface fit")
+            && err.contains("plain carrier"),
+        "{err}"
+    );
     assert!(!prefix.with_extension("ply").exists());
 }

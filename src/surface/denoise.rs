@@ -52,8 +52,10 @@ pub struct Denoised {
 /// or every other point.
 pub fn project(points: &[f64], normals: &[[f64; 3]], knn: &[usize], kmax: usize) -> Denoised {
     let n = points.len() / 3;
-    let fits: Vec<Option<([f64; 3], f64)>> =
-        (0..n).into_par_iter().map(|i| quadric_at(points, normals, &knn[i * kmax..(i + 1) * kmax], i)).collect();
+    let fits: Vec<Option<([f64; 3], f64)>> = (0..n)
+        .into_par_iter()
+        .map(|i| quadric_at(points, normals, &knn[i * kmax..(i + 1) * kmax], i))
+        .collect();
     let mut misfits: Vec<f64> = fits.iter().flatten().map(|&(_, r)| r).collect();
     misfits.sort_by(f64::total_cmp);
     let noise = if misfits.is_empty() { 0.0 } else { misfits[misfits.len() / 2] };
@@ -86,8 +88,9 @@ fn quadric_at(points: &[f64], normals: &[[f64; 3]], near: &[usize], i: usize) ->
     if !(h > 0.0) {
         return None;
     }
-    let sheet: Vec<usize> =
-        std::iter::once(i).chain(near.iter().copied().filter(|&j| dot(normals[j], ni) > SAME_SHEET)).collect();
+    let sheet: Vec<usize> = std::iter::once(i)
+        .chain(near.iter().copied().filter(|&j| dot(normals[j], ni) > SAME_SHEET))
+        .collect();
     if sheet.len() < MIN_ON_SHEET {
         return None;
     }
@@ -211,7 +214,10 @@ mod tests {
     }
 
     fn radial_rms(pts: &[f64]) -> f64 {
-        let s: f64 = pts.chunks_exact(3).map(|p| (dot([p[0], p[1], p[2]], [p[0], p[1], p[2]]).sqrt() - 1.0).powi(2)).sum();
+        let s: f64 = pts
+            .chunks_exact(3)
+            .map(|p| (dot([p[0], p[1], p[2]], [p[0], p[1], p[2]]).sqrt() - 1.0).powi(2))
+            .sum();
         (s / (pts.len() / 3) as f64).sqrt()
     }
 
@@ -227,7 +233,9 @@ mod tests {
         let after = radial_rms(&d.points);
         assert_eq!(d.moved, 2000);
         assert!(after < 0.5 * before, "rms off the sphere {before} -> {after}");
-        let mean_r: f64 = d.points.chunks_exact(3).map(|p| dot([p[0], p[1], p[2]], [p[0], p[1], p[2]]).sqrt()).sum::<f64>() / 2000.0;
+        let mean_r: f64 =
+            d.points.chunks_exact(3).map(|p| dot([p[0], p[1], p[2]], [p[0], p[1], p[2]]).sqrt()).sum::<f64>()
+                / 2000.0;
         assert!((mean_r - 1.0).abs() < 2e-3, "mean radius {mean_r}");
         let (exact, nrm) = sphere(2000, 0.0);
         let d = project(&exact, &nrm, &knn_of(&exact), 20);

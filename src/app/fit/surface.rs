@@ -129,11 +129,11 @@ pub fn name(off: bool) -> &'static str {
 pub fn denoise(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<(Prepared, Denoised)> {
     let comm: &dyn Comm = run.comm;
     let hoods = stages.time(Stage::Normals, || agree(comm, neighbourhoods(&prep.centres)))?;
-    let o = stages.time(Stage::Orient, || {
-        surface::oriented_with(comm, &prep.centres, &hoods, run.args.orient_side)
-    })?;
-    let moved =
-        stages.time(Stage::Normals, || surface::denoise::project(&prep.centres, &o.normals, &hoods.knn, hoods.kmax));
+    let o = stages
+        .time(Stage::Orient, || surface::oriented_with(comm, &prep.centres, &hoods, run.args.orient_side))?;
+    let moved = stages.time(Stage::Normals, || {
+        surface::denoise::project(&prep.centres, &o.normals, &hoods.knn, hoods.kmax)
+    });
     let out = prep.with_centres(moved.points.clone())?;
     Ok((out, moved))
 }
