@@ -39,10 +39,10 @@
 //! owners of those rows and R c = Q1^T r - (Q1^T A Q2) mu is a k x k triangular solve. B is
 //! factored by a blocked, right-looking, row-cyclic Cholesky that only updates the lower
 //! triangle (L11 L11^T = B11, L21 = B21 L11^-T, B22 <- B22 - L21 L21^T); the update runs by
-//! blocks of columns, so the block of L21^T that a GEMM reads stays in cache while the rank's rows
-//! below the diagonal stream past it (a row chunk against all trailing columns would read all of
-//! L21^T from memory for every chunk); forward and back substitution give mu, and lambda = Q [0; mu] applies the k
-//! reflectors to a vector, last one first.
+//! blocks of columns, so the block of L21^T that a GEMM reads stays in cache while the rank's
+//! rows below the diagonal stream past it (a row chunk against all trailing columns would read
+//! all of L21^T from memory for every chunk). Forward and back substitution give mu, and
+//! lambda = Q [0; mu] applies the k reflectors to a vector, last one first.
 //!
 //! Look-ahead: every rank holds rows of every panel, so every rank prepares the next panel
 //! itself. With `job.lookahead`, once L21 of panel k is on every rank, each rank updates the
