@@ -161,21 +161,25 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             if off { "the two-level compactly supported one" } else { "the plain carrier method" }
         )));
     }
-    let prep = if a.denoise {
+    // the projection's report: moved points, and the noise estimate and longest move in the
+    // data's units
+    let (prep, denoised) = if a.denoise {
         let (moved, d) = surface::denoise(&run, &prep, &mut stages)?;
+        let scale = prep.norm.scale;
+        let line = format!(
+            "denoise: {} of {n} points moved onto quadrics of their same-sheet neighbours, noise estimate \
+             {:.3e} ({:.3} % of the diagonal), longest move {:.3e}",
+            d.moved,
+            d.noise * scale,
+            100.0 * d.noise / 2.0,
+            d.max_move * scale
+        );
         if comm.rank() == 0 {
-            eprintln!(
-                "volspline fit: denoise: {} of {n} points moved onto quadrics of their same-sheet neighbours, \
-                 noise estimate {:.3e} ({:.3} % of the diagonal), longest move {:.3e}",
-                d.moved,
-                d.noise * prep.norm.scale,
-                100.0 * d.noise / 2.0,
-                d.max_move * prep.norm.scale
-            );
+            eprintln!("volspline fit: {line}");
         }
-        moved
+        (moved, Some((line, d.moved, d.noise * scale, d.max_move * scale)))
     } else {
-        prep
+        (prep, None)
     };
     let (fitted, summary, method, kernel, why) = if two_level {
         let (method, kernel, why) = choose(a, n, comm.size(), &prep.centres)?;
@@ -283,6 +287,9 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         "N = {n} points ({points_read} read, {merged} duplicates merged), method {method_name} ({why}), kernel {}{smoothing}",
         kernel.name()
     ));
+    if let Some((line, ..)) = &denoised {
+        r.line(line.clone());
+    }
     r.line(surface_line(summary.as_ref(), two_level));
     r.line(fitted.line.clone());
     r.line(format!("ranks = {}, threads per rank = {threads}", comm.size()));
@@ -299,6 +306,11 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     r.figure("smoothing", kernel.smoothing());
     r.figure("surface", surface::name(off));
     r.figure("levels", if two_level { 2 } else { 1 });
+    if let Some((_, moved, noise, longest)) = &denoised {
+        r.figure("denoise_moved", moved);
+        r.figure("denoise_noise", format!("{noise:e}"));
+        r.figure("denoise_longest_move", format!("{longest:e}"));
+    }
     if let Some(s) = &summary {
         r.figure("off_points", s.off_points);
         r.figure("off_dropped", s.dropped);
