@@ -34,6 +34,13 @@ pub const MIN_ON_SHEET: usize = 8;
 /// The largest move in units of the noise estimate (the median misfit).
 pub const MOVE_LIMIT: f64 = 2.0;
 
+/// Neighbours of the smaller fit of [`scale_ratio`].
+pub const SMALL: usize = 9;
+
+/// Below this ratio of the quadrics' misfits over [`NEIGHBOURS`] and over [`SMALL`] neighbours
+/// the misfit is taken for noise ([`scale_ratio`]).
+pub const NOISE_RATIO: f64 = 1.38;
+
 /// The projected points and what the projection did.
 #[derive(Debug, Clone)]
 pub struct Denoised {
@@ -77,6 +84,122 @@ pub fn project(points: &[f64], normals: &[[f64; 3]], knn: &[usize], kmax: usize)
     Denoised { points: out, moved, noise, max_move }
 }
 
+/// Whether the quadrics' misfit is noise or curvature: the median misfit of unweighted quadrics
+/// through each point's [`NEIGHBOURS`] nearest neighbours over that through its [`SMALL`]
+/// nearest (each the rms residual over the residual's degrees of freedom, n - 6, so that the
+/// few points of the small fit do not hide their noise). Noise of standard deviation sigma gives
+/// sigma at both sizes, a ratio near 1; the misfit of a quadric to a smooth surface grows with
+/// the cube of the neighbourhood's radius, about 1.4 times larger for twice the points, so
+/// clean samples give 2-3 where they are dense and about 1.5-2 where they are sparse (the
+/// neighbourhood then spans creases). `normals` need not be oriented (a neighbour is on the
+/// sheet when |n_j . n_i| > 0.5). Returns the two medians and their ratio.
+pub fn scale_ratio(points: &[f64], normals: &[[f64; 3]], knn: &[usize], kmax: usize) -> (f64, f64, f64) {
+    let n = points.len() / 3;
+    let median = |count: usize| {
+        let mut m: Vec<f64> = (0..n)
+            .into_par_iter()
+            .filter_map(|i| {
+                let near = &knn[i * kmax..i * kmax + count.min(kmax)];
+                let p = pt(points, i);
+                let sheet: Vec<usize> = std::iter::once(i)
+                    .chain(near.iter().copied().filter(|&j| dot(normals[j], normals[i]).abs() > SAME_SHEET))
+                    .collect();
+                let h = near.last().map(|&j| dist(p, pt(points, j)))?;
+                let fit = fit_quadric(points, normals, &sheet, None, h)?;
+                Some(h * (fit.rss / (sheet.len() - 6) as f64).sqrt())
+            })
+            .collect();
+        m.sort_by(f64::total_cmp);
+        if m.is_empty() {
+            f64::NAN
+        } else {
+            m[m.len() / 2]
+        }
+    };
+    let (small, large) = (median(SMALL), median(NEIGHBOURS));
+    (small, large, large / small)
+}
+
+/// A quadric height over a frame: the frame's origin, axes and scale, its 6 coefficients, and
+/// the weighted sum of squared residuals and of the weights (in units of the scale).
+struct Quadric {
+    c: [f64; 3],
+    u: [f64; 3],
+    v: [f64; 3],
+    z: [f64; 3],
+    h: f64,
+    coef: [f64; 6],
+    rss: f64,
+    wsum: f64,
+}
+
+impl Quadric {
+    fn local(&self, q: [f64; 3]) -> (f64, f64, f64) {
+        let d = [q[0] - self.c[0], q[1] - self.c[1], q[2] - self.c[2]];
+        (dot(d, self.u) / self.h, dot(d, self.v) / self.h, dot(d, self.z) / self.h)
+    }
+}
+
+fn basis(x: f64, y: f64) -> [f64; 6] {
+    [1.0, x, y, x * x, x * y, y * y]
+}
+
+/// The least-squares quadric height through the points `sheet` (at least [`MIN_ON_SHEET`]) over
+/// the frame of their mean normal (normals of either sign are turned to the first's side) and
+/// centroid, in coordinates scaled by `h`, weighted exp(-(|q - centre| / h)^2) around `centre`
+/// where given, else unweighted. None where the fit is singular.
+fn fit_quadric(
+    points: &[f64],
+    normals: &[[f64; 3]],
+    sheet: &[usize],
+    centre: Option<[f64; 3]>,
+    h: f64,
+) -> Option<Quadric> {
+    if sheet.len() < MIN_ON_SHEET || !(h > 0.0) {
+        return None;
+    }
+    let first = normals[sheet[0]];
+    let mut z = [0.0; 3];
+    let mut c = [0.0; 3];
+    for &j in sheet {
+        let q = pt(points, j);
+        let s = if dot(normals[j], first) < 0.0 { -1.0 } else { 1.0 };
+        for a in 0..3 {
+            z[a] += s * normals[j][a];
+            c[a] += q[a] / sheet.len() as f64;
+        }
+    }
+    let z = unit(z)?;
+    let helper = if z[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
+    let u = unit(cross(z, helper))?;
+    let v = cross(z, u);
+    let mut quad = Quadric { c, u, v, z, h, coef: [0.0; 6], rss: 0.0, wsum: 0.0 };
+    let weight = |q: [f64; 3]| centre.map_or(1.0, |p| (-(dist(p, q) / h).powi(2)).exp());
+    let (mut m, mut b) = ([[0.0; 6]; 6], [0.0; 6]);
+    for &j in sheet {
+        let q = pt(points, j);
+        let w = weight(q);
+        let (x, y, zz) = quad.local(q);
+        let a = basis(x, y);
+        for r in 0..6 {
+            b[r] += w * a[r] * zz;
+            for s in 0..6 {
+                m[r][s] += w * a[r] * a[s];
+            }
+        }
+    }
+    quad.coef = solve6(m, b)?;
+    for &j in sheet {
+        let q = pt(points, j);
+        let w = weight(q);
+        let (x, y, zz) = quad.local(q);
+        let r = zz - basis(x, y).iter().zip(&quad.coef).map(|(a, k)| a * k).sum::<f64>();
+        quad.wsum += w;
+        quad.rss += w * r * r;
+    }
+    Some(quad)
+}
+
 /// The projection of point i onto the quadric of its same-sheet neighbours (`near`, nearest
 /// first) and the quadric's weighted rms misfit; None where too few neighbours share the sheet
 /// or the fit is singular.
@@ -85,61 +208,14 @@ fn quadric_at(points: &[f64], normals: &[[f64; 3]], near: &[usize], i: usize) ->
     let p = pt(points, i);
     let ni = normals[i];
     let h = near.last().map(|&j| dist(p, pt(points, j)))?;
-    if !(h > 0.0) {
-        return None;
-    }
     let sheet: Vec<usize> = std::iter::once(i)
         .chain(near.iter().copied().filter(|&j| dot(normals[j], ni) > SAME_SHEET))
         .collect();
-    if sheet.len() < MIN_ON_SHEET {
-        return None;
-    }
-    // the frame: the mean normal as the height axis, through the centroid
-    let mut z = [0.0; 3];
-    let mut c = [0.0; 3];
-    for &j in &sheet {
-        let q = pt(points, j);
-        for a in 0..3 {
-            z[a] += normals[j][a];
-            c[a] += q[a] / sheet.len() as f64;
-        }
-    }
-    let z = unit(z)?;
-    let helper = if z[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
-    let u = unit(cross(z, helper))?;
-    let v = cross(z, u);
-    let local = |q: [f64; 3]| {
-        let d = [q[0] - c[0], q[1] - c[1], q[2] - c[2]];
-        (dot(d, u) / h, dot(d, v) / h, dot(d, z) / h)
-    };
-    let basis = |x: f64, y: f64| [1.0, x, y, x * x, x * y, y * y];
-    // weighted normal equations of the 6 coefficients
-    let (mut m, mut b) = ([[0.0; 6]; 6], [0.0; 6]);
-    let mut samples = Vec::with_capacity(sheet.len());
-    for &j in &sheet {
-        let q = pt(points, j);
-        let w = (-(dist(p, q) / h).powi(2)).exp();
-        let (x, y, zz) = local(q);
-        let a = basis(x, y);
-        for r in 0..6 {
-            b[r] += w * a[r] * zz;
-            for s in 0..6 {
-                m[r][s] += w * a[r] * a[s];
-            }
-        }
-        samples.push((w, a, zz));
-    }
-    let coef = solve6(m, b)?;
-    let (mut wsum, mut rsum) = (0.0, 0.0);
-    for (w, a, zz) in samples {
-        let r = zz - (0..6).map(|t| coef[t] * a[t]).sum::<f64>();
-        wsum += w;
-        rsum += w * r * r;
-    }
-    let misfit = h * (rsum / wsum).sqrt();
-    let (x, y, _) = local(p);
-    let height: f64 = basis(x, y).iter().zip(&coef).map(|(a, k)| a * k).sum();
-    let to = [0, 1, 2].map(|a| c[a] + h * (x * u[a] + y * v[a] + height * z[a]));
+    let quad = fit_quadric(points, normals, &sheet, Some(p), h)?;
+    let misfit = h * (quad.rss / quad.wsum).sqrt();
+    let (x, y, _) = quad.local(p);
+    let height: f64 = basis(x, y).iter().zip(&quad.coef).map(|(a, k)| a * k).sum();
+    let to = [0, 1, 2].map(|a| quad.c[a] + h * (x * quad.u[a] + y * quad.v[a] + height * quad.z[a]));
     (to.iter().all(|t| t.is_finite()) && misfit.is_finite()).then_some((to, misfit))
 }
 

@@ -154,21 +154,44 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     // monotone in the rows), so a dense choice below holds once they are known
     let most_rows = n + (a.off_points * n as f64).ceil() as usize;
     let two_level = off && choose(a, most_rows, comm.size(), &prep.centres)?.0 == Method::Csrbf;
-    if a.denoise && (!off || two_level) {
+    if a.denoise.0 == Some(true) && (!off || two_level) {
         return Err(Error::Usage(format!(
             "--denoise on moves the data of the dense off-surface fit; this fit is {} (use --surface \
              offsurface with --method dense, or leave --denoise off)",
             if off { "the two-level compactly supported one" } else { "the plain carrier method" }
         )));
     }
+    // auto: the scale test of the quadrics' misfit on the unoriented normals
+    let auto = match a.denoise.0 {
+        None if off && !two_level => Some(stages.time(Stage::Normals, || -> Result<_> {
+            let hoods = agree(comm, crate::surface::neighbourhoods(&prep.centres))?;
+            Ok(crate::surface::denoise::scale_ratio(&prep.centres, &hoods.normals, &hoods.knn, hoods.kmax))
+        })?),
+        _ => None,
+    };
+    let denoise = a.denoise.0.unwrap_or(false)
+        || auto.is_some_and(|(_, _, ratio)| ratio < crate::surface::denoise::NOISE_RATIO);
+    let auto_part = auto.map_or(String::new(), |(small, large, ratio)| {
+        format!(
+            "auto, misfit over 19 / 9 neighbours {:.3e} / {:.3e} = {ratio:.2} ({} {}): ",
+            large * prep.norm.scale,
+            small * prep.norm.scale,
+            if ratio < crate::surface::denoise::NOISE_RATIO {
+                "noise, below"
+            } else {
+                "curvature, not below"
+            },
+            crate::surface::denoise::NOISE_RATIO
+        )
+    });
     // the projection's report: moved points, and the noise estimate and longest move in the
     // data's units
-    let (prep, denoised) = if a.denoise {
+    let (prep, denoised) = if denoise {
         let (moved, d) = surface::denoise(&run, &prep, &mut stages)?;
         let scale = prep.norm.scale;
         let line = format!(
-            "denoise: {} of {n} points moved onto quadrics of their same-sheet neighbours, noise estimate \
-             {:.3e} ({:.3} % of the diagonal), longest move {:.3e}",
+            "denoise: {auto_part}{} of {n} points moved onto quadrics of their same-sheet neighbours, noise \
+             estimate {:.3e} ({:.3} % of the diagonal), longest move {:.3e}",
             d.moved,
             d.noise * scale,
             100.0 * d.noise / 2.0,
@@ -179,7 +202,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         }
         (moved, Some((line, d.moved, d.noise * scale, d.max_move * scale)))
     } else {
-        (prep, None)
+        (prep, auto.map(|_| (format!("denoise: {auto_part}not applied"), 0, 0.0, 0.0)))
     };
     let (fitted, summary, method, kernel, why) = if two_level {
         let (method, kernel, why) = choose(a, n, comm.size(), &prep.centres)?;
@@ -306,6 +329,9 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     r.figure("smoothing", kernel.smoothing());
     r.figure("surface", surface::name(off));
     r.figure("levels", if two_level { 2 } else { 1 });
+    if let Some((_, _, ratio)) = auto {
+        r.figure("denoise_scale_ratio", format!("{ratio:.4}"));
+    }
     if let Some((_, moved, noise, longest)) = &denoised {
         r.figure("denoise_moved", moved);
         r.figure("denoise_noise", format!("{noise:e}"));
