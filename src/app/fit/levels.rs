@@ -123,7 +123,7 @@ pub fn fit(
     let mut inner = Stages::default();
     let keep = even_subsample(&prep.centres, coarse_points);
     let sub = restrict(prep, &keep);
-    let mut constrained = constrain(run, &sub, &mut inner)?;
+    let mut constrained = constrain(run, &sub, None, &mut inner)?;
     let r = Kernel::new(3, 2)?.with_smoothing(run.args.smooth)?;
     let mut refit =
         |p: &Prepared, first: Option<&dense::KeptFactor>, st: &mut Stages| dense::refit(run, r, p, first, st);

@@ -162,12 +162,21 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         )));
     }
     // auto: the scale test of the quadrics' misfit on the unoriented normals
-    let auto = match a.denoise.0 {
-        None if off && !two_level => Some(stages.time(Stage::Normals, || -> Result<_> {
-            let hoods = agree(comm, crate::surface::neighbourhoods(&prep.centres))?;
-            Ok(crate::surface::denoise::scale_ratio(&prep.centres, &hoods.normals, &hoods.knn, hoods.kmax))
-        })?),
-        _ => None,
+    let (auto, mut hoods) = match a.denoise.0 {
+        None if off && !two_level => {
+            let (ratio, hoods) = stages.time(Stage::Normals, || -> Result<_> {
+                let hoods = agree(comm, crate::surface::neighbourhoods(&prep.centres))?;
+                let r = crate::surface::denoise::scale_ratio(
+                    &prep.centres,
+                    &hoods.normals,
+                    &hoods.knn,
+                    hoods.kmax,
+                );
+                Ok((r, hoods))
+            })?;
+            (Some(ratio), Some(hoods))
+        }
+        _ => (None, None),
     };
     let denoise = a.denoise.0.unwrap_or(false)
         || auto.is_some_and(|(_, _, ratio)| ratio < crate::surface::denoise::NOISE_RATIO);
@@ -187,7 +196,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     // the projection's report: moved points, and the noise estimate and longest move in the
     // data's units
     let (prep, denoised) = if denoise {
-        let (moved, d) = surface::denoise(&run, &prep, &mut stages)?;
+        let (moved, d) = surface::denoise(&run, &prep, hoods.take(), &mut stages)?;
         let scale = prep.norm.scale;
         let line = format!(
             "denoise: {auto_part}{} of {n} points moved onto quadrics of their same-sheet neighbours, noise \
@@ -222,7 +231,8 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         super::finite::check_fit(&fitted, &prep)?;
         (fitted, Some(summary), method, kernel, why)
     } else {
-        let mut constrained = if off { Some(surface::constrain(&run, &prep, &mut stages)?) } else { None };
+        let mut constrained =
+            if off { Some(surface::constrain(&run, &prep, hoods.take(), &mut stages)?) } else { None };
         // the spline's centres and values: the data's, with the off-surface points after them
         let fit_prep = constrained.as_ref().map_or(&prep, |c| &c.prep);
         let first_summary = constrained.as_ref().map(|c| c.summary.clone());

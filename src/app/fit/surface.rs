@@ -123,12 +123,21 @@ pub fn name(off: bool) -> &'static str {
 }
 
 /// `prep` with its data points moved onto quadrics fitted to their same-sheet neighbours
-/// (`--denoise on`, [`crate::surface::denoise`]) and what the projection did: the normals are
-/// estimated and oriented once for it, and everything after it ([`constrain`] on) is made again
-/// from the moved points. Collective; every rank computes the same.
-pub fn denoise(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<(Prepared, Denoised)> {
+/// (`--denoise`, [`crate::surface::denoise`]) and what the projection did: the normals are
+/// oriented once for it (from `hoods`, the neighbourhoods of `prep`'s points, where the caller
+/// has them), and everything after it ([`constrain`] on) is made again from the moved points.
+/// Collective; every rank computes the same.
+pub fn denoise(
+    run: &Run<'_>,
+    prep: &Prepared,
+    hoods: Option<Neighbourhoods>,
+    stages: &mut Stages,
+) -> Result<(Prepared, Denoised)> {
     let comm: &dyn Comm = run.comm;
-    let hoods = stages.time(Stage::Normals, || agree(comm, neighbourhoods(&prep.centres)))?;
+    let hoods = match hoods {
+        Some(h) => h,
+        None => stages.time(Stage::Normals, || agree(comm, neighbourhoods(&prep.centres)))?,
+    };
     let o = stages
         .time(Stage::Orient, || surface::oriented_with(comm, &prep.centres, &hoods, run.args.orient_side))?;
     let moved = stages.time(Stage::Normals, || {
@@ -139,10 +148,19 @@ pub fn denoise(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<(P
 }
 
 /// `prep` with the off-surface points appended to its centres and values (its data points are
-/// left as they are) and what was done. Collective.
-pub fn constrain(run: &Run<'_>, prep: &Prepared, stages: &mut Stages) -> Result<Constrained> {
+/// left as they are) and what was done; `hoods`: the neighbourhoods of `prep`'s points where the
+/// caller has them. Collective.
+pub fn constrain(
+    run: &Run<'_>,
+    prep: &Prepared,
+    hoods: Option<Neighbourhoods>,
+    stages: &mut Stages,
+) -> Result<Constrained> {
     let comm: &dyn Comm = run.comm;
-    let hoods = stages.time(Stage::Normals, || agree(comm, neighbourhoods(&prep.centres)))?;
+    let hoods = match hoods {
+        Some(h) => h,
+        None => stages.time(Stage::Normals, || agree(comm, neighbourhoods(&prep.centres)))?,
+    };
     let (orientation, off) = stages.time(Stage::Orient, || -> Result<_> {
         let o = surface::oriented_with(comm, &prep.centres, &hoods, run.args.orient_side)?;
         let off = by_trust(prep, &hoods, &o.normals, run.args);
