@@ -25,6 +25,8 @@
 
 use rayon::prelude::*;
 
+use crate::linalg::dense::lu_solve;
+
 /// Neighbours besides the point itself that a quadric is fitted to.
 pub const NEIGHBOURS: usize = 19;
 /// Least cosine between two oriented normals on the same sheet.
@@ -188,7 +190,10 @@ fn fit_quadric(
             }
         }
     }
-    quad.coef = solve6(m, b)?;
+    // the serial LU with partial pivoting; a singular system: too few or degenerate points for
+    // a quadric
+    let coef = lu_solve(faer::Mat::from_fn(6, 6, |r, c| m[r][c]).as_ref(), &b).ok()?;
+    quad.coef.copy_from_slice(&coef);
     for &j in sheet {
         let q = pt(points, j);
         let w = weight(q);
@@ -217,33 +222,6 @@ fn quadric_at(points: &[f64], normals: &[[f64; 3]], near: &[usize], i: usize) ->
     let height: f64 = basis(x, y).iter().zip(&quad.coef).map(|(a, k)| a * k).sum();
     let to = [0, 1, 2].map(|a| quad.c[a] + h * (x * quad.u[a] + y * quad.v[a] + height * quad.z[a]));
     (to.iter().all(|t| t.is_finite()) && misfit.is_finite()).then_some((to, misfit))
-}
-
-/// Solves the 6 x 6 system by Gaussian elimination with partial pivoting; None when a pivot is
-/// negligible against the matrix (too few or degenerate points for a quadric).
-fn solve6(mut m: [[f64; 6]; 6], mut b: [f64; 6]) -> Option<[f64; 6]> {
-    let scale = m.iter().flatten().fold(0.0f64, |s, x| s.max(x.abs()));
-    for col in 0..6 {
-        let piv = (col..6).max_by(|&r, &s| m[r][col].abs().total_cmp(&m[s][col].abs()))?;
-        if !(m[piv][col].abs() > 1e-12 * scale) {
-            return None;
-        }
-        m.swap(col, piv);
-        b.swap(col, piv);
-        for r in col + 1..6 {
-            let f = m[r][col] / m[col][col];
-            for s in col..6 {
-                m[r][s] -= f * m[col][s];
-            }
-            b[r] -= f * b[col];
-        }
-    }
-    let mut x = [0.0; 6];
-    for r in (0..6).rev() {
-        let s: f64 = (r + 1..6).map(|t| m[r][t] * x[t]).sum();
-        x[r] = (b[r] - s) / m[r][r];
-    }
-    Some(x)
 }
 
 fn pt(points: &[f64], i: usize) -> [f64; 3] {
