@@ -150,6 +150,20 @@ elif mode == "solve":
             dgemm = max(float(r["gflops"]) for r in csv.DictReader(f) if r["kernel"] == "dgemm")
         limit = dgemm * ranks
         lines.append(f"- DGEMM rate (OpenBLAS, one core, best shape): {dgemm:.1f} GFLOP/s; {ranks} ranks: {limit:.1f}")
+        together = f"{out}/micro_blas_concurrent.csv"
+        if os.path.exists(together):
+            with open(together) as f:
+                rates = [r for r in csv.DictReader(f) if r["kernel"] == "dgemm"]
+            # per copy its best shape; the slowest copy sets the pace of a collective algorithm
+            best = {}
+            for r in rates:
+                best[r["copy"]] = max(best.get(r["copy"], 0.0), float(r["gflops"]))
+            if best:
+                slow = min(best.values())
+                lines.append(f"- DGEMM rate of a core while all {len(best)} run one at once: "
+                             f"{', '.join(f'{v:.1f}' for v in best.values())} GFLOP/s, the slowest "
+                             f"{100 * slow / dgemm:.0f} % of one core alone (the ceiling of a GEMM-bound "
+                             f"1 -> {len(best)} rank efficiency on this machine)")
         for key, (g, _) in sorted(gf.items()):
             if (key[0].startswith("volspline") or key[0] == "scalapack") and key[2] == nmax and key[3] == ranks:
                 where = f" ({key[4]})" if len(key) > 4 else ""

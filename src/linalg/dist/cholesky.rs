@@ -56,7 +56,7 @@
 
 use faer::linalg::matmul::matmul;
 use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
-use faer::reborrow::Reborrow;
+use faer::reborrow::{Reborrow, ReborrowMut};
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 
 use super::layout::RowCyclic;
@@ -71,10 +71,13 @@ use crate::par::Comm;
 /// enough that the triangle is followed closely, large enough for BLAS-3 speed.
 const ROW_CHUNK: usize = 96;
 
-/// Columns per block of the trailing update: the block of L21^T a GEMM reads (panel x 512, 1.5 MB
-/// at the default panel of 384) stays in a core's cache while the rows below the diagonal stream
-/// past it, where a chunk of rows against all trailing columns streams all of L21^T from memory.
-const COL_BLOCK: usize = 512;
+/// Columns of each rank's part of L21^T per block of the trailing update (a block spans this
+/// many times the number of ranks columns, every rank's share a GEMM of its own): the part a GEMM
+/// reads (panel x 1024, 3 MB at the default panel of 384) stays in the shared cache while the
+/// rows below the diagonal stream past it, where a chunk of rows against all trailing columns
+/// streams all of L21^T from memory. At N+k = 8000 on 2 ranks 1024 is 1-2 % faster than 512;
+/// on one rank they are equal.
+const COL_BLOCK: usize = 1024;
 
 /// Local rows per GEMM below the diagonal block: pieces of a few milliseconds, so the
 /// non-blocking gathers of the look-ahead are tested often.
@@ -373,7 +376,7 @@ pub(super) fn factor_projected<T: Scalar>(
     let lookahead = lookahead && comm.size() > 1;
     let (mut bufs, mut next_bufs) = (GatherBuffers::default(), GatherBuffers::default());
     let (mut p0, mut pb) = (k, nb.min(n - k));
-    prepare_panel(comm, lay, &mut rows.data, (p0, p0 + pb, n), par, &mut bufs, None)?;
+    prepare_panel(comm, lay, &mut rows.data[p0 * ld..], (p0, p0 + pb, n), par, &mut bufs, None)?;
     loop {
         let p1 = p0 + pb;
         if p1 == n {
@@ -396,12 +399,14 @@ pub(super) fn factor_projected<T: Scalar>(
         let pieces = trailing_pieces(lay, (p1, split, n));
         // the pieces in the next panel's columns come first: they are what it reads
         let ahead = pieces.iter().take_while(|piece| piece.cols.1 <= split).count();
-        // this rank's rows of L21, apart from the columns the next panel writes
-        let l21 = rows.view().submatrix(t0, p0, la - t0, pb).to_owned();
+        // this rank's rows of L21, read where they lie: the update writes only columns p1.. of
+        // the rows (data[p1 * ld..]), the panel's columns are before them
+        let (done, rest) = rows.data.split_at_mut(p1 * ld);
+        let l21 = MatRef::from_column_major_slice_with_stride(&done[p0 * ld + t0..], la - t0, pb, ld);
         // data: this rank's rows from global column `base` on
         let update = |data: &mut [T], base: usize, piece: &Piece| {
             let (a, b) = piece.rows;
-            let l = l21.as_ref().subrows(a - t0, b - a);
+            let l = l21.subrows(a - t0, b - a);
             let (c0, c1) = piece.cols;
             for r in 0..lay.ranks {
                 let cnt = lay.count_in_on(r, c0, c1);
@@ -423,15 +428,15 @@ pub(super) fn factor_projected<T: Scalar>(
         };
         if !lookahead {
             for piece in &pieces {
-                update(&mut rows.data, 0, piece);
+                update(rest, p1, piece);
             }
-            prepare_panel(comm, lay, &mut rows.data, (p1, split, n), par, &mut next_bufs, None)?;
+            prepare_panel(comm, lay, rest, (p1, split, n), par, &mut next_bufs, None)?;
         } else {
             for piece in &pieces[..ahead] {
-                update(&mut rows.data, 0, piece);
+                update(rest, p1, piece);
             }
             // the other pieces one at a time, in the windows of the next panel's gathers
-            let (left, right) = rows.data.split_at_mut(split * ld);
+            let (left, right) = rest.split_at_mut((split - p1) * ld);
             let mut rest = pieces[ahead..].iter();
             let mut work = || match rest.next() {
                 Some(piece) => {
@@ -457,7 +462,7 @@ struct Piece {
 
 /// The GEMMs of the update B22 -= L21 L21^T after a panel that ends at column p1, in the lower
 /// triangle of this rank's rows: the columns of the next panel (p1..split) first, then blocks of
-/// [`COL_BLOCK`] columns up to n. Within a block c0..c1 the rows whose global index lies in the
+/// [`COL_BLOCK`] x ranks columns up to n. Within a block c0..c1 the rows whose global index lies in the
 /// block take the columns up to their diagonal, [`ROW_CHUNK`] rows at a time; the rows below it
 /// take the whole block, [`ROW_BLOCK`] rows at a time. Every lower-triangle entry of rows and
 /// columns p1..n is in exactly one piece.
@@ -466,7 +471,7 @@ fn trailing_pieces(lay: RowCyclic, (p1, split, n): (usize, usize, usize)) -> Vec
     let mut pieces = Vec::new();
     let mut c0 = p1;
     while c0 < n {
-        let c1 = if c0 == p1 { split } else { (c0 + COL_BLOCK).min(n) };
+        let c1 = if c0 == p1 { split } else { (c0 + COL_BLOCK * lay.ranks).min(n) };
         let (r0, r1) = (lay.first_local_from(c0), lay.first_local_from(c1));
         let mut a = r0;
         while a < r1 {
@@ -487,8 +492,8 @@ fn trailing_pieces(lay: RowCyclic, (p1, split, n): (usize, usize, usize)) -> Vec
 /// The panel p0..p1 of B, updated by every panel before it: factors its diagonal block L11 L11^T
 /// (gathered, on every rank alike), stores L11 in its owners' rows and L21 = B21 L11^-T in this
 /// rank's rows below it, and gathers all of L21, transposed ((p1 - p0) x (n - p1), column-major),
-/// into `bufs.out`. `data`: this rank's rows, column-major from global column 0 through at least
-/// column p1. With `work`, both gathers are non-blocking and `work` runs while they are in
+/// into `bufs.out`. `data`: this rank's rows, column-major from global column p0 on, through at
+/// least column p1. With `work`, both gathers are non-blocking and `work` runs while they are in
 /// flight. Collective; `Error::NotDefinite` on every rank when a pivot is not positive.
 fn prepare_panel<T: Scalar>(
     comm: &dyn Comm,
@@ -502,8 +507,9 @@ fn prepare_panel<T: Scalar>(
     let pb = p1 - p0;
     let ld = lay.local_count();
     let la = lay.first_local_from(n);
+    let data = &mut data[..pb * ld];
     let mut diag = GatherBuffers::default();
-    gather_rows_while(comm, lay, data, (p0, p1), (p0, p1), &mut diag, work.as_deref_mut());
+    gather_rows_while(comm, lay, data, (p0, p1), (0, pb), &mut diag, work.as_deref_mut());
     let l11 = cholesky_small(&diag.out, pb).ok_or_else(|| {
         Error::NotDefinite(format!(
             "a pivot of the projected block is not positive near row {p0} of {n} \
@@ -513,24 +519,22 @@ fn prepare_panel<T: Scalar>(
     for l in lay.first_local_from(p0)..lay.first_local_from(p1) {
         let i = lay.global(l) - p0;
         for c in 0..pb {
-            data[l + (p0 + c) * ld] = if c <= i { l11[(i, c)] } else { T::of(0.0) };
+            data[l + c * ld] = if c <= i { l11[(i, c)] } else { T::of(0.0) };
         }
     }
     if p1 == n {
         return Ok(());
     }
     let t0 = lay.first_local_from(p1);
-    // L21 = B21 L11^-T, i.e. L11 L21^T = B21^T, solved on a column-major copy of B21^T (faer's
-    // blocked path wants unit row stride). That copy, once solved, holds this rank's rows of L21
-    // row-major: what the gather of L21 sends, so it is made in the gather's send buffer.
+    // L21 = B21 L11^-T, i.e. L11 L21^T = B21^T, solved in place on the transposed view of the
+    // rows (faer's solve is as fast there as on a column-major copy); the gather sends this
+    // rank's rows of L21 row-major, so they are copied once, into its send buffer
     let send = bufs.send_buffer((la - t0) * pb);
     if la > t0 {
-        let all = MatMut::from_column_major_slice_mut(data, ld, data.len() / ld);
-        let mut b21 = all.submatrix_mut(t0, p0, la - t0, pb);
-        let mut bt = MatMut::from_column_major_slice_mut(send, pb, la - t0);
-        bt.copy_from(b21.rb().transpose());
-        solve_lower_triangular_in_place(l11.as_ref(), bt.as_mut(), par);
-        b21.copy_from(bt.transpose());
+        let all = MatMut::from_column_major_slice_mut(data, ld, pb);
+        let mut b21 = all.submatrix_mut(t0, 0, la - t0, pb);
+        solve_lower_triangular_in_place(l11.as_ref(), b21.rb_mut().transpose_mut(), par);
+        MatMut::from_column_major_slice_mut(send, pb, la - t0).copy_from(b21.rb().transpose());
     }
     all_gather_packed_while(comm, lay, (p1, n, pb), bufs, false, work);
     Ok(())
@@ -577,7 +581,7 @@ mod tests {
     #[test]
     fn the_trailing_pieces_cover_the_lower_triangle_once() {
         for ranks in [1, 2, 3, 5] {
-            for n in [7, 700, 2 * COL_BLOCK + 37, 2 * ROW_BLOCK * ranks + 11] {
+            for n in [7, 700, 2 * COL_BLOCK * ranks + 37, 2 * ROW_BLOCK * ranks + 11] {
                 for (p1, width) in [(3, 1), (5, 64), (1, n - 1), (n / 2, 97)] {
                     let split = (p1 + width).min(n);
                     for rank in 0..ranks {

@@ -117,13 +117,16 @@ impl SolverKind {
     /// Panel width used when the user gives none for a system of `n` rows, measured on a 2-core
     /// AVX-512 machine, 2 ranks: Cholesky gains from wide panels (its trailing GEMMs get a longer
     /// inner dimension) as n grows: 256 is best at 2000 and 4000 rows (384 is 3-10 % slower
-    /// there), 384 at 8000 (2.20-2.23 s against 2.30-2.34 s with 256); LU is best at 128 (equal
-    /// at 8000, 7 % faster at 4000, where the panel's collectives weigh more); Householder, whose
-    /// panel is factored recursively, too (at 8000 4.24-4.42 s against 4.69-4.72 s with 64 and
-    /// 4.56 s with 256; 7 % faster at 4000, equal at 2000).
+    /// there), 384 at 8000 (2.20-2.23 s against 2.30-2.34 s with 256); LU at 192 (best of 3 at
+    /// 8000: 2.00-2.07 s against 2.13-2.14 s with 128 on 2 ranks, 3.63 against 4.01 s on one;
+    /// at 4000 0.306 against 0.313 s on 2 ranks; equal at 2000: its trailing GEMMs gain from the
+    /// inner dimension, its panels hardly lose); Householder, whose panel is factored
+    /// recursively, at 128 (at 8000 4.24-4.42 s against 4.69-4.72 s with 64, 4.28 s with 192 and
+    /// 4.56 s with 256; 7 % faster than 64 at 4000, equal at 2000).
     pub fn default_panel(&self, n: usize) -> usize {
         match self {
-            SolverKind::Householder | SolverKind::Lu => 128,
+            SolverKind::Householder => 128,
+            SolverKind::Lu => 192,
             SolverKind::Cholesky | SolverKind::Auto if n >= CHOLESKY_WIDE_FROM => 384,
             SolverKind::Cholesky | SolverKind::Auto => 256,
         }
