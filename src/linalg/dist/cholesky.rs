@@ -62,7 +62,7 @@ use faer::{Accum, Mat, MatMut, MatRef, Par};
 use super::layout::RowCyclic;
 use super::scalar::Scalar;
 use super::solver::Job;
-use super::system::{all_gather_packed_while, all_gather_rows, gather_rows_while, GatherBuffers, LocalRows};
+use super::system::{all_gather_packed_while, all_gather_rows, GatherBuffers, LocalRows};
 use crate::error::{Error, Result};
 use crate::linalg::reflector::{apply, explicit_v, qr_in_place, wy_t};
 use crate::par::Comm;
@@ -114,27 +114,10 @@ pub(super) fn factor_and_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<(V
     border.project_rhs(comm, rows);
     let sign = factor_projected(job, rows, k, n)?;
 
-    // forward substitution L z = y (y: the right-hand side rows k..n)
-    let mut z = vec![0.0; n];
-    let mut q0 = k;
-    while q0 < n {
-        let q1 = (q0 + nb).min(n);
-        let bs = q1 - q0;
-        let d = rows.gather_rows(comm, q0, q1, q0, q1);
-        let y = rows.gather_rows(comm, q0, q1, rhs, rhs + 1);
-        for i in 0..bs {
-            let s: f64 = (0..i).map(|j| d[i * bs + j] * z[q0 + j]).sum();
-            z[q0 + i] = (y[i] - s) / d[i * bs + i];
-        }
-        let u0 = lay.first_local_from(q1);
-        for c in q0..q1 {
-            let zc = z[c];
-            for l in u0..la {
-                rows.data[l + rhs * ld] -= rows.data[l + c * ld] * zc;
-            }
-        }
-        q0 = q1;
-    }
+    // the factorisation left z = L^-1 y in rows k..n of the right-hand side
+    let b0 = lay.first_local_from(k);
+    let mut z = vec![0.0; k];
+    z.extend(all_gather_rows(comm, lay, &rows.data[rhs * ld + b0..rhs * ld + la], k..n, 1));
     let mu = back_substitute(comm, rows, (k, n), nb, &z);
 
     // lambda = Q [0; mu]
@@ -346,7 +329,9 @@ pub(super) fn project_into<T: Scalar>(
 /// Factors the projected block B (rows and columns k..n of `rows`, which hold Q^T A Q) in place:
 /// reads the sign s off its first diagonal entry, negates rows k..n of columns k..n and of the
 /// right-hand side when s < 0, and overwrites the lower triangle with L, s B = L L^T, the strict
-/// upper triangle with zeros. Returns s. Collective; `Error::NotDefinite` when a pivot is not
+/// upper triangle with zeros, and rows k..n of the right-hand side y with z = L^-1 y (the forward
+/// substitution rides along: each panel's block of y is gathered with its diagonal block, solved
+/// with L11, and the rows below take their L21 z1 while L21 is fresh). Returns s. Collective; `Error::NotDefinite` when a pivot is not
 /// positive (on every rank that reached it: callers agree on the outcome).
 pub(super) fn factor_projected<T: Scalar>(
     job: &Job<'_>,
@@ -376,7 +361,11 @@ pub(super) fn factor_projected<T: Scalar>(
     let lookahead = lookahead && comm.size() > 1;
     let (mut bufs, mut next_bufs) = (GatherBuffers::default(), GatherBuffers::default());
     let (mut p0, mut pb) = (k, nb.min(n - k));
-    prepare_panel(comm, lay, &mut rows.data[p0 * ld..], (p0, p0 + pb, n), par, &mut bufs, None)?;
+    {
+        let (mat, y) = rows.data.split_at_mut(n * ld);
+        let y = &mut y[(rhs - n) * ld..(rhs - n) * ld + la];
+        prepare_panel(comm, lay, &mut mat[p0 * ld..], y, (p0, p0 + pb, n), par, &mut bufs, None)?;
+    }
     loop {
         let p1 = p0 + pb;
         if p1 == n {
@@ -401,7 +390,10 @@ pub(super) fn factor_projected<T: Scalar>(
         let ahead = pieces.iter().take_while(|piece| piece.cols.1 <= split).count();
         // this rank's rows of L21, read where they lie: the update writes only columns p1.. of
         // the rows (data[p1 * ld..]), the panel's columns are before them
-        let (done, rest) = rows.data.split_at_mut(p1 * ld);
+        // (the right-hand side, columns n.., apart: the panels' forward steps write it)
+        let (mat, y) = rows.data.split_at_mut(n * ld);
+        let y = &mut y[(rhs - n) * ld..(rhs - n) * ld + la];
+        let (done, rest) = mat.split_at_mut(p1 * ld);
         let l21 = MatRef::from_column_major_slice_with_stride(&done[p0 * ld + t0..], la - t0, pb, ld);
         // data: this rank's rows from global column `base` on
         let update = |data: &mut [T], base: usize, piece: &Piece| {
@@ -430,7 +422,7 @@ pub(super) fn factor_projected<T: Scalar>(
             for piece in &pieces {
                 update(rest, p1, piece);
             }
-            prepare_panel(comm, lay, rest, (p1, split, n), par, &mut next_bufs, None)?;
+            prepare_panel(comm, lay, rest, y, (p1, split, n), par, &mut next_bufs, None)?;
         } else {
             for piece in &pieces[..ahead] {
                 update(rest, p1, piece);
@@ -445,7 +437,7 @@ pub(super) fn factor_projected<T: Scalar>(
                 }
                 None => false,
             };
-            prepare_panel(comm, lay, left, (p1, split, n), par, &mut next_bufs, Some(&mut work))?;
+            prepare_panel(comm, lay, left, y, (p1, split, n), par, &mut next_bufs, Some(&mut work))?;
             while work() {}
         }
         progress(p1, n);
@@ -492,13 +484,18 @@ fn trailing_pieces(lay: RowCyclic, (p1, split, n): (usize, usize, usize)) -> Vec
 /// The panel p0..p1 of B, updated by every panel before it: factors its diagonal block L11 L11^T
 /// (gathered, on every rank alike), stores L11 in its owners' rows and L21 = B21 L11^-T in this
 /// rank's rows below it, and gathers all of L21, transposed ((p1 - p0) x (n - p1), column-major),
-/// into `bufs.out`. `data`: this rank's rows, column-major from global column p0 on, through at
-/// least column p1. With `work`, both gathers are non-blocking and `work` runs while they are in
-/// flight. Collective; `Error::NotDefinite` on every rank when a pivot is not positive.
+/// into `bufs.out`; the forward substitution's step: z1 = L11^-1 y1 into the owners' rows p0..p1
+/// of `y` (gathered with the diagonal block), y2 -= L21 z1 in this rank's rows below. `data`: this
+/// rank's rows, column-major from global column p0 on, through at least column p1; `y`: its rows
+/// of the right-hand side (rows 0..n). With `work`, both gathers are non-blocking and `work` runs
+/// while they are in flight. Collective; `Error::NotDefinite` on every rank when a pivot is not
+/// positive.
+#[allow(clippy::too_many_arguments)]
 fn prepare_panel<T: Scalar>(
     comm: &dyn Comm,
     lay: RowCyclic,
     data: &mut [T],
+    y: &mut [T],
     (p0, p1, n): (usize, usize, usize),
     par: Par,
     bufs: &mut GatherBuffers<T>,
@@ -508,19 +505,34 @@ fn prepare_panel<T: Scalar>(
     let ld = lay.local_count();
     let la = lay.first_local_from(n);
     let data = &mut data[..pb * ld];
+    // the diagonal block's rows with their entry of y appended, row-major
+    let (l0, l1) = (lay.first_local_from(p0), lay.first_local_from(p1));
+    let w = pb + 1;
     let mut diag = GatherBuffers::default();
-    gather_rows_while(comm, lay, data, (p0, p1), (0, pb), &mut diag, work.as_deref_mut());
-    let l11 = cholesky_small(&diag.out, pb).ok_or_else(|| {
+    let send = diag.send_buffer((l1 - l0) * w);
+    for (t, l) in (l0..l1).enumerate() {
+        for c in 0..pb {
+            send[t * w + c] = data[l + c * ld];
+        }
+        send[t * w + pb] = y[l];
+    }
+    all_gather_packed_while(comm, lay, (p0, p1, w), &mut diag, true, work.as_deref_mut());
+    let l11 = cholesky_small_strided(&diag.out, pb, w).ok_or_else(|| {
         Error::NotDefinite(format!(
             "a pivot of the projected block is not positive near row {p0} of {n} \
              (the kernel is not conditionally definite on these points to working precision)"
         ))
     })?;
-    for l in lay.first_local_from(p0)..lay.first_local_from(p1) {
+    for l in l0..l1 {
         let i = lay.global(l) - p0;
         for c in 0..pb {
             data[l + c * ld] = if c <= i { l11[(i, c)] } else { T::of(0.0) };
         }
+    }
+    let mut z1 = Mat::<T>::from_fn(pb, 1, |i, _| diag.out[i * w + pb]);
+    solve_lower_triangular_in_place(l11.as_ref(), z1.as_mut(), Par::Seq);
+    for l in l0..l1 {
+        y[l] = z1[(lay.global(l) - p0, 0)];
     }
     if p1 == n {
         return Ok(());
@@ -535,6 +547,8 @@ fn prepare_panel<T: Scalar>(
         let mut b21 = all.submatrix_mut(t0, 0, la - t0, pb);
         solve_lower_triangular_in_place(l11.as_ref(), b21.rb_mut().transpose_mut(), par);
         MatMut::from_column_major_slice_mut(send, pb, la - t0).copy_from(b21.rb().transpose());
+        let y2 = MatMut::from_column_major_slice_mut(&mut y[t0..la], la - t0, 1);
+        matmul(y2, Accum::Add, b21.rb(), z1.as_ref(), T::of(-1.0), Par::Seq);
     }
     all_gather_packed_while(comm, lay, (p1, n, pb), bufs, false, work);
     Ok(())
@@ -543,10 +557,15 @@ fn prepare_panel<T: Scalar>(
 /// Cholesky of a small symmetric matrix (row-major, lower triangle used) by faer's blocked kernel;
 /// None unless every pivot is positive.
 pub(super) fn cholesky_small<T: Scalar>(d: &[T], m: usize) -> Option<Mat<T>> {
+    cholesky_small_strided(d, m, m)
+}
+
+/// [`cholesky_small`] of a matrix whose rows lie `stride` apart in `d`.
+fn cholesky_small_strided<T: Scalar>(d: &[T], m: usize, stride: usize) -> Option<Mat<T>> {
     use faer::dyn_stack::{MemBuffer, MemStack};
     use faer::linalg::cholesky::llt::factor::{cholesky_in_place, cholesky_in_place_scratch};
     let zero = T::of(0.0);
-    let mut l = Mat::<T>::from_fn(m, m, |i, j| if j <= i { d[i * m + j] } else { zero });
+    let mut l = Mat::<T>::from_fn(m, m, |i, j| if j <= i { d[i * stride + j] } else { zero });
     let mut mem = MemBuffer::new(cholesky_in_place_scratch::<T>(m, Par::Seq, Default::default()));
     let ok = cholesky_in_place(
         l.as_mut(),
