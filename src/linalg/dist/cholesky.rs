@@ -41,8 +41,11 @@
 //! triangle (L11 L11^T = B11, L21 = B21 L11^-T, B22 <- B22 - L21 L21^T); the update runs by
 //! blocks of columns, so the block of L21^T that a GEMM reads stays in cache while the rank's
 //! rows below the diagonal stream past it (a row chunk against all trailing columns would read
-//! all of L21^T from memory for every chunk). Forward and back substitution give mu, and
-//! lambda = Q [0; mu] applies the k reflectors to a vector, last one first.
+//! all of L21^T from memory for every chunk). The forward substitution L z = s Q2^T r rides
+//! along: each panel's block of the right-hand side is gathered with its diagonal block,
+//! z1 = L11^-1 y1 is solved on every rank, and each rank takes y2 -= L21 z1 in its rows while its
+//! L21 is fresh from the panel's solve. Back substitution gives mu, and lambda = Q [0; mu] applies
+//! the k reflectors to a vector, last one first.
 //!
 //! Look-ahead: every rank holds rows of every panel, so every rank prepares the next panel
 //! itself. With `job.lookahead`, once L21 of panel k is on every rank, each rank updates the
