@@ -84,7 +84,7 @@ pub struct FitArgs {
     /// after the octree ordering, one rank) or mumps (distributed multifrontal Cholesky).
     #[arg(long, default_value = "auto", value_name = "auto|cholesky|envelope|mumps", value_parser = sparse_solver)]
     pub sparse_solver: SparseSolver,
-    /// Distributed dense solver: auto (the fastest for the size: householder below 1000 rows,
+    /// Distributed dense solver: auto (the fastest for the size: householder below 100 rows,
     /// cholesky above), cholesky (projected Cholesky of the definite block, falls back to lu with a
     /// message when a pivot is not positive), householder (QR) or lu (partial pivoting).
     #[arg(long, default_value = "auto", value_name = "auto|cholesky|householder|lu", value_parser = with(SolverKind::parse))]
@@ -200,10 +200,10 @@ pub struct FitArgs {
     /// nearest to the surface no data supports (on, or off), at most 3, and keep a turn that
     /// removes at least 5 % of that surface: a patch turned on a sheet thinner than the sampling
     /// (an ear) holds up a bulge beside it that the ray test cannot see. A try changes only
-    /// values, so it is solved with the kept fit's own factor (two triangular solves; systems
-    /// below 1000 rows, which keep none, are fitted afresh) and only the lattice around the patch
-    /// is sampled again; a large system solved without the projected Cholesky skips this step
-    /// (see src/surface/turns.rs).
+    /// values, so it is solved with the kept fit's own factor (two triangular solves; below 1000
+    /// points a fit that keeps none, by a solver the user chose, is made afresh) and only the
+    /// lattice around the patch is sampled again; a large system solved without the projected
+    /// Cholesky skips this step (see src/surface/turns.rs).
     #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub orient_turns: bool,
     /// Points of level 0 of the two-level compactly supported fit (--method csrbf with --surface

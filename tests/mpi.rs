@@ -135,7 +135,7 @@ fn eval_reproduces_the_fit_grid_and_mesh_exactly() {
     let want = 0.5 * (505 - doubtful) as f64 + 0.5 * share * doubtful as f64;
     assert!((off as f64 - want).abs() <= 0.05 * want + 2.0, "{off} off points, {doubtful} doubtful normals");
     assert_eq!(get("system_size"), Some((505 + off + 4 + blobs).to_string()));
-    assert_eq!(get("solver").as_deref(), Some("householder")); // auto, below 1000 rows
+    assert_eq!(get("solver").as_deref(), Some("cholesky")); // auto, from 100 rows
     assert!(get("residual").unwrap().parse::<f64>().unwrap() < 1e-10);
     assert!(get("stage_solve_max_s").unwrap().parse::<f64>().unwrap() > 0.0);
     assert!(out.contains("fit.model.h5") && out.contains("fit.hdf") && out.contains("fit.ply"), "{out}");

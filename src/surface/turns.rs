@@ -43,8 +43,9 @@
 //! substitution through the distributed factor plus products with the small blocks of the
 //! border, O(n^2) flops instead of the O(n^2 m) of bordering again. The first fit keeps its
 //! factor where it is a projected Cholesky of a dense f64 fit on the row-cyclic layout, the
-//! default from 1000 rows. Below that a try is a fresh fit of the small system (milliseconds);
-//! on a large system solved otherwise (a solver or layout the user chose) the turns do not run.
+//! default from 100 rows. Where the fit keeps none (a solver or layout the user chose), a try is
+//! a fresh fit on systems of fewer than 1000 points (milliseconds), and the turns do not run on
+//! larger ones.
 //!
 //! Only the lattice around the tried patch is sampled again: the box of the patch's points and
 //! the crossings charged to it, grown by [`WINDOW`] times its longest side and two lattice

@@ -11,7 +11,6 @@ use super::{Fitted, Run};
 use crate::app::stages::{Stage, Stages};
 use crate::cli::{FitArgs, Surface};
 use crate::error::Result;
-use crate::linalg::dist::AUTO_CHOLESKY_FROM;
 use crate::par::{agree, Comm};
 use crate::spline::hygiene::Prepared;
 use crate::surface::blobs::{
@@ -29,6 +28,11 @@ use crate::surface::{
 
 /// Fewest points for which `--surface auto` adds off-surface constraints.
 pub const AUTO_MIN_POINTS: usize = 50;
+
+/// Data points below which the turns of step 7 run without a kept factor (a dense solver or
+/// layout the user chose that keeps none): each try is then a fresh fit, milliseconds on these
+/// systems.
+const FRESH_TRIES_BELOW: usize = 1000;
 
 /// What the off-surface step did, for the report.
 #[derive(Debug, Clone)]
@@ -257,9 +261,9 @@ pub fn check_first_fit(
     let (mut fit, values) = rays_and_blobs(run, data, c, first, stages, refit, (factor.as_ref(), &lattice))?;
     // the kept fit's own bordered factor where it has one (a second fit), else the first fit's
     let basis = fit.factor.take().or(factor);
-    // without a kept factor a try is a fresh fit: affordable below the size from which the
-    // projected Cholesky, whose factor is kept, is the default solver
-    let affordable = basis.is_some() || c.prep.values.len() < AUTO_CHOLESKY_FROM;
+    // without a kept factor (a solver or layout the user chose) a try is a fresh fit: affordable
+    // on small systems alone
+    let affordable = basis.is_some() || c.prep.values.len() < FRESH_TRIES_BELOW;
     if run.args.orient_turns && affordable {
         return turn_by_surface(run, data, c, (fit, values), stages, refit, (basis.as_ref(), &lattice));
     }
