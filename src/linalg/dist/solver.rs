@@ -350,7 +350,10 @@ mod tests {
 
     #[test]
     fn auto_picks_by_size_and_names_round_trip() {
-        assert_eq!(SolverKind::parse("auto").unwrap().resolve(AUTO_CHOLESKY_FROM - 1), SolverKind::Householder);
+        assert_eq!(
+            SolverKind::parse("auto").unwrap().resolve(AUTO_CHOLESKY_FROM - 1),
+            SolverKind::Householder
+        );
         assert_eq!(SolverKind::parse("auto").unwrap().resolve(AUTO_CHOLESKY_FROM), SolverKind::Cholesky);
         for name in ["householder", "lu", "cholesky", "auto"] {
             let k = SolverKind::parse(name).unwrap();
