@@ -18,8 +18,9 @@
 //! On the ranks: the pivot search of column j is one all-gather of each rank's best candidate,
 //! which carries its row's panel part along, so the pivot row is known everywhere without a
 //! broadcast; a swap is a message between the two owners. Per panel, the block row [A11 A12] is
-//! all-gathered, every rank solves for U12 redundantly (cheap: nb rows) and updates its own rows
-//! of A22 with one local GEMM, which carries almost all the flops. The matrix is never gathered.
+//! all-gathered (each rank's rows column by column, as they lie, so neither side transposes),
+//! every rank solves for U12 redundantly (cheap: nb rows) and updates its own rows of A22 with
+//! one local GEMM, which carries almost all the flops. The matrix is never gathered.
 //!
 //! Look-ahead: the panel factorisation is a chain of small collectives (nb all-gathers of pivot
 //! candidates, each waiting for every rank), and on the row-cyclic layout every rank takes part
@@ -182,11 +183,23 @@ impl<T: Scalar> Trailing<T> {
         if rest == 0 {
             return Trailing::none();
         }
-        rows.gather_rows_with(comm, a, m, a, c1, bufs);
-        let brow = &bufs.out;
         let width = c1 - a;
-        let l11 = faer::Mat::<T>::from_fn(w, w, |i, j| brow[i * width + j]);
-        let mut u12 = faer::Mat::<T>::from_fn(w, rest, |i, j| brow[i * width + w + j]);
+        let by_rank = rows.gather_columns_by_rank(comm, (a, m), (a, c1), bufs);
+        // [L11 A12], column-major: rank r holds the block's rows i = first, first + P, ...
+        let (mut l11, mut u12) = (faer::Mat::<T>::zeros(w, w), faer::Mat::<T>::zeros(w, rest));
+        let mut at = 0;
+        for r in 0..lay.ranks {
+            let cnt = lay.count_in_on(r, a, m);
+            let first = (r + lay.ranks - a % lay.ranks) % lay.ranks;
+            for c in 0..width {
+                let from = &by_rank[at + c * cnt..at + (c + 1) * cnt];
+                let to = if c < w { l11.col_as_slice_mut(c) } else { u12.col_as_slice_mut(c - w) };
+                for (t, v) in from.iter().enumerate() {
+                    to[first + t * lay.ranks] = *v;
+                }
+            }
+            at += cnt * width;
+        }
         solve_unit_lower_triangular_in_place(l11.as_ref(), u12.as_mut(), Par::Seq);
         let (o0, o1) = (lay.first_local_from(a), lay.first_local_from(m));
         for j in 0..rest {
