@@ -334,8 +334,9 @@ pub(super) fn project_into<T: Scalar>(
 /// right-hand side when s < 0, and overwrites the lower triangle with L, s B = L L^T, the strict
 /// upper triangle with zeros, and rows k..n of the right-hand side y with z = L^-1 y (the forward
 /// substitution rides along: each panel's block of y is gathered with its diagonal block, solved
-/// with L11, and the rows below take their L21 z1 while L21 is fresh). Returns s. Collective; `Error::NotDefinite` when a pivot is not
-/// positive (on every rank that reached it: callers agree on the outcome).
+/// with L11, and the rows below take their L21 z1 while L21 is fresh). Returns s. Collective;
+/// `Error::NotDefinite` when a pivot is not positive (on every rank that reached it: callers
+/// agree on the outcome).
 pub(super) fn factor_projected<T: Scalar>(
     job: &Job<'_>,
     rows: &mut LocalRows<T>,
