@@ -614,7 +614,7 @@ mod tests {
         let kernel = Kernel::new(3, 2).unwrap();
         let prep = prepare(&raw, &kernel, &Carrier::AutoBall, 1e-12).unwrap();
         let n = prep.values.len() + kernel.poly_count();
-        assert!(n > 2 * COL_BLOCK + 384 && n > 2 * ROW_BLOCK, "{n} rows");
+        assert!(n > 2 * COL_BLOCK + 384, "{n} rows: fewer than three column blocks");
         let globals: Vec<usize> = (0..n).collect();
         let mut full = vec![0.0; n * (n + 1)];
         fill_rows(&kernel, &prep.centres, &prep.values, &globals, &mut full);
