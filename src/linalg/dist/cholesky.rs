@@ -596,10 +596,8 @@ fn cholesky_small_strided<T: Scalar>(d: &[T], m: usize, stride: usize) -> Option
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::io::points::read_points;
+    use crate::linalg::dist::test_support::bunny_rows;
     use crate::par::Solo;
-    use crate::spline::hygiene::prepare;
-    use crate::spline::{fill_rows, Carrier, Kernel};
 
     /// The bordered system of every second bunny vertex for the kernel r (about 2500 rows: on one
     /// rank a panel's trailing update spans three column blocks and several row blocks), solved
@@ -608,22 +606,14 @@ mod tests {
     /// rounding level.
     #[test]
     fn a_system_of_several_column_blocks_matches_the_dense_lu() {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bunny10k.obj");
-        let set = read_points(&path).unwrap();
-        let raw: Vec<f64> = set.points.iter().step_by(2).flatten().copied().collect();
-        let kernel = Kernel::new(3, 2).unwrap();
-        let prep = prepare(&raw, &kernel, &Carrier::AutoBall, 1e-12).unwrap();
-        let n = prep.values.len() + kernel.poly_count();
+        let system = bunny_rows(2);
+        let n = system.layout.n;
         assert!(n > 2 * COL_BLOCK + 384, "{n} rows: fewer than three column blocks");
-        let globals: Vec<usize> = (0..n).collect();
-        let mut full = vec![0.0; n * (n + 1)];
-        fill_rows(&kernel, &prep.centres, &prep.values, &globals, &mut full);
-        let (a, b) = full.split_at(n * n);
+        let (a, b) = system.data.split_at(n * n);
         let want = crate::linalg::dense::lu_solve(MatRef::from_column_major_slice(a, n, n), b).unwrap();
         let scale = want.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         for panel in [64, 384] {
-            let mut m = LocalRows::zeros(RowCyclic::new(n, 1, 0), n + 1, kernel.poly_count());
-            m.data.copy_from_slice(&full);
+            let mut m = system.clone();
             let got = cholesky_solve(&Job::on(&Solo).panel(panel), &mut m).unwrap();
             let err = got.iter().zip(&want).map(|(p, q)| (p - q).abs()).fold(0.0, f64::max) / scale;
             let res = (0..n)

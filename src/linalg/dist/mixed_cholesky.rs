@@ -151,24 +151,14 @@ impl<T: Scalar> Approximate for CholeskyFactors<T> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::io::points::read_points;
-    use crate::linalg::dist::RowCyclic;
+    use crate::linalg::dist::test_support::bunny_rows;
     use crate::par::Solo;
-    use crate::spline::hygiene::prepare;
-    use crate::spline::{fill_rows, Carrier, Kernel};
 
     /// The bordered system of 250 bunny vertices (every 40th) for the kernel r, whose second
     /// block of the right-hand side is made non-zero: M x for x = (sin(i))_i.
     fn bunny_system() -> (LocalRows, Vec<f64>) {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bunny10k.obj");
-        let set = read_points(&path).unwrap();
-        let raw: Vec<f64> = set.points.iter().step_by(40).flatten().copied().collect();
-        let kernel = Kernel::new(3, 2).unwrap();
-        let prep = prepare(&raw, &kernel, &Carrier::AutoBall, 1e-12).unwrap();
-        let n = prep.values.len() + kernel.poly_count();
-        let mut m = LocalRows::zeros(RowCyclic::new(n, 1, 0), n + 1, kernel.poly_count());
-        let globals: Vec<usize> = (0..n).collect();
-        fill_rows(&kernel, &prep.centres, &prep.values, &globals, &mut m.data);
+        let mut m = bunny_rows(40);
+        let n = m.layout.n;
         let x: Vec<f64> = (0..n).map(|i| (i as f64).sin()).collect();
         for i in 0..n {
             let b = (0..n).map(|j| m.get(i, j) * x[j]).sum();

@@ -31,6 +31,8 @@ mod refine;
 mod scalar;
 mod solver;
 mod system;
+#[cfg(test)]
+mod test_support;
 
 pub use cholesky::cholesky_solve;
 pub use cholesky2d::cholesky2d_solve;
