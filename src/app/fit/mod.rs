@@ -375,6 +375,10 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             r.figure("choice_narrow_unsupported", format!("{:.5}", ch.narrow_share));
             r.figure("choice_kept", if ch.kept_narrow { "narrow" } else { "wide" });
         }
+        if let Some(k) = &s.second_round {
+            r.figure("second_round_points", k.points);
+            r.figure("second_round_kept", k.kept);
+        }
         if let Some(k) = &s.rays {
             r.figure("rays_doubtful", k.doubtful);
             r.figure("rays_enclosed", k.enclosed);
@@ -470,6 +474,19 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
                 100.0 * ch.narrow_share,
                 if ch.kept_narrow { "narrow" } else { "wide" },
             ),
+            None => String::new(),
+        } + &match &s.second_round {
+            Some(k) if k.points > 0 => format!(
+                "; second round: {} points in open space, unsupported {:.1} -> {:.1} %, data points without \
+                 solid {} -> {}: {}",
+                k.points,
+                100.0 * k.share.0,
+                100.0 * k.share.1,
+                k.without_solid.0,
+                k.without_solid.1,
+                if k.kept { "kept" } else { "dropped" },
+            ),
+            Some(_) => "; second round: nothing in open space".to_string(),
             None => String::new(),
         } + &match &s.turns {
             Some(t) => format!(

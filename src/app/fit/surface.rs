@@ -14,7 +14,8 @@ use crate::error::Result;
 use crate::par::{agree, Comm};
 use crate::spline::hygiene::Prepared;
 use crate::surface::blobs::{
-    blob_values, sample, sample_window, winding_numbers, Blobs, Lattice, Search, CLEARANCE,
+    blob_values, points_without_solid, sample, sample_window, winding_numbers, Blobs, Lattice, Search,
+    CLEARANCE,
 };
 use crate::surface::choice::{self, unsupported_share};
 use crate::surface::denoise::Denoised;
@@ -64,6 +65,9 @@ pub struct SurfaceSummary {
     /// The choice between the blob search's wide and narrow clearances (None: not made, since
     /// `--blob-choice off` or both pinned the same nodes).
     pub choice: Option<ClearanceChoice>,
+    /// The blob search's second round, on the second fit (None: not made, since the cap pinned
+    /// every spurious node or `--blob-choice off`).
+    pub second_round: Option<SecondRound>,
     /// The patches turned by the unsupported surface (None: not run, since `--orient-turns off`
     /// or the system is too large to refit afresh and kept no factor).
     pub turns: Option<TurnCheck>,
@@ -74,7 +78,9 @@ impl SurfaceSummary {
     /// and the candidates of the clearance choice.
     pub fn fits(&self) -> usize {
         let tried = self.turns.as_ref().map_or(0, |t| t.tried);
+        let second = self.second_round.as_ref().is_some_and(|r| r.points > 0);
         tried
+            + usize::from(second)
             + match &self.choice {
                 Some(ch) => ch.fits,
                 None if self.blob_points > 0 || self.rays.as_ref().is_some_and(|k| k.turned > 0) => 2,
@@ -96,6 +102,20 @@ pub struct ClearanceChoice {
     pub kept_narrow: bool,
     /// Fits made in all: the first and a second for each candidate that is not the first.
     pub fits: usize,
+}
+
+/// The blob search's second round on the second fit, where the cap of the first left spurious
+/// nodes unpinned (see [`crate::surface::blobs`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SecondRound {
+    /// Constraint points added (in open space; 0: none found, no fit made).
+    pub points: usize,
+    /// The share of the surface no data point supports, and the data points without solid near
+    /// them, before and after (the same where no fit was made).
+    pub share: (f64, f64),
+    pub without_solid: (usize, usize),
+    /// Whether its fit was kept: less unsupported surface and no more points without solid.
+    pub kept: bool,
 }
 
 /// The constrained points of a fit and what the blob search needs of the surface step.
@@ -197,6 +217,7 @@ pub fn constrain(
         blob_spared: 0,
         rays: None,
         choice: None,
+        second_round: None,
         turns: None,
     };
     Ok(Constrained { prep: with_off_points(prep, &off), summary, hoods, normals: orientation.normals, off })
@@ -327,14 +348,28 @@ fn rays_and_blobs(
     c.summary.rays = run.args.orient_rays.then(|| turned.clone());
     // the first fit is the candidate of a blob set where it pins nothing and no patch turned
     let first_stands = |b: &Blobs| b.source.is_empty() && turned.turned == 0;
-    let (Some(narrow), Some(support)) = (narrow, support) else {
+    let (Some(narrow), Some(support)) = (narrow, support.as_ref()) else {
         if first_stands(&wide) {
             return Ok((first, Some(values)));
         }
         drop(first);
         c.prep = with_blobs(&c.prep, &wide, data);
         c.summary.blob_points = wide.source.len();
-        return Ok((refit(&c.prep, factor, stages)?, None));
+        let fit = refit(&c.prep, factor, stages)?;
+        // one clearance pinned what both would; a second round where the cap left nodes out
+        let Some(support) = support.filter(|_| wide.found > wide.source.len()) else {
+            return Ok((fit, None));
+        };
+        let (values, share) = stages.time(Stage::Blobs, || {
+            let values = sample(run.comm, lattice, &data.carrier, &fit.spline);
+            let winding = |at: &[[f64; 3]]| winding_numbers(run.comm, at, &data.centres, &c.normals, &areas);
+            let share = unsupported_share(lattice, &values, &support, winding).0;
+            (values, share)
+        });
+        let kept = Round { fit, values, share, clearance: CLEARANCE };
+        let (fit, values) =
+            second_round(run, data, c, kept, (lattice, &support, &areas), factor, stages, refit)?;
+        return Ok((fit, Some(values)));
     };
     // two candidates: each is the first fit or a second one, with its points and the lattice
     // values of its fit (neither candidate the first fit: it goes before the second systems are
@@ -356,7 +391,7 @@ fn rays_and_blobs(
     let (wide_share, narrow_share) = stages.time(Stage::Blobs, || {
         let share = |values: &[f64]| {
             let winding = |at: &[[f64; 3]]| winding_numbers(run.comm, at, &data.centres, &c.normals, &areas);
-            unsupported_share(lattice, values, &support, winding).0
+            unsupported_share(lattice, values, support, winding).0
         };
         (share(&wide_values), share(&narrow_values))
     });
@@ -369,14 +404,80 @@ fn rays_and_blobs(
         kept_narrow,
         fits: if reused { 2 } else { 3 },
     });
-    let (blobs, fit, prep, values) = if kept_narrow {
-        (&narrow, narrow_fit, narrow_prep, narrow_values)
+    let (blobs, fit, prep, values, share, clearance) = if kept_narrow {
+        (&narrow, narrow_fit, narrow_prep, narrow_values, narrow_share, choice::NARROW * support.spacing)
     } else {
-        (&wide, wide_fit, wide_prep, wide_values)
+        (&wide, wide_fit, wide_prep, wide_values, wide_share, CLEARANCE)
     };
     c.prep = prep;
     c.summary.blob_points = blobs.source.len();
+    if blobs.found == blobs.source.len() {
+        return Ok((fit, Some(values)));
+    }
+    let kept = Round { fit, values, share, clearance };
+    let (fit, values) = second_round(run, data, c, kept, (lattice, support, &areas), factor, stages, refit)?;
     Ok((fit, Some(values)))
+}
+
+/// A fit of the blob search with its values on the lattice, the share of its surface that no
+/// data supports, and the clearance of rule 2 its pins were found with.
+struct Round {
+    fit: Fitted,
+    values: Vec<f64>,
+    share: f64,
+    clearance: f64,
+}
+
+/// The blob search's second round on `kept`, a second fit whose pins the cap chose from more
+/// spurious nodes (see [`crate::surface::blobs`], "A second round"): the spurious nodes of its
+/// fit in open space are pinned too, and the fit with them is kept when it has less unsupported
+/// surface and no more data points without solid near them. Returns the fit kept with its values
+/// on the lattice (`c` is updated where the new fit is kept). Collective.
+#[allow(clippy::too_many_arguments)]
+fn second_round(
+    run: &Run<'_>,
+    data: &Prepared,
+    c: &mut Constrained,
+    kept: Round,
+    (lattice, support, areas): (&Lattice, &DataSupport, &[f64]),
+    factor: Option<&KeptFactor>,
+    stages: &mut Stages,
+    refit: &mut Refit<'_>,
+) -> Result<(Fitted, Vec<f64>)> {
+    let (more, before) = stages.time(Stage::Blobs, || {
+        let search = Search::new(run.comm, lattice, &kept.values, &data.centres, &c.normals, &c.hoods.tree);
+        let more = search.open_blobs(lattice, kept.clearance);
+        (more, points_without_solid(lattice, &kept.values, &data.centres))
+    });
+    let mut round = SecondRound {
+        points: more.source.len(),
+        share: (kept.share, kept.share),
+        without_solid: (before, before),
+        kept: false,
+    };
+    if more.source.is_empty() {
+        c.summary.second_round = Some(round);
+        return Ok((kept.fit, kept.values));
+    }
+    let prep = with_blobs(&c.prep, &more, data);
+    let fit = refit(&prep, factor, stages)?;
+    let (values, share, after) = stages.time(Stage::Blobs, || {
+        let values = sample(run.comm, lattice, &data.carrier, &fit.spline);
+        let winding = |at: &[[f64; 3]]| winding_numbers(run.comm, at, &data.centres, &c.normals, areas);
+        let share = unsupported_share(lattice, &values, support, winding).0;
+        let after = points_without_solid(lattice, &values, &data.centres);
+        (values, share, after)
+    });
+    round.share.1 = share;
+    round.without_solid.1 = after;
+    round.kept = share < kept.share && after <= before;
+    c.summary.second_round = Some(round);
+    if !round.kept {
+        return Ok((kept.fit, kept.values));
+    }
+    c.prep = prep;
+    c.summary.blob_points += more.source.len();
+    Ok((fit, values))
 }
 
 /// `fit` of `c.prep` after the small patches of the normals whose turn shrinks the surface no
