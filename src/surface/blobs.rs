@@ -182,6 +182,19 @@ impl Lattice {
         self.dims.iter().product()
     }
 
+    /// The nodes of the box lo..hi (normalised) grown by `grow` times its longest side and 2
+    /// lattice spacings on every side, clamped to the lattice, as index ranges along x, y and z.
+    pub fn around(&self, lo: [f64; 3], hi: [f64; 3], grow: f64) -> [Range<usize>; 3] {
+        let side = (0..3).map(|d| hi[d] - lo[d]).fold(0.0, f64::max);
+        let grow = grow * side + 2.0 * self.h;
+        [0, 1, 2].map(|d| {
+            let at = |x: f64| ((x - self.lo[d]) / self.h).clamp(0.0, (self.dims[d] - 1) as f64);
+            let a = at(lo[d] - grow).floor() as usize;
+            let b = at(hi[d] + grow).ceil() as usize;
+            a..b + 1
+        })
+    }
+
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
@@ -357,6 +370,32 @@ impl Search {
         normals: &[[f64; 3]],
         tree: &Octree,
     ) -> Search {
+        Search::build(comm, lattice, values, (points, normals, tree), None)
+    }
+
+    /// [`Search::new`] for another fit of the same data on the same lattice: a node's distance to
+    /// the data, its vote and its winding number depend on the data alone, so those this search
+    /// made are taken over and only the nodes positive or asked about for the first time are
+    /// judged. Collective.
+    pub fn again(
+        &self,
+        comm: &dyn Comm,
+        lattice: &Lattice,
+        values: &[f64],
+        points: &[f64],
+        normals: &[[f64; 3]],
+        tree: &Octree,
+    ) -> Search {
+        Search::build(comm, lattice, values, (points, normals, tree), Some(self))
+    }
+
+    fn build(
+        comm: &dyn Comm,
+        lattice: &Lattice,
+        values: &[f64],
+        (points, normals, tree): (&[f64], &[[f64; 3]], &Octree),
+        known: Option<&Search>,
+    ) -> Search {
         let n = normals.len();
         let h = lattice.h;
         let k = VOTERS.min(n);
@@ -373,6 +412,12 @@ impl Search {
             let mut bound = f64::INFINITY;
             for (x, o) in out.iter_mut().enumerate() {
                 let i = row * nx + x;
+                if let Some(j) = known.and_then(|s| s.judged[i]).filter(|_| positive[i]) {
+                    // judged before; the next node's search starts from scratch
+                    *o = Some(j);
+                    bound = f64::INFINITY;
+                    continue;
+                }
                 if positive[i] && k > 0 {
                     let q = lattice.node(i);
                     let mut r = bound;
@@ -431,13 +476,20 @@ impl Search {
         let asked: Vec<usize> = (0..lattice.len())
             .filter(|&i| thin[i] || judged[i].is_some_and(|(_, _, outside)| outside >= AGREE))
             .collect();
-        let area = point_areas(points, tree, h);
-        let at: Vec<[f64; 3]> = asked.iter().map(|&i| lattice.node(i)).collect();
-        let w = winding_numbers(comm, &at, points, normals, &area);
+        let area = known.map_or_else(|| point_areas(points, tree, h), |s| s.area.clone());
+        // NaN where no rule asks (as `take` reads it), the known values where they were asked before
         let mut winding = vec![f64::NAN; lattice.len()];
-        for (&i, &wi) in asked.iter().zip(&w) {
+        if let Some(s) = known {
+            asked.iter().for_each(|&i| winding[i] = s.winding[i]);
+        }
+        let new: Vec<usize> = asked.iter().copied().filter(|&i| winding[i].is_nan()).collect();
+        let at: Vec<[f64; 3]> = new.iter().map(|&i| lattice.node(i)).collect();
+        let w = winding_numbers(comm, &at, points, normals, &area);
+        for (&i, &wi) in new.iter().zip(&w) {
             winding[i] = wi;
-            thin[i] = thin[i] && wi < OPEN_SPACE;
+        }
+        for &i in &asked {
+            thin[i] = thin[i] && winding[i] < OPEN_SPACE;
         }
         Search { judged, winding, supported, thin, regions, n, area }
     }
@@ -734,6 +786,64 @@ mod tests {
             assert!((d - blobs.distance[k]).abs() < 1e-12);
             assert!(d > CLEARANCE || dist2(q, &[1.6, 0.0, 0.0]).sqrt() <= 0.25, "blob point {k} at {q:?}");
         }
+    }
+
+    #[test]
+    fn a_second_search_taking_over_the_judgements_finds_what_a_fresh_one_finds() {
+        // the first fit: the sphere with the bulge; the second: the bulge gone, a detached ball
+        // (nodes never positive before) and a thin slab in open space (rule 3, winding numbers
+        // asked for the first time) instead
+        let (pts, normals) = sphere(400);
+        let tree = Octree::new(&pts, 10);
+        let lattice = Lattice::new([-2.0; 3], [2.0; 3], 33);
+        let ball = |q: &[f64; 3], c: [f64; 3], r: f64| r - dist2(q, &c).sqrt();
+        let sphere_f = |q: &[f64; 3]| 1.0 - dist2(q, &[0.0; 3]).sqrt();
+        let first: Vec<f64> = (0..lattice.len())
+            .map(|i| {
+                let q = lattice.node(i);
+                sphere_f(&q).max(ball(&q, [0.0, 0.0, -1.2], 0.5))
+            })
+            .collect();
+        let second: Vec<f64> = (0..lattice.len())
+            .map(|i| {
+                let q = lattice.node(i);
+                let slab = 0.1 - (q[0] - 1.5).abs();
+                sphere_f(&q).max(ball(&q, [0.0, 1.6, 0.0], 0.25)).max(slab.min(0.6 - q[1].abs()))
+            })
+            .collect();
+        let known = Search::new(&Solo, &lattice, &first, &pts, &normals, &tree);
+        let again = known.again(&Solo, &lattice, &second, &pts, &normals, &tree);
+        let fresh = Search::new(&Solo, &lattice, &second, &pts, &normals, &tree);
+        for clearance in [CLEARANCE, 0.05] {
+            let (a, f) = (again.blobs(&lattice, clearance), fresh.blobs(&lattice, clearance));
+            assert!(f.source.len() > 20, "{} spurious nodes", f.source.len());
+            assert_eq!(a, f);
+            assert_eq!(again.open_blobs(&lattice, clearance), fresh.open_blobs(&lattice, clearance));
+        }
+        // the open blobs leave out what the data enclose: none of the sphere's own nodes
+        let open = fresh.open_blobs(&lattice, CLEARANCE);
+        assert!(open.centres.chunks_exact(3).all(|q| dist2(q, &[0.0; 3]).sqrt() > 1.0));
+    }
+
+    #[test]
+    fn points_on_a_solid_have_solid_at_their_cell_and_points_of_a_part_cut_away_have_none() {
+        let (pts, _) = sphere(400);
+        let lattice = Lattice::new([-2.0; 3], [2.0; 3], 33);
+        let f = |cut: f64| -> Vec<f64> {
+            (0..lattice.len())
+                .map(|i| {
+                    let q = lattice.node(i);
+                    (1.0 - dist2(&q, &[0.0; 3]).sqrt()).min(cut - q[2])
+                })
+                .collect()
+        };
+        assert_eq!(points_without_solid(&lattice, &f(2.0), &pts), 0);
+        // the cap above z = 0.5 cut away: its points (1/4 of the sphere's area) lose their solid,
+        // those within a cell (h = 0.125) of the cut may keep it
+        let lost = points_without_solid(&lattice, &f(0.5), &pts);
+        let above = pts.chunks_exact(3).filter(|p| p[2] > 0.5 + 0.25).count();
+        let near = pts.chunks_exact(3).filter(|p| p[2] > 0.5 - 0.25).count();
+        assert!(lost >= above && lost <= near, "{lost} lost, {above} .. {near} expected");
     }
 
     #[test]

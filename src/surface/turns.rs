@@ -100,14 +100,7 @@ impl Candidate {
     /// grown by [`WINDOW`] times its longest side and 2 lattice spacings on every side, as index
     /// ranges along x, y and z.
     pub fn window(&self, lattice: &Lattice) -> [Range<usize>; 3] {
-        let side = (0..3).map(|d| self.hi[d] - self.lo[d]).fold(0.0, f64::max);
-        let grow = WINDOW * side + 2.0 * lattice.h;
-        [0, 1, 2].map(|d| {
-            let at = |x: f64| ((x - lattice.lo[d]) / lattice.h).clamp(0.0, (lattice.dims[d] - 1) as f64);
-            let a = at(self.lo[d] - grow).floor() as usize;
-            let b = at(self.hi[d] + grow).ceil() as usize;
-            a..b + 1
-        })
+        lattice.around(self.lo, self.hi, WINDOW)
     }
 }
 
