@@ -15,7 +15,7 @@ use crate::par::{agree, Comm};
 use crate::spline::hygiene::Prepared;
 use crate::surface::blobs::{
     blob_values, points_without_solid, sample, sample_window, winding_numbers, Blobs, Lattice, Search,
-    CLEARANCE,
+    CLEARANCE, SECOND_ROUND_FROM,
 };
 use crate::surface::choice::{self, unsupported_share};
 use crate::surface::denoise::Denoised;
@@ -66,7 +66,7 @@ pub struct SurfaceSummary {
     /// `--blob-choice off` or both pinned the same nodes).
     pub choice: Option<ClearanceChoice>,
     /// The blob search's second round, on the second fit (None: not made, since the cap pinned
-    /// every spurious node or `--blob-choice off`).
+    /// at least 1 / [`SECOND_ROUND_FROM`] of the spurious nodes or `--blob-choice off`).
     pub second_round: Option<SecondRound>,
     /// The patches turned by the unsupported surface (None: not run, since `--orient-turns off`
     /// or the system is too large to refit afresh and kept no factor).
@@ -357,8 +357,8 @@ fn rays_and_blobs(
         c.prep = with_blobs(&c.prep, &wide, data);
         c.summary.blob_points = wide.source.len();
         let fit = refit(&c.prep, factor, stages)?;
-        // one clearance pinned what both would; a second round where the cap left nodes out
-        let Some(support) = support.filter(|_| wide.found > wide.source.len()) else {
+        // one clearance pinned what both would; a second round where the cap left most nodes out
+        let Some(support) = support.filter(|_| wide.found > SECOND_ROUND_FROM * wide.source.len()) else {
             return Ok((fit, None));
         };
         let (values, share) = stages.time(Stage::Blobs, || {
@@ -412,7 +412,7 @@ fn rays_and_blobs(
     };
     c.prep = prep;
     c.summary.blob_points = blobs.source.len();
-    if blobs.found == blobs.source.len() {
+    if blobs.found <= SECOND_ROUND_FROM * blobs.source.len() {
         return Ok((fit, Some(values)));
     }
     let kept = Round { fit, values, share, clearance };
