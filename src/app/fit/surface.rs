@@ -75,7 +75,7 @@ pub struct SurfaceSummary {
 
 impl SurfaceSummary {
     /// The fits made: one, a second where rays turned patches or blobs were pinned, or the first
-    /// and the candidates of the clearance choice.
+    /// and the candidates of the clearance choice; then the second round's and the turns' tries.
     pub fn fits(&self) -> usize {
         let tried = self.turns.as_ref().map_or(0, |t| t.tried);
         let second = self.second_round.as_ref().is_some_and(|r| r.points > 0);
@@ -104,8 +104,8 @@ pub struct ClearanceChoice {
     pub fits: usize,
 }
 
-/// The blob search's second round on the second fit, where the cap of the first left spurious
-/// nodes unpinned (see [`crate::surface::blobs`]).
+/// The blob search's second round on the second fit, where the cap of the first left most
+/// spurious nodes unpinned (see [`crate::surface::blobs`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SecondRound {
     /// Constraint points added (in open space; 0: none found, no fit made).
@@ -263,7 +263,8 @@ pub type Refit<'a> = dyn FnMut(&Prepared, Option<&KeptFactor>, &mut Stages) -> R
 /// points, so `refit` is given the first fit's factor, where it kept one, to border. Where the blob
 /// search's wide and narrow clearances pin different nodes (unless `--blob-choice off`), both
 /// second fits are made and the one with less unsupported surface is kept (see
-/// [`crate::surface::choice`]). Last (unless `--orient-turns off`), small patches of the
+/// [`crate::surface::choice`]); where the cap left most spurious nodes unpinned, a second round
+/// of the search may pin more ([`second_round`]). Last (unless `--orient-turns off`), small patches of the
 /// normals whose turn shrinks the surface no data supports are turned, each tried by a solve
 /// with the kept fit's bordered factor, or by a fresh fit where the system is too small for the
 /// projected Cholesky that keeps one (see [`crate::surface::turns`]).
@@ -433,10 +434,11 @@ struct Round {
 /// spurious nodes (see [`crate::surface::blobs`], "A second round"): the spurious nodes of its
 /// fit in open space are pinned too, and the fit with them is kept when it has less unsupported
 /// surface and no more data points without solid near them. `first` is the first fit's search,
-/// whose judgements of the nodes it takes over. (Sampling the new fit only around its pins, as
-/// the turns do, changed one decision in 119 sets for the worse: the strided cow with a hole at
-/// 1000 points kept a round that hollowed its cap, truth -> mesh 1.11 -> 1.54.) Returns the fit kept with its values on the lattice (`c` is updated where
-/// the new fit is kept). Collective.
+/// whose judgements of the nodes it takes over. The new fit is sampled on the whole lattice:
+/// sampled only around its pins, as the turns are, one decision in 119 sets changed for the
+/// worse (the strided cow with a hole at 1000 points kept a round that hollowed its cap, truth
+/// -> mesh 1.11 -> 1.54). Returns the fit kept with its values on the lattice (`c` is updated
+/// where the new fit is kept). Collective.
 #[allow(clippy::too_many_arguments)]
 fn second_round(
     run: &Run<'_>,
