@@ -52,8 +52,9 @@
 //! changes no fit: the patches flipped there (on a few sets looked at) have 1-10 points.
 //! Above [`DENSE_DIPOLE_LIMIT`] points (the compactly supported method's sizes) the correction is
 //! skipped: its N^2 / P pair evaluations per rank would outweigh the sparse solve, and an
-//! approximation by one dipole per patch (area-weighted centroid, moment sum_P A_i o_i) lowered the agreement with the true normals on
-//! 2526 bunny vertices from 0.996 to 0.975 (its near field between adjacent patches is poor). On
+//! approximation by one dipole per patch (area-weighted centroid, moment sum_P A_i o_i) lowered
+//! the agreement with the true normals on 2526 bunny vertices from 0.996 to 0.975 (its near
+//! field between adjacent patches is poor). On
 //! closed scans the dense correction changes little (bunny 0.9968 -> 0.9964, cow 0.9576 ->
 //! 0.9556); it is kept for what the spectral step cannot see, two pieces that face each other
 //! without a neighbour edge between them.

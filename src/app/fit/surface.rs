@@ -264,8 +264,9 @@ pub type Refit<'a> = dyn FnMut(&Prepared, Option<&KeptFactor>, &mut Stages) -> R
 /// search's wide and narrow clearances pin different nodes (unless `--blob-choice off`), both
 /// second fits are made and the one with less unsupported surface is kept (see
 /// [`crate::surface::choice`]); where the cap left most spurious nodes unpinned, a second round
-/// of the search may pin more ([`second_round`]). Last (unless `--orient-turns off`), small patches of the
-/// normals whose turn shrinks the surface no data supports are turned, each tried by a solve
+/// of the search may pin more (see [`crate::surface::blobs`]). Last (unless `--orient-turns
+/// off`), small patches of the normals whose turn shrinks the surface no data supports are
+/// turned, each tried by a solve
 /// with the kept fit's bordered factor, or by a fresh fit where the system is too small for the
 /// projected Cholesky that keeps one (see [`crate::surface::turns`]).
 /// `data` is the data alone; the lattice covers its box grown by the grid's margin. The rays,
