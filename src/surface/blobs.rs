@@ -764,14 +764,24 @@ mod tests {
         blobs.centres.chunks_exact(3).filter(|q| dist2(&c, q) <= r * r).count()
     }
 
-    #[test]
-    fn a_detached_blob_and_a_bulge_are_found_and_the_solid_is_left_alone() {
+    /// 400 points on the unit sphere with their normals and octree, and a lattice over [-2, 2]^3
+    /// of 33 nodes a side (h = 0.125).
+    fn sphere_and_lattice() -> (Vec<f64>, Vec<[f64; 3]>, Octree, Lattice) {
         let (pts, normals) = sphere(400);
         let tree = Octree::new(&pts, 10);
-        let lattice = Lattice::new([-2.0; 3], [2.0; 3], 33);
+        (pts, normals, tree, Lattice::new([-2.0; 3], [2.0; 3], 33))
+    }
+
+    /// The signed distance inside a ball of centre c and radius r (positive inside).
+    fn ball(q: &[f64; 3], c: [f64; 3], r: f64) -> f64 {
+        r - dist2(q, &c).sqrt()
+    }
+
+    #[test]
+    fn a_detached_blob_and_a_bulge_are_found_and_the_solid_is_left_alone() {
+        let (pts, normals, tree, lattice) = sphere_and_lattice();
         // inside the sphere, a detached ball at (1.6, 0, 0) and a bulge reaching out of the
         // sphere towards -z down to z = -1.7 (a ball of radius 0.5 at (0, 0, -1.2))
-        let ball = |q: &[f64; 3], c: [f64; 3], r: f64| r - dist2(q, &c).sqrt();
         let values: Vec<f64> = (0..lattice.len())
             .map(|i| {
                 let q = lattice.node(i);
@@ -800,10 +810,7 @@ mod tests {
         // the first fit: the sphere with the bulge; the second: the bulge gone, a detached ball
         // (nodes never positive before) and a thin slab in open space (rule 3, winding numbers
         // asked for the first time) instead
-        let (pts, normals) = sphere(400);
-        let tree = Octree::new(&pts, 10);
-        let lattice = Lattice::new([-2.0; 3], [2.0; 3], 33);
-        let ball = |q: &[f64; 3], c: [f64; 3], r: f64| r - dist2(q, &c).sqrt();
+        let (pts, normals, tree, lattice) = sphere_and_lattice();
         let sphere_f = |q: &[f64; 3]| 1.0 - dist2(q, &[0.0; 3]).sqrt();
         let first: Vec<f64> = (0..lattice.len())
             .map(|i| {
