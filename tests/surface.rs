@@ -523,6 +523,20 @@ fn the_cow_has_no_spurious_blobs() {
     }
 }
 
+/// Fits `tests/data/NAME.xyz` (`n` points, a sample of the surface benchmark) with the default
+/// method on grid 64 and returns the mesh -> truth rms and far fraction against the mesh at
+/// `truth` (see [`mesh_to_truth`]) and the surface line of the report, which it prints.
+fn fit_benchmark_sample(name: &str, n: usize, truth: &str) -> (f64, f64, String) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(format!("{name}.xyz"));
+    let pts: Vec<f64> =
+        volspline::io::points::read_points(&path).unwrap().points.into_iter().flatten().collect();
+    assert_eq!(pts.len(), 3 * n, "{}", path.display());
+    let (mesh, _, surface) = fit_mesh(name, &pts, "64", &[]);
+    let (rms, far) = mesh_to_truth(&common::load_mesh(Path::new(truth)), &mesh);
+    println!("{name}: {surface}\n  mesh -> truth rms {rms:.5}, far {far:.4}");
+    (rms, far, surface)
+}
+
 #[test]
 fn a_small_scan_gets_enough_pins_for_the_bulge_under_the_cows_chest() {
     // 400 area-uniform samples of the cow (tests/data/cow-400.xyz, a sample of the surface
@@ -530,23 +544,10 @@ fn a_small_scan_gets_enough_pins_for_the_bulge_under_the_cows_chest() {
     // front legs, and the blob search finds about 900 spurious nodes. N/4 = 100 pins, taken by
     // an even stride, leave most of it: measured (grid 64) mesh -> cow rms 1.51 % of the
     // diagonal, 8.9 % of the vertices beyond 2 %; the floor of 200 pins removes it: 0.91 %, 4.2 %
-    let truth = common::load_mesh(Path::new(common::COW));
-    let pts = benchmark_sample("cow-400", 400);
-    let (mesh, _, surface) = fit_mesh("cow-400-pins", &pts, "64", &[]);
-    let (rms, far) = mesh_to_truth(&truth, &mesh);
-    println!("cow 400 points: {surface}\n  mesh -> cow rms {rms:.5}, far {far:.4}");
+    let (rms, far, surface) = fit_benchmark_sample("cow-400", 400, common::COW);
     let pins = volspline::surface::blobs::MIN_CAP;
     assert!(surface.contains(&format!("blobs: {pins} constraint points")), "{surface}");
     assert!(rms < 0.0115 && far < 0.06, "mesh -> cow rms {rms}, far {far}");
-}
-
-/// The points of `tests/data/NAME.xyz`, a sample of the surface benchmark, flattened.
-fn benchmark_sample(name: &str, n: usize) -> Vec<f64> {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(format!("{name}.xyz"));
-    let pts: Vec<f64> =
-        volspline::io::points::read_points(&path).unwrap().points.into_iter().flatten().collect();
-    assert_eq!(pts.len(), 3 * n, "{}", path.display());
-    pts
 }
 
 #[test]
@@ -557,11 +558,7 @@ fn the_dipole_correction_leaves_the_flat_base_of_a_sparse_bunny_alone() {
     // inside the body (its voters near the base saw them outside) and hollowed it out. Measured
     // (grid 64) mesh -> bunny rms 2.74 % of the diagonal, 25 % of the vertices beyond 2 %; with
     // only patches of at most 5 % of the points movable 1.27 %, 7.7 %
-    let truth = common::load_mesh(Path::new(common::BUNNY));
-    let pts = benchmark_sample("bunny-400", 400);
-    let (mesh, _, surface) = fit_mesh("bunny-400-base", &pts, "64", &[]);
-    let (rms, far) = mesh_to_truth(&truth, &mesh);
-    println!("bunny 400 points: {surface}\n  mesh -> bunny rms {rms:.5}, far {far:.4}");
+    let (rms, far, _) = fit_benchmark_sample("bunny-400", 400, common::BUNNY);
     assert!(rms < 0.018, "mesh -> bunny rms {rms}, far {far}");
 }
 
@@ -573,11 +570,7 @@ fn a_second_round_of_pins_removes_the_web_the_first_pushed_between_the_cows_fron
     // legs. The second round pins 79 nodes in open space and keeps its fit. Measured (grid 64)
     // mesh -> cow rms 1.13 % of the diagonal, 5.9 % of the vertices beyond 2 %, without
     // it; 0.38 % and 0.8 % with it
-    let truth = common::load_mesh(Path::new(common::COW));
-    let pts = benchmark_sample("cow-1000-open", 896);
-    let (mesh, _, surface) = fit_mesh("cow-1000-open-web", &pts, "64", &[]);
-    let (rms, far) = mesh_to_truth(&truth, &mesh);
-    println!("cow 896 points: {surface}\n  mesh -> cow rms {rms:.5}, far {far:.4}");
+    let (rms, far, surface) = fit_benchmark_sample("cow-1000-open", 896, common::COW);
     assert!(
         surface.contains("second round: 79 points in open space") && surface.contains(": kept"),
         "{surface}"
