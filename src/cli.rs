@@ -191,7 +191,8 @@ pub struct FitArgs {
     /// Where the blob search after the first fit pins different nodes with its wide clearance
     /// (5 % of the diagonal) and a narrow one (2 median spacings of the data), make both second
     /// fits and keep the one with less surface far from every data point, not counting surface
-    /// in the mouth of a hole (on, or off: the wide clearance alone). With the dense projected
+    /// in the mouth of a hole (on, or off: the wide clearance alone, and no second round of the
+    /// search where the cap left most spurious nodes unpinned). With the dense projected
     /// Cholesky both second fits border the first fit's factor, so the choice costs little
     /// (see src/surface/choice.rs).
     #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
