@@ -63,7 +63,7 @@ use faer::reborrow::{Reborrow, ReborrowMut};
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 
 use super::layout::RowCyclic;
-use super::scalar::Scalar;
+use super::scalar::{dots_widened, Scalar};
 use super::solver::Job;
 use super::system::{all_gather_packed_while, all_gather_rows, GatherBuffers, LocalRows};
 use crate::error::{Error, Result};
@@ -86,8 +86,9 @@ const COL_BLOCK: usize = 1024;
 /// non-blocking gathers of the look-ahead are tested often.
 const ROW_BLOCK: usize = 1024;
 
-/// Columns rounded per GEMM when the projection of an f64 matrix is written to a narrower type.
-const COL_CHUNK: usize = 256;
+/// Columns per GEMM of the projection Q^T A Q: narrow enough that its blocks follow the
+/// diagonal closely (only the lower triangle is projected).
+const COL_CHUNK: usize = 64;
 
 /// Solves the bordered system in `rows` (its polynomial border of width `rows.border` >= 1 and
 /// its right-hand side as the last column). Returns the solution on every rank, or
@@ -112,8 +113,12 @@ pub(super) fn factor_and_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<(V
     let r = border.r();
 
     let (left, right) = border.projection(comm, rows, par);
-    let a = MatMut::from_column_major_slice_with_stride_mut(&mut rows.data, la, n, ld);
-    matmul(a, Accum::Add, left.as_ref(), right.as_ref(), -1.0, par);
+    for (c0, w, a, b) in projected_blocks(lay, k, n) {
+        let block =
+            MatMut::from_column_major_slice_with_stride_mut(&mut rows.data[c0 * ld + a..], b - a, w, ld);
+        let l = left.as_ref().subrows(a, b - a);
+        matmul(block, Accum::Add, l, right.as_ref().subcols(c0, w), -1.0, par);
+    }
     border.project_rhs(comm, rows);
     let sign = factor_projected(job, rows, k, n)?;
 
@@ -158,20 +163,33 @@ pub(super) fn back_substitute(
     let lay = rows.layout;
     let (ld, la) = (rows.ld(), lay.first_local_from(n));
     let mut mu = vec![0.0; n];
+    // this rank's entries of mu in local order, as they become final, for contiguous products
+    let mut mine = vec![0.0; la];
     let mut q1 = n;
     while q1 > k {
         let q0 = q1.saturating_sub(nb).max(k);
         let bs = q1 - q0;
         let u0 = lay.first_local_from(q1);
-        let mut sums = vec![0.0; bs];
-        for (t, c) in (q0..q1).enumerate() {
-            sums[t] = (u0..la).map(|l| rows.data[l + c * ld] * mu[lay.global(l)]).sum();
+        let col = |c: usize| &rows.data[c * ld + u0..c * ld + la];
+        let mut sums = Vec::with_capacity(bs);
+        let mut c = q0;
+        while c < q1 {
+            if c + 4 <= q1 {
+                sums.extend(dots_widened([c, c + 1, c + 2, c + 3].map(col), &mine[u0..]));
+                c += 4;
+            } else {
+                sums.extend(dots_widened([col(c)], &mine[u0..]));
+                c += 1;
+            }
         }
         comm.sum_f64(&mut sums);
         let d = rows.gather_rows(comm, q0, q1, q0, q1);
         for i in (0..bs).rev() {
             let s: f64 = (i + 1..bs).map(|j| d[j * bs + i] * mu[q0 + j]).sum();
             mu[q0 + i] = (z[q0 + i] - sums[i] - s) / d[i * bs + i];
+        }
+        for l in lay.first_local_from(q0)..u0 {
+            mine[l] = mu[lay.global(l)];
         }
         q1 = q0;
     }
@@ -290,9 +308,33 @@ impl Border {
     }
 }
 
+/// The blocks of Q^T A Q that the factorisation and the solves with it read, as (c0, w, a, b):
+/// columns c0..c0 + w, this rank's local rows a..b. For the columns 0..k every row; for the
+/// columns k..n the rows 0..k and the lower triangle, from the first diagonal row of each block
+/// of [`COL_CHUNK`] columns down. The rest of the upper triangle is never read, so the projection
+/// leaves it as it was: half the flops of the rank-2k update, and in a freshly allocated f32 copy
+/// most of the upper triangle's pages are never touched (at N = 8000 on one rank the first touch
+/// of every page took 0.08 s of the 0.14 s of a projection that wrote every entry).
+fn projected_blocks(lay: RowCyclic, k: usize, n: usize) -> Vec<(usize, usize, usize, usize)> {
+    let (la, top) = (lay.first_local_from(n), lay.first_local_from(k));
+    let mut blocks = Vec::new();
+    for c0 in (0..n).step_by(COL_CHUNK) {
+        let w = COL_CHUNK.min(n - c0);
+        let below = if c0 < k { 0 } else { lay.first_local_from(c0).max(top) };
+        if below <= top {
+            blocks.push((c0, w, 0, la));
+        } else {
+            blocks.extend([(c0, w, 0, top), (c0, w, below, la)]);
+        }
+    }
+    blocks.retain(|&(_, _, a, b)| b > a);
+    blocks
+}
+
 /// Writes the projection Q^T A Q of the f64 rows `src` (`left`, `right` from
-/// [`Border::projection`]) into `dst`, rounded to its type, a block of columns at a time; the
-/// border rows and columns are rounded as they are. The right-hand side is not projected.
+/// [`Border::projection`]) into `dst`, rounded to its type: the blocks of
+/// [`projected_blocks`], the rest left as it was. The border rows and columns are rounded as
+/// they are; the right-hand side is not projected.
 pub(super) fn project_into<T: Scalar>(
     src: &LocalRows,
     dst: &mut LocalRows<T>,
@@ -303,20 +345,21 @@ pub(super) fn project_into<T: Scalar>(
     let ld = src.ld();
     let la = left.nrows();
     let mut tmp = vec![0.0f64; la * COL_CHUNK.min(n)];
-    let mut c0 = 0;
-    while c0 < n {
-        let w = COL_CHUNK.min(n - c0);
-        let t = &mut tmp[..la * w];
+    for (c0, w, a, b) in projected_blocks(src.layout, left.ncols() / 2, n) {
+        let h = b - a;
+        let t = &mut tmp[..h * w];
         for c in 0..w {
-            t[c * la..(c + 1) * la].copy_from_slice(&src.data[(c0 + c) * ld..(c0 + c) * ld + la]);
+            let col = (c0 + c) * ld;
+            t[c * h..(c + 1) * h].copy_from_slice(&src.data[col + a..col + b]);
         }
-        let tm = MatMut::from_column_major_slice_mut(t, la, w);
-        matmul(tm, Accum::Add, left.as_ref(), right.as_ref().subcols(c0, w), -1.0, par);
+        let tm = MatMut::from_column_major_slice_mut(t, h, w);
+        let l = left.as_ref().subrows(a, h);
+        matmul(tm, Accum::Add, l, right.as_ref().subcols(c0, w), -1.0, par);
         for c in 0..w {
-            let to = &mut dst.data[(c0 + c) * ld..(c0 + c) * ld + la];
-            to.iter_mut().zip(&t[c * la..(c + 1) * la]).for_each(|(d, v)| *d = T::of(*v));
+            let col = (c0 + c) * ld;
+            let to = &mut dst.data[col + a..col + b];
+            to.iter_mut().zip(&t[c * h..(c + 1) * h]).for_each(|(d, v)| *d = T::of(*v));
         }
-        c0 += w;
     }
     // the border rows of every column, and the border and right-hand side columns
     for c in 0..n {
@@ -330,9 +373,10 @@ pub(super) fn project_into<T: Scalar>(
 }
 
 /// Factors the projected block B (rows and columns k..n of `rows`, which hold Q^T A Q) in place:
-/// reads the sign s off its first diagonal entry, negates rows k..n of columns k..n and of the
-/// right-hand side when s < 0, and overwrites the lower triangle with L, s B = L L^T, the strict
-/// upper triangle with zeros, and rows k..n of the right-hand side y with z = L^-1 y (the forward
+/// reads the sign s off its first diagonal entry, negates the lower triangle of B and rows k..n
+/// of the right-hand side when s < 0, and overwrites the lower triangle with L, s B = L L^T, the
+/// strict upper triangle of the diagonal blocks with zeros (the rest of the upper triangle is
+/// neither read nor written), and rows k..n of the right-hand side y with z = L^-1 y (the forward
 /// substitution rides along: each panel's block of y is gathered with its diagonal block, solved
 /// with L11, and the rows below take their L21 z1 while L21 is fresh). Returns s. Collective;
 /// `Error::NotDefinite` when a pivot is not positive (on every rank that reached it: callers
@@ -355,9 +399,12 @@ pub(super) fn factor_projected<T: Scalar>(
     let sign = if d0[0] < 0.0 { -1.0 } else { 1.0 };
     let b0 = lay.first_local_from(k);
     if sign < 0.0 {
-        for c in (k..n).chain([rhs]) {
-            rows.data[c * ld + b0..c * ld + la].iter_mut().for_each(|a| *a = -*a);
+        // the lower triangle, all the factorisation reads
+        for c in k..n {
+            let from = lay.first_local_from(c).max(b0);
+            rows.data[c * ld + from..c * ld + la].iter_mut().for_each(|a| *a = -*a);
         }
+        rows.data[rhs * ld + b0..rhs * ld + la].iter_mut().for_each(|a| *a = -*a);
     }
 
     // blocked right-looking Cholesky of B, lower triangle, in place

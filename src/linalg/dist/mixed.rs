@@ -26,6 +26,7 @@ use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef, Par};
 
 use super::lu::lu_factor;
+use super::scalar::{axpy_widened, Scalar};
 use super::solver::Job;
 use super::system::{all_gather_rows, LocalRows};
 use crate::error::Result;
@@ -102,12 +103,8 @@ impl Approximate for Factors {
                 own[l] = yp[lay.global(l) - k0];
             }
             let t0 = lay.first_local_from(k1);
-            for (j, yj) in yp.iter().enumerate() {
-                let col = &data[(k0 + j) * ld..(k0 + j + 1) * ld];
-                for (o, &c) in own[t0..].iter_mut().zip(&col[t0..]) {
-                    *o -= c as f64 * yj;
-                }
-            }
+            let col = |c: usize| &data[c * ld + t0..(c + 1) * ld];
+            update_widened(&mut own[t0..], (k0, k1), &yp, col);
         }
         // backward: U z = y
         let mut z = vec![0.0; n];
@@ -120,15 +117,32 @@ impl Approximate for Factors {
                 zb[i] = (zb[i] - s) / d[i * b + i];
             }
             let above = lay.first_local_from(k0);
-            for (j, zj) in zb.iter().enumerate() {
-                let col = &data[(k0 + j) * ld..(k0 + j) * ld + above];
-                for (o, &c) in own[..above].iter_mut().zip(col) {
-                    *o -= c as f64 * zj;
-                }
-            }
+            let col = |c: usize| &data[c * ld..c * ld + above];
+            update_widened(&mut own[..above], (k0, k1), &zb, col);
             z[k0..k1].copy_from_slice(&zb);
         }
         z
+    }
+}
+
+/// y -= sum_j v_j col(c0 + j) over the columns c0..c1, widened to f64, four columns per pass
+/// over y.
+pub(super) fn update_widened<'a, T: Scalar + 'a>(
+    y: &mut [f64],
+    (c0, c1): (usize, usize),
+    v: &[f64],
+    col: impl Fn(usize) -> &'a [T],
+) {
+    let mut c = c0;
+    while c < c1 {
+        let j = c - c0;
+        if c + 4 <= c1 {
+            axpy_widened(y, [c, c + 1, c + 2, c + 3].map(&col), [0, 1, 2, 3].map(|t| -v[j + t]));
+            c += 4;
+        } else {
+            axpy_widened(y, [col(c)], [-v[j]]);
+            c += 1;
+        }
     }
 }
 
@@ -142,24 +156,43 @@ pub struct Operator<'a> {
 }
 
 impl<'a> Operator<'a> {
-    /// Collective (one maximum over the ranks).
-    pub fn new(comm: &dyn Comm, rows: &'a LocalRows, par: Par) -> Self {
-        let (ld, n) = (rows.ld(), rows.layout.n);
+    /// The operator and the residual b - M x of a first solution x (replicated), from one pass
+    /// over the rows: the norm takes the same entries as the product, and a second pass over a
+    /// matrix of hundreds of megabytes costs as long as the product itself. Collective.
+    pub fn with_residual(comm: &dyn Comm, rows: &'a LocalRows, par: Par, x: &[f64]) -> (Self, Vec<f64>) {
+        let (lay, ld) = (rows.layout, rows.ld());
+        let n = lay.n;
+        let mut own = rows.data[n * ld..(n + 1) * ld].to_vec();
         let mut sums = vec![0.0f64; ld];
-        for c in 0..n {
-            for (s, v) in sums.iter_mut().zip(&rows.data[c * ld..(c + 1) * ld]) {
-                *s += v.abs();
+        let col = |c: usize| &rows.data[c * ld..(c + 1) * ld];
+        let mut c = 0;
+        // four columns per pass over this rank's rows, then the rest one by one
+        while c + 4 <= n {
+            let (m0, m1, m2, m3) = (col(c), col(c + 1), col(c + 2), col(c + 3));
+            let (x0, x1, x2, x3) = (x[c], x[c + 1], x[c + 2], x[c + 3]);
+            for l in 0..ld {
+                let (a, b, d, e) = (m0[l], m1[l], m2[l], m3[l]);
+                own[l] -= a * x0 + b * x1 + d * x2 + e * x3;
+                sums[l] += a.abs() + b.abs() + d.abs() + e.abs();
+            }
+            c += 4;
+        }
+        for c in c..n {
+            for ((o, s), &a) in own.iter_mut().zip(sums.iter_mut()).zip(col(c)) {
+                *o -= a * x[c];
+                *s += a.abs();
             }
         }
         let mut m = [sums.iter().fold(0.0f64, |a, &s| a.max(s))];
         comm.max_f64(&mut m);
-        Operator { rows, par, norm_inf: m[0] }
+        let r = all_gather_rows(comm, lay, &own, 0..n, 1);
+        (Operator { rows, par, norm_inf: m[0] }, r)
     }
 
-    /// The right-hand side, replicated. Collective.
-    pub fn rhs(&self, comm: &dyn Comm) -> Vec<f64> {
-        let (lay, ld) = (self.rows.layout, self.rows.ld());
-        let b = &self.rows.data[lay.n * ld..(lay.n + 1) * ld];
+    /// The right-hand side of `rows`, replicated. Collective.
+    pub fn rhs_of(comm: &dyn Comm, rows: &LocalRows) -> Vec<f64> {
+        let (lay, ld) = (rows.layout, rows.ld());
+        let b = &rows.data[lay.n * ld..(lay.n + 1) * ld];
         all_gather_rows(comm, lay, b, 0..lay.n, 1)
     }
 

@@ -32,8 +32,8 @@
 //! on every rank, as with the f32 LU factors (`mixed`).
 
 use super::cholesky::{factor_projected, project_into, Border};
-use super::mixed::Approximate;
-use super::scalar::Scalar;
+use super::mixed::{update_widened, Approximate};
+use super::scalar::{dots_widened, Scalar};
 use super::solver::Job;
 use super::system::{all_gather_rows, LocalRows};
 use crate::error::Result;
@@ -111,26 +111,37 @@ impl<T: Scalar> Approximate for CholeskyFactors<T> {
                 let s: f64 = (0..i).map(|j| d[i * b + j] * zp[j]).sum();
                 zp[i] = (zp[i] - s) / d[i * b + i];
             }
-            for (j, zj) in zp.iter().enumerate() {
-                for (o, &c) in own[l1..].iter_mut().zip(&col(k0 + j)[l1..]) {
-                    *o -= c.f64() * zj;
-                }
-            }
+            update_widened(&mut own[l1..], (k0, k1), &zp, |c| &col(c)[l1..]);
             z[k0..k1].copy_from_slice(&zp);
         }
-        // backward: L^T mu = z; [alpha; mu] in one vector
+        // backward: L^T mu = z; [alpha; mu] in one vector, and this rank's entries of it in
+        // local order as they become final (rows below the panel), for contiguous products
         let mut x = z;
         x[..k].copy_from_slice(&alpha);
+        let mut mine = vec![0.0; la];
         for (w, d) in self.panels.windows(2).zip(&self.diag).rev() {
             let (k0, k1) = (w[0], w[1]);
             let b = k1 - k0;
-            let below = lay.first_local_from(k1);
-            let mut sums: Vec<f64> =
-                (k0..k1).map(|c| (below..la).map(|l| col(c)[l].f64() * x[lay.global(l)]).sum()).collect();
+            let (at, below) = (lay.first_local_from(k0), lay.first_local_from(k1));
+            let mut sums = Vec::with_capacity(b);
+            let mut c = k0;
+            while c < k1 {
+                if c + 4 <= k1 {
+                    let cols = [0, 1, 2, 3].map(|t| &col(c + t)[below..]);
+                    sums.extend(dots_widened(cols, &mine[below..]));
+                    c += 4;
+                } else {
+                    sums.extend(dots_widened([&col(c)[below..]], &mine[below..]));
+                    c += 1;
+                }
+            }
             comm.sum_f64(&mut sums);
             for i in (0..b).rev() {
                 let s: f64 = (i + 1..b).map(|j| d[j * b + i] * x[k0 + j]).sum();
                 x[k0 + i] = (x[k0 + i] - sums[i] - s) / d[i * b + i];
+            }
+            for (l, v) in mine.iter_mut().enumerate().take(below).skip(at) {
+                *v = x[lay.global(l)];
             }
         }
         // R c = y[..k] - W[..k, ..] [alpha; mu]

@@ -120,13 +120,12 @@ pub fn mixed_solve(job: &Job<'_>, m: &LocalRows, kind: SolverKind) -> Result<(Ve
 fn refine(job: &Job<'_>, m: &LocalRows, factors: &dyn Approximate) -> Result<(Vec<f64>, Refinement)> {
     let comm = job.comm;
     let n = m.layout.n;
-    let op = Operator::new(comm, m, job.par);
-    let b = op.rhs(comm);
+    let b = Operator::rhs_of(comm, m);
     let bnorm = norm2(&b).max(f64::MIN_POSITIVE);
+    let mut x = factors.apply(comm, &b);
+    let (op, mut r) = Operator::with_residual(comm, m, job.par, &x);
     let floor = |x: &[f64]| f64::EPSILON * op.norm_inf * norm_inf(x);
     let accept = |x: &[f64]| (n as f64).sqrt() * floor(x);
-    let mut x = factors.apply(comm, &b);
-    let mut r = op.residual(comm, &x);
     let mut out = Refinement {
         classical: 0,
         gmres: 0,

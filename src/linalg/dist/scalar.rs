@@ -69,3 +69,38 @@ macro_rules! scalar {
 
 scalar!(f64, all_gather_f64, shift_f64, all_gather_f64_while);
 scalar!(f32, all_gather_f32, shift_f32, all_gather_f32_while);
+
+/// The products of W columns with x, the columns widened to f64, reading x once for all of
+/// them and keeping eight running sums per column: one running sum waits for each addition before
+/// the next, and one column at a time reads x again for each (a backward substitution over all of
+/// L, a product per column, took twice as long as one pass over L from memory).
+pub(super) fn dots_widened<const W: usize, T: Scalar>(cols: [&[T]; W], x: &[f64]) -> [f64; W] {
+    let n = x.len();
+    let full = n / 8 * 8;
+    let mut acc = [[0.0f64; 8]; W];
+    for i in (0..full).step_by(8) {
+        let xs = &x[i..i + 8];
+        for (a, c) in acc.iter_mut().zip(&cols) {
+            let cs = &c[i..i + 8];
+            for t in 0..8 {
+                a[t] += cs[t].f64() * xs[t];
+            }
+        }
+    }
+    let mut out = [0.0; W];
+    for ((o, a), c) in out.iter_mut().zip(&acc).zip(&cols) {
+        *o = a.iter().sum::<f64>() + (full..n).map(|i| c[i].f64() * x[i]).sum::<f64>();
+    }
+    out
+}
+
+/// y += sum_w a_w cols_w with the columns widened to f64: W columns per pass over y.
+pub(super) fn axpy_widened<const W: usize, T: Scalar>(y: &mut [f64], cols: [&[T]; W], a: [f64; W]) {
+    for (i, v) in y.iter_mut().enumerate() {
+        let mut s = 0.0;
+        for w in 0..W {
+            s += cols[w][i].f64() * a[w];
+        }
+        *v += s;
+    }
+}
