@@ -63,7 +63,7 @@ use faer::reborrow::{Reborrow, ReborrowMut};
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 
 use super::layout::RowCyclic;
-use super::scalar::{dots_widened, Scalar};
+use super::scalar::{products_widened, Scalar};
 use super::solver::Job;
 use super::system::{all_gather_packed_while, all_gather_rows, GatherBuffers, LocalRows};
 use crate::error::{Error, Result};
@@ -171,17 +171,7 @@ pub(super) fn back_substitute(
         let bs = q1 - q0;
         let u0 = lay.first_local_from(q1);
         let col = |c: usize| &rows.data[c * ld + u0..c * ld + la];
-        let mut sums = Vec::with_capacity(bs);
-        let mut c = q0;
-        while c < q1 {
-            if c + 4 <= q1 {
-                sums.extend(dots_widened([c, c + 1, c + 2, c + 3].map(col), &mine[u0..]));
-                c += 4;
-            } else {
-                sums.extend(dots_widened([col(c)], &mine[u0..]));
-                c += 1;
-            }
-        }
+        let mut sums = products_widened((q0, q1), &mine[u0..], col);
         comm.sum_f64(&mut sums);
         let d = rows.gather_rows(comm, q0, q1, q0, q1);
         for i in (0..bs).rev() {

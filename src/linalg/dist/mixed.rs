@@ -26,7 +26,7 @@ use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef, Par};
 
 use super::lu::lu_factor;
-use super::scalar::{axpy_widened, Scalar};
+use super::scalar::update_widened;
 use super::solver::Job;
 use super::system::{all_gather_rows, LocalRows};
 use crate::error::Result;
@@ -122,27 +122,6 @@ impl Approximate for Factors {
             z[k0..k1].copy_from_slice(&zb);
         }
         z
-    }
-}
-
-/// y -= sum_j v_j col(c0 + j) over the columns c0..c1, widened to f64, four columns per pass
-/// over y.
-pub(super) fn update_widened<'a, T: Scalar + 'a>(
-    y: &mut [f64],
-    (c0, c1): (usize, usize),
-    v: &[f64],
-    col: impl Fn(usize) -> &'a [T],
-) {
-    let mut c = c0;
-    while c < c1 {
-        let j = c - c0;
-        if c + 4 <= c1 {
-            axpy_widened(y, [c, c + 1, c + 2, c + 3].map(&col), [0, 1, 2, 3].map(|t| -v[j + t]));
-            c += 4;
-        } else {
-            axpy_widened(y, [col(c)], [-v[j]]);
-            c += 1;
-        }
     }
 }
 

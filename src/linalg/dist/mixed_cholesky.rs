@@ -32,8 +32,8 @@
 //! on every rank, as with the f32 LU factors (`mixed`).
 
 use super::cholesky::{factor_projected, project_into, Border};
-use super::mixed::{update_widened, Approximate};
-use super::scalar::{dots_widened, Scalar};
+use super::mixed::Approximate;
+use super::scalar::{products_widened, update_widened, Scalar};
 use super::solver::Job;
 use super::system::{all_gather_rows, LocalRows};
 use crate::error::Result;
@@ -123,18 +123,7 @@ impl<T: Scalar> Approximate for CholeskyFactors<T> {
             let (k0, k1) = (w[0], w[1]);
             let b = k1 - k0;
             let (at, below) = (lay.first_local_from(k0), lay.first_local_from(k1));
-            let mut sums = Vec::with_capacity(b);
-            let mut c = k0;
-            while c < k1 {
-                if c + 4 <= k1 {
-                    let cols = [0, 1, 2, 3].map(|t| &col(c + t)[below..]);
-                    sums.extend(dots_widened(cols, &mine[below..]));
-                    c += 4;
-                } else {
-                    sums.extend(dots_widened([&col(c)[below..]], &mine[below..]));
-                    c += 1;
-                }
-            }
+            let mut sums = products_widened((k0, k1), &mine[below..], |c| &col(c)[below..]);
             comm.sum_f64(&mut sums);
             for i in (0..b).rev() {
                 let s: f64 = (i + 1..b).map(|j| d[j * b + i] * x[k0 + j]).sum();
