@@ -120,7 +120,7 @@ pub(super) fn factor_and_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<(V
         matmul(block, Accum::Add, l, right.as_ref().subcols(c0, w), -1.0, par);
     }
     border.project_rhs(comm, rows);
-    let sign = factor_projected(job, rows, k, n)?;
+    let sign = factor_projected(job, rows, k, n, None)?;
 
     // the factorisation left z = L^-1 y in rows k..n of the right-hand side
     let b0 = lay.first_local_from(k);
@@ -368,7 +368,8 @@ pub(super) fn project_into<T: Scalar>(
 /// strict upper triangle of the diagonal blocks with zeros (the rest of the upper triangle is
 /// neither read nor written), and rows k..n of the right-hand side y with z = L^-1 y (the forward
 /// substitution rides along: each panel's block of y is gathered with its diagonal block, solved
-/// with L11, and the rows below take their L21 z1 while L21 is fresh). Returns s. Collective;
+/// with L11, and the rows below take their L21 z1 while L21 is fresh). Returns s; with `diag`, the
+/// diagonal blocks L11 of the panels are pushed there in order (every rank has them). Collective;
 /// `Error::NotDefinite` when a pivot is not positive (on every rank that reached it: callers
 /// agree on the outcome).
 pub(super) fn factor_projected<T: Scalar>(
@@ -376,6 +377,7 @@ pub(super) fn factor_projected<T: Scalar>(
     rows: &mut LocalRows<T>,
     k: usize,
     n: usize,
+    mut diag: Option<&mut Vec<Mat<T>>>,
 ) -> Result<f64> {
     let Job { comm, panel, par, progress, lookahead } = *job;
     let lay = rows.layout;
@@ -405,7 +407,10 @@ pub(super) fn factor_projected<T: Scalar>(
     {
         let (mat, y) = rows.data.split_at_mut(n * ld);
         let y = &mut y[(rhs - n) * ld..(rhs - n) * ld + la];
-        prepare_panel(comm, lay, &mut mat[p0 * ld..], y, (p0, p0 + pb, n), par, &mut bufs, None)?;
+        let l11 = prepare_panel(comm, lay, &mut mat[p0 * ld..], y, (p0, p0 + pb, n), par, &mut bufs, None)?;
+        if let Some(d) = diag.as_deref_mut() {
+            d.push(l11);
+        }
     }
     loop {
         let p1 = p0 + pb;
@@ -463,7 +468,10 @@ pub(super) fn factor_projected<T: Scalar>(
             for piece in &pieces {
                 update(rest, p1, piece);
             }
-            prepare_panel(comm, lay, rest, y, (p1, split, n), par, &mut next_bufs, None)?;
+            let l11 = prepare_panel(comm, lay, rest, y, (p1, split, n), par, &mut next_bufs, None)?;
+            if let Some(d) = diag.as_deref_mut() {
+                d.push(l11);
+            }
         } else {
             for piece in &pieces[..ahead] {
                 update(rest, p1, piece);
@@ -478,8 +486,12 @@ pub(super) fn factor_projected<T: Scalar>(
                 }
                 None => false,
             };
-            prepare_panel(comm, lay, left, y, (p1, split, n), par, &mut next_bufs, Some(&mut work))?;
+            let l11 =
+                prepare_panel(comm, lay, left, y, (p1, split, n), par, &mut next_bufs, Some(&mut work))?;
             while work() {}
+            if let Some(d) = diag.as_deref_mut() {
+                d.push(l11);
+            }
         }
         progress(p1, n);
         std::mem::swap(&mut bufs, &mut next_bufs);
@@ -541,7 +553,7 @@ fn prepare_panel<T: Scalar>(
     par: Par,
     bufs: &mut GatherBuffers<T>,
     mut work: Option<&mut (dyn FnMut() -> bool + '_)>,
-) -> Result<()> {
+) -> Result<Mat<T>> {
     let pb = p1 - p0;
     let ld = lay.local_count();
     let la = lay.first_local_from(n);
@@ -576,7 +588,7 @@ fn prepare_panel<T: Scalar>(
         y[l] = z1[(lay.global(l) - p0, 0)];
     }
     if p1 == n {
-        return Ok(());
+        return Ok(l11);
     }
     let t0 = lay.first_local_from(p1);
     // L21 = B21 L11^-T, i.e. L11 L21^T = B21^T, solved in place on the transposed view of the
@@ -592,7 +604,7 @@ fn prepare_panel<T: Scalar>(
         matmul(y2, Accum::Add, b21.rb(), z1.as_ref(), T::of(-1.0), Par::Seq);
     }
     all_gather_packed_while(comm, lay, (p1, n, pb), bufs, false, work);
-    Ok(())
+    Ok(l11)
 }
 
 /// Cholesky of a small symmetric matrix (row-major, lower triangle used) by faer's blocked kernel;

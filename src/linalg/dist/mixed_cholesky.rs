@@ -48,7 +48,8 @@ pub struct CholeskyFactors<T: Scalar = f32> {
     sign: f64,
     /// Panel boundaries k = p_0 < p_1 < ... < p_m = N.
     panels: Vec<usize>,
-    /// Per panel, its diagonal block of L (row-major, widened), on every rank.
+    /// Per panel, its diagonal block of L (row-major, widened), on every rank, as the
+    /// factorisation computed it.
     diag: Vec<Vec<f64>>,
     /// W[..k, ..N], row-major, widened, on every rank.
     top: Vec<f64>,
@@ -66,11 +67,16 @@ impl<T: Scalar> CholeskyFactors<T> {
         let mut rows: LocalRows<T> = LocalRows::zeros(m.layout, m.cols, m.border);
         project_into(m, &mut rows, (&left, &right), job.par);
         drop((left, right));
-        let sign = factor_projected(job, &mut rows, k, n)?;
+        let mut blocks = Vec::new();
+        let sign = factor_projected(job, &mut rows, k, n, Some(&mut blocks))?;
         let nb = job.panel.max(1);
         let panels: Vec<usize> = (k..n).step_by(nb).chain([n]).collect();
+        // the diagonal blocks as the factorisation left them on every rank, row-major, widened
+        let diag = blocks
+            .iter()
+            .map(|l| (0..l.nrows()).flat_map(|i| (0..l.ncols()).map(move |j| l[(i, j)].f64())).collect())
+            .collect();
         let widen = |v: Vec<T>| v.into_iter().map(T::f64).collect::<Vec<f64>>();
-        let diag = panels.windows(2).map(|w| widen(rows.gather_rows(comm, w[0], w[1], w[0], w[1]))).collect();
         let top = widen(rows.gather_rows(comm, 0, k, 0, n));
         Ok(CholeskyFactors { rows, border, sign, panels, diag, top })
     }
