@@ -674,6 +674,46 @@ mod tests {
         }
     }
 
+    /// The projection rounded into a fresh f32 copy writes the lower triangle, the rows 0..k and
+    /// the columns 0..k, each the f64 projection rounded, and leaves the upper triangle above the
+    /// first diagonal row of each block of columns untouched (zero), where the f64 projection is
+    /// not: the factorisation does not read it, and untouched pages cost no page faults.
+    #[test]
+    fn the_projection_into_f32_writes_what_the_factorisation_reads_and_no_more() {
+        let m = bunny_rows(8);
+        let border = Border::new(&Solo, &m).unwrap();
+        let (k, n) = (border.k, border.n);
+        assert!(n > 4 * COL_CHUNK, "{n} centres: too few column blocks");
+        let (left, right) = border.projection(&Solo, &m, Par::Seq);
+        let ld = m.ld();
+        let mut full = m.clone();
+        let a = MatMut::from_column_major_slice_with_stride_mut(&mut full.data, n, n, ld);
+        matmul(a, Accum::Add, left.as_ref(), right.as_ref(), -1.0, Par::Seq);
+        let mut dst: LocalRows<f32> = LocalRows::zeros(m.layout, m.cols, m.border);
+        project_into(&m, &mut dst, (&left, &right), Par::Seq);
+        let (mut written, mut left_alone) = (0, 0);
+        for c in 0..n {
+            let first_of_block = c / COL_CHUNK * COL_CHUNK;
+            for g in 0..n {
+                let (got, want) = (dst.get(g, c) as f64, full.get(g, c));
+                if c < k || g < k || g >= first_of_block {
+                    assert!(
+                        (got - want).abs() <= 1e-6 * want.abs().max(1e-3),
+                        "({g}, {c}): {got} against {want}"
+                    );
+                    written += 1;
+                } else {
+                    assert!(
+                        got == 0.0 && want != 0.0,
+                        "({g}, {c}) above the diagonal: {got} (projection {want})"
+                    );
+                    left_alone += 1;
+                }
+            }
+        }
+        assert!(left_alone > written / 2, "{left_alone} entries left alone, {written} written");
+    }
+
     /// Every entry of the lower triangle of rows and columns p1..n on a rank is updated by exactly
     /// one piece, the next panel's columns by the leading pieces alone, and no piece leaves the
     /// trailing block: on 1, 2, 3 and 5 ranks, with the blocks of rows and columns ending inside
