@@ -88,6 +88,9 @@ pub const AUTO_CHOLESKY_FROM: usize = 100;
 /// System size from which the projected Cholesky's default panel is 384 rather than 256.
 pub const CHOLESKY_WIDE_FROM: usize = 6000;
 
+/// System size from which LU's default panel is 320 rather than 192.
+pub const LU_WIDE_FROM: usize = 6000;
+
 impl SolverKind {
     pub fn parse(name: &str) -> Result<Self> {
         match name {
@@ -122,15 +125,19 @@ impl SolverKind {
     /// Panel width used when the user gives none for a system of `n` rows, measured on a 2-core
     /// AVX-512 machine, 2 ranks: Cholesky gains from wide panels (its trailing GEMMs get a longer
     /// inner dimension) as n grows: 256 is best at 2000 and 4000 rows (384 is 3-10 % slower
-    /// there), 384 at 8000 (2.20-2.23 s against 2.30-2.34 s with 256); LU at 192 (best of 3 at
-    /// 8000: 2.00-2.07 s against 2.13-2.14 s with 128 on 2 ranks, 3.63 against 4.01 s on one;
-    /// at 4000 0.306 against 0.313 s on 2 ranks; equal at 2000: its trailing GEMMs gain from the
-    /// inner dimension, its panels hardly lose); Householder, whose panel is factored
+    /// there), 384 at 8000 (2.20-2.23 s against 2.30-2.34 s with 256); LU at 192 below 6000
+    /// rows (at 2000 0.054 s against 0.056 s with 320 on 2 ranks, 0.083 against 0.087 s on one;
+    /// at 4000 all of 128-320 within 1 % on 2 ranks) and 320 from there (at 8000, interleaved,
+    /// best of 3: 2.05-2.08 s against 2.15-2.16 s with 192 and 2.11 s with 256 on 2 ranks,
+    /// 2.06 s with 384, 2.17 s with 512; 3.75-3.81 against 3.96 s on one: since the block row
+    /// is gathered as the ranks hold it, the wider trailing GEMMs win over the longer panels);
+    /// Householder, whose panel is factored
     /// recursively, at 128 (at 8000 4.24-4.42 s against 4.69-4.72 s with 64, 4.28 s with 192 and
     /// 4.56 s with 256; 7 % faster than 64 at 4000, equal at 2000).
     pub fn default_panel(&self, n: usize) -> usize {
         match self {
             SolverKind::Householder => 128,
+            SolverKind::Lu if n >= LU_WIDE_FROM => 320,
             SolverKind::Lu => 192,
             SolverKind::Cholesky | SolverKind::Auto if n >= CHOLESKY_WIDE_FROM => 384,
             SolverKind::Cholesky | SolverKind::Auto => 256,
