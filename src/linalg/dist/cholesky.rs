@@ -399,6 +399,13 @@ pub(super) fn factor_projected<T: Scalar>(
         rows.data[rhs * ld + b0..rhs * ld + la].iter_mut().for_each(|a| *a = -*a);
     }
 
+    // the diagonal blocks, where the caller keeps them
+    let mut keep = |l11: Mat<T>| {
+        if let Some(d) = diag.as_deref_mut() {
+            d.push(l11);
+        }
+    };
+
     // blocked right-looking Cholesky of B, lower triangle, in place
     // (on one rank there are no messages to overlap with)
     let lookahead = lookahead && comm.size() > 1;
@@ -407,10 +414,7 @@ pub(super) fn factor_projected<T: Scalar>(
     {
         let (mat, y) = rows.data.split_at_mut(n * ld);
         let y = &mut y[(rhs - n) * ld..(rhs - n) * ld + la];
-        let l11 = prepare_panel(comm, lay, &mut mat[p0 * ld..], y, (p0, p0 + pb, n), par, &mut bufs, None)?;
-        if let Some(d) = diag.as_deref_mut() {
-            d.push(l11);
-        }
+        keep(prepare_panel(comm, lay, &mut mat[p0 * ld..], y, (p0, p0 + pb, n), par, &mut bufs, None)?);
     }
     loop {
         let p1 = p0 + pb;
@@ -468,10 +472,7 @@ pub(super) fn factor_projected<T: Scalar>(
             for piece in &pieces {
                 update(rest, p1, piece);
             }
-            let l11 = prepare_panel(comm, lay, rest, y, (p1, split, n), par, &mut next_bufs, None)?;
-            if let Some(d) = diag.as_deref_mut() {
-                d.push(l11);
-            }
+            keep(prepare_panel(comm, lay, rest, y, (p1, split, n), par, &mut next_bufs, None)?);
         } else {
             for piece in &pieces[..ahead] {
                 update(rest, p1, piece);
@@ -489,9 +490,7 @@ pub(super) fn factor_projected<T: Scalar>(
             let l11 =
                 prepare_panel(comm, lay, left, y, (p1, split, n), par, &mut next_bufs, Some(&mut work))?;
             while work() {}
-            if let Some(d) = diag.as_deref_mut() {
-                d.push(l11);
-            }
+            keep(l11);
         }
         progress(p1, n);
         std::mem::swap(&mut bufs, &mut next_bufs);

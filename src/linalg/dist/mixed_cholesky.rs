@@ -69,8 +69,11 @@ impl<T: Scalar> CholeskyFactors<T> {
         drop((left, right));
         let mut blocks = Vec::new();
         let sign = factor_projected(job, &mut rows, k, n, Some(&mut blocks))?;
-        let nb = job.panel.max(1);
-        let panels: Vec<usize> = (k..n).step_by(nb).chain([n]).collect();
+        // the panel boundaries are those of the blocks the factorisation kept
+        let mut panels = vec![k];
+        for l in &blocks {
+            panels.push(panels[panels.len() - 1] + l.nrows());
+        }
         // the diagonal blocks as the factorisation left them on every rank, row-major, widened
         let diag = blocks
             .iter()
