@@ -18,9 +18,11 @@
 //! factors. Two small all-gathers per panel; n^2 / p multiply-adds per rank.
 //!
 //! The residual of the refinement, r = b - M x, is computed from the f64 rows that each rank
-//! keeps: each rank its own rows (one GEMV), then one all-gather of the n values. Every vector of
-//! the refinement is thus replicated and identical on every rank, and every decision taken from
-//! it (norms, stopping rules) is the same everywhere without a further collective.
+//! keeps: each rank its own rows (one GEMV; for a symmetric M one pass over the lower triangle of
+//! its rows and a sum over the ranks, see [`Operator`]), then one all-gather of the n values from
+//! their owners. Every vector of the refinement is thus replicated and identical on every rank,
+//! and every decision taken from it (norms, stopping rules) is the same everywhere without a
+//! further collective.
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef, Par};
@@ -127,21 +129,43 @@ impl Approximate for Factors {
 
 /// The f64 matrix a refinement computes its residuals with: this rank's rows of M, and the
 /// norms the stopping rules need.
+///
+/// A symmetric M (the bordered spline system that the projected Cholesky solves) is read in its
+/// lower triangle alone, as the Cholesky itself reads it: each entry m_gc (g >= c) of this rank's
+/// rows serves row g (m_gc x_c) and, below the diagonal, row c (m_gc x_g). A product is bound by
+/// the bytes it reads from memory, so reading half of them halves it. The contributions to rows
+/// of other ranks are summed over the ranks; each owner then takes its own rows' sums, and one
+/// all-gather makes them replicated, so every rank holds the same values whatever order the sum
+/// took.
 pub struct Operator<'a> {
     rows: &'a LocalRows,
     par: Par,
+    symmetric: bool,
     /// ||M||_inf over all rows (the right-hand side excluded).
     pub norm_inf: f64,
 }
 
 impl<'a> Operator<'a> {
     /// The operator and the residual b - M x of a first solution x (replicated), from one pass
-    /// over the rows: the norm takes the same entries as the product, and a second pass over a
-    /// matrix of hundreds of megabytes costs as long as the product itself. Collective.
-    pub fn with_residual(comm: &dyn Comm, rows: &'a LocalRows, par: Par, x: &[f64]) -> (Self, Vec<f64>) {
+    /// over the rows (over their lower triangle where `symmetric`): the norm takes the same
+    /// entries as the product, and a second pass over a matrix of hundreds of megabytes costs as
+    /// long as the product itself. Collective.
+    pub fn with_residual(
+        comm: &dyn Comm,
+        rows: &'a LocalRows,
+        par: Par,
+        x: &[f64],
+        symmetric: bool,
+    ) -> (Self, Vec<f64>) {
         let (lay, ld) = (rows.layout, rows.ld());
         let n = lay.n;
-        let mut own = rows.data[n * ld..(n + 1) * ld].to_vec();
+        let b = &rows.data[n * ld..(n + 1) * ld];
+        if symmetric {
+            let (r, sums) = lower_pass::<true>(comm, rows, x, (1.0, -1.0));
+            let norm_inf = sums.iter().fold(0.0f64, |a, &s| a.max(s));
+            return (Operator { rows, par, symmetric, norm_inf }, r);
+        }
+        let mut own = b.to_vec();
         let mut sums = vec![0.0f64; ld];
         let col = |c: usize| &rows.data[c * ld..(c + 1) * ld];
         let mut c = 0;
@@ -165,7 +189,7 @@ impl<'a> Operator<'a> {
         let mut m = [sums.iter().fold(0.0f64, |a, &s| a.max(s))];
         comm.max_f64(&mut m);
         let r = all_gather_rows(comm, lay, &own, 0..n, 1);
-        (Operator { rows, par, norm_inf: m[0] }, r)
+        (Operator { rows, par, symmetric, norm_inf: m[0] }, r)
     }
 
     /// The right-hand side of `rows`, replicated. Collective.
@@ -187,6 +211,9 @@ impl<'a> Operator<'a> {
 
     /// alpha b + beta M x, replicated. Collective.
     fn combine(&self, comm: &dyn Comm, alpha: f64, beta: f64, x: &[f64]) -> Vec<f64> {
+        if self.symmetric {
+            return lower_pass::<false>(comm, self.rows, x, (alpha, beta)).0;
+        }
         let (lay, ld) = (self.rows.layout, self.rows.ld());
         let n = lay.n;
         let mut own: Vec<f64> = self.rows.data[n * ld..(n + 1) * ld].iter().map(|b| alpha * b).collect();
@@ -200,27 +227,243 @@ impl<'a> Operator<'a> {
     }
 }
 
+/// alpha b + beta M x for a symmetric M from the lower triangle of this rank's rows, replicated,
+/// and with `NORMS` the row sums of |M| (replicated; empty without). Collective.
+fn lower_pass<const NORMS: bool>(
+    comm: &dyn Comm,
+    rows: &LocalRows,
+    x: &[f64],
+    (alpha, beta): (f64, f64),
+) -> (Vec<f64>, Vec<f64>) {
+    let (lay, ld) = (rows.layout, rows.ld());
+    let n = lay.n;
+    let col = |c: usize| &rows.data[c * ld..(c + 1) * ld];
+    // x in this rank's local order, for the products of the columns below the diagonal
+    let xl: Vec<f64> = (0..ld).map(|l| x[lay.global(l)]).collect();
+    // own[l]: sum over c <= g(l) of m_gc x_c; across[c]: sum over this rank's g > c of m_gc x_g
+    let (mut own, mut across) = (vec![0.0; ld], vec![0.0; n]);
+    let (mut own_abs, mut across_abs) = if NORMS { (vec![0.0; ld], vec![0.0; n]) } else { (vec![], vec![]) };
+    let mut c = 0;
+    while c < n {
+        let w = (n - c).min(LOWER_PER_PASS);
+        // the rows g in c..c+w meet the diagonal within these columns: entry by entry
+        let below = lay.first_local_from(c + w);
+        for l in lay.first_local_from(c)..below {
+            let g = lay.global(l);
+            for cc in c..(c + w).min(g + 1) {
+                let a = col(cc)[l];
+                own[l] += a * x[cc];
+                if NORMS {
+                    own_abs[l] += a.abs();
+                }
+                if g > cc {
+                    across[cc] += a * xl[l];
+                    if NORMS {
+                        across_abs[cc] += a.abs();
+                    }
+                }
+            }
+        }
+        // the rows below all of them
+        let tail = |c: usize| &col(c)[below..];
+        let (own_t, xl_t) = (&mut own[below..], &xl[below..]);
+        if w == LOWER_PER_PASS {
+            let cols = std::array::from_fn(|t| tail(c + t));
+            let xc = std::array::from_fn(|t| x[c + t]);
+            let abs_t = if NORMS { &mut own_abs[below..] } else { &mut [][..] };
+            let (d, s) = lower_columns::<LOWER_PER_PASS, NORMS>(cols, xc, xl_t, own_t, abs_t);
+            for t in 0..w {
+                across[c + t] += d[t];
+                if NORMS {
+                    across_abs[c + t] += s[t];
+                }
+            }
+        } else {
+            for t in 0..w {
+                let abs_t = if NORMS { &mut own_abs[below..] } else { &mut [][..] };
+                let (d, s) = lower_columns::<1, NORMS>([tail(c + t)], [x[c + t]], xl_t, &mut *own_t, abs_t);
+                across[c + t] += d[0];
+                if NORMS {
+                    across_abs[c + t] += s[0];
+                }
+            }
+        }
+        c += w;
+    }
+    // this rank's shares of every row, summed over the ranks; b enters on its owner
+    let b = &rows.data[n * ld..(n + 1) * ld];
+    let mut sums = across.iter().map(|v| beta * v).collect::<Vec<f64>>();
+    if NORMS {
+        sums.extend_from_slice(&across_abs);
+    }
+    for l in 0..ld {
+        let g = lay.global(l);
+        sums[g] += alpha * b[l] + beta * own[l];
+        if NORMS {
+            sums[n + g] += own_abs[l];
+        }
+    }
+    comm.sum_f64(&mut sums);
+    // each owner's sums of its own rows, all-gathered: the same values on every rank
+    let parts = if NORMS { 2 } else { 1 };
+    let mut mine = Vec::with_capacity(ld * parts);
+    for l in 0..ld {
+        let g = lay.global(l);
+        mine.push(sums[g]);
+        if NORMS {
+            mine.push(sums[n + g]);
+        }
+    }
+    let both = all_gather_rows(comm, lay, &mine, 0..n, parts);
+    if NORMS {
+        (both.iter().step_by(2).copied().collect(), both.iter().skip(1).step_by(2).copied().collect())
+    } else {
+        (both, Vec::new())
+    }
+}
+
+/// Columns per pass of [`lower_pass`].
+const LOWER_PER_PASS: usize = 4;
+
+/// For W columns of rows below all their diagonal entries: own += sum_w x_w col_w (and
+/// own_abs += sum_w |col_w| with `NORMS`); returns col_w . xl (and the sums of |col_w|), with
+/// eight running sums per column (one waits for each addition before the next). Compiled for the
+/// widest vector unit the CPU has: the same portable code, without fused multiply-adds, so every
+/// path gives the same bits.
+fn lower_columns<const W: usize, const NORMS: bool>(
+    cols: [&[f64]; W],
+    xc: [f64; W],
+    xl: &[f64],
+    own: &mut [f64],
+    own_abs: &mut [f64],
+) -> ([f64; W], [f64; W]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU supports AVX-512F (checked just above).
+            return unsafe { lower_columns_avx512::<W, NORMS>(cols, xc, xl, own, own_abs) };
+        }
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked just above).
+            return unsafe { lower_columns_avx2::<W, NORMS>(cols, xc, xl, own, own_abs) };
+        }
+    }
+    lower_columns_portable::<W, NORMS>(cols, xc, xl, own, own_abs)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn lower_columns_avx512<const W: usize, const NORMS: bool>(
+    cols: [&[f64]; W],
+    xc: [f64; W],
+    xl: &[f64],
+    own: &mut [f64],
+    own_abs: &mut [f64],
+) -> ([f64; W], [f64; W]) {
+    lower_columns_portable::<W, NORMS>(cols, xc, xl, own, own_abs)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn lower_columns_avx2<const W: usize, const NORMS: bool>(
+    cols: [&[f64]; W],
+    xc: [f64; W],
+    xl: &[f64],
+    own: &mut [f64],
+    own_abs: &mut [f64],
+) -> ([f64; W], [f64; W]) {
+    lower_columns_portable::<W, NORMS>(cols, xc, xl, own, own_abs)
+}
+
+#[inline(always)]
+fn lower_columns_portable<const W: usize, const NORMS: bool>(
+    cols: [&[f64]; W],
+    xc: [f64; W],
+    xl: &[f64],
+    own: &mut [f64],
+    own_abs: &mut [f64],
+) -> ([f64; W], [f64; W]) {
+    let len = xl.len();
+    let full = len / 8 * 8;
+    let (mut dot, mut abs) = ([[0.0f64; 8]; W], [[0.0f64; 8]; W]);
+    for i in (0..full).step_by(8) {
+        let xs = &xl[i..i + 8];
+        let o = &mut own[i..i + 8];
+        let mut s = [0.0f64; 8];
+        let mut sa = [0.0f64; 8];
+        for w in 0..W {
+            let cs = &cols[w][i..i + 8];
+            for t in 0..8 {
+                s[t] += cs[t] * xc[w];
+                dot[w][t] += cs[t] * xs[t];
+                if NORMS {
+                    sa[t] += cs[t].abs();
+                    abs[w][t] += cs[t].abs();
+                }
+            }
+        }
+        for t in 0..8 {
+            o[t] += s[t];
+        }
+        if NORMS {
+            let oa = &mut own_abs[i..i + 8];
+            for t in 0..8 {
+                oa[t] += sa[t];
+            }
+        }
+    }
+    let (mut d, mut a) = ([0.0; W], [0.0; W]);
+    for w in 0..W {
+        d[w] = dot[w].iter().sum::<f64>();
+        a[w] = abs[w].iter().sum::<f64>();
+        for i in full..len {
+            let v = cols[w][i];
+            own[i] += v * xc[w];
+            d[w] += v * xl[i];
+            if NORMS {
+                own_abs[i] += v.abs();
+                a[w] += v.abs();
+            }
+        }
+    }
+    (d, a)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::linalg::dist::test_support::bunny_rows;
     use crate::par::Solo;
 
-    /// The residual b - M x and ||M||_inf of the one pass agree with a plain computation, on a
-    /// system whose order is not a multiple of the four columns per pass.
+    /// The residual b - M x and ||M||_inf of the one pass, and the products of the operator,
+    /// agree with a plain computation over all entries, read from all of M and from its lower
+    /// triangle, on a system whose order is not a multiple of the columns per pass.
     #[test]
-    fn the_first_residual_and_the_norm_match_a_plain_computation() {
-        let m = bunny_rows(40);
+    fn the_residuals_products_and_norm_match_a_plain_computation() {
+        let mut m = bunny_rows(40);
         let n = m.layout.n;
         assert!(!n.is_multiple_of(4), "order {n}: the remainder columns would go untested");
-        let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).cos()).collect();
-        let (op, r) = Operator::with_residual(&Solo, &m, Par::Seq, &x);
-        let mut norm = 0.0f64;
+        // the kernel r vanishes on the diagonal: a smoothing term makes it count
         for i in 0..n {
-            let want = m.get(i, n) - (0..n).map(|j| m.get(i, j) * x[j]).sum::<f64>();
-            assert!((r[i] - want).abs() <= 1e-12 * (1.0 + want.abs()), "row {i}: {} against {want}", r[i]);
-            norm = norm.max((0..n).map(|j| m.get(i, j).abs()).sum());
+            m.data[i * n + i] += 0.5 + i as f64 * 0.01;
         }
-        assert!((op.norm_inf - norm).abs() <= 1e-12 * norm, "{} against {norm}", op.norm_inf);
+        let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).cos()).collect();
+        let y: Vec<f64> = (0..n).map(|i| (i as f64 * 0.11).sin()).collect();
+        let product = |v: &[f64], i: usize| (0..n).map(|j| m.get(i, j) * v[j]).sum::<f64>();
+        let norm = (0..n).map(|i| (0..n).map(|j| m.get(i, j).abs()).sum::<f64>()).fold(0.0, f64::max);
+        let close = |got: f64, want: f64, what: &str| {
+            assert!((got - want).abs() <= 1e-12 * (1.0 + want.abs()), "{what}: {got} against {want}");
+        };
+        for symmetric in [false, true] {
+            let (op, r) = Operator::with_residual(&Solo, &m, Par::Seq, &x, symmetric);
+            let (again, p) = (op.residual(&Solo, &y), op.product(&Solo, &y));
+            for i in 0..n {
+                let what = format!("row {i}, symmetric {symmetric}");
+                close(r[i], m.get(i, n) - product(&x, i), &format!("first residual, {what}"));
+                close(again[i], m.get(i, n) - product(&y, i), &format!("residual, {what}"));
+                close(p[i], product(&y, i), &format!("product, {what}"));
+            }
+            close(op.norm_inf, norm, &format!("norm, symmetric {symmetric}"));
+        }
     }
 }

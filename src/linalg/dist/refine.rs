@@ -113,17 +113,22 @@ pub fn mixed_solve(job: &Job<'_>, m: &LocalRows, kind: SolverKind) -> Result<(Ve
         SolverKind::Cholesky => Box::new(CholeskyFactors::<f32>::new(job, m)?),
         _ => Box::new(Factors::new(job, m)?),
     };
-    refine(job, m, factors.as_ref())
+    refine(job, m, factors.as_ref(), kind == SolverKind::Cholesky)
 }
 
 /// Refines the solution of `m` with the approximate inverse `factors`.
-fn refine(job: &Job<'_>, m: &LocalRows, factors: &dyn Approximate) -> Result<(Vec<f64>, Refinement)> {
+fn refine(
+    job: &Job<'_>,
+    m: &LocalRows,
+    factors: &dyn Approximate,
+    symmetric: bool,
+) -> Result<(Vec<f64>, Refinement)> {
     let comm = job.comm;
     let n = m.layout.n;
     let b = Operator::rhs_of(comm, m);
     let bnorm = norm2(&b).max(f64::MIN_POSITIVE);
     let mut x = factors.apply(comm, &b);
-    let (op, mut r) = Operator::with_residual(comm, m, job.par, &x);
+    let (op, mut r) = Operator::with_residual(comm, m, job.par, &x, symmetric);
     let floor = |x: &[f64]| f64::EPSILON * op.norm_inf * norm_inf(x);
     let accept = |x: &[f64]| (n as f64).sqrt() * floor(x);
     let mut out = Refinement {

@@ -73,8 +73,38 @@ scalar!(f32, all_gather_f32, shift_f32, all_gather_f32_while);
 /// The products of W columns with x, the columns widened to f64, reading x once for all of
 /// them and keeping eight running sums per column: one running sum waits for each addition before
 /// the next, and one column at a time reads x again for each (a backward substitution over all of
-/// L, a product per column, took twice as long as one pass over L from memory).
+/// L, a product per column, took twice as long as one pass over L from memory). Like
+/// [`axpy_widened`], compiled for the widest vector unit the CPU has: the same portable code,
+/// without fused multiply-adds, so every path gives the same bits.
 fn dots_widened<const W: usize, T: Scalar>(cols: [&[T]; W], x: &[f64]) -> [f64; W] {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU supports AVX-512F (checked just above).
+            return unsafe { dots_avx512(cols, x) };
+        }
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked just above).
+            return unsafe { dots_avx2(cols, x) };
+        }
+    }
+    dots_portable(cols, x)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn dots_avx512<const W: usize, T: Scalar>(cols: [&[T]; W], x: &[f64]) -> [f64; W] {
+    dots_portable(cols, x)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn dots_avx2<const W: usize, T: Scalar>(cols: [&[T]; W], x: &[f64]) -> [f64; W] {
+    dots_portable(cols, x)
+}
+
+#[inline(always)]
+fn dots_portable<const W: usize, T: Scalar>(cols: [&[T]; W], x: &[f64]) -> [f64; W] {
     let n = x.len();
     let full = n / 8 * 8;
     let mut acc = [[0.0f64; 8]; W];
@@ -96,6 +126,34 @@ fn dots_widened<const W: usize, T: Scalar>(cols: [&[T]; W], x: &[f64]) -> [f64; 
 
 /// y += sum_w a_w cols_w with the columns widened to f64: W columns per pass over y.
 fn axpy_widened<const W: usize, T: Scalar>(y: &mut [f64], cols: [&[T]; W], a: [f64; W]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU supports AVX-512F (checked just above).
+            return unsafe { axpy_avx512(y, cols, a) };
+        }
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked just above).
+            return unsafe { axpy_avx2(y, cols, a) };
+        }
+    }
+    axpy_portable(y, cols, a)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn axpy_avx512<const W: usize, T: Scalar>(y: &mut [f64], cols: [&[T]; W], a: [f64; W]) {
+    axpy_portable(y, cols, a)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn axpy_avx2<const W: usize, T: Scalar>(y: &mut [f64], cols: [&[T]; W], a: [f64; W]) {
+    axpy_portable(y, cols, a)
+}
+
+#[inline(always)]
+fn axpy_portable<const W: usize, T: Scalar>(y: &mut [f64], cols: [&[T]; W], a: [f64; W]) {
     for (i, v) in y.iter_mut().enumerate() {
         let mut s = 0.0;
         for w in 0..W {
