@@ -31,6 +31,9 @@
 //! computed in f64 with the f32 entries widened as they are read, and every vector is replicated
 //! on every rank, as with the f32 LU factors (`mixed`).
 
+use faer::linalg::triangular_solve::{solve_lower_triangular_in_place, solve_upper_triangular_in_place};
+use faer::{Mat, MatMut, Par};
+
 use super::cholesky::{factor_projected, project_into, Border};
 use super::mixed::Approximate;
 use super::scalar::{products_widened, update_widened, Scalar};
@@ -48,9 +51,9 @@ pub struct CholeskyFactors<T: Scalar = f32> {
     sign: f64,
     /// Panel boundaries k = p_0 < p_1 < ... < p_m = N.
     panels: Vec<usize>,
-    /// Per panel, its diagonal block of L (row-major, widened), on every rank, as the
-    /// factorisation computed it.
-    diag: Vec<Vec<f64>>,
+    /// Per panel, its diagonal block of L (widened; the lower triangle is read), on every rank,
+    /// as the factorisation computed it.
+    diag: Vec<Mat<f64>>,
     /// W[..k, ..N], row-major, widened, on every rank.
     top: Vec<f64>,
 }
@@ -74,11 +77,9 @@ impl<T: Scalar> CholeskyFactors<T> {
         for l in &blocks {
             panels.push(panels[panels.len() - 1] + l.nrows());
         }
-        // the diagonal blocks as the factorisation left them on every rank, row-major, widened
-        let diag = blocks
-            .iter()
-            .map(|l| (0..l.nrows()).flat_map(|i| (0..l.ncols()).map(move |j| l[(i, j)].f64())).collect())
-            .collect();
+        // the diagonal blocks as the factorisation left them on every rank, widened
+        let diag =
+            blocks.iter().map(|l| Mat::from_fn(l.nrows(), l.ncols(), |i, j| l[(i, j)].f64())).collect();
         let widen = |v: Vec<T>| v.into_iter().map(T::f64).collect::<Vec<f64>>();
         let top = widen(rows.gather_rows(comm, 0, k, 0, n));
         Ok(CholeskyFactors { rows, border, sign, panels, diag, top })
@@ -113,13 +114,9 @@ impl<T: Scalar> Approximate for CholeskyFactors<T> {
         let mut z = vec![0.0; n];
         for (w, d) in self.panels.windows(2).zip(&self.diag) {
             let (k0, k1) = (w[0], w[1]);
-            let b = k1 - k0;
             let (l0, l1) = (lay.first_local_from(k0), lay.first_local_from(k1));
             let mut zp = all_gather_rows(comm, lay, &own[l0..l1], k0..k1, 1);
-            for i in 0..b {
-                let s: f64 = (0..i).map(|j| d[i * b + j] * zp[j]).sum();
-                zp[i] = (zp[i] - s) / d[i * b + i];
-            }
+            solve_lower_triangular_in_place(d.as_ref(), column(&mut zp), Par::Seq);
             update_widened(&mut own[l1..], (k0, k1), &zp, |c| &col(c)[l1..]);
             z[k0..k1].copy_from_slice(&zp);
         }
@@ -130,14 +127,12 @@ impl<T: Scalar> Approximate for CholeskyFactors<T> {
         let mut mine = vec![0.0; la];
         for (w, d) in self.panels.windows(2).zip(&self.diag).rev() {
             let (k0, k1) = (w[0], w[1]);
-            let b = k1 - k0;
             let (at, below) = (lay.first_local_from(k0), lay.first_local_from(k1));
             let mut sums = products_widened((k0, k1), &mine[below..], |c| &col(c)[below..]);
             comm.sum_f64(&mut sums);
-            for i in (0..b).rev() {
-                let s: f64 = (i + 1..b).map(|j| d[j * b + i] * x[k0 + j]).sum();
-                x[k0 + i] = (x[k0 + i] - sums[i] - s) / d[i * b + i];
-            }
+            let xp = &mut x[k0..k1];
+            xp.iter_mut().zip(&sums).for_each(|(v, s)| *v -= s);
+            solve_upper_triangular_in_place(d.transpose(), column(xp), Par::Seq);
             for (l, v) in mine.iter_mut().enumerate().take(below).skip(at) {
                 *v = x[lay.global(l)];
             }
@@ -155,6 +150,12 @@ impl<T: Scalar> Approximate for CholeskyFactors<T> {
         x.extend(c);
         x
     }
+}
+
+/// `v` as a one-column matrix.
+fn column(v: &mut [f64]) -> MatMut<'_, f64> {
+    let n = v.len();
+    MatMut::from_column_major_slice_mut(v, n, 1)
 }
 
 #[cfg(test)]
