@@ -198,6 +198,15 @@ pub struct FitArgs {
     /// (see src/surface/choice.rs).
     #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub blob_choice: bool,
+    /// Where the blob search's pins took the solid from data points the first fit had it at (a
+    /// part thinner than the lattice, such as a leg sampled by three points, sinks below zero
+    /// under the pins' far reach), constrain the first fit's value at the node of each such
+    /// point's lattice cell where it was largest, if the data enclose that node (winding number
+    /// at least 1/2), and keep that fit when fewer data points are left without solid (on, or
+    /// off). One more fit, bordering the first fit's factor, where solid was lost (see
+    /// src/surface/blobs.rs, "Solid given back").
+    #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
+    pub restore_solid: bool,
     /// Last, where the dense fit kept its factor, try turning the small patches of normals
     /// nearest to the surface no data supports (on, or off), at most 3, and keep a turn that
     /// removes at least 5 % of that surface: a patch turned on a sheet thinner than the sampling

@@ -379,6 +379,11 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             r.figure("second_round_points", k.points);
             r.figure("second_round_kept", k.kept);
         }
+        if let Some(k) = &s.restored {
+            r.figure("restored_lost", k.lost);
+            r.figure("restored_points", k.points);
+            r.figure("restored_kept", k.kept);
+        }
         if let Some(k) = &s.rays {
             r.figure("rays_doubtful", k.doubtful);
             r.figure("rays_enclosed", k.enclosed);
@@ -487,6 +492,18 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
                 if k.kept { "kept" } else { "dropped" },
             ),
             Some(_) => "; second round: nothing in open space".to_string(),
+            None => String::new(),
+        } + &match &s.restored {
+            Some(k) if k.points > 0 => format!(
+                "; solid lost at {} data points, given back at {} nodes inside, data points without solid \
+                 {} -> {}: {}",
+                k.lost,
+                k.points,
+                k.without_solid.0,
+                k.without_solid.1,
+                if k.kept { "kept" } else { "dropped" },
+            ),
+            Some(k) => format!("; solid lost at {} data points, none of their nodes inside", k.lost),
             None => String::new(),
         } + &match &s.turns {
             Some(t) => format!(

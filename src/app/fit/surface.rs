@@ -14,8 +14,8 @@ use crate::error::Result;
 use crate::par::{agree, Comm};
 use crate::spline::hygiene::Prepared;
 use crate::surface::blobs::{
-    blob_values, points_without_solid, sample, sample_window, winding_numbers, Blobs, Lattice, Search,
-    CLEARANCE, SECOND_ROUND_FROM,
+    blob_values, lost_solid, points_without_solid, sample, sample_window, winding_numbers, Blobs, Lattice,
+    Search, CLEARANCE, INSIDE, SECOND_ROUND_FROM,
 };
 use crate::surface::choice::{self, unsupported_share};
 use crate::surface::denoise::Denoised;
@@ -68,6 +68,9 @@ pub struct SurfaceSummary {
     /// The blob search's second round, on the second fit (None: not made, since the cap pinned
     /// at least 1 / [`SECOND_ROUND_FROM`] of the spurious nodes or `--blob-choice off`).
     pub second_round: Option<SecondRound>,
+    /// Solid the pins took from data points given back (None: nothing lost, or
+    /// `--restore-solid off`).
+    pub restored: Option<Restored>,
     /// The patches turned by the unsupported surface (None: not run, since `--orient-turns off`
     /// or the system is too large to refit afresh and kept no factor).
     pub turns: Option<TurnCheck>,
@@ -79,8 +82,10 @@ impl SurfaceSummary {
     pub fn fits(&self) -> usize {
         let tried = self.turns.as_ref().map_or(0, |t| t.tried);
         let second = self.second_round.as_ref().is_some_and(|r| r.points > 0);
+        let restored = self.restored.as_ref().is_some_and(|r| r.points > 0);
         tried
             + usize::from(second)
+            + usize::from(restored)
             + match &self.choice {
                 Some(ch) => ch.fits,
                 None if self.blob_points > 0 || self.rays.as_ref().is_some_and(|k| k.turned > 0) => 2,
@@ -115,6 +120,22 @@ pub struct SecondRound {
     pub share: (f64, f64),
     pub without_solid: (usize, usize),
     /// Whether its fit was kept: less unsupported surface and no more points without solid.
+    pub kept: bool,
+}
+
+/// Solid given back where the pins took it from data points (see [`crate::surface::blobs`],
+/// "Solid given back").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Restored {
+    /// Data points whose solid was lost (no positive lattice node at their cell, where the first
+    /// fit had one).
+    pub lost: usize,
+    /// Constraint points added: the lost points' nodes inside the data's surface (0: none, no
+    /// fit made).
+    pub points: usize,
+    /// Data points without solid near them, before and after (the same where no fit was made).
+    pub without_solid: (usize, usize),
+    /// Whether its fit was kept: fewer points without solid.
     pub kept: bool,
 }
 
@@ -218,6 +239,7 @@ pub fn constrain(
         rays: None,
         choice: None,
         second_round: None,
+        restored: None,
         turns: None,
     };
     Ok(Constrained { prep: with_off_points(prep, &off), summary, hoods, normals: orientation.normals, off })
@@ -281,7 +303,12 @@ pub fn check_first_fit(
 ) -> Result<Fitted> {
     let factor = first.factor.take();
     let lattice = Lattice::of_fit(&data.box_lo, &data.box_hi, run.args.grid.margin, &data.norm);
-    let (mut fit, values) = rays_and_blobs(run, data, c, first, stages, refit, (factor.as_ref(), &lattice))?;
+    let searched = rays_and_blobs(run, data, c, first, stages, refit, (factor.as_ref(), &lattice))?;
+    let (mut fit, values) = if run.args.restore_solid {
+        restore_solid(run, data, c, searched, stages, refit, (factor.as_ref(), &lattice))?
+    } else {
+        (searched.fit, searched.values)
+    };
     // the kept fit's own bordered factor where it has one (a second fit), else the first fit's
     let basis = fit.factor.take().or(factor);
     // without a kept factor (a solver or layout the user chose) a try is a fresh fit: affordable
@@ -304,7 +331,7 @@ fn rays_and_blobs(
     stages: &mut Stages,
     refit: &mut Refit<'_>,
     (factor, lattice): (Option<&KeptFactor>, &Lattice),
-) -> Result<(Fitted, Option<Vec<f64>>)> {
+) -> Result<Searched> {
     let turned = stages.time(Stage::Rays, || {
         if !run.args.orient_rays {
             return RayCheck::default();
@@ -345,6 +372,9 @@ fn rays_and_blobs(
             .filter(|b| b.centres != wide.centres);
         (values, wide, narrow, search)
     });
+    // what the solid given back afterwards compares with
+    let (first_values, areas) = (values.clone(), search.areas().to_vec());
+    let done = |fit: Fitted, values: Option<Vec<f64>>| Searched { fit, values, first_values, areas };
     let areas = search.areas();
     c.summary.blob_regions = wide.regions;
     c.summary.blob_spared = wide.spared.len() / 3;
@@ -353,7 +383,7 @@ fn rays_and_blobs(
     let first_stands = |b: &Blobs| b.source.is_empty() && turned.turned == 0;
     let (Some(narrow), Some(support)) = (narrow, support.as_ref()) else {
         if first_stands(&wide) {
-            return Ok((first, Some(values)));
+            return Ok(done(first, Some(values)));
         }
         drop(first);
         c.prep = with_blobs(&c.prep, &wide, data);
@@ -361,7 +391,7 @@ fn rays_and_blobs(
         let fit = refit(&c.prep, factor, stages)?;
         // one clearance pinned what both would; a second round where the cap left most nodes out
         let Some(support) = support.filter(|_| wide.found > SECOND_ROUND_FROM * wide.source.len()) else {
-            return Ok((fit, None));
+            return Ok(done(fit, None));
         };
         let (values, share) = stages.time(Stage::Blobs, || {
             let values = sample(run.comm, lattice, &data.carrier, &fit.spline);
@@ -372,7 +402,7 @@ fn rays_and_blobs(
         let kept = Round { fit, values, share, clearance: CLEARANCE };
         let (fit, values) =
             second_round(run, data, c, kept, (lattice, &search, &support), factor, stages, refit)?;
-        return Ok((fit, Some(values)));
+        return Ok(done(fit, Some(values)));
     };
     // two candidates: each is the first fit or a second one, with its points and the lattice
     // values of its fit (neither candidate the first fit: it goes before the second systems are
@@ -415,11 +445,87 @@ fn rays_and_blobs(
     c.prep = prep;
     c.summary.blob_points = blobs.source.len();
     if blobs.found <= SECOND_ROUND_FROM * blobs.source.len() {
-        return Ok((fit, Some(values)));
+        return Ok(done(fit, Some(values)));
     }
     let kept = Round { fit, values, share, clearance };
     let (fit, values) = second_round(run, data, c, kept, (lattice, &search, support), factor, stages, refit)?;
-    Ok((fit, Some(values)))
+    Ok(done(fit, Some(values)))
+}
+
+/// What the ray test and the blob search leave: the fit kept, with its values on the lattice
+/// where they were sampled, the first fit's values on the lattice and the data points' shares of
+/// the surface (for the winding numbers).
+struct Searched {
+    fit: Fitted,
+    values: Option<Vec<f64>>,
+    first_values: Vec<f64>,
+    areas: Vec<f64>,
+}
+
+/// Gives back the solid the blob search's pins took from data points (see
+/// [`crate::surface::blobs`], "Solid given back"): the nodes of [`lost_solid`] inside the data's
+/// surface become constraint points with the first fit's values as targets, and the fit with them
+/// (bordering the first fit's factor, as the search's fits do) is kept when fewer data points are
+/// left without solid. Only the lattice around each node is sampled again for that count; the
+/// values elsewhere stay the kept fit's. Returns the fit kept with its values on the lattice (`c`
+/// is updated where the new fit is kept). Collective.
+fn restore_solid(
+    run: &Run<'_>,
+    data: &Prepared,
+    c: &mut Constrained,
+    searched: Searched,
+    stages: &mut Stages,
+    refit: &mut Refit<'_>,
+    (factor, lattice): (Option<&KeptFactor>, &Lattice),
+) -> Result<(Fitted, Option<Vec<f64>>)> {
+    let Searched { mut fit, values, first_values, areas } = searched;
+    // the first fit itself: nothing was pinned
+    if c.summary.blob_points == 0 {
+        return Ok((fit, values));
+    }
+    let (values, nodes, before) = stages.time(Stage::Blobs, || {
+        let values = values.unwrap_or_else(|| sample(run.comm, lattice, &data.carrier, &fit.spline));
+        let lost = lost_solid(lattice, &first_values, &values, &data.centres);
+        let at: Vec<[f64; 3]> = lost.iter().map(|&i| lattice.node(i)).collect();
+        let winding = winding_numbers(run.comm, &at, &data.centres, &c.normals, &areas);
+        let inside: Vec<usize> =
+            lost.iter().zip(&winding).filter(|(_, &w)| w >= INSIDE).map(|(&i, _)| i).collect();
+        let before = points_without_solid(lattice, &values, &data.centres);
+        (values, (lost.len(), inside), before)
+    });
+    let (lost, nodes) = nodes;
+    let mut restored = Restored { lost, points: nodes.len(), without_solid: (before, before), kept: false };
+    if nodes.is_empty() {
+        c.summary.restored = (lost > 0).then_some(restored);
+        return Ok((fit, Some(values)));
+    }
+    let mut prep = c.prep.clone();
+    let norm = &data.norm;
+    for &i in &nodes {
+        let q = lattice.node(i);
+        let raw: Vec<f64> = (0..3).map(|d| norm.centre[d] + norm.scale * q[d]).collect();
+        prep.centres.extend_from_slice(&q);
+        prep.values.push(data.carrier.eval(&raw) - first_values[i]);
+    }
+    let new = refit(&prep, factor, stages)?;
+    let (new_values, after) = stages.time(Stage::Blobs, || {
+        let mut new_values = values.clone();
+        for &i in &nodes {
+            let window = lattice.around(lattice.node(i), lattice.node(i), 0.0);
+            sample_window(run.comm, lattice, &window, (&data.carrier, &new.spline), &mut new_values);
+        }
+        let after = points_without_solid(lattice, &new_values, &data.centres);
+        (new_values, after)
+    });
+    restored.without_solid.1 = after;
+    restored.kept = after < before;
+    c.summary.restored = Some(restored);
+    if !restored.kept {
+        return Ok((fit, Some(values)));
+    }
+    fit = new;
+    c.prep = prep;
+    Ok((fit, Some(new_values)))
 }
 
 /// A fit of the blob search with its values on the lattice, the share of its surface that no
