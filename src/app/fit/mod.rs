@@ -503,7 +503,7 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
                 k.without_solid.1,
                 if k.kept { "kept" } else { "dropped" },
             ),
-            Some(k) => format!("; solid lost at {} data points, none of their nodes inside", k.lost),
+            Some(k) => format!("; solid lost at {} data points, too few of their nodes inside to give back", k.lost),
             None => String::new(),
         } + &match &s.turns {
             Some(t) => format!(

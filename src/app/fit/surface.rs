@@ -15,7 +15,7 @@ use crate::par::{agree, Comm};
 use crate::spline::hygiene::Prepared;
 use crate::surface::blobs::{
     blob_values, lost_solid, points_without_solid, sample, sample_window, winding_numbers, Blobs, Lattice,
-    Search, CLEARANCE, INSIDE, SECOND_ROUND_FROM,
+    Search, CLEARANCE, INSIDE, RESTORE_FROM, SECOND_ROUND_FROM,
 };
 use crate::surface::choice::{self, unsupported_share};
 use crate::surface::denoise::Denoised;
@@ -130,8 +130,8 @@ pub struct Restored {
     /// Data points whose solid was lost (no positive lattice node at their cell, where the first
     /// fit had one).
     pub lost: usize,
-    /// Constraint points added: the lost points' nodes inside the data's surface (0: none, no
-    /// fit made).
+    /// Constraint points added: the lost points' nodes inside the data's surface (0: fewer than
+    /// [`RESTORE_FROM`], no fit made).
     pub points: usize,
     /// Data points without solid near them, before and after (the same where no fit was made).
     pub without_solid: (usize, usize),
@@ -464,7 +464,8 @@ struct Searched {
 
 /// Gives back the solid the blob search's pins took from data points (see
 /// [`crate::surface::blobs`], "Solid given back"): the nodes of [`lost_solid`] inside the data's
-/// surface become constraint points with the first fit's values as targets, and the fit with them
+/// surface, where there are at least [`RESTORE_FROM`], become constraint points with the first
+/// fit's values as targets, and the fit with them
 /// (bordering the first fit's factor, as the search's fits do) is kept when fewer data points are
 /// left without solid. Only the lattice around each node is sampled again for that count; the
 /// values elsewhere stay the kept fit's. Returns the fit kept with its values on the lattice (`c`
@@ -494,6 +495,7 @@ fn restore_solid(
         (values, (lost.len(), inside), before)
     });
     let (lost, nodes) = nodes;
+    let nodes = if nodes.len() >= RESTORE_FROM { nodes } else { Vec::new() };
     let mut restored = Restored { lost, points: nodes.len(), without_solid: (before, before), kept: false };
     if nodes.is_empty() {
         c.summary.restored = (lost > 0).then_some(restored);
