@@ -893,18 +893,21 @@ mod tests {
         assert!(open.centres.chunks_exact(3).all(|q| dist2(q, &[0.0; 3]).sqrt() > 1.0));
     }
 
+    /// The unit ball cut off above z = `cut` (a signed distance, positive inside) on `lattice`.
+    fn cut_ball(lattice: &Lattice, cut: f64) -> Vec<f64> {
+        (0..lattice.len())
+            .map(|i| {
+                let q = lattice.node(i);
+                (1.0 - dist2(&q, &[0.0; 3]).sqrt()).min(cut - q[2])
+            })
+            .collect()
+    }
+
     #[test]
     fn points_on_a_solid_have_solid_at_their_cell_and_points_of_a_part_cut_away_have_none() {
         let (pts, _) = sphere(400);
         let lattice = Lattice::new([-2.0; 3], [2.0; 3], 33);
-        let f = |cut: f64| -> Vec<f64> {
-            (0..lattice.len())
-                .map(|i| {
-                    let q = lattice.node(i);
-                    (1.0 - dist2(&q, &[0.0; 3]).sqrt()).min(cut - q[2])
-                })
-                .collect()
-        };
+        let f = |cut: f64| cut_ball(&lattice, cut);
         assert_eq!(points_without_solid(&lattice, &f(2.0), &pts), 0);
         // the cap above z = 0.5 cut away: its points (1/4 of the sphere's area) lose their solid,
         // those within a cell (h = 0.125) of the cut may keep it
@@ -918,14 +921,7 @@ mod tests {
     fn solid_lost_where_the_first_fit_had_it_is_found_at_the_corner_where_it_was_largest() {
         let (pts, _) = sphere(400);
         let lattice = Lattice::new([-2.0; 3], [2.0; 3], 33);
-        let f = |cut: f64| -> Vec<f64> {
-            (0..lattice.len())
-                .map(|i| {
-                    let q = lattice.node(i);
-                    (1.0 - dist2(&q, &[0.0; 3]).sqrt()).min(cut - q[2])
-                })
-                .collect()
-        };
+        let f = |cut: f64| cut_ball(&lattice, cut);
         let (first, now) = (f(2.0), f(0.5));
         let nodes = lost_solid(&lattice, &first, &now, &pts);
         // one node per point that lost its solid (points share nodes), each where the first fit

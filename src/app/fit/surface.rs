@@ -322,7 +322,7 @@ pub fn check_first_fit(
 
 /// The ray test and the blob search with the clearance choice of [`check_first_fit`] (`factor`:
 /// the first fit's, where it was kept): the fit kept, with its values on the lattice where they
-/// were sampled. Collective.
+/// were sampled, and what [`restore_solid`] compares it with. Collective.
 fn rays_and_blobs(
     run: &Run<'_>,
     data: &Prepared,
