@@ -479,12 +479,12 @@ fn restore_solid(
     refit: &mut Refit<'_>,
     (factor, lattice): (Option<&KeptFactor>, &Lattice),
 ) -> Result<(Fitted, Option<Vec<f64>>)> {
-    let Searched { mut fit, values, first_values, areas } = searched;
+    let Searched { fit, values, first_values, areas } = searched;
     // the first fit itself: nothing was pinned
     if c.summary.blob_points == 0 {
         return Ok((fit, values));
     }
-    let (values, nodes, before) = stages.time(Stage::Blobs, || {
+    let (values, (lost, nodes), before) = stages.time(Stage::Blobs, || {
         let values = values.unwrap_or_else(|| sample(run.comm, lattice, &data.carrier, &fit.spline));
         let lost = lost_solid(lattice, &first_values, &values, &data.centres);
         let at: Vec<[f64; 3]> = lost.iter().map(|&i| lattice.node(i)).collect();
@@ -494,7 +494,6 @@ fn restore_solid(
         let before = points_without_solid(lattice, &values, &data.centres);
         (values, (lost.len(), inside), before)
     });
-    let (lost, nodes) = nodes;
     let nodes = if nodes.len() >= RESTORE_FROM { nodes } else { Vec::new() };
     let mut restored = Restored { lost, points: nodes.len(), without_solid: (before, before), kept: false };
     if nodes.is_empty() {
@@ -525,9 +524,8 @@ fn restore_solid(
     if !restored.kept {
         return Ok((fit, Some(values)));
     }
-    fit = new;
     c.prep = prep;
-    Ok((fit, Some(new_values)))
+    Ok((new, Some(new_values)))
 }
 
 /// A fit of the blob search with its values on the lattice, the share of its surface that no
