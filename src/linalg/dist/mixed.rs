@@ -28,7 +28,7 @@ use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef, Par};
 
 use super::lu::lu_factor;
-use super::scalar::update_widened;
+use super::scalar::{on_widest_unit, update_widened};
 use super::solver::Job;
 use super::system::{all_gather_rows, LocalRows};
 use crate::error::Result;
@@ -159,13 +159,12 @@ impl<'a> Operator<'a> {
     ) -> (Self, Vec<f64>) {
         let (lay, ld) = (rows.layout, rows.ld());
         let n = lay.n;
-        let b = &rows.data[n * ld..(n + 1) * ld];
         if symmetric {
             let (r, sums) = lower_pass::<true>(comm, rows, x, (1.0, -1.0));
             let norm_inf = sums.iter().fold(0.0f64, |a, &s| a.max(s));
             return (Operator { rows, par, symmetric, norm_inf }, r);
         }
-        let mut own = b.to_vec();
+        let mut own = rows.data[n * ld..(n + 1) * ld].to_vec();
         let mut sums = vec![0.0f64; ld];
         let col = |c: usize| &rows.data[c * ld..(c + 1) * ld];
         let mut c = 0;
@@ -325,54 +324,17 @@ fn lower_pass<const NORMS: bool>(
 /// Columns per pass of [`lower_pass`].
 const LOWER_PER_PASS: usize = 4;
 
-/// For W columns of rows below all their diagonal entries: own += sum_w x_w col_w (and
-/// own_abs += sum_w |col_w| with `NORMS`); returns col_w . xl (and the sums of |col_w|), with
-/// eight running sums per column (one waits for each addition before the next). Compiled for the
-/// widest vector unit the CPU has: the same portable code, without fused multiply-adds, so every
-/// path gives the same bits.
-fn lower_columns<const W: usize, const NORMS: bool>(
-    cols: [&[f64]; W],
-    xc: [f64; W],
-    xl: &[f64],
-    own: &mut [f64],
-    own_abs: &mut [f64],
-) -> ([f64; W], [f64; W]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU supports AVX-512F (checked just above).
-            return unsafe { lower_columns_avx512::<W, NORMS>(cols, xc, xl, own, own_abs) };
-        }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { lower_columns_avx2::<W, NORMS>(cols, xc, xl, own, own_abs) };
-        }
-    }
-    lower_columns_portable::<W, NORMS>(cols, xc, xl, own, own_abs)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn lower_columns_avx512<const W: usize, const NORMS: bool>(
-    cols: [&[f64]; W],
-    xc: [f64; W],
-    xl: &[f64],
-    own: &mut [f64],
-    own_abs: &mut [f64],
-) -> ([f64; W], [f64; W]) {
-    lower_columns_portable::<W, NORMS>(cols, xc, xl, own, own_abs)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn lower_columns_avx2<const W: usize, const NORMS: bool>(
-    cols: [&[f64]; W],
-    xc: [f64; W],
-    xl: &[f64],
-    own: &mut [f64],
-    own_abs: &mut [f64],
-) -> ([f64; W], [f64; W]) {
-    lower_columns_portable::<W, NORMS>(cols, xc, xl, own, own_abs)
+on_widest_unit! {
+    /// For W columns of rows below all their diagonal entries: own += sum_w x_w col_w (and
+    /// own_abs += sum_w |col_w| with `NORMS`); returns col_w . xl (and the sums of |col_w|), with
+    /// eight running sums per column (one waits for each addition before the next).
+    fn lower_columns[const W: usize, const NORMS: bool][W, NORMS](
+        cols: [&[f64]; W],
+        xc: [f64; W],
+        xl: &[f64],
+        own: &mut [f64],
+        own_abs: &mut [f64],
+    ) -> ([f64; W], [f64; W]) = lower_columns_portable;
 }
 
 #[inline(always)]

@@ -70,37 +70,49 @@ macro_rules! scalar {
 scalar!(f64, all_gather_f64, shift_f64, all_gather_f64_while);
 scalar!(f32, all_gather_f32, shift_f32, all_gather_f32_while);
 
-/// The products of W columns with x, the columns widened to f64, reading x once for all of
-/// them and keeping eight running sums per column: one running sum waits for each addition before
-/// the next, and one column at a time reads x again for each (a backward substitution over all of
-/// L, a product per column, took twice as long as one pass over L from memory). Like
-/// [`axpy_widened`], compiled for the widest vector unit the CPU has: the same portable code,
-/// without fused multiply-adds, so every path gives the same bits.
-fn dots_widened<const W: usize, T: Scalar>(cols: [&[T]; W], x: &[f64]) -> [f64; W] {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU supports AVX-512F (checked just above).
-            return unsafe { dots_avx512(cols, x) };
+/// Defines `fn $name` running `$portable`, an `#[inline(always)]` function of the same
+/// signature, compiled for the widest vector unit the CPU has (AVX-512, else AVX2, else the
+/// crate's own target): the crate is built for plain x86-64, whose vectors hold two doubles, and
+/// a hand-written loop runs at that width unless it is dispatched so. The same portable code on
+/// every path, with no fused multiply-adds, gives the same bits on every path. The generics are
+/// written twice, as declared and as passed: `fn name[const W: usize, T: Scalar][W, T](..)`.
+macro_rules! on_widest_unit {
+    ($(#[$attr:meta])* $vis:vis fn $name:ident [$($decl:tt)*] [$($pass:tt)*]
+     ($($a:ident: $at:ty),* $(,)?) $(-> $ret:ty)? = $portable:ident;) => {
+        $(#[$attr])*
+        $vis fn $name<$($decl)*>($($a: $at),*) $(-> $ret)? {
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx512f")]
+                unsafe fn wide512<$($decl)*>($($a: $at),*) $(-> $ret)? {
+                    $portable::<$($pass)*>($($a),*)
+                }
+                #[target_feature(enable = "avx2")]
+                unsafe fn wide256<$($decl)*>($($a: $at),*) $(-> $ret)? {
+                    $portable::<$($pass)*>($($a),*)
+                }
+                if std::arch::is_x86_feature_detected!("avx512f") {
+                    // SAFETY: the CPU supports AVX-512F (checked just above).
+                    return unsafe { wide512::<$($pass)*>($($a),*) };
+                }
+                if std::arch::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the CPU supports AVX2 (checked just above).
+                    return unsafe { wide256::<$($pass)*>($($a),*) };
+                }
+            }
+            $portable::<$($pass)*>($($a),*)
         }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { dots_avx2(cols, x) };
-        }
-    }
-    dots_portable(cols, x)
+    };
 }
+pub(super) use on_widest_unit;
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn dots_avx512<const W: usize, T: Scalar>(cols: [&[T]; W], x: &[f64]) -> [f64; W] {
-    dots_portable(cols, x)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn dots_avx2<const W: usize, T: Scalar>(cols: [&[T]; W], x: &[f64]) -> [f64; W] {
-    dots_portable(cols, x)
+on_widest_unit! {
+    /// The products of W columns with x, the columns widened to f64, reading x once for all of
+    /// them and keeping eight running sums per column: one running sum waits for each addition
+    /// before the next, and one column at a time reads x again for each (a backward substitution
+    /// over all of L, a product per column, took twice as long as one pass over L from memory).
+    fn dots_widened[const W: usize, T: Scalar][W, T](cols: [&[T]; W], x: &[f64]) -> [f64; W]
+        = dots_portable;
 }
 
 #[inline(always)]
@@ -124,32 +136,10 @@ fn dots_portable<const W: usize, T: Scalar>(cols: [&[T]; W], x: &[f64]) -> [f64;
     out
 }
 
-/// y += sum_w a_w cols_w with the columns widened to f64: W columns per pass over y.
-fn axpy_widened<const W: usize, T: Scalar>(y: &mut [f64], cols: [&[T]; W], a: [f64; W]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU supports AVX-512F (checked just above).
-            return unsafe { axpy_avx512(y, cols, a) };
-        }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { axpy_avx2(y, cols, a) };
-        }
-    }
-    axpy_portable(y, cols, a)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn axpy_avx512<const W: usize, T: Scalar>(y: &mut [f64], cols: [&[T]; W], a: [f64; W]) {
-    axpy_portable(y, cols, a)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn axpy_avx2<const W: usize, T: Scalar>(y: &mut [f64], cols: [&[T]; W], a: [f64; W]) {
-    axpy_portable(y, cols, a)
+on_widest_unit! {
+    /// y += sum_w a_w cols_w with the columns widened to f64: W columns per pass over y.
+    fn axpy_widened[const W: usize, T: Scalar][W, T](y: &mut [f64], cols: [&[T]; W], a: [f64; W])
+        = axpy_portable;
 }
 
 #[inline(always)]
