@@ -153,6 +153,13 @@ impl Normalisation {
             *o = (x[d] - self.centre[d]) / self.scale;
         }
     }
+
+    /// The caller's coordinates of the normalised point `x` (3 values): the inverse of
+    /// [`Normalisation::apply`].
+    #[inline]
+    pub fn undo(&self, x: &[f64]) -> [f64; 3] {
+        [0, 1, 2].map(|d| self.centre[d] + self.scale * x[d])
+    }
 }
 
 /// A solved volume spline in normalised coordinates.

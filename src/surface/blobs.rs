@@ -739,8 +739,7 @@ pub fn blob_values(blobs: &Blobs, raw: &[f64], carrier: &Carrier, norm: &Normali
     (0..blobs.source.len())
         .into_par_iter()
         .map(|k| {
-            let q: Vec<f64> =
-                (0..3).map(|d| norm.centre[d] + norm.scale * blobs.centres[3 * k + d]).collect();
+            let q = norm.undo(&blobs.centres[3 * k..3 * k + 3]);
             let s = blobs.source[k];
             let g = carrier_slope(carrier, &raw[3 * s..3 * s + 3], h);
             carrier.eval(&q) + g * blobs.distance[k] * norm.scale

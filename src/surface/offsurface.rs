@@ -267,7 +267,7 @@ pub fn off_value_parts(
     (0..off.side.len())
         .into_par_iter()
         .map(|k| {
-            let q: Vec<f64> = (0..3).map(|d| norm.centre[d] + norm.scale * off.centres[3 * k + d]).collect();
+            let q = norm.undo(&off.centres[3 * k..3 * k + 3]);
             let s = off.source[k];
             let g = carrier_slope(carrier, &raw[3 * s..3 * s + 3], h);
             (carrier.eval(&q), off.side[k] * g * off.delta[k] * norm.scale)

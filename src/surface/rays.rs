@@ -104,7 +104,7 @@ pub fn verdicts(
     let ev = Evaluator::new(spline);
     let norm = &spline.norm;
     let f = |q: &[f64; 3]| {
-        let x = [0, 1, 2].map(|d| norm.centre[d] + norm.scale * q[d]);
+        let x = norm.undo(q);
         let mut u = [0.0];
         ev.eval_row(&x[..1], x[1], x[2], &mut u);
         carrier.eval(&x) - u[0]

@@ -501,12 +501,10 @@ fn restore_solid(
         return Ok((fit, Some(values)));
     }
     let mut prep = c.prep.clone();
-    let norm = &data.norm;
     for &i in &nodes {
         let q = lattice.node(i);
-        let raw: Vec<f64> = (0..3).map(|d| norm.centre[d] + norm.scale * q[d]).collect();
         prep.centres.extend_from_slice(&q);
-        prep.values.push(data.carrier.eval(&raw) - first_values[i]);
+        prep.values.push(data.carrier.eval(&data.norm.undo(&q)) - first_values[i]);
     }
     let new = refit(&prep, factor, stages)?;
     let (new_values, after) = stages.time(Stage::Blobs, || {
