@@ -372,10 +372,11 @@ fn rays_and_blobs(
             .filter(|b| b.centres != wide.centres);
         (values, wide, narrow, search)
     });
-    // what the solid given back afterwards compares with
-    let (first_values, areas) = (values.clone(), search.areas().to_vec());
-    let done = |fit: Fitted, values: Option<Vec<f64>>| Searched { fit, values, first_values, areas };
     let areas = search.areas();
+    // what the solid given back afterwards compares with
+    let first_values = values.clone();
+    let done =
+        |fit: Fitted, values: Option<Vec<f64>>| Searched { fit, values, first_values, areas: areas.to_vec() };
     c.summary.blob_regions = wide.regions;
     c.summary.blob_spared = wide.spared.len() / 3;
     c.summary.rays = run.args.orient_rays.then(|| turned.clone());
