@@ -4,7 +4,8 @@
 //! ranks, those checks alone),
 //! the projected Cholesky's factor bordered by appended centres,
 //! the mixed-precision solve and its fallback to f64,
-//! the parallel VTKHDF writer, and the per-slice fits of `contours`.
+//! the parallel VTKHDF writer, the per-slice fits of `contours`, and the blob search's lattice
+//! samples.
 //!
 //! A target without the libtest harness (see `common::mpijob`): the checks run as jobs under
 //! `mpirun -n 2` and `mpirun -n 3 --oversubscribe`, each within a time limit.
@@ -31,7 +32,8 @@ use volspline::linalg::dist::{self, Job, LocalRows, Precision, RowCyclic, Solver
 use volspline::par::mpi::World;
 use volspline::par::{self, Comm, Solo};
 use volspline::spline::hygiene::{prepare, Prepared};
-use volspline::spline::{full_system, system_size, Carrier, Kernel};
+use volspline::spline::{full_system, system_size, Carrier, Kernel, Spline};
+use volspline::surface::blobs::{data_cells, sample, sample_nodes, sample_window, Lattice};
 
 use common::mpijob::{self, must, same_on_every_rank, Case, Check, Expect, Log};
 
@@ -90,7 +92,7 @@ fn child() {
         drop(world);
         std::process::exit(i32::from(failed > 0));
     }
-    let checks: [(&str, Check); 16] = [
+    let checks: [(&str, Check); 17] = [
         ("typed collectives", typed_collectives),
         ("agree: one failing rank", agree_one_failing_rank),
         ("agree: two failing ranks, the lowest wins", agree_lowest_rank_wins),
@@ -107,6 +109,7 @@ fn child() {
         ("mixed Cholesky -> f64 fallback, coincident to f32", mixed_cholesky_falls_back_to_f64),
         ("parallel VTKHDF write vs serial values", vtkhdf_slabs_read_back),
         ("contour slices vs one process", sections_match_solo),
+        ("blob lattice: whole, a window and scattered nodes vs one process", lattice_samples_match_solo),
     ];
     let failed = mpijob::run_checks(comm, &checks);
     drop(world);
@@ -713,5 +716,43 @@ fn sections_match_solo(comm: &dyn Comm, log: &mut Log) {
     log.check(fits.len() == serial.len(), || format!("{} fits, expected {}", fits.len(), serial.len()));
     for (i, (a, b)) in fits.iter().zip(&serial).enumerate() {
         log.check(a == b, || format!("slice {i}: the fit differs from the one-process fit"));
+    }
+}
+
+/// The blob search's samples of a fit on its lattice (whole, a window, scattered nodes), dealt
+/// over the ranks, against one process: the same bits.
+fn lattice_samples_match_solo(comm: &dyn Comm, log: &mut Log) {
+    let k = Kernel::new(3, 2).unwrap();
+    let prep = bunny_system(&k);
+    let n = prep.values.len();
+    let weights: Vec<f64> = (0..n).map(|i| (0.37 * i as f64).sin() / n as f64).collect();
+    let spline = Spline {
+        kernel: k,
+        centres: prep.centres.clone(),
+        weights,
+        poly: vec![0.1, 0.2, -0.3, 0.4],
+        norm: prep.norm,
+    };
+    let lattice = Lattice::new([-1.0; 3], [1.0; 3], 23);
+    let pair = (&prep.carrier, &spline);
+    let serial = sample(&Solo, &lattice, &prep.carrier, &spline);
+    let whole = sample(comm, &lattice, &prep.carrier, &spline);
+    log.check(whole == serial, || "the whole lattice differs from the one-process sampling".into());
+    log.check(serial.iter().any(|&v| v > 0.0) && serial.iter().any(|&v| v < 0.0), || "no sign change".into());
+    let mut window = vec![f64::NAN; serial.len()];
+    sample_window(comm, &lattice, &[2..9, 0..23, 11..14], pair, &mut window);
+    let mut nodes = vec![f64::NAN; serial.len()];
+    let cells = data_cells(&lattice, &prep.centres);
+    sample_nodes(comm, &lattice, &cells, pair, &mut nodes);
+    let [nx, ny, _] = lattice.dims;
+    for i in 0..serial.len() {
+        let (x, z) = (i % nx, i / (nx * ny));
+        let in_window = (2..9).contains(&x) && (11..14).contains(&z);
+        log.check(!in_window || window[i] == serial[i], || {
+            format!("window node {i}: {} vs {}", window[i], serial[i])
+        });
+        let asked = cells.binary_search(&i).is_ok();
+        log.check(!asked || nodes[i] == serial[i], || format!("node {i}: {} vs {}", nodes[i], serial[i]));
+        log.check(asked || nodes[i].is_nan(), || format!("node {i} not asked for was written"));
     }
 }

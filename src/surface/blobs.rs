@@ -358,6 +358,51 @@ pub fn sample_window(
     }
 }
 
+/// [`sample`] at the nodes `nodes` of `lattice` alone (sorted, each once), written into `values`
+/// (the whole lattice's); the others are left as they are. A node gets the bits [`sample`] gives
+/// it: its sum depends on nothing but the node. The rows holding nodes are dealt round-robin over
+/// the ranks and summed, so every rank gets the same values. Collective.
+pub fn sample_nodes(
+    comm: &dyn Comm,
+    lattice: &Lattice,
+    nodes: &[usize],
+    (carrier, spline): (&Carrier, &Spline),
+    values: &mut [f64],
+) {
+    let nx = lattice.dims[0];
+    debug_assert!(nodes.windows(2).all(|w| w[0] < w[1]));
+    // the nodes of each lattice row, in order
+    let rows: Vec<&[usize]> = nodes.chunk_by(|a, b| a / nx == b / nx).collect();
+    let norm = &spline.norm;
+    let ev = Evaluator::new(spline);
+    let mut part = vec![0.0; nodes.len()];
+    let (rank, size) = (comm.rank(), comm.size());
+    let mut mine: Vec<(usize, &mut [f64])> = Vec::new();
+    let mut rest = &mut part[..];
+    for (k, r) in rows.iter().enumerate() {
+        let (out, tail) = rest.split_at_mut(r.len());
+        rest = tail;
+        if k % size == rank {
+            mine.push((k, out));
+        }
+    }
+    mine.into_par_iter().for_each(|(k, out)| {
+        let row = rows[k];
+        let p = lattice.node(row[0] - row[0] % nx);
+        let (y, z) = (norm.centre[1] + norm.scale * p[1], norm.centre[2] + norm.scale * p[2]);
+        let xs: Vec<f64> =
+            row.iter().map(|&i| norm.centre[0] + norm.scale * lattice.node(i % nx)[0]).collect();
+        ev.eval_row(&xs, y, z, out);
+        for (v, &x) in out.iter_mut().zip(&xs) {
+            *v = carrier.eval(&[x, y, z]) - *v;
+        }
+    });
+    comm.sum_f64(&mut part);
+    for (&i, &v) in nodes.iter().zip(&part) {
+        values[i] = v;
+    }
+}
+
 /// The spurious nodes of a sampled fit.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Blobs {
@@ -487,15 +532,15 @@ impl Search {
                 bound += h;
             }
         });
-        let mut figures: Vec<f64> = judged
+        // the positive nodes' figures alone travel (every rank knows which nodes are positive)
+        let judge: Vec<usize> = (0..lattice.len()).filter(|&i| positive[i] && k > 0).collect();
+        let mut figures: Vec<f64> = judge
             .iter()
-            .flat_map(|j| j.map_or([0.0; 3], |(d, nearest, outside)| [d, nearest as f64, outside]))
+            .flat_map(|&i| judged[i].map_or([0.0; 3], |(d, nearest, outside)| [d, nearest as f64, outside]))
             .collect();
         comm.sum_f64(&mut figures);
-        for (i, (j, f)) in judged.iter_mut().zip(figures.chunks_exact(3)).enumerate() {
-            if positive[i] && k > 0 {
-                *j = Some((f[0], f[1] as usize, f[2]));
-            }
+        for (&i, f) in judge.iter().zip(figures.chunks_exact(3)) {
+            judged[i] = Some((f[0], f[1] as usize, f[2]));
         }
         // regions of positive nodes; a region is supported when one of its nodes is within a
         // cell diagonal of the data
@@ -586,6 +631,15 @@ impl Search {
 /// thinner than the lattice, or cut away). Points outside the lattice count with its border cell.
 pub fn points_without_solid(lattice: &Lattice, values: &[f64], points: &[f64]) -> usize {
     points.par_chunks_exact(3).filter(|p| !cell_corners(lattice, p).iter().any(|&i| values[i] > 0.0)).count()
+}
+
+/// The corners of the lattice cells of the data `points` (normalised), sorted, each once: the
+/// nodes [`points_without_solid`] reads.
+pub fn data_cells(lattice: &Lattice, points: &[f64]) -> Vec<usize> {
+    let mut nodes: Vec<usize> = points.chunks_exact(3).flat_map(|p| cell_corners(lattice, p)).collect();
+    nodes.par_sort_unstable();
+    nodes.dedup();
+    nodes
 }
 
 /// The lattice cell of the normalised point `p` (its lowest corner's indices; points outside the
@@ -1021,6 +1075,13 @@ mod tests {
             let inside =
                 window.iter().zip([i % nx, (i / nx) % ny, i / (nx * ny)]).all(|(r, x)| r.contains(&x));
             assert_eq!(*v, if inside { values[i] } else { 7.0 }, "node {i}");
+        }
+        // scattered nodes, some sharing a row: those alone change, to the same bits
+        let nodes = [0, 3, 5, 9, 50, 51, 200, values.len() - 1];
+        let mut partial = vec![7.0; values.len()];
+        sample_nodes(&Solo, &lattice, &nodes, (&carrier, &spline), &mut partial);
+        for (i, v) in partial.iter().enumerate() {
+            assert_eq!(*v, if nodes.contains(&i) { values[i] } else { 7.0 }, "node {i}");
         }
     }
 }

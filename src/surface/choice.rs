@@ -59,6 +59,8 @@
 //! (see `crate::linalg::dist::extend`), so the choice costs the lattice sampling of the two
 //! second fits and the winding numbers at their unsupported crossings: the default.
 
+use std::ops::Range;
+
 use rayon::prelude::*;
 
 use super::blobs::Lattice;
@@ -82,27 +84,11 @@ pub fn unsupported_crossings(
     values: &[f64],
     support: &DataSupport,
 ) -> (Vec<[f64; 3]>, usize) {
-    let [nx, ny, nz] = lattice.dims;
-    let strides = [1, nx, nx * ny];
-    let extent = [nx, ny, nz];
     let per_node: Vec<(usize, Vec<[f64; 3]>)> = (0..lattice.len())
         .into_par_iter()
         .map(|i| {
-            let idx = [i % nx, (i / nx) % ny, i / (nx * ny)];
             let (mut all, mut far) = (0usize, Vec::new());
-            for a in 0..3 {
-                if idx[a] + 1 >= extent[a] {
-                    continue;
-                }
-                let j = i + strides[a];
-                let (u, v) = (values[i], values[j]);
-                if (u > 0.0) == (v > 0.0) {
-                    continue;
-                }
-                // where the linear interpolation along the edge vanishes
-                let t = u / (u - v);
-                let mut q = lattice.node(i);
-                q[a] += t * lattice.h;
+            for q in (0..3).filter_map(|a| crossing(lattice, values, i, a)) {
                 all += 1;
                 if !support.supports(&q) {
                     far.push(q);
@@ -113,6 +99,60 @@ pub fn unsupported_crossings(
         .collect();
     let crossings = per_node.iter().map(|(all, _)| all).sum();
     (per_node.into_iter().flat_map(|(_, far)| far).collect(), crossings)
+}
+
+/// The number of the unsupported crossings of [`unsupported_crossings`] on the lattice edges with
+/// an end among the nodes within the index ranges `window`: where a field differs from another
+/// only there, the count of the whole lattice changes by the difference of these counts.
+pub fn unsupported_in_window(
+    lattice: &Lattice,
+    values: &[f64],
+    support: &DataSupport,
+    window: &[Range<usize>; 3],
+) -> usize {
+    let [nx, ny, _] = lattice.dims;
+    let inside = |i: usize| {
+        let idx = [i % nx, (i / nx) % ny, i / (nx * ny)];
+        window.iter().zip(idx).all(|(r, x)| r.contains(&x))
+    };
+    // an edge belongs to its lower end, which lies in the window or one node below it
+    let [wx, wy, wz] = window.clone().map(|r| r.start.saturating_sub(1)..r.end);
+    let mut lower = Vec::with_capacity(wx.len() * wy.len() * wz.len());
+    for z in wz {
+        for y in wy.clone() {
+            lower.extend(wx.clone().map(|x| x + nx * (y + ny * z)));
+        }
+    }
+    let strides = [1, nx, nx * ny];
+    lower
+        .into_par_iter()
+        .map(|i| {
+            (0..3)
+                .filter(|&a| inside(i) || inside(i + strides[a]))
+                .filter_map(|a| crossing(lattice, values, i, a))
+                .filter(|q| !support.supports(q))
+                .count()
+        })
+        .sum()
+}
+
+/// Where the surface crosses the lattice edge from node `i` along axis `a` (the field `values`
+/// changes sign along it; the point where its linear interpolation vanishes), or None.
+fn crossing(lattice: &Lattice, values: &[f64], i: usize, a: usize) -> Option<[f64; 3]> {
+    let [nx, ny, nz] = lattice.dims;
+    let idx = [i % nx, (i / nx) % ny, i / (nx * ny)];
+    if idx[a] + 1 >= [nx, ny, nz][a] {
+        return None;
+    }
+    let j = i + [1, nx, nx * ny][a];
+    let (u, v) = (values[i], values[j]);
+    if (u > 0.0) == (v > 0.0) {
+        return None;
+    }
+    let t = u / (u - v);
+    let mut q = lattice.node(i);
+    q[a] += t * lattice.h;
+    Some(q)
 }
 
 /// The share of the surface crossings of `values` on `lattice` that `support` does not support
@@ -198,5 +238,42 @@ mod tests {
         assert_eq!(unsupported_share(&lattice, &with_ball, &support, half), (share, crossings));
         // no surface at all
         assert_eq!(unsupported_share(&lattice, &vec![-1.0; lattice.len()], &support, open), (0.0, 0));
+    }
+
+    #[test]
+    fn a_change_inside_a_window_changes_the_count_by_the_windows_counts() {
+        let support = DataSupport::new(&plate(), FACTOR);
+        let lattice = Lattice::new([-1.0; 3], [1.0; 3], 41);
+        let count = |v: &[f64]| unsupported_crossings(&lattice, v, &support).0.len();
+        // the plate's slab with a ball above it; the ball moved and grown within a window that
+        // touches the lattice's border on one side
+        let field = |centre: f64, radius: f64| -> Vec<f64> {
+            (0..lattice.len())
+                .map(|i| {
+                    let q = lattice.node(i);
+                    let d = (q[0] * q[0] + (q[1] - centre).powi(2) + (q[2] - 0.6) * (q[2] - 0.6)).sqrt();
+                    (0.02 - q[2].abs()).max(radius - d)
+                })
+                .collect()
+        };
+        let (before, moved) = (field(0.0, 0.2), field(0.55, 0.3));
+        let window = [10..31, 14..41, 18..40];
+        let mut after = before.clone();
+        let [nx, ny, _] = lattice.dims;
+        for i in 0..lattice.len() {
+            let idx = [i % nx, (i / nx) % ny, i / (nx * ny)];
+            if window.iter().zip(idx).all(|(r, x)| r.contains(&x)) {
+                after[i] = moved[i];
+            }
+        }
+        let (all_before, all_after) = (count(&before), count(&after));
+        assert_ne!(all_before, all_after, "the move must change the count");
+        let in_before = unsupported_in_window(&lattice, &before, &support, &window);
+        let in_after = unsupported_in_window(&lattice, &after, &support, &window);
+        assert!(in_before > 0 && in_before < all_before, "{in_before} of {all_before}");
+        assert_eq!(all_before - in_before + in_after, all_after);
+        // the whole lattice as the window
+        let whole = [0..41, 0..41, 0..41];
+        assert_eq!(unsupported_in_window(&lattice, &after, &support, &whole), all_after);
     }
 }

@@ -482,11 +482,12 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
             None => String::new(),
         } + &match &s.second_round {
             Some(k) if k.points > 0 => format!(
-                "; second round: {} points in open space, unsupported {:.1} -> {:.1} %, data points without \
-                 solid {} -> {}: {}",
+                "; second round: {} points in open space, {}data points without solid {} -> {}: {}",
                 k.points,
-                100.0 * k.share.0,
-                100.0 * k.share.1,
+                match k.share.1 {
+                    Some(after) => format!("unsupported {:.1} -> {:.1} %, ", 100.0 * k.share.0, 100.0 * after),
+                    None => String::new(),
+                },
                 k.without_solid.0,
                 k.without_solid.1,
                 if k.kept { "kept" } else { "dropped" },
