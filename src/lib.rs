@@ -12,7 +12,7 @@
 //!   the model); [`grid`]: the evaluation grid and its z-slabs.
 //! - [`linalg`]: serial dense oracles and the row-cyclic distributed solvers.
 //! - [`par`]: the communicator, typed collectives and the agreement on failures (the only room
-//!   that talks to MPI).
+//!   that talks to MPI); [`simd`]: hand-written loops dispatched to the widest vector unit.
 //! - [`io`]: point, mesh, model and VTKHDF files; [`mesh`]: marching cubes and mesh measures.
 //! - [`frep`]: reconstructed solids as function-representation objects (evaluation at points,
 //!   derivatives, bounds) for modelling and pictures.
@@ -27,5 +27,6 @@ pub mod io;
 pub mod linalg;
 pub mod mesh;
 pub mod par;
+pub mod simd;
 pub mod spline;
 pub mod surface;

@@ -12,6 +12,7 @@
 //! sums only the centres within the support, gathered with the octree once per row, again in an
 //! order that depends on the point alone.
 
+use crate::simd::on_widest_unit;
 use crate::spline::compact_eval::CompactRows;
 use crate::spline::Spline;
 
@@ -151,33 +152,10 @@ struct Row<'a> {
     w: &'a [f64],
 }
 
-/// The radial sums of `row` into `acc`, compiled for the widest vector unit the CPU has (the same
-/// portable code, so every path gives the same bits).
-fn radial_sums(row: &Row<'_>, acc: &mut [[f64; LANES]]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU supports AVX-512F (checked just above).
-            return unsafe { radial_sums_avx512(row, acc) };
-        }
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
-            // SAFETY: the CPU supports AVX2 and FMA (checked just above).
-            return unsafe { radial_sums_avx2(row, acc) };
-        }
-    }
-    radial_sums_portable(row, acc);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn radial_sums_avx512(row: &Row<'_>, acc: &mut [[f64; LANES]]) {
-    radial_sums_portable(row, acc);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn radial_sums_avx2(row: &Row<'_>, acc: &mut [[f64; LANES]]) {
-    radial_sums_portable(row, acc);
+on_widest_unit! {
+    /// The radial sums of `row` into `acc`, compiled for the widest vector unit the CPU has (the
+    /// same portable code, so every path gives the same bits).
+    fn radial_sums[][](row: &Row<'_>, acc: &mut [[f64; LANES]]) = radial_sums_portable;
 }
 
 #[inline(always)]

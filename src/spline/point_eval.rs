@@ -10,6 +10,7 @@
 //!
 //! The value at a point depends on nothing but the point: the same bits from any thread or rank.
 
+use crate::simd::on_widest_unit;
 use crate::spline::derivatives::{
     add_radial_term, carrier_jet, denormalise, polynomial_jet, spline_jet, Jet,
 };
@@ -161,34 +162,12 @@ fn polynomial_value(sp: &crate::spline::Spline, xn: &[f64; 3]) -> f64 {
     pv[..k].iter().zip(&sp.poly).map(|(a, b)| a * b).sum()
 }
 
-/// sum_i w_i G(|x - P_i|), lanes reduced in a fixed order: the grid evaluator's sums
-/// ([`lane_sums`]), so that a point gets the bits a grid node there gets; AVX-512 or AVX2 code
-/// where the CPU has it (the same portable code, so every path gives the same bits).
-fn radial_value(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[f64], w: &[f64]) -> f64 {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU supports AVX-512F (checked just above).
-            return unsafe { radial_value_avx512(form, x, cx, cy, cz, w) };
-        }
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
-            // SAFETY: the CPU supports AVX2 and FMA (checked just above).
-            return unsafe { radial_value_avx2(form, x, cx, cy, cz, w) };
-        }
-    }
-    radial_value_portable(form, x, cx, cy, cz, w)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn radial_value_avx512(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[f64], w: &[f64]) -> f64 {
-    radial_value_portable(form, x, cx, cy, cz, w)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn radial_value_avx2(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[f64], w: &[f64]) -> f64 {
-    radial_value_portable(form, x, cx, cy, cz, w)
+on_widest_unit! {
+    /// sum_i w_i G(|x - P_i|), lanes reduced in a fixed order: the grid evaluator's sums
+    /// ([`lane_sums`]), so that a point gets the bits a grid node there gets; AVX-512 or AVX2 code
+    /// where the CPU has it (the same portable code, so every path gives the same bits).
+    fn radial_value[][](form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[f64], w: &[f64]) -> f64
+        = radial_value_portable;
 }
 
 #[inline(always)]
@@ -198,8 +177,21 @@ fn radial_value_portable(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[
     reduce_lanes(&a)
 }
 
-/// sum_i w_i a(r_i) (x - P_i) (normalised gradient of the radial part).
-fn radial_gradient(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[f64], w: &[f64]) -> [f64; 3] {
+on_widest_unit! {
+    /// sum_i w_i a(r_i) (x - P_i) (normalised gradient of the radial part).
+    fn radial_gradient[][](form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[f64], w: &[f64]) -> [f64; 3]
+        = radial_gradient_portable;
+}
+
+#[inline(always)]
+fn radial_gradient_portable(
+    form: Form,
+    x: [f64; 3],
+    cx: &[f64],
+    cy: &[f64],
+    cz: &[f64],
+    w: &[f64],
+) -> [f64; 3] {
     let mut acc = [[0.0f64; LANES]; 3];
     let lanes = cx.chunks_exact(LANES).zip(cy.chunks_exact(LANES)).zip(cz.chunks_exact(LANES));
     for (((px, py), pz), pw) in lanes.zip(w.chunks_exact(LANES)) {
@@ -227,24 +219,12 @@ fn radial_gradient(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[f64], 
     acc.map(|a| reduce_lanes(&a))
 }
 
-/// sum_i w_i G(|x - P_i|) with its gradient and Hessian (normalised coordinates), in lanes:
-/// G = r has a = 1 / r, b = -1 / r^3, G = r^3 has a = 3r, b = 3 / r (both 0 at a centre; see
-/// [`crate::spline::derivatives`]).
-fn radial_jet(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[f64], w: &[f64]) -> Jet {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { radial_jet_avx2(form, x, cx, cy, cz, w) };
-        }
-    }
-    radial_jet_portable(form, x, cx, cy, cz, w)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn radial_jet_avx2(form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[f64], w: &[f64]) -> Jet {
-    radial_jet_portable(form, x, cx, cy, cz, w)
+on_widest_unit! {
+    /// sum_i w_i G(|x - P_i|) with its gradient and Hessian (normalised coordinates), in lanes:
+    /// G = r has a = 1 / r, b = -1 / r^3, G = r^3 has a = 3r, b = 3 / r (both 0 at a centre; see
+    /// [`crate::spline::derivatives`]).
+    fn radial_jet[][](form: Form, x: [f64; 3], cx: &[f64], cy: &[f64], cz: &[f64], w: &[f64]) -> Jet
+        = radial_jet_portable;
 }
 
 #[inline(always)]

@@ -28,11 +28,12 @@ use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef, Par};
 
 use super::lu::lu_factor;
-use super::scalar::{on_widest_unit, update_widened};
+use super::scalar::update_widened;
 use super::solver::Job;
 use super::system::{all_gather_rows, LocalRows};
 use crate::error::Result;
 use crate::par::Comm;
+use crate::simd::on_widest_unit;
 
 /// An approximate inverse of the f64 system, from factors of lower precision: what a refinement
 /// needs of them.

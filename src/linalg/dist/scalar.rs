@@ -6,6 +6,7 @@
 use faer::traits::RealField;
 
 use crate::par::Comm;
+use crate::simd::on_widest_unit;
 
 /// A real type a row-cyclic matrix may hold: f32 or f64.
 pub trait Scalar: RealField + Copy + Send + Sync + std::ops::Neg<Output = Self> {
@@ -69,42 +70,6 @@ macro_rules! scalar {
 
 scalar!(f64, all_gather_f64, shift_f64, all_gather_f64_while);
 scalar!(f32, all_gather_f32, shift_f32, all_gather_f32_while);
-
-/// Defines `fn $name` running `$portable`, an `#[inline(always)]` function of the same
-/// signature, compiled for the widest vector unit the CPU has (AVX-512, else AVX2, else the
-/// crate's own target): the crate is built for plain x86-64, whose vectors hold two doubles, and
-/// a hand-written loop runs at that width unless it is dispatched so. The same portable code on
-/// every path, with no fused multiply-adds, gives the same bits on every path. The generics are
-/// written twice, as declared and as passed: `fn name[const W: usize, T: Scalar][W, T](..)`.
-macro_rules! on_widest_unit {
-    ($(#[$attr:meta])* $vis:vis fn $name:ident [$($decl:tt)*] [$($pass:tt)*]
-     ($($a:ident: $at:ty),* $(,)?) $(-> $ret:ty)? = $portable:ident;) => {
-        $(#[$attr])*
-        $vis fn $name<$($decl)*>($($a: $at),*) $(-> $ret)? {
-            #[cfg(target_arch = "x86_64")]
-            {
-                #[target_feature(enable = "avx512f")]
-                unsafe fn wide512<$($decl)*>($($a: $at),*) $(-> $ret)? {
-                    $portable::<$($pass)*>($($a),*)
-                }
-                #[target_feature(enable = "avx2")]
-                unsafe fn wide256<$($decl)*>($($a: $at),*) $(-> $ret)? {
-                    $portable::<$($pass)*>($($a),*)
-                }
-                if std::arch::is_x86_feature_detected!("avx512f") {
-                    // SAFETY: the CPU supports AVX-512F (checked just above).
-                    return unsafe { wide512::<$($pass)*>($($a),*) };
-                }
-                if std::arch::is_x86_feature_detected!("avx2") {
-                    // SAFETY: the CPU supports AVX2 (checked just above).
-                    return unsafe { wide256::<$($pass)*>($($a),*) };
-                }
-            }
-            $portable::<$($pass)*>($($a),*)
-        }
-    };
-}
-pub(super) use on_widest_unit;
 
 on_widest_unit! {
     /// The products of W columns with x, the columns widened to f64, reading x once for all of
