@@ -612,7 +612,9 @@ fn second_round(
 /// data supports are turned, one candidate after the other (see [`crate::surface::turns`]): each
 /// candidate changes only the values of its off points, so its fit is a solve with `factor`, the
 /// fit's own (bordered) factor, where there is one (else a fresh fit of a small system), and only
-/// the lattice around the patch is sampled again, and its crossings counted again. The lattice is the blob search's; `values`, the
+/// the lattice around the patch is sampled again, and its crossings counted again (a patch whose
+/// window holds too few unsupported crossings for their removal to be a gain is passed over
+/// without a solve). The lattice is the blob search's; `values`, the
 /// fit's values on it where the search sampled them. Collective.
 fn turn_by_surface(
     run: &Run<'_>,
@@ -637,6 +639,14 @@ fn turn_by_surface(
     let mut check = TurnCheck { tried: candidates.len(), before: far, ..Default::default() };
     let nd = data.values.len();
     for candidate in candidates {
+        // the count changes within the window alone: where the crossings there now are too few
+        // for their removal to be a gain, no turn of this patch can be
+        let window = candidate.window(lattice);
+        let within = |values: &[f64]| choice::unsupported_in_window(lattice, values, &support, &window);
+        let now = stages.time(Stage::Turns, || within(&values));
+        if !turns::gains(far, far - now) {
+            continue;
+        }
         let mut member = vec![false; c.normals.len()];
         candidate.members.iter().for_each(|&i| member[i] = true);
         let mut normals = c.normals.clone();
@@ -654,11 +664,8 @@ fn turn_by_surface(
         let tried = refit(&prep, factor, stages)?;
         let (tried_values, after) = stages.time(Stage::Turns, || {
             let mut tried_values = values.clone();
-            let window = candidate.window(lattice);
             sample_window(run.comm, lattice, &window, (&data.carrier, &tried.spline), &mut tried_values);
-            // the values changed within the window alone, and so did the crossings there
-            let within = |values: &[f64]| choice::unsupported_in_window(lattice, values, &support, &window);
-            let after = far - within(&values) + within(&tried_values);
+            let after = far - now + within(&tried_values);
             (tried_values, after)
         });
         if turns::gains(far, after) {
