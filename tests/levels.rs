@@ -2,7 +2,8 @@
 //! points sampled uniformly over the bunny's surface, level 0 a dense off-surface fit of 2,000 of
 //! them, level 1 the Wendland spline through all of them on top. The mesh lies on the bunny (the
 //! plain method grows the carrier's spherical shell where no kernel reaches), 1 and 2 ranks
-//! give the same model, and `eval` of the model file gives the same volume.
+//! give the same model, `eval` of the model file gives the same volume, and the default method
+//! takes the same two levels.
 
 mod common;
 
@@ -89,4 +90,19 @@ fn two_levels_put_the_surface_on_the_bunny_on_one_and_two_ranks() {
     let (_, v) = read_image(&dir.join("again.hdf"), "f").unwrap();
     let d = common::rel_diff(&v, &volumes[0]);
     assert!(d < 1e-12, "eval of the model file vs the fit's volume: {d:e}");
+    // the default method on one rank: the 12,000 points alone would make a dense system of
+    // about 40 s, with their off points one of about 130 s, so `auto` takes the two levels, and
+    // the kernel and support of `--method csrbf` with them (it once took the data's dense kernel
+    // for the compactly supported level and failed)
+    let auto = dir.join("auto");
+    let text =
+        common::run_ok(1, &["fit", input.to_str().unwrap(), "--out", auto.to_str().unwrap(), "--grid", "64"]);
+    assert!(text.contains("method csrbf (auto: the dense system would need"), "{text}");
+    assert!(text.contains("two levels: level 0 dense (kernel r"), "{text}");
+    let model = read_model(&dir.join("auto.model.h5")).unwrap();
+    assert_eq!(model.spline.kernel.name(), models[0].spline.kernel.name());
+    for (a, b) in model.levels().zip(models[0].levels()) {
+        assert_eq!(a.centres, b.centres, "auto chose other centres than --method csrbf");
+        assert_eq!(coefficients(a), coefficients(b), "auto's fit differs from --method csrbf's");
+    }
 }

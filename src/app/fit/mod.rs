@@ -88,15 +88,34 @@ fn wendland(a: &FitArgs, smoothness: u8, centres: &[f64]) -> Result<Kernel> {
     Kernel::wendland(name, support)
 }
 
-/// The method and the kernel (with `--smooth`) of a run of `n` points on `ranks` ranks, and why
-/// they were chosen.
-fn choose(a: &FitArgs, n: usize, ranks: usize, centres: &[f64]) -> Result<(Method, Kernel, String)> {
-    let (method, kernel, why) = choose_kernel(a, n, ranks, centres)?;
+/// The memory `auto` may count on for the dense system per rank: the least any rank has, so that
+/// every rank makes the same choice (each reads its own node's memory, at its own moment).
+/// Collective.
+fn agreed_room(comm: &dyn Comm) -> f64 {
+    let mut room = [available_per_rank().map_or(f64::INFINITY, |(b, _)| b)];
+    comm.min_f64(&mut room);
+    room[0]
+}
+
+/// The method and the kernel (with `--smooth`) of a run of `n` points on `ranks` ranks with
+/// `room` bytes per rank for a dense system ([`agreed_room`]), and why they were chosen.
+fn choose(
+    a: &FitArgs,
+    n: usize,
+    (ranks, room): (usize, f64),
+    centres: &[f64],
+) -> Result<(Method, Kernel, String)> {
+    let (method, kernel, why) = choose_kernel(a, n, (ranks, room), centres)?;
     Ok((method, kernel.with_smoothing(a.smooth)?, why))
 }
 
 /// [`choose`] before the smoothing.
-fn choose_kernel(a: &FitArgs, n: usize, ranks: usize, centres: &[f64]) -> Result<(Method, Kernel, String)> {
+fn choose_kernel(
+    a: &FitArgs,
+    n: usize,
+    (ranks, room): (usize, f64),
+    centres: &[f64],
+) -> Result<(Method, Kernel, String)> {
     let asked = || "as asked".to_string();
     match (a.method, a.kernel) {
         (Method::Csrbf, KernelChoice::Global(k)) => Err(Error::Usage(format!(
@@ -114,7 +133,6 @@ fn choose_kernel(a: &FitArgs, n: usize, ranks: usize, centres: &[f64]) -> Result
             let system = (n + 4) as f64;
             let bytes = dense_fit_bytes(n + 4, ranks, a.precision);
             let seconds = system.powi(3) / 3.0 / (DENSE_FLOPS_PER_RANK * ranks as f64);
-            let room = available_per_rank().map_or(f64::INFINITY, |(b, _)| b);
             if bytes <= room && seconds <= DENSE_SECONDS {
                 let why = format!("auto: the dense system fits and should solve in about {seconds:.0} s");
                 Ok((Method::Dense, Kernel::new(3, 2)?, why))
@@ -152,9 +170,13 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     // off-surface fit of a subsample, and the Wendland spline through all points on top of it
     // (levels.rs). The choice is made for the most rows the off points can add (the choice is
     // monotone in the rows), so a dense choice below holds once they are known
+    let machine = (comm.size(), agreed_room(comm));
     let most_rows = n + (a.off_points * n as f64).ceil() as usize;
-    let two_level = off && choose(a, most_rows, comm.size(), &prep.centres)?.0 == Method::Csrbf;
-    if a.denoise.0 == Some(true) && (!off || two_level) {
+    let most = off.then(|| choose(a, most_rows, machine, &prep.centres)).transpose()?;
+    // the two-level fit takes the method and kernel chosen for those rows: `auto` may find the
+    // data alone small enough for a dense fit where their off points are not
+    let two_level = most.filter(|(method, _, _)| *method == Method::Csrbf);
+    if a.denoise.0 == Some(true) && (!off || two_level.is_some()) {
         return Err(Error::Usage(format!(
             "--denoise on moves the data of the dense off-surface fit; this fit is {} (use --surface \
              offsurface with --method dense, or leave --denoise off)",
@@ -163,7 +185,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     }
     // auto: the scale test of the quadrics' misfit on the unoriented normals
     let (auto, mut hoods) = match a.denoise.0 {
-        None if off && !two_level => {
+        None if off && two_level.is_none() => {
             let (ratio, hoods) = stages.time(Stage::Normals, || -> Result<_> {
                 let hoods = agree(comm, crate::surface::neighbourhoods(&prep.centres))?;
                 let r = crate::surface::denoise::scale_ratio(
@@ -213,8 +235,8 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     } else {
         (prep, auto.map(|_| (format!("denoise: {auto_part}not applied"), 0, 0.0, 0.0)))
     };
-    let (fitted, summary, method, kernel, why) = if two_level {
-        let (method, kernel, why) = choose(a, n, comm.size(), &prep.centres)?;
+    let two_levels = two_level.is_some();
+    let (fitted, summary, method, kernel, why) = if let Some((method, kernel, why)) = two_level {
         if comm.rank() == 0 {
             eprintln!(
                 "volspline fit: {points_read} points read from {}, {} duplicates merged, N = {n}, two levels: \
@@ -237,7 +259,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         let fit_prep = constrained.as_ref().map_or(&prep, |c| &c.prep);
         let first_summary = constrained.as_ref().map(|c| c.summary.clone());
         let rows = fit_prep.values.len();
-        let (method, kernel, why) = choose(a, rows, comm.size(), &fit_prep.centres)?;
+        let (method, kernel, why) = choose(a, rows, machine, &fit_prep.centres)?;
         if comm.rank() == 0 {
             eprintln!(
                 "volspline fit: {points_read} points read from {}, {} duplicates merged, N = {n}{}, kernel {}, carrier {}",
@@ -323,7 +345,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     if let Some((line, ..)) = &denoised {
         r.line(line.clone());
     }
-    r.line(surface_line(summary.as_ref(), two_level));
+    r.line(surface_line(summary.as_ref(), two_levels));
     r.line(fitted.line.clone());
     r.line(format!("ranks = {}, threads per rank = {threads}", comm.size()));
     r.line(format!("relative residual |Mx - b|/|b| = {:.3e}", fitted.residual));
@@ -338,7 +360,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     r.figure("kernel", kernel.name());
     r.figure("smoothing", kernel.smoothing());
     r.figure("surface", surface::name(off));
-    r.figure("levels", if two_level { 2 } else { 1 });
+    r.figure("levels", if two_levels { 2 } else { 1 });
     if let Some((_, _, ratio)) = auto {
         r.figure("denoise_scale_ratio", format!("{ratio:.4}"));
     }
@@ -545,4 +567,47 @@ fn at_points(comm: &dyn Comm, levels: &[&Spline], prep: &Prepared) -> (f64, f64)
     let mut m = [max];
     comm.max_f64(&mut m);
     ((s[0] / prep.values.len().max(1) as f64).sqrt() / scale, m[0])
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+    use crate::cli::{Cli, Command};
+
+    fn fit_args(args: &[&str]) -> FitArgs {
+        let all = ["volspline", "fit", "p.xyz", "--out", "o"].into_iter().chain(args.iter().copied());
+        match Cli::try_parse_from(all).unwrap().command {
+            Command::Fit(a) => a,
+            _ => panic!("not fit"),
+        }
+    }
+
+    #[test]
+    fn auto_chooses_by_the_rows_and_the_memory_every_rank_is_given() {
+        let a = fit_args(&[]);
+        let centres: Vec<f64> = (0..300).map(|i| ((i * 37 % 101) as f64 / 50.0) - 1.0).collect();
+        let method = |rows: usize, machine: (usize, f64)| choose(&a, rows, machine, &centres).unwrap();
+        // 12,000 rows on one rank: 12004^3 / 3 flops at 15 GFLOP/s, about 38 s, and 1.15 GB
+        let (m, k, why) = method(12_000, (1, f64::INFINITY));
+        assert_eq!(m, Method::Dense, "{why}");
+        assert_eq!(k.name(), "r");
+        // with its off points, 18,000 rows take about 130 s: the compactly supported method, with
+        // its own kernel (the two-level fit takes this choice)
+        let (m, k, why) = method(18_000, (1, f64::INFINITY));
+        assert_eq!(m, Method::Csrbf, "{why}");
+        assert!(k.is_compact().is_some(), "{}", k.name());
+        assert!(why.contains("about 130 s"), "{why}");
+        // on two ranks 18,000 rows take about 65 s; 17,000 rows about 55 s
+        assert_eq!(method(18_000, (2, f64::INFINITY)).0, Method::Csrbf);
+        assert_eq!(method(17_000, (2, f64::INFINITY)).0, Method::Dense);
+        // the memory the ranks agreed on decides too
+        let (m, _, why) = method(12_000, (1, 1e9));
+        assert_eq!(m, Method::Csrbf, "{why}");
+        assert!(why.contains("GB per rank"), "{why}");
+        // an explicit kernel or method is taken as asked
+        let a = fit_args(&["--method", "dense"]);
+        assert_eq!(choose(&a, 18_000, (1, 1e6), &centres).unwrap().0, Method::Dense);
+    }
 }
