@@ -2,7 +2,7 @@
 //!
 //! The crate is built for plain x86-64, whose vector registers hold two doubles, so a loop the
 //! compiler vectorises runs at that width unless it is compiled a second time for AVX-512 or
-//! AVX2 and chosen at run time. [`on_widest_unit!`] does that for one `#[inline(always)]`
+//! AVX2 and chosen at run time. `on_widest_unit!` does that for one `#[inline(always)]`
 //! function: the same portable code on every path. Rust never fuses a multiply and an add of its
 //! own accord, and an explicit [`f64::mul_add`] is fused on every path (by the hardware where the
 //! target has FMA, in software elsewhere), so every path rounds alike and gives the same bits:
