@@ -301,28 +301,20 @@ impl Lattice {
 /// and summed: every rank gets the same values, bit for bit, whatever the number of ranks (each
 /// value is computed by one rank and the others add zeros). Collective.
 pub fn sample(comm: &dyn Comm, lattice: &Lattice, carrier: &Carrier, spline: &Spline) -> Vec<f64> {
-    let [nx, ny, nz] = lattice.dims;
-    let norm = &spline.norm;
+    let nx = lattice.dims[0];
     let ev = Evaluator::new(spline);
-    let xs: Vec<f64> = (0..nx).map(|i| norm.centre[0] + norm.scale * lattice.node(i)[0]).collect();
+    let across: Vec<usize> = (0..nx).collect();
     let mut values = vec![0.0; lattice.len()];
     let (rank, size) = (comm.rank(), comm.size());
     values.par_chunks_mut(nx).enumerate().filter(|(row, _)| row % size == rank).for_each(|(row, out)| {
-        let p = lattice.node(row * nx);
-        let (y, z) = (norm.centre[1] + norm.scale * p[1], norm.centre[2] + norm.scale * p[2]);
-        ev.eval_row(&xs, y, z, out);
-        for (v, &x) in out.iter_mut().zip(&xs) {
-            *v = carrier.eval(&[x, y, z]) - *v;
-        }
+        sample_row(lattice, (carrier, spline, &ev), row, &across, out);
     });
-    debug_assert_eq!(values.len(), nx * ny * nz);
     comm.sum_f64(&mut values);
     values
 }
 
 /// [`sample`] on the nodes of `lattice` within the index ranges `window` alone, written into
-/// `values` (the whole lattice's); the others are left as they are. The window's rows are dealt
-/// round-robin over the ranks and summed, so every rank gets the same values, bit for bit.
+/// `values` (the whole lattice's); the others are left as they are (see [`sample_nodes`]).
 /// Collective.
 pub fn sample_window(
     comm: &dyn Comm,
@@ -333,29 +325,13 @@ pub fn sample_window(
 ) {
     let [nx, ny, _] = lattice.dims;
     let [wx, wy, wz] = window.clone();
-    let (len, rows) = (wx.len(), wy.len() * wz.len());
-    let norm = &spline.norm;
-    let ev = Evaluator::new(spline);
-    let xs: Vec<f64> = wx.clone().map(|i| norm.centre[0] + norm.scale * lattice.node(i)[0]).collect();
-    let mut part = vec![0.0; len * rows];
-    let (rank, size) = (comm.rank(), comm.size());
-    part.par_chunks_mut(len.max(1)).enumerate().filter(|(row, _)| row % size == rank).for_each(
-        |(row, out)| {
-            let (y, z) = (wy.start + row % wy.len(), wz.start + row / wy.len());
-            let p = lattice.node(wx.start + nx * (y + ny * z));
-            let (y, z) = (norm.centre[1] + norm.scale * p[1], norm.centre[2] + norm.scale * p[2]);
-            ev.eval_row(&xs, y, z, out);
-            for (v, &x) in out.iter_mut().zip(&xs) {
-                *v = carrier.eval(&[x, y, z]) - *v;
-            }
-        },
-    );
-    comm.sum_f64(&mut part);
-    for (row, got) in part.chunks(len.max(1)).enumerate().take(rows) {
-        let (y, z) = (wy.start + row % wy.len(), wz.start + row / wy.len());
-        let at = wx.start + nx * (y + ny * z);
-        values[at..at + len].copy_from_slice(got);
+    let mut nodes = Vec::with_capacity(wx.len() * wy.len() * wz.len());
+    for z in wz {
+        for y in wy.clone() {
+            nodes.extend(wx.clone().map(|x| x + nx * (y + ny * z)));
+        }
     }
+    sample_nodes(comm, lattice, &nodes, (carrier, spline), values);
 }
 
 /// [`sample`] at the nodes `nodes` of `lattice` alone (sorted, each once), written into `values`
@@ -373,33 +349,44 @@ pub fn sample_nodes(
     debug_assert!(nodes.windows(2).all(|w| w[0] < w[1]));
     // the nodes of each lattice row, in order
     let rows: Vec<&[usize]> = nodes.chunk_by(|a, b| a / nx == b / nx).collect();
-    let norm = &spline.norm;
     let ev = Evaluator::new(spline);
     let mut part = vec![0.0; nodes.len()];
     let (rank, size) = (comm.rank(), comm.size());
-    let mut mine: Vec<(usize, &mut [f64])> = Vec::new();
+    let mut mine: Vec<(&[usize], &mut [f64])> = Vec::new();
     let mut rest = &mut part[..];
-    for (k, r) in rows.iter().enumerate() {
-        let (out, tail) = rest.split_at_mut(r.len());
+    for (k, &row) in rows.iter().enumerate() {
+        let (out, tail) = rest.split_at_mut(row.len());
         rest = tail;
         if k % size == rank {
-            mine.push((k, out));
+            mine.push((row, out));
         }
     }
-    mine.into_par_iter().for_each(|(k, out)| {
-        let row = rows[k];
-        let p = lattice.node(row[0] - row[0] % nx);
-        let (y, z) = (norm.centre[1] + norm.scale * p[1], norm.centre[2] + norm.scale * p[2]);
-        let xs: Vec<f64> =
-            row.iter().map(|&i| norm.centre[0] + norm.scale * lattice.node(i % nx)[0]).collect();
-        ev.eval_row(&xs, y, z, out);
-        for (v, &x) in out.iter_mut().zip(&xs) {
-            *v = carrier.eval(&[x, y, z]) - *v;
-        }
+    mine.into_par_iter().for_each(|(row, out)| {
+        let across: Vec<usize> = row.iter().map(|&i| i % nx).collect();
+        sample_row(lattice, (carrier, spline, &ev), row[0] / nx, &across, out);
     });
     comm.sum_f64(&mut part);
     for (&i, &v) in nodes.iter().zip(&part) {
         values[i] = v;
+    }
+}
+
+/// f = f_c - U at the nodes of lattice row `row` (its nodes `row * nx + x`, x fastest) with the x
+/// indices `across`, into `out`.
+fn sample_row(
+    lattice: &Lattice,
+    (carrier, spline, ev): (&Carrier, &Spline, &Evaluator<'_>),
+    row: usize,
+    across: &[usize],
+    out: &mut [f64],
+) {
+    let norm = &spline.norm;
+    let p = lattice.node(row * lattice.dims[0]);
+    let (y, z) = (norm.centre[1] + norm.scale * p[1], norm.centre[2] + norm.scale * p[2]);
+    let xs: Vec<f64> = across.iter().map(|&i| norm.centre[0] + norm.scale * lattice.node(i)[0]).collect();
+    ev.eval_row(&xs, y, z, out);
+    for (v, &x) in out.iter_mut().zip(&xs) {
+        *v = carrier.eval(&[x, y, z]) - *v;
     }
 }
 
