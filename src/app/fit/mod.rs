@@ -105,46 +105,36 @@ fn choose(
     (ranks, room): (usize, f64),
     centres: &[f64],
 ) -> Result<(Method, Kernel, String)> {
-    let (method, kernel, why) = choose_kernel(a, n, (ranks, room), centres)?;
-    Ok((method, kernel.with_smoothing(a.smooth)?, why))
-}
-
-/// [`choose`] before the smoothing.
-fn choose_kernel(
-    a: &FitArgs,
-    n: usize,
-    (ranks, room): (usize, f64),
-    centres: &[f64],
-) -> Result<(Method, Kernel, String)> {
     let asked = || "as asked".to_string();
-    match (a.method, a.kernel) {
-        (Method::Csrbf, KernelChoice::Global(k)) => Err(Error::Usage(format!(
+    let (method, kernel, why) = match (a.method, a.kernel) {
+        (Method::Csrbf, KernelChoice::Global(k)) => return Err(Error::Usage(format!(
             "--method csrbf needs a compactly supported kernel (wendland0, wendland2 or wendland4), not {}",
             k.name()
         ))),
-        (Method::Dense | Method::Auto, KernelChoice::Global(k)) => Ok((Method::Dense, k, asked())),
-        (Method::Dense, KernelChoice::Auto) => Ok((Method::Dense, Kernel::new(3, 2)?, asked())),
-        (Method::Dense, KernelChoice::Wendland(s)) => Ok((Method::Dense, wendland(a, s, centres)?, asked())),
+        (Method::Dense | Method::Auto, KernelChoice::Global(k)) => (Method::Dense, k, asked()),
+        (Method::Dense, KernelChoice::Auto) => (Method::Dense, Kernel::new(3, 2)?, asked()),
+        (Method::Dense, KernelChoice::Wendland(s)) => (Method::Dense, wendland(a, s, centres)?, asked()),
         (Method::Csrbf | Method::Auto, KernelChoice::Wendland(s)) => {
-            Ok((Method::Csrbf, wendland(a, s, centres)?, asked()))
+            (Method::Csrbf, wendland(a, s, centres)?, asked())
         }
-        (Method::Csrbf, KernelChoice::Auto) => Ok((Method::Csrbf, wendland(a, 1, centres)?, asked())),
+        (Method::Csrbf, KernelChoice::Auto) => (Method::Csrbf, wendland(a, 1, centres)?, asked()),
         (Method::Auto, KernelChoice::Auto) => {
             let system = (n + 4) as f64;
             let bytes = dense_fit_bytes(n + 4, ranks, a.precision);
             let seconds = system.powi(3) / 3.0 / (DENSE_FLOPS_PER_RANK * ranks as f64);
             if bytes <= room && seconds <= DENSE_SECONDS {
                 let why = format!("auto: the dense system fits and should solve in about {seconds:.0} s");
-                Ok((Method::Dense, Kernel::new(3, 2)?, why))
+                (Method::Dense, Kernel::new(3, 2)?, why)
             } else {
                 let why = format!(
                     "auto: the dense system would need {:.1} GB per rank and about {seconds:.0} s",
                     bytes / 1e9
                 );
-                Ok((Method::Csrbf, wendland(a, 1, centres)?, why))
+                (Method::Csrbf, wendland(a, 1, centres)?, why)
             }
         }
-    }
+    };
+    Ok((method, kernel.with_smoothing(a.smooth)?, why))
 }
 
 /// Runs `volspline fit`. Collective.
