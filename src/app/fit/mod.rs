@@ -107,10 +107,12 @@ fn choose(
 ) -> Result<(Method, Kernel, String)> {
     let asked = || "as asked".to_string();
     let (method, kernel, why) = match (a.method, a.kernel) {
-        (Method::Csrbf, KernelChoice::Global(k)) => return Err(Error::Usage(format!(
+        (Method::Csrbf, KernelChoice::Global(k)) => {
+            return Err(Error::Usage(format!(
             "--method csrbf needs a compactly supported kernel (wendland0, wendland2 or wendland4), not {}",
             k.name()
-        ))),
+        )))
+        }
         (Method::Dense | Method::Auto, KernelChoice::Global(k)) => (Method::Dense, k, asked()),
         (Method::Dense, KernelChoice::Auto) => (Method::Dense, Kernel::new(3, 2)?, asked()),
         (Method::Dense, KernelChoice::Wendland(s)) => (Method::Dense, wendland(a, s, centres)?, asked()),
