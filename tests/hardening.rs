@@ -523,3 +523,35 @@ fn an_unbounded_solid_is_reported() {
         assert!(triangles(&out) > 1000, "{t}");
     }
 }
+
+/// Outputs of one run in one directory named in two spellings (`dir` and `dir/sub/..`, as `--out`
+/// with an absolute path and `--timings` relative to the working directory are): the set is
+/// renamed into place under one lock on the directory, where two locks of it used to wait on each
+/// other forever.
+#[test]
+fn outputs_in_one_directory_spelled_twice_are_committed() {
+    let dir = temp_dir("hardening-spellings");
+    std::fs::create_dir_all(dir.join("sub")).unwrap();
+    let input = dir.join("points.xyz");
+    write_xyz(&input, &scaled_bunny(1.0));
+    let timings = dir.join("sub").join("..").join("t.csv");
+    let prefix = dir.join("m");
+    for ranks in [1, 2] {
+        let args = ["fit", s(&input), "--out", s(&prefix), "--grid", "8", "--timings", s(&timings)];
+        let out = run(ranks, &args);
+        assert!(out.status.success(), "{}", text(&out));
+        let csv = std::fs::read_to_string(dir.join("t.csv")).unwrap();
+        assert!(csv.lines().any(|l| l == format!("ranks,{ranks}")), "{csv}");
+        let mut names: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into())
+            .collect();
+        names.sort();
+        assert_eq!(
+            names,
+            ["m.hdf", "m.model.h5", "m.ply", "m.png", "points.xyz", "sub", "t.csv"],
+            "{}",
+            text(&out)
+        );
+    }
+}

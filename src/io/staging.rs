@@ -141,11 +141,8 @@ pub fn commit_all() -> Result<()> {
     // for the set to be complete before it reports (see `discard_all`)
     let mut r = registry();
     let pending = std::mem::take(&mut r.pending);
-    let mut dirs: Vec<PathBuf> = pending.iter().map(|(f, _)| parent_dir(f)).collect();
-    dirs.sort();
-    dirs.dedup();
     // the locks are released when the handles are dropped, after the last rename
-    let _locks: Vec<File> = dirs.iter().filter_map(|d| lock_dir(d)).collect();
+    let _locks = lock_dirs(pending.iter().map(|(f, _)| parent_dir(f)));
     let mut result = Ok(());
     for (path, tmp) in &pending {
         if result.is_ok() {
@@ -168,13 +165,25 @@ fn parent_dir(path: &Path) -> PathBuf {
     }
 }
 
-/// An exclusive advisory lock on a directory (None where the file system does not offer one:
-/// the renames then go ahead unlocked).
-fn lock_dir(dir: &Path) -> Option<File> {
-    let f = File::open(dir).ok()?;
-    // SAFETY: flock on a descriptor owned by `f`, which outlives the call
-    let rc = unsafe { libc::flock(f.as_raw_fd(), libc::LOCK_EX) };
-    (rc == 0).then_some(f)
+/// Exclusive advisory locks on the distinct directories among `dirs`, taken in the order of their
+/// (device, inode), so that two runs locking overlapping sets cannot wait on each other. A
+/// directory named twice in different spellings (`.` and its absolute path, `a/../b`, a link) is
+/// locked once: a second `flock` of it on another descriptor would wait forever on this process's
+/// own lock. A directory that cannot be opened or locked (a file system without locks) goes
+/// unlocked: its renames go ahead all the same.
+fn lock_dirs(dirs: impl Iterator<Item = PathBuf>) -> Vec<File> {
+    use std::os::unix::fs::MetadataExt;
+    let mut open: Vec<((u64, u64), File)> = dirs
+        .filter_map(|d| File::open(d).ok())
+        .filter_map(|f| f.metadata().ok().map(|m| ((m.dev(), m.ino()), f)))
+        .collect();
+    open.sort_by_key(|(id, _)| *id);
+    open.dedup_by_key(|(id, _)| *id);
+    open.into_iter()
+        .map(|(_, f)| f)
+        // SAFETY: flock on a descriptor owned by `f`, which outlives the call
+        .filter(|f| unsafe { libc::flock(f.as_raw_fd(), libc::LOCK_EX) } == 0)
+        .collect()
 }
 
 #[cfg(test)]
@@ -214,6 +223,19 @@ mod tests {
         commit_all().unwrap();
         assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
         assert_eq!(std::fs::read_to_string(&target).unwrap(), "via link");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn one_directory_named_two_ways_is_locked_once() {
+        let dir = std::env::temp_dir().join(format!("volspline-lock-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("sub")).unwrap();
+        let spellings = [dir.clone(), dir.join("sub/.."), dir.join("sub").join("..")];
+        // a second lock of the same directory would never return: wait for it on another thread
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || tx.send(lock_dirs(spellings.into_iter()).len()).unwrap());
+        let held = rx.recv_timeout(std::time::Duration::from_secs(20));
+        assert_eq!(held, Ok(1), "one lock for one directory, taken without waiting");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
