@@ -47,6 +47,7 @@ fn main() {
             }
         },
     };
+    interrupts::finished(code);
     drop(comm);
     // every HDF5 object is closed before MPI is finalised: otherwise the library's exit handler
     // would close a file left open by a failed close through MPI-IO after MPI_Finalize
@@ -58,8 +59,21 @@ fn main() {
 /// SIGINT and SIGTERM: blocked in every thread (they inherit the mask of the main thread, set
 /// before any is started) and taken by one watcher thread, which removes this run's temporary
 /// output files, says so and ends the process with 128 + the signal's number.
+///
+/// Once the command has finished (its outcome agreed by every rank and reported by rank 0), a
+/// signal only ends the process with that outcome's status, silently: the launcher ends the other
+/// ranks as soon as one exits with an error, and a rank still finalising MPI then is not
+/// interrupted work.
 mod interrupts {
+    use std::sync::atomic::{AtomicI32, Ordering};
     use volspline::io::staging;
+
+    /// The exit status of the finished command; -1 while it runs.
+    static FINISHED: AtomicI32 = AtomicI32::new(-1);
+
+    pub fn finished(code: i32) {
+        FINISHED.store(code, Ordering::SeqCst);
+    }
 
     pub fn watch() {
         // SAFETY: plain libc signal-set calls on a local set, before any other thread exists
@@ -76,6 +90,11 @@ mod interrupts {
             // SAFETY: waits for one of the signals blocked above
             if unsafe { libc::sigwait(&set, &mut sig) } != 0 {
                 return;
+            }
+            let code = FINISHED.load(Ordering::SeqCst);
+            if code >= 0 {
+                // SAFETY: as below
+                unsafe { libc::_exit(code) }
             }
             let name = if sig == libc::SIGINT { "SIGINT" } else { "SIGTERM" };
             let temps = staging::pending_temps();

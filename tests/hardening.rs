@@ -555,3 +555,49 @@ fn outputs_in_one_directory_spelled_twice_are_committed() {
         );
     }
 }
+
+/// A `--timings` file named like an output or like the input is refused before any work (the
+/// mesh and the CSV were one file, or the scan was overwritten by the CSV); an output that is an
+/// input found only at the end (a model that `eval` reads) is refused before anything is renamed.
+/// The input is untouched and no file is left behind.
+#[test]
+fn outputs_that_are_inputs_or_each_other_are_refused() {
+    let (dir, model) = fitted_model("hardening-clashes");
+    let input = dir.join("points.xyz");
+    let before = std::fs::read(&input).unwrap();
+    let prefix = dir.join("m2");
+    let same_dir = dir.join(".").join("points.xyz");
+    for ranks in [1, 2] {
+        for (timings, needle) in [
+            (&input, "names the input file"),
+            (&same_dir, "names the input file"),
+            (&dir.join("m2.ply"), "names the output"),
+            (&dir.join("m2.model.h5"), "names the output"),
+            (&dir, "names a directory"),
+        ] {
+            let args = ["fit", s(&input), "--out", s(&prefix), "--grid", "8", "--timings", s(timings)];
+            refused(&run(ranks, &args), 2, needle, &dir, &[&input, &model]);
+            assert_eq!(std::fs::read(&input).unwrap(), before);
+        }
+        let missing = dir.join("missing").join("t.csv");
+        let args = ["fit", s(&input), "--out", s(&prefix), "--grid", "8", "--timings", s(&missing)];
+        refused(&run(ranks, &args), 1, "the directory of --timings does not exist", &dir, &[&input, &model]);
+        let out = run(
+            ranks,
+            &["eval", s(&model), "--out", s(&dir.join("e")), "--grid", "8", "--timings", s(&model)],
+        );
+        refused(&out, 2, "an input of this run", &dir, &[&input, &model]);
+        assert!(volspline::io::model_file::read_model(&model).is_ok());
+        // the scan's own name as the prefix: the mesh PREFIX.ply would be the scan
+        let scan = dir.join("scan.ply");
+        let pts = scaled_bunny(1.0);
+        let mut ply = format!("ply\nformat ascii 1.0\nelement vertex {}\n", pts.len() / 3);
+        ply.push_str("property float x\nproperty float y\nproperty float z\nend_header\n");
+        pts.chunks(3).for_each(|p| ply.push_str(&format!("{} {} {}\n", p[0], p[1], p[2])));
+        std::fs::write(&scan, &ply).unwrap();
+        let out = run(ranks, &["fit", s(&scan), "--out", s(&dir.join("scan")), "--grid", "8"]);
+        refused(&out, 2, "would replace the input", &dir, &[&input, &model, &scan]);
+        assert_eq!(std::fs::read_to_string(&scan).unwrap(), ply);
+        std::fs::remove_file(&scan).unwrap();
+    }
+}

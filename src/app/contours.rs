@@ -25,6 +25,7 @@ use crate::spline::{Kernel, Provenance};
 /// Reads the contour file on rank 0, gives its text to every rank and parses it everywhere.
 fn read_sections_everywhere(comm: &dyn Comm, path: &Path) -> Result<Vec<Section>> {
     let local = if comm.rank() == 0 {
+        io::staging::note_input(path);
         std::fs::read_to_string(path).map(Some).map_err(|e| match e.kind() {
             std::io::ErrorKind::InvalidData => Error::input(path, "", format!("not UTF-8 text: {e}")),
             _ => Error::io(path, &e),
@@ -70,7 +71,7 @@ pub fn solve_sections(
 /// Runs `volspline contours`. Collective.
 pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
-    check_prefix(comm, &a.out)?;
+    check_prefix(comm, &a.out, a.grid.timings.as_deref(), Some(&a.input))?;
     let sections = stages.time(Stage::Read, || read_sections_everywhere(comm, &a.input))?;
     let points_read: usize = sections.iter().map(Section::point_count).sum();
     let contours: usize = sections.iter().map(|s| s.contours.len()).sum();

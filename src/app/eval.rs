@@ -25,7 +25,7 @@ use crate::surface::support::DataSupport;
 /// Runs `volspline eval`. Collective.
 pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
-    check_prefix(comm, &a.out)?;
+    check_prefix(comm, &a.out, a.grid.timings.as_deref(), None)?;
     let text = a.model.to_string();
     let mut r = Report::new("eval", Path::new(&text));
     r.figure("model", &text);

@@ -47,7 +47,7 @@ pub fn series_json(names: &[String], times: &[f64]) -> String {
 /// Runs `volspline morph`. Collective.
 pub fn run(a: &MorphArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
-    check_prefix(comm, &a.out)?;
+    check_prefix(comm, &a.out, a.grid.timings.as_deref(), None)?;
     let subject = format!("{} -> {}", a.a, a.b);
     let mut r = Report::new("morph", Path::new(&subject));
     let (ea, eb) = stages

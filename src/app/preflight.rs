@@ -7,11 +7,12 @@
 //! cgroup limit of the job (v2 `memory.max`, v1 `memory.limit_in_bytes`), shared equally by the
 //! ranks on the node (`OMPI_COMM_WORLD_LOCAL_SIZE` and its equivalents).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use crate::cli::ranks_on_this_node;
 use crate::error::{Error, Result};
 use crate::grid::Grid;
+use crate::io::staging::same_file;
 use crate::linalg::dist::Precision;
 use crate::par::{agree, Comm};
 
@@ -90,10 +91,72 @@ fn gigabytes(bytes: f64) -> String {
 }
 
 /// Checks on rank 0 that outputs can be written under `prefix` (its directory exists and takes a
-/// new file, and the prefix has a file name), and agrees on the outcome. Collective.
-pub fn check_prefix(comm: &dyn Comm, prefix: &Path) -> Result<()> {
-    let local = if comm.rank() == 0 { writable_prefix(prefix) } else { Ok(()) };
+/// new file, and the prefix has a file name), and that the `--timings` file is neither one of the
+/// prefix's outputs nor the input file; agrees on the outcome. Collective.
+pub fn check_prefix(
+    comm: &dyn Comm,
+    prefix: &Path,
+    timings: Option<&Path>,
+    input: Option<&Path>,
+) -> Result<()> {
+    let local = if comm.rank() == 0 {
+        writable_prefix(prefix)
+            .and_then(|()| input.map_or(Ok(()), |i| spares_input(prefix, i)))
+            .and_then(|()| timings.map_or(Ok(()), |t| separate_timings(t, prefix, input)))
+    } else {
+        Ok(())
+    };
     agree(comm, local)
+}
+
+/// The names a command may write under a prefix.
+const PREFIX_OUTPUTS: [&str; 6] = [".model.h5", ".hdf", ".ply", ".png", ".trimmed.ply", ".hdf.series"];
+
+/// The outputs under `prefix`, by the names a command may write.
+fn prefix_outputs(prefix: &Path) -> impl Iterator<Item = PathBuf> + '_ {
+    PREFIX_OUTPUTS.iter().map(move |ext| {
+        let mut name = prefix.as_os_str().to_owned();
+        name.push(ext);
+        PathBuf::from(name)
+    })
+}
+
+/// Refuses a prefix one of whose outputs is the input (`fit scan.ply --out scan`).
+fn spares_input(prefix: &Path, input: &Path) -> Result<()> {
+    match prefix_outputs(prefix).find(|o| same_file(o, input)) {
+        Some(o) => Err(Error::Usage(format!(
+            "--out {}: the output {} would replace the input {}; choose another prefix",
+            prefix.display(),
+            o.display(),
+            input.display()
+        ))),
+        None => Ok(()),
+    }
+}
+
+fn separate_timings(timings: &Path, prefix: &Path, input: Option<&Path>) -> Result<()> {
+    let clash = |what: String| {
+        Err(Error::Usage(format!("--timings {}: names {what}; give it a name of its own", timings.display())))
+    };
+    if timings.is_dir() {
+        return clash("a directory".into());
+    }
+    let dir = match timings.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        let why =
+            std::io::Error::new(std::io::ErrorKind::NotFound, "the directory of --timings does not exist");
+        return Err(Error::io(dir, &why));
+    }
+    if let Some(input) = input.filter(|i| same_file(timings, i)) {
+        return clash(format!("the input file {}", input.display()));
+    }
+    match prefix_outputs(prefix).find(|o| same_file(timings, o)) {
+        Some(o) => clash(format!("the output {}", o.display())),
+        None => Ok(()),
+    }
 }
 
 fn writable_prefix(prefix: &Path) -> Result<()> {
@@ -152,11 +215,14 @@ mod tests {
     fn prefixes_must_name_a_writable_file() {
         let dir = std::env::temp_dir().join(format!("volspline-preflight-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        assert!(check_prefix(&Solo, &dir.join("out")).is_ok());
-        assert!(matches!(check_prefix(&Solo, &dir).unwrap_err(), Error::Usage(_)));
+        assert!(check_prefix(&Solo, &dir.join("out"), None, None).is_ok());
+        assert!(matches!(check_prefix(&Solo, &dir, None, None).unwrap_err(), Error::Usage(_)));
         let slash = format!("{}/", dir.display());
-        assert!(matches!(check_prefix(&Solo, Path::new(&slash)).unwrap_err(), Error::Usage(_)));
-        assert!(matches!(check_prefix(&Solo, &dir.join("missing/out")).unwrap_err(), Error::Io { .. }));
+        assert!(matches!(check_prefix(&Solo, Path::new(&slash), None, None).unwrap_err(), Error::Usage(_)));
+        assert!(matches!(
+            check_prefix(&Solo, &dir.join("missing/out"), None, None).unwrap_err(),
+            Error::Io { .. }
+        ));
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -159,6 +159,7 @@ pub fn format_of(path: &Path) -> Result<String> {
     if !path.exists() {
         return Err(Error::Io { path: path.into(), reason: "no such file".into() });
     }
+    super::staging::note_input(path);
     let f = hdf5::File::open(path).map_err(|e| Error::hdf5(path, e))?;
     let a = Attrs { file: &f, path };
     if f.attr("format").is_err() {

@@ -25,10 +25,13 @@ struct Registry {
     /// Outputs renamed into place by this run (a signal after the commit must not claim that
     /// nothing was replaced).
     renamed: usize,
+    /// The files this run has read (as named, and their device and inode), which no output may
+    /// replace.
+    inputs: Vec<(PathBuf, (u64, u64))>,
 }
 
 static REGISTRY: Mutex<Registry> =
-    Mutex::new(Registry { run_id: String::new(), pending: Vec::new(), renamed: 0 });
+    Mutex::new(Registry { run_id: String::new(), pending: Vec::new(), renamed: 0, inputs: Vec::new() });
 
 fn registry() -> std::sync::MutexGuard<'static, Registry> {
     REGISTRY.lock().unwrap_or_else(|p| p.into_inner())
@@ -56,6 +59,20 @@ pub fn begin(run_id: &str) {
     r.run_id = run_id.to_string();
     r.pending.clear();
     r.renamed = 0;
+    r.inputs.clear();
+}
+
+/// Records that this run reads the file `path` (called by the readers), so that the commit
+/// refuses an output that would replace it. A file that cannot be examined is not recorded: its
+/// read fails with its own message.
+pub fn note_input(path: &Path) {
+    use std::os::unix::fs::MetadataExt;
+    if let Ok(m) = std::fs::metadata(path) {
+        let mut r = registry();
+        if !r.inputs.iter().any(|(p, _)| p == path) {
+            r.inputs.push((path.to_path_buf(), (m.dev(), m.ino())));
+        }
+    }
 }
 
 /// The temporary name of `path` in this run: `.NAME.RUNID.partial` beside it.
@@ -89,14 +106,14 @@ pub fn output_target(path: &Path) -> PathBuf {
 }
 
 /// Registers `path` (through [`output_target`]) as an output of this run and returns the temporary
-/// name to write it under.
+/// name to write it under. Each output is registered once: [`commit_all`] refuses two outputs
+/// that are one file.
 pub fn register(path: &Path) -> PathBuf {
     let path = &output_target(path);
     let tmp = temp_path(path);
-    let mut r = registry();
-    if !r.pending.iter().any(|(f, _)| f == path) {
-        r.pending.push((path.to_path_buf(), tmp.clone()));
-    }
+    // a name registered twice is kept twice: the commit refuses the set (one output replaced the
+    // other under their one temporary name)
+    registry().pending.push((path.to_path_buf(), tmp.clone()));
     tmp
 }
 
@@ -141,6 +158,10 @@ pub fn commit_all() -> Result<()> {
     // for the set to be complete before it reports (see `discard_all`)
     let mut r = registry();
     let pending = std::mem::take(&mut r.pending);
+    if let Err(e) = distinct_outputs(&pending, &r.inputs) {
+        pending.iter().for_each(|(_, tmp)| drop(std::fs::remove_file(tmp)));
+        return Err(e);
+    }
     // the locks are released when the handles are dropped, after the last rename
     let _locks = lock_dirs(pending.iter().map(|(f, _)| parent_dir(f)));
     let mut result = Ok(());
@@ -156,6 +177,54 @@ pub fn commit_all() -> Result<()> {
         }
     }
     result
+}
+
+/// Refuses a set of outputs in which two names are one file (`o.ply` and `./o.ply`, or a
+/// `--timings` file named like a volume output: the later write replaced the earlier under their
+/// one temporary name), or an output that is one of the run's inputs. Checked before anything is
+/// renamed, so a refused set leaves every file as it was.
+fn distinct_outputs(pending: &[(PathBuf, PathBuf)], inputs: &[(PathBuf, (u64, u64))]) -> Result<()> {
+    use std::os::unix::fs::MetadataExt;
+    let refuse = |path: &Path, why: String| Err(Error::Usage(format!("{}: {why}", path.display())));
+    let mut seen: Vec<((u64, u64), &std::ffi::OsStr, &Path)> = Vec::new();
+    for (path, _) in pending {
+        if let Ok(m) = std::fs::metadata(path) {
+            if let Some((input, _)) = inputs.iter().find(|(_, id)| *id == (m.dev(), m.ino())) {
+                let why = format!(
+                    "this output would replace {}, an input of this run; choose another output name",
+                    input.display()
+                );
+                return refuse(path, why);
+            }
+        }
+        let dir = std::fs::metadata(parent_dir(path)).map(|m| (m.dev(), m.ino()));
+        let (Ok(dir), Some(name)) = (dir, path.file_name()) else { continue };
+        if let Some((_, _, other)) = seen.iter().find(|(d, n, _)| *d == dir && *n == name) {
+            let also =
+                if *other == path { String::new() } else { format!(" (also named {})", other.display()) };
+            return refuse(
+                path,
+                format!("two outputs of this run are this one file{also}; give them different names"),
+            );
+        }
+        seen.push((dir, name, path));
+    }
+    Ok(())
+}
+
+/// Whether `a` and `b` name one file: the same existing file (device and inode, so also through
+/// links), or, where one does not exist yet, the same name in the same directory however the
+/// directory is spelled.
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    let id = |p: &Path| std::fs::metadata(p).map(|m| (m.dev(), m.ino())).ok();
+    match (id(a), id(b)) {
+        (Some(x), Some(y)) => x == y,
+        _ => {
+            a.file_name() == b.file_name()
+                && id(&parent_dir(a)).is_some_and(|d| id(&parent_dir(b)) == Some(d))
+        }
+    }
 }
 
 fn parent_dir(path: &Path) -> PathBuf {
@@ -223,6 +292,38 @@ mod tests {
         commit_all().unwrap();
         assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
         assert_eq!(std::fs::read_to_string(&target).unwrap(), "via link");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_set_with_one_file_twice_or_an_input_is_refused() {
+        let dir = std::env::temp_dir().join(format!("volspline-distinct-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("sub")).unwrap();
+        let input = dir.join("points.xyz");
+        std::fs::write(&input, "0 0 0\n").unwrap();
+        let link = dir.join("link.xyz");
+        std::os::unix::fs::symlink(&input, &link).unwrap();
+        let inputs = [(link.clone(), {
+            use std::os::unix::fs::MetadataExt;
+            let m = std::fs::metadata(&input).unwrap();
+            (m.dev(), m.ino())
+        })];
+        let set = |names: &[PathBuf]| names.iter().map(|p| (p.clone(), temp_path(p))).collect::<Vec<_>>();
+        let (a, b) = (dir.join("o.ply"), dir.join("o.hdf"));
+        assert!(distinct_outputs(&set(&[a.clone(), b.clone()]), &inputs).is_ok());
+        for twice in [a.clone(), dir.join("sub/../o.ply"), dir.join("./sub/..//o.ply")] {
+            let err = distinct_outputs(&set(&[a.clone(), b.clone(), twice.clone()]), &inputs).unwrap_err();
+            assert!(
+                err.to_string().contains("two outputs of this run are this one file"),
+                "{twice:?}: {err}"
+            );
+            assert!(same_file(&a, &twice));
+        }
+        assert!(!same_file(&a, &b) && !same_file(&a, &dir.join("sub/o.ply")));
+        // the input, named as it was read (a link) or as its target
+        let err = distinct_outputs(&set(&[a.clone(), input.clone()]), &inputs).unwrap_err();
+        assert!(err.to_string().contains("an input of this run"), "{err}");
+        assert!(same_file(&link, &input) && same_file(&dir.join("sub/../link.xyz"), &input));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

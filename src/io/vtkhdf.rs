@@ -170,6 +170,7 @@ fn remove(path: &Path) -> Result<()> {
 
 /// Reads a whole VTKHDF ImageData point array back (serially): grid and values, x fastest.
 pub fn read_image(path: &Path, name: &str) -> Result<(Grid, Vec<f64>)> {
+    super::staging::note_input(path);
     let h5 = |e: hdf5::Error| Error::hdf5(path, e);
     let file = hdf5::File::open(path).map_err(h5)?;
     let root = file.group("VTKHDF").map_err(h5)?;

@@ -143,7 +143,7 @@ fn choose(
 pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
     dense::check_layout(a, comm.size())?;
-    check_prefix(comm, &a.out)?;
+    check_prefix(comm, &a.out, a.grid.timings.as_deref(), Some(&a.input))?;
     let raw = stages.time(Stage::Read, || read_points_everywhere(comm, &a.input))?;
     let points_read = raw.len() / 3;
     // hygiene needs only the polynomial part, linear for every kernel but r3

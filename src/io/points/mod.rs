@@ -51,6 +51,7 @@ pub fn read_points(path: &Path) -> Result<PointSet> {
             ));
         }
     };
+    crate::io::staging::note_input(path);
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
     let set = parse(path, &bytes)?;
     if set.points.len() < MIN_POINTS {
