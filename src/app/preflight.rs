@@ -177,7 +177,10 @@ fn writable_prefix(prefix: &Path) -> Result<()> {
         ));
     }
     let probe = dir.join(format!(".volspline-probe-{}", std::process::id()));
-    std::fs::write(&probe, b"").map_err(|e| Error::io(dir, &e))?;
+    std::fs::write(&probe, b"").map_err(|e| Error::Io {
+        path: dir.into(),
+        reason: format!("cannot create a file in the output directory: {e}"),
+    })?;
     let _ = std::fs::remove_file(&probe);
     Ok(())
 }

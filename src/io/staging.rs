@@ -124,9 +124,23 @@ pub fn stage(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()>
         return write(path);
     }
     let tmp = register(path);
-    write(&tmp).inspect_err(|_| {
+    write(&tmp).map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
+        named_as_output(e, path, &tmp)
     })
+}
+
+/// An error about the temporary file `tmp` told as one about the output `path` the user named,
+/// with the temporary name kept in the reason.
+fn named_as_output(e: Error, path: &Path, tmp: &Path) -> Error {
+    let reason = |r: String| format!("cannot be written (its temporary file {}: {r})", tmp.display());
+    match e {
+        Error::Io { path: p, reason: r } if p == tmp => Error::Io { path: path.into(), reason: reason(r) },
+        Error::Hdf5 { path: p, reason: r } if p == tmp => {
+            Error::Hdf5 { path: path.into(), reason: reason(r) }
+        }
+        e => e,
+    }
 }
 
 /// The temporary files of this run not yet renamed into place.
