@@ -213,6 +213,7 @@ pub fn write_volume_with(
             arrays.push((CURVATURE_ARRAYS[1], gauss));
         }
         vtkhdf::write_image_arrays(comm, &tmp, grid, k0, layers, &arrays)
+            .map_err(|e| io::staging::named_as_output(e, &hdf_path, &tmp))
     })?;
 
     let ply_path = output_path(prefix, ".ply");

@@ -132,7 +132,7 @@ pub fn stage(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()>
 
 /// An error about the temporary file `tmp` told as one about the output `path` the user named,
 /// with the temporary name kept in the reason.
-fn named_as_output(e: Error, path: &Path, tmp: &Path) -> Error {
+pub fn named_as_output(e: Error, path: &Path, tmp: &Path) -> Error {
     let reason = |r: String| format!("cannot be written (its temporary file {}: {r})", tmp.display());
     match e {
         Error::Io { path: p, reason: r } if p == tmp => Error::Io { path: path.into(), reason: reason(r) },
