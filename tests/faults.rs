@@ -97,6 +97,7 @@ fn disk_full_ends_the_job_with_a_message_on_1_and_2_ranks() {
         assert!(!done.timed_out, "hung on {ranks} ranks after the write error:\n{t}");
         assert_eq!(done.output.status.code(), Some(1), "{ranks} ranks:\n{t}");
         assert!(t.contains("volspline: error") && t.contains("HDF5 error"), "{t}");
+        assert!(t.contains(&format!("{}.hdf: HDF5 error: cannot be written", out.display())), "{t}");
         assert_eq!(names(&fs.0), set(&[]), "{t}");
     }
 }
