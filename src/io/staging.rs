@@ -3,7 +3,9 @@
 //! and all outputs of a command are renamed into place together at the end, only after every rank
 //! has succeeded. A failing run therefore leaves the previous complete set untouched, and two runs
 //! on one prefix never mix their files: the set of the last to finish replaces the other whole
-//! (the renames of one set happen under an exclusive lock on each output directory).
+//! (the renames of one set happen under an exclusive lock on each output directory). Before any
+//! rename the set is checked: no two outputs may be one file, and no output may be a file the run
+//! read ([`note_input`]), however the names are spelled; a refused set leaves every file as it was.
 //!
 //! The registry of pending temporaries is process-wide so that the signal handler of the binary can
 //! remove them when the job is interrupted ([`pending_temps`]). A target that exists and is not a
