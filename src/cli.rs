@@ -62,8 +62,8 @@ pub struct FitArgs {
     pub carrier: Carrier,
     /// How the spline is built: dense (a global Green's function, the dense row-cyclic solvers),
     /// csrbf (a compactly supported Wendland function: an octree, a sparse Cholesky, MUMPS across
-    /// ranks) or auto (dense while its matrix fits in memory and its solve should take under a
-    /// minute, csrbf above).
+    /// ranks) or auto (dense while its matrix fits in memory and its solve should take under
+    /// 15 s, csrbf above).
     #[arg(long, default_value = "auto", value_name = "auto|dense|csrbf", value_parser = method)]
     pub method: Method,
     /// Radial function: r (m = 2, biharmonic) or r3 (m = 3, triharmonic) for dense;

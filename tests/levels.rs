@@ -91,7 +91,7 @@ fn two_levels_put_the_surface_on_the_bunny_on_one_and_two_ranks() {
     let d = common::rel_diff(&v, &volumes[0]);
     assert!(d < 1e-12, "eval of the model file vs the fit's volume: {d:e}");
     // the default method on one rank: the 12,000 points alone would make a dense system of
-    // about 40 s, with their off points one of about 130 s, so `auto` takes the two levels, and
+    // about 10 s, with their off points one of about 32 s, so `auto` takes the two levels, and
     // the kernel and support of `--method csrbf` with them (it once took the data's dense kernel
     // for the compactly supported level and failed)
     let auto = dir.join("auto");

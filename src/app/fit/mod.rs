@@ -73,13 +73,15 @@ fn read_points_everywhere(comm: &dyn Comm, path: &Path) -> Result<Vec<f64>> {
     Ok(comm.broadcast_value(0, mine))
 }
 
-/// Dense flop rate per rank assumed by `--method auto` to predict the solve time (the projected
-/// Cholesky ran at 30 to 35 GFLOP/s per rank on the machines measured; a slower node is allowed
-/// for).
-const DENSE_FLOPS_PER_RANK: f64 = 15e9;
+/// Dense flop rate per rank assumed by `--method auto` to predict the solve time it reports and
+/// decides by (the projected Cholesky ran at 73 to 84 GFLOP/s per rank on one and two ranks of a
+/// 2-core AVX-512 machine at 8000 rows; a slower node is allowed for).
+const DENSE_FLOPS_PER_RANK: f64 = 60e9;
 
-/// The longest dense solve `--method auto` accepts before it turns to the sparse method.
-const DENSE_SECONDS: f64 = 60.0;
+/// The longest predicted dense solve `--method auto` accepts before it turns to the sparse
+/// method. The off-surface fit solves its system and borders the factor several times, so the
+/// whole fit takes a few times this.
+const DENSE_SECONDS: f64 = 15.0;
 
 /// Wendland kernel of `smoothness` (0, 1, 2) with `--support` or the default support.
 fn wendland(a: &FitArgs, smoothness: u8, centres: &[f64]) -> Result<Kernel> {
@@ -581,17 +583,18 @@ mod tests {
         let a = fit_args(&[]);
         let centres: Vec<f64> = (0..300).map(|i| ((i * 37 % 101) as f64 / 50.0) - 1.0).collect();
         let method = |rows: usize, machine: (usize, f64)| choose(&a, rows, machine, &centres).unwrap();
-        // 12,000 rows on one rank: 12004^3 / 3 flops at 15 GFLOP/s, about 38 s, and 1.15 GB
+        // 12,000 rows on one rank: 12004^3 / 3 flops at 60 GFLOP/s, about 10 s, and 1.15 GB
         let (m, k, why) = method(12_000, (1, f64::INFINITY));
         assert_eq!(m, Method::Dense, "{why}");
         assert_eq!(k.name(), "r");
-        // with its off points, 18,000 rows take about 130 s: the compactly supported method, with
+        assert!(why.contains("about 10 s"), "{why}");
+        // with its off points, 18,000 rows take about 32 s: the compactly supported method, with
         // its own kernel (the two-level fit takes this choice)
         let (m, k, why) = method(18_000, (1, f64::INFINITY));
         assert_eq!(m, Method::Csrbf, "{why}");
         assert!(k.is_compact().is_some(), "{}", k.name());
-        assert!(why.contains("about 130 s"), "{why}");
-        // on two ranks 18,000 rows take about 65 s; 17,000 rows about 55 s
+        assert!(why.contains("about 32 s"), "{why}");
+        // on two ranks 18,000 rows take about 16 s; 17,000 rows about 14 s
         assert_eq!(method(18_000, (2, f64::INFINITY)).0, Method::Csrbf);
         assert_eq!(method(17_000, (2, f64::INFINITY)).0, Method::Dense);
         // the memory the ranks agreed on decides too
