@@ -27,7 +27,9 @@ second fits, the one with less unsupported surface kept, src/surface/choice.rs: 
 since it was measured as an option); `wide`: the default without it (`--blob-choice off`, the
 wide clearance of the blob search alone); `turns` and `noturns`: `--orient-turns on` and `off` (patches
 turned where that shrinks the surface no data supports, src/surface/turns.rs); `denoise`: `--denoise on`
-(the points moved onto quadrics of their same-sheet neighbours first, src/surface/denoise.rs). A binary whose `fit --help` has no `--surface` only has the plain method:
+(the points moved onto quadrics of their same-sheet neighbours first, src/surface/denoise.rs); `dense`:
+`--method dense` (the default's off-surface fit as one dense system where `auto` would take the two
+levels of src/app/fit/levels.rs, from about 11,700 points on 2 ranks). A binary whose `fit --help` has no `--surface` only has the plain method:
 then `carrier` runs it without the flag and `default`/`offsurface` are dropped with a note.
 `poisson`: screened Poisson (Kazhdan and Hoppe 2013, pymeshlab, octree depth --poisson-depth)
 on normals estimated by PCA of the 10 nearest neighbours and oriented by MeshLab's propagation.
@@ -217,7 +219,7 @@ def method_list(args, has_surface):
         flags = {"default": [], "poisson": [], "energy": ["--orient-energy", "on"], "side": ["--orient-side", "on"],
                  "trimmed": ["--trim"], "choice": ["--blob-choice", "on"], "wide": ["--blob-choice", "off"],
                  "turns": ["--orient-turns", "on"], "noturns": ["--orient-turns", "off"],
-                 "denoise": ["--denoise", "on"]}
+                 "denoise": ["--denoise", "on"], "dense": ["--method", "dense"]}
         return [(m, "poisson" if m == "poisson" else "volspline",
                  flags.get(m, ["--surface", m])) for m in args.methods], ""
     # a binary without --surface has one method, the plain carrier method: run it once as `carrier`
@@ -255,9 +257,9 @@ def parse(argv):
             ap.error(f"unknown mesh {m} (one of {', '.join(MESHES)})")
     for m in args.methods:
         if m not in ("default", "carrier", "offsurface", "energy", "side", "trimmed", "choice", "wide", "turns",
-                     "noturns", "denoise", "poisson"):
+                     "noturns", "denoise", "dense", "poisson"):
             ap.error(f"unknown method {m} (default, carrier, offsurface, energy, side, trimmed, choice, wide, turns, "
-                     "noturns, denoise, poisson)")
+                     "noturns, denoise, dense, poisson)")
     if args.quick:
         args.sizes, args.variant_sizes, args.grid = [1000, 2000], [1000], 64
     return args
