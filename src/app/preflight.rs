@@ -1,7 +1,7 @@
 //! Checks made before any heavy work, so that a run that cannot finish says so within a second
-//! instead of after the solve: the output prefix names a writable place, and the memory a rank will
-//! need (the dense system's rows, the solver's panels, the grid slab) fits in what this rank can
-//! have.
+//! instead of after the solve: the output prefix names a writable place, no output (nor the
+//! `--timings` file) would replace the input or another output, and the memory a rank will need
+//! (the dense system's rows, the solver's panels, the grid slab) fits in what this rank can have.
 //!
 //! What a rank can have is the smaller of the node's available memory (`MemAvailable`) and the
 //! cgroup limit of the job (v2 `memory.max`, v1 `memory.limit_in_bytes`), shared equally by the
