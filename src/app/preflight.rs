@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use crate::cli::ranks_on_this_node;
 use crate::error::{Error, Result};
 use crate::grid::Grid;
-use crate::io::staging::same_file;
+use crate::io::staging::{parent_dir, same_file};
 use crate::linalg::dist::Precision;
 use crate::par::{agree, Comm};
 
@@ -141,10 +141,7 @@ fn separate_timings(timings: &Path, prefix: &Path, input: Option<&Path>) -> Resu
     if timings.is_dir() {
         return clash("a directory".into());
     }
-    let dir = match timings.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
+    let dir = parent_dir(timings);
     if !dir.is_dir() {
         let why =
             std::io::Error::new(std::io::ErrorKind::NotFound, "the directory of --timings does not exist");
@@ -166,10 +163,7 @@ fn writable_prefix(prefix: &Path) -> Result<()> {
             "--out {text}: expected a file prefix such as results/bunny (outputs are PREFIX.model.h5, PREFIX.hdf, PREFIX.ply), not a directory"
         )));
     }
-    let dir = match prefix.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
+    let dir = &parent_dir(prefix);
     if !dir.is_dir() {
         return Err(Error::io(
             dir,

@@ -171,10 +171,7 @@ fn check_png_path(path: &Path) -> Result<()> {
     if !is_png || path.is_dir() {
         return Err(Error::Usage(format!("--out {text}: expected the name of a .png file")));
     }
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
+    let dir = crate::io::staging::parent_dir(path);
     if !dir.is_dir() {
         let e = std::io::Error::new(std::io::ErrorKind::NotFound, "the output directory does not exist");
         return Err(Error::io(dir, &e));

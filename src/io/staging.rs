@@ -27,9 +27,8 @@ struct Registry {
     /// Outputs renamed into place by this run (a signal after the commit must not claim that
     /// nothing was replaced).
     renamed: usize,
-    /// The files this run has read (as named, and their device and inode), which no output may
-    /// replace.
-    inputs: Vec<(PathBuf, (u64, u64))>,
+    /// The files this run has read, as named, which no output may replace.
+    inputs: Vec<PathBuf>,
 }
 
 static REGISTRY: Mutex<Registry> =
@@ -65,15 +64,11 @@ pub fn begin(run_id: &str) {
 }
 
 /// Records that this run reads the file `path` (called by the readers), so that the commit
-/// refuses an output that would replace it. A file that cannot be examined is not recorded: its
-/// read fails with its own message.
+/// refuses an output that would replace it.
 pub fn note_input(path: &Path) {
-    use std::os::unix::fs::MetadataExt;
-    if let Ok(m) = std::fs::metadata(path) {
-        let mut r = registry();
-        if !r.inputs.iter().any(|(p, _)| p == path) {
-            r.inputs.push((path.to_path_buf(), (m.dev(), m.ino())));
-        }
+    let mut r = registry();
+    if !r.inputs.iter().any(|p| p == path) {
+        r.inputs.push(path.to_path_buf());
     }
 }
 
@@ -199,51 +194,49 @@ pub fn commit_all() -> Result<()> {
 /// `--timings` file named like a volume output: the later write replaced the earlier under their
 /// one temporary name), or an output that is one of the run's inputs. Checked before anything is
 /// renamed, so a refused set leaves every file as it was.
-fn distinct_outputs(pending: &[(PathBuf, PathBuf)], inputs: &[(PathBuf, (u64, u64))]) -> Result<()> {
-    use std::os::unix::fs::MetadataExt;
+fn distinct_outputs(pending: &[(PathBuf, PathBuf)], inputs: &[PathBuf]) -> Result<()> {
     let refuse = |path: &Path, why: String| Err(Error::Usage(format!("{}: {why}", path.display())));
-    let mut seen: Vec<((u64, u64), &std::ffi::OsStr, &Path)> = Vec::new();
-    for (path, _) in pending {
-        if let Ok(m) = std::fs::metadata(path) {
-            if let Some((input, _)) = inputs.iter().find(|(_, id)| *id == (m.dev(), m.ino())) {
-                let why = format!(
-                    "this output would replace {}, an input of this run; choose another output name",
-                    input.display()
-                );
-                return refuse(path, why);
-            }
+    for (at, (path, _)) in pending.iter().enumerate() {
+        if let Some(input) = inputs.iter().find(|i| same_file(path, i)) {
+            let why = format!(
+                "this output would replace {}, an input of this run; choose another output name",
+                input.display()
+            );
+            return refuse(path, why);
         }
-        let dir = std::fs::metadata(parent_dir(path)).map(|m| (m.dev(), m.ino()));
-        let (Ok(dir), Some(name)) = (dir, path.file_name()) else { continue };
-        if let Some((_, _, other)) = seen.iter().find(|(d, n, _)| *d == dir && *n == name) {
+        if let Some((other, _)) = pending[..at].iter().find(|(o, _)| same_file(path, o)) {
             let also =
-                if *other == path { String::new() } else { format!(" (also named {})", other.display()) };
+                if other == path { String::new() } else { format!(" (also named {})", other.display()) };
             return refuse(
                 path,
                 format!("two outputs of this run are this one file{also}; give them different names"),
             );
         }
-        seen.push((dir, name, path));
     }
     Ok(())
+}
+
+/// The device and inode of an existing file or directory (links followed).
+fn file_id(path: &Path) -> Option<(u64, u64)> {
+    use std::os::unix::fs::MetadataExt;
+    std::fs::metadata(path).map(|m| (m.dev(), m.ino())).ok()
 }
 
 /// Whether `a` and `b` name one file: the same existing file (device and inode, so also through
 /// links), or, where one does not exist yet, the same name in the same directory however the
 /// directory is spelled.
 pub fn same_file(a: &Path, b: &Path) -> bool {
-    use std::os::unix::fs::MetadataExt;
-    let id = |p: &Path| std::fs::metadata(p).map(|m| (m.dev(), m.ino())).ok();
-    match (id(a), id(b)) {
+    match (file_id(a), file_id(b)) {
         (Some(x), Some(y)) => x == y,
         _ => {
             a.file_name() == b.file_name()
-                && id(&parent_dir(a)).is_some_and(|d| id(&parent_dir(b)) == Some(d))
+                && file_id(&parent_dir(a)).is_some_and(|d| file_id(&parent_dir(b)) == Some(d))
         }
     }
 }
 
-fn parent_dir(path: &Path) -> PathBuf {
+/// The directory of `path`, `.` for a bare file name.
+pub fn parent_dir(path: &Path) -> PathBuf {
     match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
@@ -319,11 +312,7 @@ mod tests {
         std::fs::write(&input, "0 0 0\n").unwrap();
         let link = dir.join("link.xyz");
         std::os::unix::fs::symlink(&input, &link).unwrap();
-        let inputs = [(link.clone(), {
-            use std::os::unix::fs::MetadataExt;
-            let m = std::fs::metadata(&input).unwrap();
-            (m.dev(), m.ino())
-        })];
+        let inputs = [link.clone()];
         let set = |names: &[PathBuf]| names.iter().map(|p| (p.clone(), temp_path(p))).collect::<Vec<_>>();
         let (a, b) = (dir.join("o.ply"), dir.join("o.hdf"));
         assert!(distinct_outputs(&set(&[a.clone(), b.clone()]), &inputs).is_ok());
