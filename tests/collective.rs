@@ -346,10 +346,12 @@ fn row_cyclic_lookahead_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
 }
 
 /// The projected Cholesky of the first three quarters of the bunny system, its factor kept, then
-/// bordered by the remaining quarter of the centres (and by none), with every ninth of the first
-/// values negated, and the bordered factor solved again for values with every fifth negated:
-/// against the dense QR of the whole system, panels ending inside and beyond a
-/// rank's rows, and the same on every rank.
+/// bordered by none of the remaining quarter of the centres, by its first half, by that half in
+/// reverse order and by all of it, with every ninth of the first values negated, and each
+/// bordered factor solved again for values with every fifth negated: against the dense QR of the
+/// whole system, panels ending inside and beyond a rank's rows, and the same on every rank. The
+/// factor keeps the first half's substitutions (the whole quarter exceeds what it keeps), and
+/// the later extensions reuse them.
 fn bordered_factor_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
     let k = Kernel::new(3, 2).unwrap();
     let prep = bunny_system(&k);
@@ -364,17 +366,30 @@ fn bordered_factor_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
             "the first projected Cholesky",
         );
         let first = first.expect("the projected Cholesky keeps its factor");
-        for count in [n, total] {
-            let mut values = prep.values[..count].to_vec();
+        let half = n + (total - n) / 2;
+        // the appended centres of each system: none, the first half, it reversed, all
+        let reversed: Vec<usize> = (n..half).rev().collect();
+        let orders: [Vec<usize>; 4] = [vec![], (n..half).collect(), reversed, (n..total).collect()];
+        for (step, order) in orders.iter().enumerate() {
+            let picked: Vec<usize> = (0..n).chain(order.iter().copied()).collect();
+            let count = picked.len();
+            let mut values: Vec<f64> = picked.iter().map(|&i| prep.values[i]).collect();
             (0..n).step_by(9).for_each(|i| values[i] = -values[i]);
-            let centres = &prep.centres[..3 * count];
+            let centres: Vec<f64> =
+                picked.iter().flat_map(|&i| prep.centres[3 * i..3 * i + 3].to_vec()).collect();
+            let centres = &centres[..];
             let (x, bordered) =
                 must(solve_extended(&job, &k, centres, &values, &first), "the bordered solve");
+            // kept after the first half (a sixth of n), not after the whole quarter (a third)
+            let kept = if step == 0 { 0 } else { half - n };
+            log.check(first.kept_centres() == kept, || {
+                format!("panel {panel}, step {step}: {} substitutions kept, not {kept}", first.kept_centres())
+            });
             let size = system_size(&k, count);
             let (a, b) = full_system(&k, centres, &values);
             let want =
                 must(householder_solve(MatRef::from_column_major_slice(&a, size, size), &b), "the oracle");
-            let what = format!("panel {panel}: {n} centres bordered by {}", count - n);
+            let what = format!("panel {panel}: {n} centres bordered by {} (step {step})", count - n);
             log.close(&x, &want, 1e-9, || what.clone());
             same_on_every_rank(comm, log, &x, &what);
             // other values of the same centres (every fifth negated, the appended ones too),

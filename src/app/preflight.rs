@@ -13,7 +13,7 @@ use crate::cli::ranks_on_this_node;
 use crate::error::{Error, Result};
 use crate::grid::Grid;
 use crate::io::staging::{parent_dir, same_file};
-use crate::linalg::dist::Precision;
+use crate::linalg::dist::{Precision, KEPT_SHARE};
 use crate::par::{agree, Comm};
 
 /// Memory a dense fit of a system of `system` rows needs on each of `ranks` ranks, in bytes: its
@@ -31,12 +31,14 @@ pub fn dense_fit_bytes(system: usize, ranks: usize, precision: Precision) -> f64
 }
 
 /// Memory per rank that bordering a kept factor of `n` centres by `m` more takes on top of it
-/// (border `k`): two blocks of this rank's rows by m columns (the cross block projected, the
-/// bordered rows) and a few (k + m) x (k + m) matrices on every rank.
+/// (border `k`): five blocks of this rank's rows by m columns at the peak (the cross block, it
+/// projected, its substitution through the factor, that times the border's new basis, the
+/// bordered rows), the substitutions the factor keeps for later extensions (at most
+/// [`KEPT_SHARE`] n columns of its rows) and a few (k + m) x (k + m) matrices on every rank.
 pub fn bordered_fit_bytes(n: usize, m: usize, k: usize, ranks: usize) -> f64 {
     let rows = n.div_ceil(ranks.max(1)) as f64;
     let w = (k + m) as f64;
-    1.15 * 8.0 * (3.0 * rows * (m + 1) as f64 + 5.0 * w * w)
+    1.15 * 8.0 * (rows * (5.0 * (m + 1) as f64 + KEPT_SHARE * n as f64) + 5.0 * w * w)
 }
 
 /// Memory the volume outputs need on the rank with the thickest slab of `grid`: its values with

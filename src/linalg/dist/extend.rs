@@ -41,6 +41,21 @@
 //! the blocks Z G_n, Q^T E, M_{0..k}) are kept in a [`Bordered`]: another right-hand side of the
 //! same n + m centres then costs a forward substitution of s y_{k..n} through L, the small solve
 //! with L22 and the back substitution, O(n^2) flops in all ([`solve_bordered`]).
+//!
+//! # Substitutions kept per centre
+//!
+//! The forward substitution, n^2 m of the flops, is taken before G_n: X = Y G_n with
+//! Y = s L^{-1} [M_{k..n,0..k}  (Q^T E)_{k..n}], since G_n acts on the columns and L^{-1} on the
+//! rows. A column of Q^T E = E - V T^T V^T E depends on its own centre alone, and so does its
+//! column of Y. The factor keeps the columns of Y it computed, by the appended centres'
+//! coordinates ([`Appended::keys`]), and a later extension by some of the same centres
+//! substitutes only the others. Second fits that differ in a few of hundreds of appended centres
+//! (two candidate sets of constraint points, or a set and a superset of it) then cost one
+//! substitution between them instead of one each. The kept columns are bounded by
+//! [`KEPT_SHARE`] of the factor's centres.
+
+use std::cell::RefCell;
+use std::collections::HashMap;
 
 use faer::linalg::matmul::matmul;
 use faer::linalg::matmul::triangular::{self, BlockStructure};
@@ -53,19 +68,108 @@ use super::system::{all_gather_rows, LocalRows};
 use crate::error::{Error, Result};
 use crate::linalg::reflector::{explicit_v, qr_in_place, wy_t};
 
+/// Most columns of Y a factor keeps (see "Substitutions kept per centre"), as a share of its
+/// centres: a quarter adds at most a quarter to the memory of the factor's own rows, and holds
+/// the constraint points of the blob search (at most a sixth of the centres of an off-surface
+/// fit).
+pub const KEPT_SHARE: f64 = 0.25;
+
 /// The factor of a solved projected Cholesky kept for bordering: the rows it overwrote (L of
 /// s B in rows and columns k..n, rows 0..k and columns 0..k of Q^T A Q as the projection left
-/// them), the QR of the border, s and the panel width.
+/// them), the QR of the border, s and the panel width; and the substitutions of earlier
+/// extensions kept for later ones.
 pub struct Factored {
     rows: LocalRows,
     border: Border,
     sign: f64,
     panel: usize,
+    kept: RefCell<Substituted>,
+}
+
+/// Columns of Y = s L^{-1} [M_{k..n,0..k}  (Q^T E)_{k..n}] on this rank's rows k..n (see
+/// "Substitutions kept per centre"): the first k once computed, and those of appended centres by
+/// their coordinates' bits.
+#[derive(Default)]
+struct Substituted {
+    border: Option<Mat<f64>>,
+    centres: HashMap<[u64; 3], Vec<f64>>,
 }
 
 impl Factored {
     pub(super) fn new(rows: LocalRows, border: Border, sign: f64, panel: usize) -> Self {
-        Factored { rows, border, sign, panel }
+        Factored { rows, border, sign, panel, kept: RefCell::default() }
+    }
+
+    /// The appended centres whose substitutions this factor keeps for later extensions.
+    pub fn kept_centres(&self) -> usize {
+        self.kept.borrow().centres.len()
+    }
+
+    /// Y (this rank's rows k..n, columns: the k border columns, then one per appended centre)
+    /// and z = s L^{-1} y_{k..n} of the right-hand side, by one forward substitution of the
+    /// columns not kept from earlier extensions (and of z); keeps the new ones while there is
+    /// room. `qte`: Q^T E on this rank's rows; `keys`: the appended centres' coordinates, 3 per
+    /// centre (None: nothing reused or kept). Collective: every rank keeps the same centres.
+    fn substitute(
+        &self,
+        job: &Job<'_>,
+        qte: &Mat<f64>,
+        y: &[f64],
+        keys: Option<&[f64]>,
+    ) -> (Mat<f64>, Vec<f64>) {
+        let (k, n, s) = (self.border.k, self.border.n, self.sign);
+        let lay = self.rows.layout;
+        let (la, b0) = (lay.first_local_from(n), lay.first_local_from(k));
+        let m = qte.ncols();
+        let key =
+            |j: usize| keys.map(|c| [c[3 * j].to_bits(), c[3 * j + 1].to_bits(), c[3 * j + 2].to_bits()]);
+        let mut kept = self.kept.borrow_mut();
+        let fresh_border = kept.border.is_none();
+        let missing: Vec<usize> =
+            (0..m).filter(|&j| key(j).is_none_or(|q| !kept.centres.contains_key(&q))).collect();
+        let width = if fresh_border { k } else { 0 } + missing.len() + 1;
+        let mut x = LocalRows::zeros(lay, width, 0);
+        let ld = x.ld();
+        {
+            let mut out = x.data.chunks_mut(ld).map(|c| &mut c[b0..la]);
+            let mut fill = |f: &dyn Fn(usize) -> f64| {
+                let col = out.next().expect("a column for each");
+                col.iter_mut().enumerate().for_each(|(i, v)| *v = s * f(b0 + i));
+            };
+            for j in (0..k).filter(|_| fresh_border) {
+                fill(&|l| self.rows.get(l, j));
+            }
+            for &j in &missing {
+                fill(&|l| qte[(l, j)]);
+            }
+            fill(&|l| y[lay.global(l)]);
+        }
+        forward_substitute(job, self, &mut x);
+        let column = |c: usize| &x.data[c * ld + b0..c * ld + la];
+        let h = la - b0;
+        if fresh_border {
+            kept.border = Some(Mat::from_fn(h, k, |i, j| column(j)[i]));
+        }
+        let first_missing = if fresh_border { k } else { 0 };
+        let mut yc = Mat::<f64>::zeros(h, k + m);
+        yc.as_mut().subcols_mut(0, k).copy_from(kept.border.as_ref().expect("computed above"));
+        let mut at = first_missing;
+        for j in 0..m {
+            let from = match key(j).and_then(|q| kept.centres.get(&q)) {
+                Some(v) if !missing.contains(&j) => v.as_slice(),
+                _ => {
+                    at += 1;
+                    column(at - 1)
+                }
+            };
+            (0..h).for_each(|i| yc[(i, k + j)] = from[i]);
+        }
+        if keys.is_some() && (kept.centres.len() + missing.len()) as f64 <= KEPT_SHARE * n as f64 {
+            for (c, &j) in missing.iter().enumerate() {
+                kept.centres.insert(key(j).expect("keys given"), column(first_missing + c).to_vec());
+            }
+        }
+        (yc, column(width - 1).to_vec())
     }
 
     /// The number of centres of the factored system.
@@ -103,6 +207,10 @@ pub struct Appended<'a> {
     /// The whole right-hand side r' of the n + m centres (the first n may differ from the first
     /// system's).
     pub rhs: &'a [f64],
+    /// The appended centres' coordinates (3 per centre), by which the factor keeps their
+    /// substitutions for later extensions (see "Substitutions kept per centre"); None: none are
+    /// kept or reused. The same on every rank.
+    pub keys: Option<&'a [f64]>,
 }
 
 /// A factor of the first system bordered by m appended centres, kept so that further right-hand
@@ -199,20 +307,19 @@ pub fn extend_solve(job: &Job<'_>, first: &Factored, new: &Appended<'_>) -> Resu
     let zg = times_g_null(z.as_ref());
     let d = g_null_t_times(zg.as_ref());
 
-    // [s C | s y_old] on this rank's rows of B, then forward substitution through L: the right-hand
-    // side rides along with X in column m
+    // X = Y G_n, Y = s L^{-1} [M_{k..n,0..k}  (Q^T E)_{k..n}] from the substitutions kept and
+    // one forward substitution of the others through L, the right-hand side riding along (z in
+    // column m)
     let (y, y_s) = projected_rhs(first, &g, new.rhs);
     let mut x = LocalRows::zeros(lay, m + 1, 0);
     {
-        let beside =
-            Mat::<f64>::from_fn(la, w, |l, j| if j < k { first.rows.get(l, j) } else { qte[(l, j - k)] });
-        let c = times_g_null(beside.as_ref());
+        let (yc, z) = first.substitute(job, &qte, &y, new.keys);
+        let c = times_g_null(yc.as_ref());
         for l in b0..la {
-            (0..m).for_each(|j| x.set(l, j, s * c[(l, j)]));
-            x.set(l, m, s * y[lay.global(l)]);
+            (0..m).for_each(|j| x.set(l, j, c[(l - b0, j)]));
+            x.set(l, m, z[l - b0]);
         }
     }
-    forward_substitute(job, first, &mut x);
 
     // L22 L22^T = s D - X^T X
     let xl = x.view().submatrix(b0, 0, la - b0, m);

@@ -36,7 +36,7 @@ mod test_support;
 
 pub use cholesky::cholesky_solve;
 pub use cholesky2d::cholesky2d_solve;
-pub use extend::{extend_solve, solve_bordered, Appended, Bordered, Factored};
+pub use extend::{extend_solve, solve_bordered, Appended, Bordered, Factored, KEPT_SHARE};
 pub use grid::{squarest, BlockCyclic, Layout, LocalBlocks, ProcessGrid};
 pub use householder::householder_solve;
 pub use householder2d::householder2d_solve;
