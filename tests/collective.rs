@@ -21,7 +21,7 @@ use std::time::Duration;
 
 use faer::{Mat, MatRef};
 use volspline::app::contours::solve_sections;
-use volspline::app::fit::{assemble, assemble_blocks, solve_extended};
+use volspline::app::fit::{assemble, assemble_blocks, assemble_lower, solve_extended};
 use volspline::contour::planes::{slice_mesh, PlaneFamily};
 use volspline::contour::SectionCarrier;
 use volspline::error::{Error, Result};
@@ -334,10 +334,24 @@ fn row_cyclic_lookahead_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
             });
         }
     }
+    // the projected Cholesky from the lower triangle and the first k rows alone, as a fit
+    // assembles them for it (several blocks of the product with the reflectors)
     for panel in [3, 64] {
         let job = Job::on(comm).panel(panel).lookahead(true);
-        let rows = assemble(&k, &prep.centres, &prep.values, layout);
-        let what = format!("mixed cholesky panel {panel} look-ahead");
+        let mut rows = assemble_lower(&k, &prep.centres, &prep.values, layout);
+        let x = must(SolverKind::Cholesky.run(&job, &mut rows), "cholesky");
+        let what = format!("cholesky panel {panel} n {n} from the lower triangle");
+        log.close(&x, &want, 1e-9, || what.clone());
+        same_on_every_rank(comm, log, &x, &what);
+    }
+    for (panel, lower) in [(3, false), (64, false), (64, true)] {
+        let job = Job::on(comm).panel(panel).lookahead(true);
+        let rows = if lower {
+            assemble_lower(&k, &prep.centres, &prep.values, layout)
+        } else {
+            assemble(&k, &prep.centres, &prep.values, layout)
+        };
+        let what = format!("mixed cholesky panel {panel} look-ahead, lower triangle alone {lower}");
         let (x, r) = must(dist::mixed_solve(&job, &rows, SolverKind::Cholesky), &what);
         log.check(r.converged, || format!("{what}: refinement {}", r.describe()));
         log.close(&x, &want, 1e-7, || what.clone());

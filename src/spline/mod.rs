@@ -34,4 +34,6 @@ pub use evaluator::Evaluator;
 pub use kernel::{Kernel, Wendland, WendlandKind};
 pub use model::{Field, Model, Provenance};
 pub use octree::Octree;
-pub use system::{fill_block, fill_rows, full_system, residual_parts, system_size, Normalisation, Spline};
+pub use system::{
+    fill_block, fill_rows, fill_rows_lower, full_system, residual_parts, system_size, Normalisation, Spline,
+};

@@ -19,7 +19,7 @@ use crate::linalg::dist::{
 };
 use crate::par::{agree, CallKind, Comm, Timed};
 use crate::spline::hygiene::Prepared;
-use crate::spline::{fill_block, fill_rows, residual_parts, Kernel, Spline};
+use crate::spline::{fill_block, fill_rows, fill_rows_lower, residual_parts, Kernel, Spline};
 
 /// This rank's rows of the bordered system of `kernel` through `values` at `centres`.
 pub fn assemble(kernel: &Kernel, centres: &[f64], values: &[f64], layout: RowCyclic) -> LocalRows {
@@ -27,6 +27,17 @@ pub fn assemble(kernel: &Kernel, centres: &[f64], values: &[f64], layout: RowCyc
     let mut rows = LocalRows::zeros(layout, layout.n + 1, k);
     let globals: Vec<usize> = (0..layout.local_count()).map(|l| layout.global(l)).collect();
     fill_rows(kernel, centres, values, &globals, &mut rows.data);
+    rows
+}
+
+/// [`assemble`] for the projected Cholesky, which reads the lower triangle of A and its first k
+/// rows alone (k the polynomial count; see `crate::linalg::dist::cholesky`): the rest of A's upper
+/// triangle stays zero, and the assembly takes about half the kernel evaluations.
+pub fn assemble_lower(kernel: &Kernel, centres: &[f64], values: &[f64], layout: RowCyclic) -> LocalRows {
+    let k = kernel.poly_count();
+    let mut rows = LocalRows::zeros(layout, layout.n + 1, k);
+    let globals: Vec<usize> = (0..layout.local_count()).map(|l| layout.global(l)).collect();
+    fill_rows_lower(kernel, centres, values, &globals, k, &mut rows.data);
     rows
 }
 
@@ -266,7 +277,16 @@ pub fn fit(
     let mut kept = None;
     let solved = match dense_layout {
         Layout::RowCyclic | Layout::Auto => {
-            let rows = stages.time(Stage::Assemble, || assemble(&kernel, centres, values, layout));
+            // the projected Cholesky (in f64 or f32) reads the lower triangle alone; a fallback
+            // to LU assembles the whole matrix again
+            let lower = a.solver.resolve(rows) == SolverKind::Cholesky && kernel.poly_count() > 0;
+            let rows = stages.time(Stage::Assemble, || {
+                if lower {
+                    assemble_lower(&kernel, centres, values, layout)
+                } else {
+                    assemble(&kernel, centres, values, layout)
+                }
+            });
             let reassemble = || assemble(&kernel, centres, values, layout);
             stages.time(Stage::Solve, || {
                 if !(keep && a.precision == Precision::F64) {
