@@ -53,9 +53,10 @@
 //! triangle, [`projected_blocks`]), and the factorisation and the substitutions read only L. So
 //! a fit assembles only those entries (`crate::app::fit::assemble_lower`): about half the kernel
 //! evaluations, and the pages of the rest of the upper triangle are never touched (on the
-//! bunny's 8000 points on 2 ranks the assembly took 0.12 s instead of 0.19-0.20 s and the peak
-//! memory per rank was 272 MB instead of 363 MB). A fallback to LU assembles the whole matrix
-//! again.
+//! bunny's 8000 points on 2 ranks the assembly took 0.11 s instead of 0.18-0.19 s, the peak
+//! memory per rank was 271 MB instead of 362 MB in f64 and 332 MB instead of 429 MB in mixed
+//! precision, and X = A V took 0.016 s, as the product of whole rows did). A fallback to LU
+//! assembles the whole matrix again.
 //!
 //! Look-ahead: every rank holds rows of every panel, so every rank prepares the next panel
 //! itself. With `job.lookahead`, once L21 of panel k is on every rank, each rank updates the
@@ -73,7 +74,7 @@ use faer::reborrow::{Reborrow, ReborrowMut};
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 
 use super::layout::RowCyclic;
-use super::scalar::{products_widened, Scalar};
+use super::scalar::{products_widened, update_widened, Scalar};
 use super::solver::Job;
 use super::system::{all_gather_packed_while, all_gather_rows, GatherBuffers, LocalRows};
 use crate::error::{Error, Result};
@@ -96,10 +97,10 @@ const COL_BLOCK: usize = 1024;
 /// non-blocking gathers of the look-ahead are tested often.
 const ROW_BLOCK: usize = 1024;
 
-/// Columns per block of the product of the symmetric A with the reflectors ([`symmetric_times`]):
-/// a block of the rows below it (local rows x 256 x 8 bytes, 8 MB at 4000 local rows) stays in
-/// the shared cache between its two GEMMs, and the rows within it, taken entry by entry, are few.
-const SYMMETRIC_BLOCK: usize = 256;
+/// Columns per group of the product of the symmetric A with the reflectors ([`symmetric_times`]):
+/// the group's pieces below it (4 x 8 bytes a row, 128 KB at 4000 local rows) stay in cache
+/// for the 2k passes over them.
+const SYMMETRIC_GROUP: usize = 4;
 
 /// Columns per GEMM of the projection Q^T A Q: narrow enough that its blocks follow the
 /// diagonal closely (only the lower triangle is projected).
@@ -127,7 +128,7 @@ pub(super) fn factor_and_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<(V
     let la = lay.first_local_from(n); // this rank's rows of A are local 0..la
     let r = border.r();
 
-    let (left, right) = border.projection(comm, rows, par);
+    let (left, right) = border.projection(comm, rows);
     for (c0, w, a, b) in projected_blocks(lay, k, n) {
         let block =
             MatMut::from_column_major_slice_with_stride_mut(&mut rows.data[c0 * ld + a..], b - a, w, ld);
@@ -274,12 +275,12 @@ impl Border {
     /// (A is symmetric, so V^T A = X^T; [`symmetric_times`] reads its lower triangle alone) and
     /// Y = X T - V T^T (V^T X) T / 2. One sum of X (n x k) over the ranks. Reads `rows`, changes
     /// nothing.
-    pub fn projection(&self, comm: &dyn Comm, rows: &LocalRows, par: Par) -> (Mat<f64>, Mat<f64>) {
+    pub fn projection(&self, comm: &dyn Comm, rows: &LocalRows) -> (Mat<f64>, Mat<f64>) {
         let (k, n) = (self.k, self.n);
         let lay = rows.layout;
         let la = lay.first_local_from(n);
         let (v, t) = self.wy();
-        let x = symmetric_times(comm, rows, &v, par);
+        let x = symmetric_times(comm, rows, &v);
         let z = v.transpose() * &x;
         let y = &x * &t - (&v * (t.transpose() * &z * &t)) * 0.5;
         let left = Mat::<f64>::from_fn(la, 2 * k, |l, j| {
@@ -310,50 +311,52 @@ impl Border {
 /// A V on every rank (n x k) for the symmetric n x n block A of `rows` and a replicated V, from
 /// the lower triangle of A alone (with the diagonal): an entry a_gc below the diagonal stands for
 /// itself in row g and for a_cg in row c, so this rank adds a_gc v_c to row g of the product and
-/// a_gc v_g to row c, and one sum over the ranks completes every row. Column blocks of
-/// [`SYMMETRIC_BLOCK`]: the rows below a block take it whole, as two GEMMs on the same block of A
-/// (the second reads it from cache), the rows within it entry by entry up to their diagonal. The
-/// matrix is read once, half of it, where a product of whole rows reads all of it. Collective.
-fn symmetric_times(comm: &dyn Comm, rows: &LocalRows, v: &Mat<f64>, par: Par) -> Mat<f64> {
+/// a_gc v_g to row c, and one sum over the ranks completes every row. [`SYMMETRIC_GROUP`] columns
+/// at a time: the rows below the group take both sums for each column of V while the group's
+/// pieces of its columns are in cache (the widened multiply-adds of the f32 solves), the few rows
+/// whose diagonal lies in the group entry by entry up to it. The matrix is read from memory once,
+/// half of it, where a product of whole rows reads all of it. Collective.
+fn symmetric_times(comm: &dyn Comm, rows: &LocalRows, v: &Mat<f64>) -> Mat<f64> {
     let (n, k) = (v.nrows(), v.ncols());
     let lay = rows.layout;
     let (ld, la) = (rows.ld(), lay.first_local_from(n));
-    let a = MatRef::from_column_major_slice_with_stride(&rows.data, la, n, ld);
-    let v_loc = Mat::<f64>::from_fn(la, k, |l, j| v[(lay.global(l), j)]);
+    let col = |c: usize| &rows.data[c * ld..c * ld + la];
+    // the columns of V, negated (the updates subtract), and at this rank's rows
+    let minus_v: Vec<Vec<f64>> = (0..k).map(|j| (0..n).map(|i| -v[(i, j)]).collect()).collect();
+    let v_loc: Vec<Vec<f64>> = (0..k).map(|j| (0..la).map(|l| v[(lay.global(l), j)]).collect()).collect();
     // own: this rank's rows up to their diagonal; across: the transposed entries, by column
-    let (mut own, mut across) = (Mat::<f64>::zeros(la, k), Mat::<f64>::zeros(n, k));
-    for c0 in (0..n).step_by(SYMMETRIC_BLOCK) {
-        let c1 = (c0 + SYMMETRIC_BLOCK).min(n);
+    let mut own = vec![vec![0.0; la]; k];
+    let mut across = vec![vec![0.0; n]; k];
+    for c0 in (0..n).step_by(SYMMETRIC_GROUP) {
+        let c1 = (c0 + SYMMETRIC_GROUP).min(n);
         let (r0, r1) = (lay.first_local_from(c0), lay.first_local_from(c1));
         for l in r0..r1 {
             let g = lay.global(l);
             for c in c0..=g {
-                let entry = a[(l, c)];
-                (0..k).for_each(|j| own[(l, j)] += entry * v[(c, j)]);
-                if c < g {
-                    (0..k).for_each(|j| across[(c, j)] += entry * v_loc[(l, j)]);
+                let entry = col(c)[l];
+                for j in 0..k {
+                    own[j][l] -= entry * minus_v[j][c];
+                    if c < g {
+                        across[j][c] += entry * v_loc[j][l];
+                    }
                 }
             }
         }
         if r1 < la {
-            let block = a.submatrix(r1, c0, la - r1, c1 - c0);
-            let (w, below) = (c1 - c0, la - r1);
-            matmul(
-                own.as_mut().subrows_mut(r1, below),
-                Accum::Add,
-                block,
-                v.as_ref().subrows(c0, w),
-                1.0,
-                par,
-            );
-            let out = across.as_mut().subrows_mut(c0, w);
-            matmul(out, Accum::Add, block.transpose(), v_loc.as_ref().subrows(r1, below), 1.0, par);
+            let below = |c: usize| &col(c)[r1..];
+            for j in 0..k {
+                update_widened(&mut own[j][r1..], (c0, c1), &minus_v[j][c0..c1], below);
+                let sums = products_widened((c0, c1), &v_loc[j][r1..], below);
+                across[j][c0..c1].iter_mut().zip(sums).for_each(|(a, s)| *a += s);
+            }
         }
     }
-    for l in 0..la {
-        (0..k).for_each(|j| across[(lay.global(l), j)] += own[(l, j)]);
+    let mut sum = vec![0.0; n * k];
+    for (j, (across, own)) in across.iter().zip(&own).enumerate() {
+        let out = &mut sum[j * n..(j + 1) * n];
+        out.copy_from_slice(across);
+        own.iter().enumerate().for_each(|(l, o)| out[lay.global(l)] += o);
     }
-    let mut sum: Vec<f64> = (0..n * k).map(|q| across[(q % n, q / n)]).collect();
     comm.sum_f64(&mut sum);
     Mat::from_fn(n, k, |i, j| sum[j * n + i])
 }
@@ -383,8 +386,10 @@ fn projected_blocks(lay: RowCyclic, k: usize, n: usize) -> Vec<(usize, usize, us
 
 /// Writes the projection Q^T A Q of the f64 rows `src` (`left`, `right` from
 /// [`Border::projection`]) into `dst`, rounded to its type: the blocks of
-/// [`projected_blocks`], the rest left as it was. The border rows and columns are rounded as
-/// they are; the right-hand side is not projected.
+/// [`projected_blocks`] but for the rows 0..k, which the solves take in f64 from
+/// [`projected_top`] (in every column of a fresh copy they would touch a page the factorisation
+/// never reads); the rest left as it was. The border rows and columns are rounded as they are;
+/// the right-hand side is not projected.
 pub(super) fn project_into<T: Scalar>(
     src: &LocalRows,
     dst: &mut LocalRows<T>,
@@ -394,8 +399,11 @@ pub(super) fn project_into<T: Scalar>(
     let n = right.ncols();
     let ld = src.ld();
     let la = left.nrows();
+    let k = left.ncols() / 2;
+    let top = src.layout.first_local_from(k);
     let mut tmp = vec![0.0f64; la * COL_CHUNK.min(n)];
-    for (c0, w, a, b) in projected_blocks(src.layout, left.ncols() / 2, n) {
+    let blocks = projected_blocks(src.layout, k, n).into_iter().map(|(c0, w, a, b)| (c0, w, a.max(top), b));
+    for (c0, w, a, b) in blocks.filter(|&(_, _, a, b)| b > a) {
         let h = b - a;
         let t = &mut tmp[..h * w];
         for c in 0..w {
@@ -420,6 +428,23 @@ pub(super) fn project_into<T: Scalar>(
     for (d, s) in dst.data[n * ld..].iter_mut().zip(&src.data[n * ld..]) {
         *d = T::of(*s);
     }
+}
+
+/// Rows 0..k of the projection Q^T A Q (k x n, row-major) on every rank, in f64, from the f64
+/// rows `src` (`left`, `right` from [`Border::projection`]): the owners of those rows compute
+/// theirs, one all-gather. Collective.
+pub(super) fn projected_top(
+    comm: &dyn Comm,
+    src: &LocalRows,
+    (left, right): (&Mat<f64>, &Mat<f64>),
+) -> Vec<f64> {
+    let (n, k) = (right.ncols(), left.ncols() / 2);
+    let lay = src.layout;
+    let (ld, top) = (src.ld(), lay.first_local_from(k));
+    let mut t = Mat::<f64>::from_fn(top, n, |l, c| src.data[c * ld + l]);
+    matmul(t.as_mut(), Accum::Add, left.as_ref().subrows(0, top), right.as_ref(), -1.0, Par::Seq);
+    let send: Vec<f64> = (0..top).flat_map(|l| (0..n).map(move |c| (l, c))).map(|(l, c)| t[(l, c)]).collect();
+    all_gather_rows(comm, lay, &send, 0..k, n)
 }
 
 /// Factors the projected block B (rows and columns k..n of `rows`, which hold Q^T A Q) in place:
@@ -733,17 +758,18 @@ mod tests {
         }
     }
 
-    /// The projection rounded into a fresh f32 copy writes the lower triangle, the rows 0..k and
-    /// the columns 0..k, each the f64 projection rounded, and leaves the upper triangle above the
-    /// first diagonal row of each block of columns untouched (zero), where the f64 projection is
-    /// not: the factorisation does not read it, and untouched pages cost no page faults.
+    /// The projection rounded into a fresh f32 copy writes the lower triangle and the columns
+    /// 0..k below row k, each the f64 projection rounded, and leaves the rows 0..k and the upper
+    /// triangle above the first diagonal row of each block of columns untouched (zero), where
+    /// the f64 projection is not: the factorisation does not read them, and untouched pages cost
+    /// no page faults. The rows 0..k come in f64 from `projected_top`, exactly as projected.
     #[test]
     fn the_projection_into_f32_writes_what_the_factorisation_reads_and_no_more() {
         let m = bunny_rows(8);
         let border = Border::new(&Solo, &m).unwrap();
         let (k, n) = (border.k, border.n);
         assert!(n > 4 * COL_CHUNK, "{n} centres: too few column blocks");
-        let (left, right) = border.projection(&Solo, &m, Par::Seq);
+        let (left, right) = border.projection(&Solo, &m);
         let ld = m.ld();
         let mut full = m.clone();
         let a = MatMut::from_column_major_slice_with_stride_mut(&mut full.data, n, n, ld);
@@ -755,7 +781,7 @@ mod tests {
             let first_of_block = c / COL_CHUNK * COL_CHUNK;
             for g in 0..n {
                 let (got, want) = (dst.get(g, c) as f64, full.get(g, c));
-                if c < k || g < k || g >= first_of_block {
+                if g >= k && (c < k || g >= first_of_block) {
                     assert!(
                         (got - want).abs() <= 1e-6 * want.abs().max(1e-3),
                         "({g}, {c}): {got} against {want}"
@@ -771,19 +797,29 @@ mod tests {
             }
         }
         assert!(left_alone > written / 2, "{left_alone} entries left alone, {written} written");
+        let top = projected_top(&Solo, &m, (&left, &right));
+        for i in 0..k {
+            for c in 0..n {
+                let (got, want) = (top[i * n + c], full.get(i, c));
+                assert!(
+                    (got - want).abs() <= 1e-12 * want.abs().max(1.0),
+                    "row {i}, column {c}: {got} against {want}"
+                );
+            }
+        }
     }
 
     /// The projected Cholesky reads the lower triangle of A and its first k rows alone: with the
     /// rest of the upper triangle zero (as `assemble_lower` leaves it) the solution is that of the
     /// whole matrix to rounding, and the product with the reflectors from the lower triangle is
-    /// the product of the whole rows. Bunny vertices (every fourth, about 1250 rows: several
-    /// blocks of the product, the last one partial), one rank; the ranks' sum in the product is
+    /// the product of the whole rows. Bunny vertices (every fourth, about 1250 rows, the last
+    /// group of columns of the product partial), one rank; the ranks' sum in the product is
     /// checked on 2 and 3 ranks by the collective tests.
     #[test]
     fn the_solve_reads_the_lower_triangle_and_the_first_rows_alone() {
         let whole = bunny_rows(4);
         let (k, n) = (whole.border, whole.layout.n - whole.border);
-        assert!(n > 4 * SYMMETRIC_BLOCK, "{n} centres");
+        assert!(n > 100 * SYMMETRIC_GROUP, "{n} centres");
         let mut lower = whole.clone();
         for c in 0..n {
             (k..c).for_each(|g| lower.set(g, c, 0.0));
@@ -792,7 +828,7 @@ mod tests {
         let (v, _) = border.wy();
         let a = MatRef::from_column_major_slice_with_stride(&whole.data, n, n, whole.ld());
         let want = a * &v;
-        let got = symmetric_times(&Solo, &lower, &v, Par::Seq);
+        let got = symmetric_times(&Solo, &lower, &v);
         let scale = want.norm_max();
         let err = (&got - &want).norm_max() / scale;
         assert!(err < 1e-13, "A V from the lower triangle off by {err:e} of its largest entry");

@@ -27,14 +27,15 @@
 //! factorisation), forward substitution with L panel by panel (the owners' entries of the panel
 //! all-gathered, the diagonal block solved redundantly, the rows below updated by their owners),
 //! back substitution with L^T (per panel one sum over the ranks of the products with the rows
-//! below it), lambda = Q [alpha; mu], and c from the rows 0..k of W, gathered once. Everything is
+//! below it), lambda = Q [alpha; mu], and c from the rows 0..k of W, computed in f64 and
+//! gathered once (the f32 copy leaves them out). Everything is
 //! computed in f64 with the f32 entries widened as they are read, and every vector is replicated
 //! on every rank, as with the f32 LU factors (`mixed`).
 
 use faer::linalg::triangular_solve::{solve_lower_triangular_in_place, solve_upper_triangular_in_place};
 use faer::{Mat, MatMut, Par};
 
-use super::cholesky::{factor_projected, project_into, Border};
+use super::cholesky::{factor_projected, project_into, projected_top, Border};
 use super::mixed::Approximate;
 use super::scalar::{products_widened, update_widened, Scalar};
 use super::solver::Job;
@@ -45,7 +46,7 @@ use crate::par::Comm;
 /// The projected Cholesky factors of a bordered system in the precision T (f32 for the
 /// mixed-precision solve; f64 checks the solve with a general right-hand side exactly).
 pub struct CholeskyFactors<T: Scalar = f32> {
-    /// Rows 0..k: W[..k, ..]; rows k..N: W[k.., ..k] in columns 0..k and L in k..N.
+    /// Rows k..N: W[k.., ..k] in columns 0..k and L in k..N (rows 0..k are left zero).
     rows: LocalRows<T>,
     border: Border,
     sign: f64,
@@ -54,7 +55,7 @@ pub struct CholeskyFactors<T: Scalar = f32> {
     /// Per panel, its diagonal block of L (widened; the lower triangle is read), on every rank,
     /// as the factorisation computed it.
     diag: Vec<Mat<f64>>,
-    /// W[..k, ..N], row-major, widened, on every rank.
+    /// W[..k, ..N], row-major, in f64 (`projected_top`), on every rank.
     top: Vec<f64>,
 }
 
@@ -66,9 +67,10 @@ impl<T: Scalar> CholeskyFactors<T> {
         let comm = job.comm;
         let border = Border::new(comm, m)?;
         let (k, n) = (border.k, border.n);
-        let (left, right) = border.projection(comm, m, job.par);
+        let (left, right) = border.projection(comm, m);
         let mut rows: LocalRows<T> = LocalRows::zeros(m.layout, m.cols, m.border);
         project_into(m, &mut rows, (&left, &right), job.par);
+        let top = projected_top(comm, m, (&left, &right));
         drop((left, right));
         let mut blocks = Vec::new();
         let sign = factor_projected(job, &mut rows, k, n, Some(&mut blocks))?;
@@ -80,8 +82,6 @@ impl<T: Scalar> CholeskyFactors<T> {
         // the diagonal blocks as the factorisation left them on every rank, widened
         let diag =
             blocks.iter().map(|l| Mat::from_fn(l.nrows(), l.ncols(), |i, j| l[(i, j)].f64())).collect();
-        let widen = |v: Vec<T>| v.into_iter().map(T::f64).collect::<Vec<f64>>();
-        let top = widen(rows.gather_rows(comm, 0, k, 0, n));
         Ok(CholeskyFactors { rows, border, sign, panels, diag, top })
     }
 }
