@@ -153,16 +153,15 @@ impl Factored {
         let first_missing = if fresh_border { k } else { 0 };
         let mut yc = Mat::<f64>::zeros(h, k + m);
         yc.as_mut().subcols_mut(0, k).copy_from(kept.border.as_ref().expect("computed above"));
-        let mut at = first_missing;
-        for j in 0..m {
-            let from = match key(j).and_then(|q| kept.centres.get(&q)) {
-                Some(v) if !missing.contains(&j) => v.as_slice(),
-                _ => {
-                    at += 1;
-                    column(at - 1)
-                }
+        // the column of x that holds each appended centre substituted now
+        let mut now = vec![None; m];
+        missing.iter().enumerate().for_each(|(c, &j)| now[j] = Some(first_missing + c));
+        for (j, now) in now.iter().enumerate() {
+            let from = match now {
+                Some(c) => column(*c),
+                None => kept.centres[&key(j).expect("kept by key")].as_slice(),
             };
-            (0..h).for_each(|i| yc[(i, k + j)] = from[i]);
+            yc.as_mut().col_mut(k + j).iter_mut().zip(from).for_each(|(v, f)| *v = *f);
         }
         if keys.is_some() && (kept.centres.len() + missing.len()) as f64 <= KEPT_SHARE * n as f64 {
             for (c, &j) in missing.iter().enumerate() {
@@ -315,10 +314,10 @@ pub fn extend_solve(job: &Job<'_>, first: &Factored, new: &Appended<'_>) -> Resu
     {
         let (yc, z) = first.substitute(job, &qte, &y, new.keys);
         let c = times_g_null(yc.as_ref());
-        for l in b0..la {
-            (0..m).for_each(|j| x.set(l, j, c[(l - b0, j)]));
-            x.set(l, m, z[l - b0]);
+        for j in 0..m {
+            (b0..la).for_each(|l| x.set(l, j, c[(l - b0, j)]));
         }
+        (b0..la).for_each(|l| x.set(l, m, z[l - b0]));
     }
 
     // L22 L22^T = s D - X^T X
