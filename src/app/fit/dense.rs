@@ -57,7 +57,6 @@ pub fn solve_extended(
     let (n, k) = (first.centres(), kernel.poly_count());
     assert!(values.len() >= n && k == first.border(), "the extended system keeps the first one's centres");
     let m = values.len() - n;
-    let tt = std::time::Instant::now();
     let rows = first.local_centres();
     let appended: Vec<usize> = (n..n + m).collect();
     let poly_cols: Vec<usize> = (n + m..n + m + k).collect();
@@ -68,7 +67,6 @@ pub fn solve_extended(
     let mut poly_cm = vec![0.0; m * k];
     fill_block(kernel, centres, values, &appended, &poly_cols, &mut poly_cm);
     let poly: Vec<f64> = (0..m * k).map(|q| poly_cm[(q % k) * m + q / k]).collect();
-    eprintln!("EX assemble {:.4}", tt.elapsed().as_secs_f64());
     let keys = Some(&centres[3 * n..3 * (n + m)]);
     let new = dist::Appended { cross: &cross, poly: &poly, block: &block, rhs: values, keys };
     agree(job.comm, dist::extend_solve(job, first, &new))
