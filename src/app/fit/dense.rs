@@ -122,14 +122,32 @@ pub fn check_layout(a: &FitArgs, ranks: usize) -> Result<()> {
     Ok(())
 }
 
-/// Refuses a dense system that does not fit in the ranks' memory. Collective.
-pub fn check(comm: &dyn Comm, kernel: &Kernel, n: usize, precision: Precision) -> Result<()> {
+/// Whether a fit assembles the lower triangle alone for `solver` on a system of `system` rows
+/// ([`assemble_lower`]): where it resolves to the projected Cholesky and the kernel has a
+/// polynomial border.
+fn lower_for(solver: SolverKind, kernel: &Kernel, system: usize) -> bool {
+    solver.resolve(system) == SolverKind::Cholesky && kernel.poly_count() > 0
+}
+
+/// What a dense system's memory check advises.
+const DENSE_ADVICE: &str = "use --method csrbf (compactly supported, sparse), more ranks or nodes (the rows are split over all ranks) or fewer points";
+
+/// Refuses a dense system that does not fit in the ranks' memory: for the projected Cholesky the
+/// lower triangle it assembles (a fallback to LU checks the whole matrix before assembling it).
+/// Collective.
+pub fn check(
+    comm: &dyn Comm,
+    kernel: &Kernel,
+    n: usize,
+    precision: Precision,
+    solver: SolverKind,
+) -> Result<()> {
     let system = n + kernel.poly_count();
     check_memory(
         comm,
-        dense_fit_bytes(system, comm.size(), precision),
+        dense_fit_bytes(system, comm.size(), precision, lower_for(solver, kernel, system)),
         &format!("the dense system of {system} rows ({n} points)"),
-        "use --method csrbf (compactly supported, sparse), more ranks or nodes (the rows are split over all ranks) or fewer points",
+        DENSE_ADVICE,
     )
 }
 
@@ -194,7 +212,7 @@ pub fn refit(
             outcome => return outcome,
         }
     }
-    check(run.comm, &kernel, prep.values.len() + held, run.args.precision)?;
+    check(run.comm, &kernel, prep.values.len() + held, run.args.precision, run.args.solver)?;
     fit(run, kernel, prep, false, stages)
 }
 
@@ -277,7 +295,7 @@ pub fn fit(
         Layout::RowCyclic | Layout::Auto => {
             // the projected Cholesky (in f64 or f32) reads the lower triangle alone; a fallback
             // to LU assembles the whole matrix again
-            let lower = a.solver.resolve(rows) == SolverKind::Cholesky && kernel.poly_count() > 0;
+            let lower = lower_for(a.solver, &kernel, rows);
             let rows = stages.time(Stage::Assemble, || {
                 if lower {
                     assemble_lower(&kernel, centres, values, layout)
@@ -285,7 +303,20 @@ pub fn fit(
                     assemble(&kernel, centres, values, layout)
                 }
             });
-            let reassemble = || assemble(&kernel, centres, values, layout);
+            // the LU fallback needs the whole matrix, which the check before the fit did not
+            // count where the lower triangle alone was assembled
+            let reassemble = || {
+                if lower {
+                    let system = layout.n;
+                    check_memory(
+                        comm,
+                        dense_fit_bytes(system, comm.size(), Precision::F64, false),
+                        &format!("the LU fallback's whole matrix of {system} rows"),
+                        DENSE_ADVICE,
+                    )?;
+                }
+                Ok(assemble(&kernel, centres, values, layout))
+            };
             stages.time(Stage::Solve, || {
                 if !(keep && a.precision == Precision::F64) {
                     return dist::solve_in(&job, a.solver, a.precision, rows, reassemble);

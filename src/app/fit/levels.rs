@@ -127,7 +127,7 @@ pub fn fit(
     let r = Kernel::new(3, 2)?.with_smoothing(run.args.smooth)?;
     let mut refit =
         |p: &Prepared, first: Option<&dense::KeptFactor>, st: &mut Stages| dense::refit(run, r, p, first, st);
-    dense::check(run.comm, &r, constrained.prep.values.len(), run.args.precision)?;
+    dense::check(run.comm, &r, constrained.prep.values.len(), run.args.precision, run.args.solver)?;
     let first = dense::fit(run, r, &constrained.prep, true, &mut inner)?;
     // level 0 decides the sign away from the data: its spurious blobs are cleared like a
     // single-level fit's

@@ -24,7 +24,7 @@ use crate::frep::raycast::Colouring;
 use crate::frep::{Implicit, ModelSolid};
 use crate::grid::{padded_box, Grid};
 use crate::io::{self, model_file, points};
-use crate::linalg::dist::Layout;
+use crate::linalg::dist::{Layout, SolverKind};
 use crate::par::{agree, on_root, Comm};
 use crate::spline::compact::{default_support, DEFAULT_NEIGHBOURS};
 use crate::spline::hygiene::{prepare, Prepared};
@@ -124,7 +124,8 @@ fn choose(
         (Method::Csrbf, KernelChoice::Auto) => (Method::Csrbf, wendland(a, 1, centres)?, asked()),
         (Method::Auto, KernelChoice::Auto) => {
             let system = (n + 4) as f64;
-            let bytes = dense_fit_bytes(n + 4, ranks, a.precision);
+            let lower = a.solver.resolve(n + 4) == SolverKind::Cholesky;
+            let bytes = dense_fit_bytes(n + 4, ranks, a.precision, lower);
             let seconds = system.powi(3) / 3.0 / (DENSE_FLOPS_PER_RANK * ranks as f64);
             if bytes <= room && seconds <= DENSE_SECONDS {
                 let why = format!("auto: the dense system fits and should solve in about {seconds:.0} s");
@@ -265,7 +266,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             );
         }
         if method != Method::Csrbf {
-            dense::check(comm, &kernel, rows, a.precision)?;
+            dense::check(comm, &kernel, rows, a.precision, a.solver)?;
         }
         check_grid(comm, &grid)?;
         // the second fit against spurious blobs has more rows: checked again
@@ -597,10 +598,14 @@ mod tests {
         // on two ranks 18,000 rows take about 16 s; 17,000 rows about 14 s
         assert_eq!(method(18_000, (2, f64::INFINITY)).0, Method::Csrbf);
         assert_eq!(method(17_000, (2, f64::INFINITY)).0, Method::Dense);
-        // the memory the ranks agreed on decides too
-        let (m, _, why) = method(12_000, (1, 1e9));
+        // the memory the ranks agreed on decides too: the projected Cholesky, the solver for
+        // these rows, takes the lower triangle alone (0.96 GB here), LU the whole matrix (1.3 GB)
+        let (m, _, why) = method(12_000, (1, 0.9e9));
         assert_eq!(m, Method::Csrbf, "{why}");
         assert!(why.contains("GB per rank"), "{why}");
+        assert_eq!(method(12_000, (1, 1e9)).0, Method::Dense);
+        let lu = fit_args(&["--solver", "lu"]);
+        assert_eq!(choose(&lu, 12_000, (1, 1e9), &centres).unwrap().0, Method::Csrbf);
         // an explicit kernel or method is taken as asked
         let a = fit_args(&["--method", "dense"]);
         assert_eq!(choose(&a, 18_000, (1, 1e6), &centres).unwrap().0, Method::Dense);

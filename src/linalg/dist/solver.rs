@@ -226,7 +226,7 @@ pub fn solve_in(
     kind: SolverKind,
     precision: Precision,
     rows: LocalRows,
-    reassemble: impl FnOnce() -> LocalRows,
+    reassemble: impl FnOnce() -> Result<LocalRows>,
 ) -> Result<Solved> {
     if precision == Precision::F64 {
         return solve(job, kind, rows, reassemble);
@@ -260,12 +260,14 @@ pub fn solve_in(
 ///
 /// When the projected Cholesky meets a pivot that is not positive on any rank, every rank learns
 /// it (the agreed error keeps its kind), the system is assembled again by `reassemble` (the
-/// factorisation overwrote it) and solved by LU.
+/// factorisation overwrote it, and may have been given the lower triangle alone) and solved by
+/// LU. `reassemble` is collective and agrees on its outcome; its error (the whole matrix does not
+/// fit) is returned.
 pub fn solve(
     job: &Job<'_>,
     kind: SolverKind,
     rows: LocalRows,
-    reassemble: impl FnOnce() -> LocalRows,
+    reassemble: impl FnOnce() -> Result<LocalRows>,
 ) -> Result<Solved> {
     solve_keeping(job, kind, rows, reassemble, false).map(|(solved, _)| solved)
 }
@@ -276,7 +278,7 @@ pub fn solve_keeping(
     job: &Job<'_>,
     kind: SolverKind,
     mut rows: LocalRows,
-    reassemble: impl FnOnce() -> LocalRows,
+    reassemble: impl FnOnce() -> Result<LocalRows>,
     keep: bool,
 ) -> Result<(Solved, Option<Factored>)> {
     let comm = job.comm;
@@ -297,7 +299,7 @@ pub fn solve_keeping(
         )),
         Err(e) if e.is_not_definite() => {
             drop(rows);
-            let mut rows = reassemble();
+            let mut rows = reassemble()?;
             let x = agree(comm, SolverKind::Lu.run(job, &mut rows))?;
             let panel = panel_of(SolverKind::Lu);
             let solved = Solved {
