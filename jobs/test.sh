@@ -8,5 +8,7 @@ source jobs/setup.sh
 export OMPI_MCA_rmaps_base_oversubscribe=1   # the 3-rank tests run on 2 cores
 export RAYON_NUM_THREADS=${RAYON_NUM_THREADS:-1}
 cargo test --release "$@"
-# the API documentation builds without broken or private links
+# the internal docs build without broken links, and the API documentation (left in target/doc)
+# without broken or private ones
+RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --document-private-items --quiet
 RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --quiet

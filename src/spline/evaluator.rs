@@ -225,7 +225,7 @@ fn periods(
     *acc = a;
 }
 
-/// a[l] += w_l G over one lane group (x, y, z and w of its centres), G = g(r^2, r) with r from
+/// `a[l] += w_l G` over one lane group (x, y, z and w of its centres), G = g(r^2, r) with r from
 /// `root`; r^2 and the sum by multiply-add.
 #[inline(always)]
 fn lane_group(

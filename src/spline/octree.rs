@@ -345,7 +345,7 @@ fn octant_corner(corner: [f64; 3], half: f64, o: usize) -> [f64; 3] {
 }
 
 /// Sorts the points of a cell (and their input indices) by octant, stably; returns the octant
-/// offsets (octant o holds positions c[o]..c[o + 1]).
+/// offsets (octant o holds positions `c[o]..c[o + 1]`).
 fn split(
     pts: &mut [[f64; 3]],
     index: &mut [usize],

@@ -53,7 +53,7 @@ pub(super) fn check_serial(a: &SymCsr, who: &str) -> Result<()> {
     Ok(())
 }
 
-/// Checks that `perm` (perm[new] = old) is a permutation of 0..n.
+/// Checks that `perm` (`perm[new] = old`) is a permutation of 0..n.
 pub(super) fn check_permutation(perm: &[usize], n: usize, who: &str) -> Result<()> {
     if perm.len() != n {
         return Err(Error::Usage(format!("{who}: a permutation of {} entries for {n} rows", perm.len())));
