@@ -65,6 +65,12 @@ fi
 bench_dir() {
     local name=${BENCH_NAME:-$1}; shift
     OUT="$ROOT/bench-results/$(date -u +%Y-%m-%d)-$name"
+    # results already committed are never overwritten (a job's default name may repeat that of a
+    # run earlier the same day)
+    if [ -d "$OUT" ] && [ -n "$(git -C "$ROOT" ls-files -- "$OUT" 2>/dev/null)" ]; then
+        echo "bench: $OUT holds committed results; name this run otherwise (BENCH_NAME or the job's own *_BENCH_NAME)" >&2
+        exit 2
+    fi
     mkdir -p "$OUT"
     printf '%s\n' "$*" > "$OUT/command.txt"
     {
