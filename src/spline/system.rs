@@ -185,8 +185,7 @@ pub fn system_size(kernel: &Kernel, n_centres: usize) -> usize {
 /// `rows.len()` and N + k + 1 columns (the right-hand side last). Rows are independent: each costs
 /// N kernel evaluations, so any distribution of the rows over ranks can be assembled in place.
 pub fn fill_rows(kernel: &Kernel, centres: &[f64], values: &[f64], rows: &[usize], out: &mut [f64]) {
-    let cols: Vec<usize> = (0..values.len() + kernel.poly_count() + 1).collect();
-    fill_block(kernel, centres, values, rows, &cols, out);
+    fill_rows_lower(kernel, centres, values, rows, usize::MAX, out);
 }
 
 /// [`fill_rows`] but for the entries of A above the diagonal in the rows from `whole` on, which
@@ -202,10 +201,7 @@ pub fn fill_rows_lower(
     out: &mut [f64],
 ) {
     let cols: Vec<usize> = (0..values.len() + kernel.poly_count() + 1).collect();
-    match kernel.wendland_part() {
-        Some(w) => fill_with(kernel, move |r2| w.eval_r2(r2), centres, values, (rows, &cols, whole), out),
-        None => fill_with(kernel, |r2| kernel.green_r2(r2), centres, values, (rows, &cols, whole), out),
-    }
+    fill(kernel, centres, values, (rows, &cols, whole), out);
 }
 
 /// Fills the entries (rows x cols, global indices, column N + k the right-hand side) of
@@ -220,10 +216,21 @@ pub fn fill_block(
     cols: &[usize],
     out: &mut [f64],
 ) {
+    fill(kernel, centres, values, (rows, cols, usize::MAX), out);
+}
+
+/// [`fill_block`], but for the entries of A above the diagonal in the rows from `whole` on.
+fn fill(
+    kernel: &Kernel,
+    centres: &[f64],
+    values: &[f64],
+    block: (&[usize], &[usize], usize),
+    out: &mut [f64],
+) {
     // one dispatch on the kind of kernel for the whole fill, not one per entry
     match kernel.wendland_part() {
-        Some(w) => fill_with(kernel, move |r2| w.eval_r2(r2), centres, values, (rows, cols, usize::MAX), out),
-        None => fill_with(kernel, |r2| kernel.green_r2(r2), centres, values, (rows, cols, usize::MAX), out),
+        Some(w) => fill_with(kernel, move |r2| w.eval_r2(r2), centres, values, block, out),
+        None => fill_with(kernel, |r2| kernel.green_r2(r2), centres, values, block, out),
     }
 }
 

@@ -19,25 +19,31 @@ use crate::linalg::dist::{
 };
 use crate::par::{agree, CallKind, Comm, Timed};
 use crate::spline::hygiene::Prepared;
-use crate::spline::{fill_block, fill_rows, fill_rows_lower, residual_parts, Kernel, Spline};
+use crate::spline::{fill_block, fill_rows_lower, residual_parts, Kernel, Spline};
 
 /// This rank's rows of the bordered system of `kernel` through `values` at `centres`.
 pub fn assemble(kernel: &Kernel, centres: &[f64], values: &[f64], layout: RowCyclic) -> LocalRows {
-    let k = kernel.poly_count();
-    let mut rows = LocalRows::zeros(layout, layout.n + 1, k);
-    let globals: Vec<usize> = (0..layout.local_count()).map(|l| layout.global(l)).collect();
-    fill_rows(kernel, centres, values, &globals, &mut rows.data);
-    rows
+    assemble_from(kernel, centres, values, layout, usize::MAX)
 }
 
 /// [`assemble`] for the projected Cholesky, which reads the lower triangle of A and its first k
 /// rows alone (k the polynomial count; see `crate::linalg::dist::cholesky`): the rest of A's upper
 /// triangle stays zero, and the assembly takes about half the kernel evaluations.
 pub fn assemble_lower(kernel: &Kernel, centres: &[f64], values: &[f64], layout: RowCyclic) -> LocalRows {
-    let k = kernel.poly_count();
-    let mut rows = LocalRows::zeros(layout, layout.n + 1, k);
+    assemble_from(kernel, centres, values, layout, kernel.poly_count())
+}
+
+/// This rank's rows, the entries of A above the diagonal left zero in the rows from `whole` on.
+fn assemble_from(
+    kernel: &Kernel,
+    centres: &[f64],
+    values: &[f64],
+    layout: RowCyclic,
+    whole: usize,
+) -> LocalRows {
+    let mut rows = LocalRows::zeros(layout, layout.n + 1, kernel.poly_count());
     let globals: Vec<usize> = (0..layout.local_count()).map(|l| layout.global(l)).collect();
-    fill_rows_lower(kernel, centres, values, &globals, k, &mut rows.data);
+    fill_rows_lower(kernel, centres, values, &globals, whole, &mut rows.data);
     rows
 }
 
@@ -125,7 +131,7 @@ pub fn check_layout(a: &FitArgs, ranks: usize) -> Result<()> {
 /// Whether a fit assembles the lower triangle alone for `solver` on a system of `system` rows
 /// ([`assemble_lower`]): where it resolves to the projected Cholesky and the kernel has a
 /// polynomial border.
-fn lower_for(solver: SolverKind, kernel: &Kernel, system: usize) -> bool {
+pub(super) fn lower_for(solver: SolverKind, kernel: &Kernel, system: usize) -> bool {
     solver.resolve(system) == SolverKind::Cholesky && kernel.poly_count() > 0
 }
 

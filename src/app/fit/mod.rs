@@ -24,7 +24,7 @@ use crate::frep::raycast::Colouring;
 use crate::frep::{Implicit, ModelSolid};
 use crate::grid::{padded_box, Grid};
 use crate::io::{self, model_file, points};
-use crate::linalg::dist::{Layout, SolverKind};
+use crate::linalg::dist::Layout;
 use crate::par::{agree, on_root, Comm};
 use crate::spline::compact::{default_support, DEFAULT_NEIGHBOURS};
 use crate::spline::hygiene::{prepare, Prepared};
@@ -123,13 +123,13 @@ fn choose(
         }
         (Method::Csrbf, KernelChoice::Auto) => (Method::Csrbf, wendland(a, 1, centres)?, asked()),
         (Method::Auto, KernelChoice::Auto) => {
-            let system = (n + 4) as f64;
-            let lower = a.solver.resolve(n + 4) == SolverKind::Cholesky;
-            let bytes = dense_fit_bytes(n + 4, ranks, a.precision, lower);
-            let seconds = system.powi(3) / 3.0 / (DENSE_FLOPS_PER_RANK * ranks as f64);
+            let r = Kernel::new(3, 2)?;
+            let system = n + r.poly_count();
+            let bytes = dense_fit_bytes(system, ranks, a.precision, dense::lower_for(a.solver, &r, system));
+            let seconds = (system as f64).powi(3) / 3.0 / (DENSE_FLOPS_PER_RANK * ranks as f64);
             if bytes <= room && seconds <= DENSE_SECONDS {
                 let why = format!("auto: the dense system fits and should solve in about {seconds:.0} s");
-                (Method::Dense, Kernel::new(3, 2)?, why)
+                (Method::Dense, r, why)
             } else {
                 let why = format!(
                     "auto: the dense system would need {:.1} GB per rank and about {seconds:.0} s",
