@@ -35,5 +35,6 @@ pub use kernel::{Kernel, Wendland, WendlandKind};
 pub use model::{Field, Model, Provenance};
 pub use octree::Octree;
 pub use system::{
-    fill_block, fill_rows, fill_rows_lower, full_system, residual_parts, system_size, Normalisation, Spline,
+    fill_block, fill_block_lower, fill_rows, fill_rows_lower, full_system, residual_parts, system_size,
+    Normalisation, Spline,
 };

@@ -216,7 +216,21 @@ pub fn fill_block(
     cols: &[usize],
     out: &mut [f64],
 ) {
-    fill(kernel, centres, values, (rows, cols, usize::MAX), out);
+    fill_block_lower(kernel, centres, values, (rows, cols), usize::MAX, out);
+}
+
+/// [`fill_block`] but for the entries of A above the diagonal in the rows from `whole` on, which
+/// are left as they are (see [`fill_rows_lower`]): the blocks a rank of a 2D process grid holds
+/// for the projected Cholesky.
+pub fn fill_block_lower(
+    kernel: &Kernel,
+    centres: &[f64],
+    values: &[f64],
+    (rows, cols): (&[usize], &[usize]),
+    whole: usize,
+    out: &mut [f64],
+) {
+    fill(kernel, centres, values, (rows, cols, whole), out);
 }
 
 /// [`fill_block`], but for the entries of A above the diagonal in the rows from `whole` on.

@@ -19,7 +19,7 @@ use crate::linalg::dist::{
 };
 use crate::par::{agree, CallKind, Comm, Timed};
 use crate::spline::hygiene::Prepared;
-use crate::spline::{fill_block, fill_rows_lower, residual_parts, Kernel, Spline};
+use crate::spline::{fill_block, fill_block_lower, fill_rows_lower, residual_parts, Kernel, Spline};
 
 /// This rank's rows of the bordered system of `kernel` through `values` at `centres`.
 pub fn assemble(kernel: &Kernel, centres: &[f64], values: &[f64], layout: RowCyclic) -> LocalRows {
@@ -103,9 +103,33 @@ pub fn assemble_blocks(
     grid: &ProcessGrid<'_>,
     nb: usize,
 ) -> LocalBlocks {
+    assemble_blocks_from(kernel, centres, values, (grid, nb), usize::MAX)
+}
+
+/// [`assemble_blocks`] for the 2D projected Cholesky, which reads the lower triangle of A and its
+/// first k rows alone, as [`assemble_lower`] on the row-cyclic layout.
+pub fn assemble_blocks_lower(
+    kernel: &Kernel,
+    centres: &[f64],
+    values: &[f64],
+    grid: &ProcessGrid<'_>,
+    nb: usize,
+) -> LocalBlocks {
+    assemble_blocks_from(kernel, centres, values, (grid, nb), kernel.poly_count())
+}
+
+/// This rank's blocks, the entries of A above the diagonal left zero in the rows from `whole` on.
+fn assemble_blocks_from(
+    kernel: &Kernel,
+    centres: &[f64],
+    values: &[f64],
+    (grid, nb): (&ProcessGrid<'_>, usize),
+    whole: usize,
+) -> LocalBlocks {
     let n = values.len() + kernel.poly_count();
     let mut a = LocalBlocks::zeros(grid, n, nb);
-    fill_block(kernel, centres, values, &a.rows.globals(), &a.cols.globals(), &mut a.data);
+    let (rows, cols) = (a.rows.globals(), a.cols.globals());
+    fill_block_lower(kernel, centres, values, (&rows, &cols), whole, &mut a.data);
     a
 }
 
@@ -129,8 +153,8 @@ pub fn check_layout(a: &FitArgs, ranks: usize) -> Result<()> {
 }
 
 /// Whether a fit assembles the lower triangle alone for `solver` on a system of `system` rows
-/// ([`assemble_lower`]): where it resolves to the projected Cholesky and the kernel has a
-/// polynomial border.
+/// ([`assemble_lower`], [`assemble_blocks_lower`] on a 2D grid): where it resolves to the
+/// projected Cholesky and the kernel has a polynomial border.
 pub(super) fn lower_for(solver: SolverKind, kernel: &Kernel, system: usize) -> bool {
     solver.resolve(system) == SolverKind::Cholesky && kernel.poly_count() > 0
 }
@@ -346,10 +370,29 @@ pub fn fit(
             } else {
                 a.solver.default_block_2d(values.len() + kernel.poly_count())
             };
-            let assemble = || assemble_blocks(&kernel, centres, values, &grid, nb);
-            let blocks = stages.time(Stage::Assemble, assemble);
+            // as on the row-cyclic layout: the lower triangle for the projected Cholesky, the
+            // whole matrix, checked for memory, for a fallback to LU
+            let lower = lower_for(a.solver, &kernel, rows);
+            let blocks = stages.time(Stage::Assemble, || {
+                if lower {
+                    assemble_blocks_lower(&kernel, centres, values, &grid, nb)
+                } else {
+                    assemble_blocks(&kernel, centres, values, &grid, nb)
+                }
+            });
+            let reassemble = || {
+                if lower {
+                    check_memory(
+                        comm,
+                        dense_fit_bytes(rows, comm.size(), Precision::F64, false),
+                        &format!("the LU fallback's whole matrix of {rows} rows"),
+                        DENSE_ADVICE,
+                    )?;
+                }
+                Ok(assemble_blocks(&kernel, centres, values, &grid, nb))
+            };
             let k = kernel.poly_count();
-            stages.time(Stage::Solve, || dist::solve_2d(&job, &grid, a.solver, k, blocks, assemble))
+            stages.time(Stage::Solve, || dist::solve_2d(&job, &grid, a.solver, k, blocks, reassemble))
         }
     };
     stages.add(Stage::CommWait, timed.seconds());

@@ -32,7 +32,7 @@ use crate::spline::system::power_of_two_below_inverse;
 use crate::spline::{Evaluator, Kernel, Model, Provenance, Spline};
 use crate::surface::support::DataSupport;
 
-pub use dense::{assemble, assemble_blocks, assemble_lower, solve_extended};
+pub use dense::{assemble, assemble_blocks, assemble_blocks_lower, assemble_lower, solve_extended};
 
 /// What every method is given: the command's arguments, the ranks and the threads per rank.
 #[derive(Clone, Copy)]

@@ -319,24 +319,47 @@ impl Border {
 fn symmetric_times(comm: &dyn Comm, rows: &LocalRows, v: &Mat<f64>) -> Mat<f64> {
     let (n, k) = (v.nrows(), v.ncols());
     let lay = rows.layout;
-    let (ld, la) = (rows.ld(), lay.first_local_from(n));
-    let col = |c: usize| &rows.data[c * ld..c * ld + la];
-    // the columns of V, negated (the updates subtract), and at this rank's rows
-    let minus_v: Vec<Vec<f64>> = (0..k).map(|j| (0..n).map(|i| -v[(i, j)]).collect()).collect();
-    let v_loc: Vec<Vec<f64>> = (0..k).map(|j| (0..la).map(|l| v[(lay.global(l), j)]).collect()).collect();
-    // own: this rank's rows up to their diagonal; across: the transposed entries, by column
+    let globals: Vec<usize> = (0..lay.first_local_from(n)).map(|l| lay.global(l)).collect();
+    let columns: Vec<usize> = (0..n).collect();
+    let mut sum = lower_times_part(&rows.data, rows.ld(), (&globals, &columns), v);
+    comm.sum_f64(&mut sum);
+    Mat::from_fn(n, k, |i, j| sum[j * n + i])
+}
+
+/// This rank's part of X = A V (n x k, column-major) for a symmetric n x n matrix A of which it
+/// holds the entries at its local rows and columns (`rows`, `cols`: their global indices,
+/// ascending, all below n), column-major in `data` with leading dimension `ld`, and a replicated
+/// V: the sum over the ranks of these parts is A V. Only the entries on and below the diagonal
+/// are read (the rest may hold anything), by the rule of [`symmetric_times`], [`SYMMETRIC_GROUP`]
+/// local columns at a time; any distribution of the rows and columns works (the row-cyclic rows
+/// with every column, or the blocks of a 2D grid).
+pub(super) fn lower_times_part(
+    data: &[f64],
+    ld: usize,
+    (rows, cols): (&[usize], &[usize]),
+    v: &Mat<f64>,
+) -> Vec<f64> {
+    let (n, k) = (v.nrows(), v.ncols());
+    let la = rows.len();
+    let col = |c: usize| &data[c * ld..c * ld + la];
+    // the columns of V, negated (the updates subtract), at this rank's columns and at its rows
+    let minus_v: Vec<Vec<f64>> = (0..k).map(|j| cols.iter().map(|&c| -v[(c, j)]).collect()).collect();
+    let v_loc: Vec<Vec<f64>> = (0..k).map(|j| rows.iter().map(|&g| v[(g, j)]).collect()).collect();
+    // own: this rank's rows up to their diagonal; across: the transposed entries, by local column
     let mut own = vec![vec![0.0; la]; k];
-    let mut across = vec![vec![0.0; n]; k];
-    for c0 in (0..n).step_by(SYMMETRIC_GROUP) {
-        let c1 = (c0 + SYMMETRIC_GROUP).min(n);
-        let (r0, r1) = (lay.first_local_from(c0), lay.first_local_from(c1));
+    let mut across = vec![vec![0.0; cols.len()]; k];
+    for c0 in (0..cols.len()).step_by(SYMMETRIC_GROUP) {
+        let c1 = (c0 + SYMMETRIC_GROUP).min(cols.len());
+        // the rows whose diagonal lies in the group, then those below all of it
+        let r0 = rows.partition_point(|&g| g < cols[c0]);
+        let r1 = rows.partition_point(|&g| g <= cols[c1 - 1]);
         for l in r0..r1 {
-            let g = lay.global(l);
-            for c in c0..=g {
+            let g = rows[l];
+            for c in (c0..c1).take_while(|&c| cols[c] <= g) {
                 let entry = col(c)[l];
                 for j in 0..k {
                     own[j][l] -= entry * minus_v[j][c];
-                    if c < g {
+                    if cols[c] < g {
                         across[j][c] += entry * v_loc[j][l];
                     }
                 }
@@ -354,11 +377,10 @@ fn symmetric_times(comm: &dyn Comm, rows: &LocalRows, v: &Mat<f64>) -> Mat<f64> 
     let mut sum = vec![0.0; n * k];
     for (j, (across, own)) in across.iter().zip(&own).enumerate() {
         let out = &mut sum[j * n..(j + 1) * n];
-        out.copy_from_slice(across);
-        own.iter().enumerate().for_each(|(l, o)| out[lay.global(l)] += o);
+        across.iter().zip(cols).for_each(|(a, &c)| out[c] += a);
+        own.iter().zip(rows).for_each(|(o, &g)| out[g] += o);
     }
-    comm.sum_f64(&mut sum);
-    Mat::from_fn(n, k, |i, j| sum[j * n + i])
+    sum
 }
 
 /// The blocks of Q^T A Q that the factorisation and the solves with it read, as (c0, w, a, b):

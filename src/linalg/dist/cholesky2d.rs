@@ -6,10 +6,13 @@
 //!
 //! - P^T is small (k x N): every rank contributes the entries it owns and one all-reduce puts the
 //!   whole of it on every rank, which factors it (the same bits everywhere).
-//! - The projection Q^T A Q = A - [Y V] [V^T; Y^T] needs X = A V: each rank multiplies its block by
-//!   the rows of V at its columns, and one all-reduce of the N x k result both sums over the
-//!   process columns and collects the process rows. Each rank then applies the rank-2k update to
-//!   its own block with one GEMM: its rows of [Y V] times its columns of [V^T; Y^T].
+//! - The projection Q^T A Q = A - [Y V] [V^T; Y^T] needs X = A V. A is symmetric, and only its
+//!   lower triangle is read: each entry on or below the diagonal adds to X at its row and,
+//!   mirrored, at its column's row (as on the row-cyclic layout), and one all-reduce of the N x k
+//!   result sums the parts of the whole grid. Each rank then applies the rank-2k update to its own
+//!   block, GEMMs of its rows of [Y V] and its columns of [V^T; Y^T], in the entries the solve
+//!   reads: the lower triangle and the first k rows. So a fit assembles those alone (half the
+//!   kernel evaluations, and the pages of the upper triangle's blocks mostly never touched).
 //! - B is factored in panels of the blocks (the first panel starts at row k, so it is k narrower):
 //!   the owner of the diagonal block factors it and sends L11 down its process column, which
 //!   solves for its rows of L21 = B21 L11^-T; those travel along the process rows (each rank gets
@@ -31,7 +34,7 @@ use faer::linalg::matmul::matmul;
 use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
 use faer::{Accum, Mat, MatMut, MatRef};
 
-use super::cholesky::{cholesky_small, Border};
+use super::cholesky::{cholesky_small, lower_times_part, Border};
 use super::grid::{update_and_next_panel, LocalBlocks, ProcessGrid};
 use super::solver::Job;
 use crate::error::{Error, Result};
@@ -87,8 +90,9 @@ pub fn cholesky2d_solve(
     grid.comm.broadcast_f64(diag, &mut d0);
     let sign = if d0[0] < 0.0 { -1.0 } else { 1.0 };
     if sign < 0.0 {
-        let r0 = rows.first_local_from(k);
+        // the lower triangle of B, from each column's diagonal row down
         for lc in cols.first_local_from(k)..ca {
+            let r0 = rows.first_local_from(cols.global(lc));
             a.data[lc * ld + r0..lc * ld + la].iter_mut().for_each(|v| *v = -*v);
         }
     }
@@ -184,23 +188,19 @@ fn panels(k: usize, n: usize, nb: usize) -> Vec<(usize, usize)> {
     out
 }
 
-/// A <- Q^T A Q on this rank's block of A (rows and columns 0..n). Collective over the grid.
+/// A <- Q^T A Q on this rank's block of A (rows and columns 0..n), in the entries the solve reads:
+/// every row of the columns 0..k, and in the columns k..n the rows 0..k and the lower triangle
+/// (from the diagonal row of each chunk of [`COL_CHUNK`] local columns down). X = A V is taken
+/// from the lower triangle alone, so the rest of the upper triangle is never read and is left as
+/// it was. Collective over the grid.
 fn project(job: &Job<'_>, grid: &ProcessGrid<'_>, a: &mut LocalBlocks, border: &Border, n: usize) {
     let (rows, cols, ld) = (a.rows, a.cols, a.ld());
     let k = border.k;
     let (la, ca) = (rows.first_local_from(n), cols.first_local_from(n));
     let (v, t) = border.wy();
-    // X = A V: this block's part, summed over the process columns, placed at the global rows
-    let vcols = Mat::<f64>::from_fn(ca, k, |lc, j| v[(cols.global(lc), j)]);
-    let mut xloc = Mat::<f64>::zeros(la, k);
-    let block = MatRef::from_column_major_slice_with_stride(&a.data, la, ca, ld);
-    matmul(xloc.as_mut(), Accum::Replace, block, vcols.as_ref(), 1.0, job.par);
-    let mut xg = vec![0.0; n * k];
-    for j in 0..k {
-        for lr in 0..la {
-            xg[rows.global(lr) + j * n] = xloc[(lr, j)];
-        }
-    }
+    // X = A V: this block's part, summed over the whole grid
+    let (rg, cg) = (rows.globals(), cols.globals());
+    let mut xg = lower_times_part(&a.data, ld, (&rg[..la], &cg[..ca]), &v);
     grid.comm.sum_f64(&mut xg);
     let x = MatRef::from_column_major_slice(&xg, n, k);
     let zm = v.transpose() * x;
@@ -221,8 +221,19 @@ fn project(job: &Job<'_>, grid: &ProcessGrid<'_>, a: &mut LocalBlocks, border: &
             y[(c, j - k)]
         }
     });
-    let block = MatMut::from_column_major_slice_with_stride_mut(&mut a.data, la, ca, ld);
-    matmul(block, Accum::Add, left.as_ref(), right.as_ref(), -1.0, job.par);
+    let top = rows.first_local_from(k);
+    for c0 in (0..ca).step_by(COL_CHUNK) {
+        let w = COL_CHUNK.min(ca - c0);
+        let g0 = cols.global(c0);
+        let below = if g0 < k { 0 } else { rows.first_local_from(g0).max(top) };
+        let ranges = if below <= top { [(0, la), (la, la)] } else { [(0, top), (below, la)] };
+        for (r0, r1) in ranges.into_iter().filter(|(r0, r1)| r1 > r0) {
+            let block =
+                MatMut::from_column_major_slice_with_stride_mut(&mut a.data[r0 + c0 * ld..], r1 - r0, w, ld);
+            let l = left.as_ref().subrows(r0, r1 - r0);
+            matmul(block, Accum::Add, l, right.as_ref().subcols(c0, w), -1.0, job.par);
+        }
+    }
 }
 
 /// Factors s B (rows and columns k..n, already multiplied by the sign) in place: L in the lower

@@ -318,15 +318,17 @@ pub fn solve_keeping(
 
 /// Solves the bordered system `a` (k polynomial rows) on the 2D block-cyclic layout of `grid`,
 /// in f64, with `kind` resolved for the size as on the row-cyclic layout; the projected Cholesky
-/// falls back to LU on the assembly of `reassemble` when a pivot is not positive. The panel width
-/// is the block size of the assembly. Collective; every rank returns the same outcome.
+/// falls back to LU on the assembly of `reassemble` when a pivot is not positive (the projected
+/// Cholesky reads the lower triangle of A and its first k rows alone, LU the whole matrix; an
+/// error of `reassemble`, such as a refusal for memory, is returned). The panel width is the
+/// block size of the assembly. Collective; every rank returns the same outcome.
 pub fn solve_2d(
     job: &Job<'_>,
     grid: &ProcessGrid<'_>,
     kind: SolverKind,
     k: usize,
     mut a: LocalBlocks,
-    reassemble: impl FnOnce() -> LocalBlocks,
+    reassemble: impl FnOnce() -> Result<LocalBlocks>,
 ) -> Result<Solved> {
     let comm = job.comm;
     let (n, panel) = (a.n(), a.rows.nb);
@@ -345,7 +347,7 @@ pub fn solve_2d(
         Ok(x) => Ok(done(x, used, None)),
         Err(e) if e.is_not_definite() => {
             drop(a);
-            let mut a = reassemble();
+            let mut a = reassemble()?;
             let x = agree(comm, lu2d_solve(job, grid, &mut a))?;
             Ok(done(x, SolverKind::Lu, Some(e)))
         }
