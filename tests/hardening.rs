@@ -601,3 +601,103 @@ fn outputs_that_are_inputs_or_each_other_are_refused() {
         std::fs::remove_file(&scan).unwrap();
     }
 }
+
+/// `morph --timings` naming one of its frames (PREFIX_NNN.ply, PREFIX_NNN.hdf) is refused before
+/// any frame is computed, on 1 and 2 ranks: no report of frames, no file left.
+#[test]
+fn morph_timings_naming_a_frame_are_refused_before_the_work() {
+    let dir = temp_dir("morph_frame_timings");
+    let prefix = dir.join("mm");
+    for ranks in [1, 2] {
+        for frame in ["mm_002.ply", "mm_000.hdf", "mm.hdf.series"] {
+            let timings = dir.join(frame);
+            let args = [
+                "morph",
+                "ball:0,0,0,1",
+                "ball:0.5,0,0,1",
+                "--frames",
+                "4",
+                "--grid",
+                "12",
+                "--out",
+                s(&prefix),
+                "--timings",
+                s(&timings),
+            ];
+            let out = run(ranks, &args);
+            refused(&out, 2, &format!("names the output {}", s(&timings)), &dir, &[]);
+            assert!(!text(&out).contains("frames on a"), "the frames were computed:\n{}", text(&out));
+        }
+    }
+    // a name of its own is written beside the frames
+    let timings = dir.join("t.csv");
+    let out = run(
+        2,
+        &[
+            "morph",
+            "ball:0,0,0,1",
+            "ball:0.5,0,0,1",
+            "--frames",
+            "3",
+            "--grid",
+            "12",
+            "--out",
+            s(&prefix),
+            "--timings",
+            s(&timings),
+        ],
+    );
+    assert!(out.status.success(), "{}", text(&out));
+    assert!(timings.is_file() && dir.join("mm_002.ply").is_file());
+}
+
+/// The lines of `stderr` that are neither the program's own ("volspline ...") nor the launcher's
+/// (Open MPI frames its notices in lines of dashes and prefixes others with "[host:pid]").
+fn stray_lines(stderr: &str) -> Vec<&str> {
+    let mut framed = false;
+    let mut stray = Vec::new();
+    for line in stderr.lines() {
+        if line.starts_with("-----") {
+            framed = !framed;
+        } else if !(framed
+            || line.starts_with("volspline")
+            || line.starts_with('[')
+            || line.trim().is_empty())
+        {
+            stray.push(line);
+        }
+    }
+    stray
+}
+
+/// Every line a fit writes on stderr is one of its own messages, on 1 and 2 ranks, for the
+/// default fit (denoising, off-surface points, second fits), the 2D layout, mixed precision and
+/// the compactly supported method: a leftover debugging line fails this.
+#[test]
+fn fits_write_only_their_own_messages_on_stderr() {
+    let dir = temp_dir("stderr_lines");
+    let input = dir.join("p.xyz");
+    write_xyz(&input, &common::bunny_subset(8, 0));
+    let prefix = dir.join("m");
+    let cases: [&[&str]; 4] = [
+        &[],
+        &["--surface", "carrier", "--method", "dense", "--layout", "2d"],
+        &["--method", "dense", "--precision", "mixed", "--surface", "carrier"],
+        &["--method", "csrbf"],
+    ];
+    for ranks in [1, 2] {
+        for extra in cases {
+            let mut args = vec!["fit", s(&input), "--out", s(&prefix), "--grid", "24"];
+            args.extend_from_slice(extra);
+            let out = run(ranks, &args);
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert!(out.status.success(), "{args:?} on {ranks} ranks:\n{}", text(&out));
+            assert!(err.lines().any(|l| l.starts_with("volspline")), "no message at all: {err}");
+            let stray = stray_lines(&err);
+            assert!(stray.is_empty(), "{args:?} on {ranks} ranks wrote stray lines {stray:?}:\n{err}");
+        }
+    }
+    // the filter itself: a bare line is stray, a launcher's framed notice is not
+    let sample = "volspline fit: ok\nEX assemble 0.1\n-----\nA notice\n-----\n[node:12] note\n";
+    assert_eq!(stray_lines(sample), ["EX assemble 0.1"]);
+}

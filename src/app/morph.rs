@@ -15,7 +15,7 @@
 use std::path::{Path, PathBuf};
 
 use super::finite::check_grid_field;
-use super::preflight::check_prefix;
+use super::preflight::check_prefixes;
 use super::report::Report;
 use super::stages::{Stage, Stages};
 use super::volume::{check_grid, output_path, throughput_line, write_volume};
@@ -47,7 +47,8 @@ pub fn series_json(names: &[String], times: &[f64]) -> String {
 /// Runs `volspline morph`. Collective.
 pub fn run(a: &MorphArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
-    check_prefix(comm, &a.out, a.grid.timings.as_deref(), None)?;
+    let frames: Vec<PathBuf> = (0..a.frames).map(|i| frame_prefix(&a.out, i)).collect();
+    check_prefixes(comm, &a.out, &frames, a.grid.timings.as_deref(), None)?;
     let subject = format!("{} -> {}", a.a, a.b);
     let mut r = Report::new("morph", Path::new(&subject));
     let (ea, eb) = stages

@@ -109,10 +109,26 @@ pub fn check_prefix(
     timings: Option<&Path>,
     input: Option<&Path>,
 ) -> Result<()> {
+    check_prefixes(comm, prefix, &[], timings, input)
+}
+
+/// [`check_prefix`] for a command that also writes under the prefixes `more` in the directory of
+/// `prefix` (the frames of `morph`): the `--timings` file may name none of their outputs either,
+/// so such a clash is refused before any work instead of at the commit. Collective.
+pub fn check_prefixes(
+    comm: &dyn Comm,
+    prefix: &Path,
+    more: &[PathBuf],
+    timings: Option<&Path>,
+    input: Option<&Path>,
+) -> Result<()> {
     let local = if comm.rank() == 0 {
-        writable_prefix(prefix)
-            .and_then(|()| input.map_or(Ok(()), |i| spares_input(prefix, i)))
-            .and_then(|()| timings.map_or(Ok(()), |t| separate_timings(t, prefix, input)))
+        writable_prefix(prefix).and_then(|()| input.map_or(Ok(()), |i| spares_input(prefix, i))).and_then(
+            |()| {
+                let mut all = std::iter::once(prefix).chain(more.iter().map(PathBuf::as_path));
+                timings.map_or(Ok(()), |t| all.try_for_each(|p| separate_timings(t, p, input)))
+            },
+        )
     } else {
         Ok(())
     };
