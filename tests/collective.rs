@@ -538,6 +538,28 @@ fn cholesky2d_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
             same_on_every_rank(comm, log, &s.x, &what);
         }
     }
+    // about 1000 rows, from the lower triangle: many panels, and a panel's update in several
+    // pieces while the next panel's broadcast is in flight
+    let big =
+        must(prepare(&common::bunny_subset(5, 2), &k, &Carrier::AutoBall, 1e-6), "prepare the bunny points");
+    let want = oracle(&big, &k, householder_solve);
+    for shape in (1..=p).filter(|pr| p.is_multiple_of(*pr)).map(|pr| (pr, p / pr)) {
+        let grid = must(dist::ProcessGrid::new(comm, shape), "the process grid");
+        for (nb, lookahead) in [(16, false), (16, true), (64, true)] {
+            let a = assemble_blocks_lower(&k, &big.centres, &big.values, &grid, nb);
+            let what = format!(
+                "cholesky2d {}x{} block {nb} look-ahead {lookahead}, {} rows",
+                shape.0,
+                shape.1,
+                a.n()
+            );
+            let job = Job::on(comm).lookahead(lookahead);
+            let s = must(dist::solve_2d(&job, &grid, SolverKind::Cholesky, 4, a, || unreachable!()), &what);
+            log.check(s.used == SolverKind::Cholesky && s.fallback.is_none(), || format!("{what}: {s:?}"));
+            log.close(&s.x, &want, 1e-9, || what.clone());
+            same_on_every_rank(comm, log, &s.x, &what);
+        }
+    }
 }
 
 /// Solves with `dist::solve` and the Cholesky solver (with and without look-ahead), and checks
