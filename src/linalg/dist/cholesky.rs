@@ -517,11 +517,23 @@ pub(super) fn factor_projected<T: Scalar>(
     // (on one rank there are no messages to overlap with)
     let lookahead = lookahead && comm.size() > 1;
     let (mut bufs, mut next_bufs) = (GatherBuffers::default(), GatherBuffers::default());
+    // the diagonal blocks' gathers, reused: a fresh buffer of a megabyte a panel costs its page
+    // faults every time
+    let mut diag_bufs = GatherBuffers::default();
     let (mut p0, mut pb) = (k, nb.min(n - k));
     {
         let (mat, y) = rows.data.split_at_mut(n * ld);
         let y = &mut y[(rhs - n) * ld..(rhs - n) * ld + la];
-        keep(prepare_panel(comm, lay, &mut mat[p0 * ld..], y, (p0, p0 + pb, n), par, &mut bufs, None)?);
+        keep(prepare_panel(
+            comm,
+            lay,
+            &mut mat[p0 * ld..],
+            y,
+            (p0, p0 + pb, n),
+            par,
+            (&mut bufs, &mut diag_bufs),
+            None,
+        )?);
     }
     loop {
         let p1 = p0 + pb;
@@ -579,7 +591,16 @@ pub(super) fn factor_projected<T: Scalar>(
             for piece in &pieces {
                 update(rest, p1, piece);
             }
-            keep(prepare_panel(comm, lay, rest, y, (p1, split, n), par, &mut next_bufs, None)?);
+            keep(prepare_panel(
+                comm,
+                lay,
+                rest,
+                y,
+                (p1, split, n),
+                par,
+                (&mut next_bufs, &mut diag_bufs),
+                None,
+            )?);
         } else {
             for piece in &pieces[..ahead] {
                 update(rest, p1, piece);
@@ -594,8 +615,16 @@ pub(super) fn factor_projected<T: Scalar>(
                 }
                 None => false,
             };
-            let l11 =
-                prepare_panel(comm, lay, left, y, (p1, split, n), par, &mut next_bufs, Some(&mut work))?;
+            let l11 = prepare_panel(
+                comm,
+                lay,
+                left,
+                y,
+                (p1, split, n),
+                par,
+                (&mut next_bufs, &mut diag_bufs),
+                Some(&mut work),
+            )?;
             while work() {}
             keep(l11);
         }
@@ -646,9 +675,9 @@ fn trailing_pieces(lay: RowCyclic, (p1, split, n): (usize, usize, usize)) -> Vec
 /// into `bufs.out`; the forward substitution's step: z1 = L11^-1 y1 into the owners' rows p0..p1
 /// of `y` (gathered with the diagonal block), y2 -= L21 z1 in this rank's rows below. `data`: this
 /// rank's rows, column-major from global column p0 on, through at least column p1; `y`: its rows
-/// of the right-hand side (rows 0..n). With `work`, both gathers are non-blocking and `work` runs
-/// while they are in flight. Collective; `Error::NotDefinite` on every rank when a pivot is not
-/// positive.
+/// of the right-hand side (rows 0..n); `diag`: the buffers of the diagonal block's gather, reused
+/// from panel to panel. With `work`, both gathers are non-blocking and `work` runs while they are
+/// in flight. Collective; `Error::NotDefinite` on every rank when a pivot is not positive.
 #[allow(clippy::too_many_arguments)]
 fn prepare_panel<T: Scalar>(
     comm: &dyn Comm,
@@ -657,7 +686,7 @@ fn prepare_panel<T: Scalar>(
     y: &mut [T],
     (p0, p1, n): (usize, usize, usize),
     par: Par,
-    bufs: &mut GatherBuffers<T>,
+    (bufs, diag): (&mut GatherBuffers<T>, &mut GatherBuffers<T>),
     mut work: Option<&mut (dyn FnMut() -> bool + '_)>,
 ) -> Result<Mat<T>> {
     let pb = p1 - p0;
@@ -667,7 +696,6 @@ fn prepare_panel<T: Scalar>(
     // the diagonal block's rows with their entry of y appended, row-major
     let (l0, l1) = (lay.first_local_from(p0), lay.first_local_from(p1));
     let w = pb + 1;
-    let mut diag = GatherBuffers::default();
     let send = diag.send_buffer((l1 - l0) * w);
     for (t, l) in (l0..l1).enumerate() {
         for c in 0..pb {
@@ -675,7 +703,7 @@ fn prepare_panel<T: Scalar>(
         }
         send[t * w + pb] = y[l];
     }
-    all_gather_packed_while(comm, lay, (p0, p1, w), &mut diag, true, work.as_deref_mut());
+    all_gather_packed_while(comm, lay, (p0, p1, w), diag, true, work.as_deref_mut());
     let l11 = cholesky_small_strided(&diag.out, pb, w).ok_or_else(|| {
         Error::NotDefinite(format!(
             "a pivot of the projected block is not positive near row {p0} of {n} \
