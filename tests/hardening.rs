@@ -608,45 +608,22 @@ fn outputs_that_are_inputs_or_each_other_are_refused() {
 fn morph_timings_naming_a_frame_are_refused_before_the_work() {
     let dir = temp_dir("morph_frame_timings");
     let prefix = dir.join("mm");
+    let morph = |ranks: usize, frames: &str, timings: &Path| {
+        let (out, t) = (s(&prefix), s(timings));
+        let args = ["morph", "ball:0,0,0,1", "ball:0.5,0,0,1", "--frames", frames, "--grid", "12"];
+        run(ranks, &[&args[..], &["--out", out, "--timings", t]].concat())
+    };
     for ranks in [1, 2] {
         for frame in ["mm_002.ply", "mm_000.hdf", "mm.hdf.series"] {
             let timings = dir.join(frame);
-            let args = [
-                "morph",
-                "ball:0,0,0,1",
-                "ball:0.5,0,0,1",
-                "--frames",
-                "4",
-                "--grid",
-                "12",
-                "--out",
-                s(&prefix),
-                "--timings",
-                s(&timings),
-            ];
-            let out = run(ranks, &args);
+            let out = morph(ranks, "4", &timings);
             refused(&out, 2, &format!("names the output {}", s(&timings)), &dir, &[]);
             assert!(!text(&out).contains("frames on a"), "the frames were computed:\n{}", text(&out));
         }
     }
     // a name of its own is written beside the frames
     let timings = dir.join("t.csv");
-    let out = run(
-        2,
-        &[
-            "morph",
-            "ball:0,0,0,1",
-            "ball:0.5,0,0,1",
-            "--frames",
-            "3",
-            "--grid",
-            "12",
-            "--out",
-            s(&prefix),
-            "--timings",
-            s(&timings),
-        ],
-    );
+    let out = morph(2, "3", &timings);
     assert!(out.status.success(), "{}", text(&out));
     assert!(timings.is_file() && dir.join("mm_002.ply").is_file());
 }
