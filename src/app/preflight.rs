@@ -123,12 +123,11 @@ pub fn check_prefixes(
     input: Option<&Path>,
 ) -> Result<()> {
     let local = if comm.rank() == 0 {
-        writable_prefix(prefix).and_then(|()| input.map_or(Ok(()), |i| spares_input(prefix, i))).and_then(
-            |()| {
-                let mut all = std::iter::once(prefix).chain(more.iter().map(PathBuf::as_path));
-                timings.map_or(Ok(()), |t| all.try_for_each(|p| separate_timings(t, p, input)))
-            },
-        )
+        let mut all = std::iter::once(prefix).chain(more.iter().map(PathBuf::as_path));
+        let timings_apart = |t: &Path| all.try_for_each(|p| separate_timings(t, p, input));
+        writable_prefix(prefix)
+            .and_then(|()| input.map_or(Ok(()), |i| spares_input(prefix, i)))
+            .and_then(|()| timings.map_or(Ok(()), timings_apart))
     } else {
         Ok(())
     };
