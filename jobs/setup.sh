@@ -2,7 +2,11 @@
 # Installs what volspline needs on a fresh Debian 12 machine: OpenMPI, parallel HDF5 (OpenMPI
 # flavour), MUMPS (libmumps-dev: the OpenMPI build, with ScaLAPACK for OpenMPI), libclang and
 # pkg-config for the -sys crates and build.rs, hdf5-tools, and the Python packages the tests use
-# (vtk, numpy). Idempotent and quiet when everything is present.
+# (vtk, numpy). Idempotent and quiet when everything is present. A shell that sources it keeps its
+# own options (errexit, nounset, pipefail) afterwards; the jobs set theirs before sourcing it.
+_volspline_caller_opts=$(set +o)
+# (a command substitution does not see errexit: take it from $-)
+case $- in *e*) _volspline_caller_opts+=$'\nset -e' ;; esac
 set -euo pipefail
 
 # ensure_debs PKG...: installs the Debian packages that are missing, quietly
@@ -37,3 +41,6 @@ fi
 if [ "$(id -u)" -eq 0 ]; then
     export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 fi
+
+eval "$_volspline_caller_opts"
+unset _volspline_caller_opts
