@@ -536,6 +536,9 @@ fn cholesky2d_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
             );
             log.close(&s.x, &want_lu, 1e-9, || what.clone());
             same_on_every_rank(comm, log, &s.x, &what);
+            let refuse = || Err(Error::Memory("the LU fallback's whole matrix (refused by the test)".into()));
+            let s = dist::solve_2d(&Job::on(comm), &grid, SolverKind::Cholesky, kb, blocks(), refuse);
+            log.check(matches!(s, Err(Error::Memory(_))), || format!("{what}, fallback refused: {s:?}"));
         }
     }
     // about 1000 rows, from the lower triangle: many panels, and a panel's update in several
@@ -586,6 +589,12 @@ fn check_fallback(
         log.close(&s.x, want, 1e-9, || format!("{what} panel {panel}"));
         same_on_every_rank(comm, log, &s.x, what);
     }
+    // a fallback whose whole matrix is refused (the memory check before it is assembled) ends
+    // with that refusal on every rank
+    let layout = RowCyclic::new(n, comm.size(), comm.rank());
+    let refuse = || Err(Error::Memory("the LU fallback's whole matrix (refused by the test)".into()));
+    let solved = dist::solve(&Job::on(comm), SolverKind::Cholesky, rows_of(layout), refuse);
+    log.check(matches!(solved, Err(Error::Memory(_))), || format!("{what}, fallback refused: {solved:?}"));
 }
 
 fn fallback_on_four_points(comm: &dyn Comm, log: &mut Log) {
