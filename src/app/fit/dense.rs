@@ -321,11 +321,23 @@ pub fn fit(
     let lookahead = lookahead_for(a.lookahead.0, dense_layout.shape(comm.size()), a.solver, rows);
     let job = Job::on(&timed).panel(a.panel).par(Par::rayon(threads)).progress(&report).lookahead(lookahead);
     let mut kept = None;
+    // the projected Cholesky (in f64 or f32, on either layout) reads the lower triangle alone; a
+    // fallback to LU assembles the whole matrix again, which the check before the fit did not
+    // count where the lower triangle alone was assembled
+    let lower = lower_for(a.solver, &kernel, rows);
+    let fallback_fits = || {
+        if !lower {
+            return Ok(());
+        }
+        check_memory(
+            comm,
+            dense_fit_bytes(rows, comm.size(), Precision::F64, false),
+            &format!("the LU fallback's whole matrix of {rows} rows"),
+            DENSE_ADVICE,
+        )
+    };
     let solved = match dense_layout {
         Layout::RowCyclic | Layout::Auto => {
-            // the projected Cholesky (in f64 or f32) reads the lower triangle alone; a fallback
-            // to LU assembles the whole matrix again
-            let lower = lower_for(a.solver, &kernel, rows);
             let rows = stages.time(Stage::Assemble, || {
                 if lower {
                     assemble_lower(&kernel, centres, values, layout)
@@ -333,20 +345,7 @@ pub fn fit(
                     assemble(&kernel, centres, values, layout)
                 }
             });
-            // the LU fallback needs the whole matrix, which the check before the fit did not
-            // count where the lower triangle alone was assembled
-            let reassemble = || {
-                if lower {
-                    let system = layout.n;
-                    check_memory(
-                        comm,
-                        dense_fit_bytes(system, comm.size(), Precision::F64, false),
-                        &format!("the LU fallback's whole matrix of {system} rows"),
-                        DENSE_ADVICE,
-                    )?;
-                }
-                Ok(assemble(&kernel, centres, values, layout))
-            };
+            let reassemble = || fallback_fits().map(|()| assemble(&kernel, centres, values, layout));
             stages.time(Stage::Solve, || {
                 if !(keep && a.precision == Precision::F64) {
                     return dist::solve_in(&job, a.solver, a.precision, rows, reassemble);
@@ -370,9 +369,6 @@ pub fn fit(
             } else {
                 a.solver.default_block_2d(values.len() + kernel.poly_count())
             };
-            // as on the row-cyclic layout: the lower triangle for the projected Cholesky, the
-            // whole matrix, checked for memory, for a fallback to LU
-            let lower = lower_for(a.solver, &kernel, rows);
             let blocks = stages.time(Stage::Assemble, || {
                 if lower {
                     assemble_blocks_lower(&kernel, centres, values, &grid, nb)
@@ -380,17 +376,8 @@ pub fn fit(
                     assemble_blocks(&kernel, centres, values, &grid, nb)
                 }
             });
-            let reassemble = || {
-                if lower {
-                    check_memory(
-                        comm,
-                        dense_fit_bytes(rows, comm.size(), Precision::F64, false),
-                        &format!("the LU fallback's whole matrix of {rows} rows"),
-                        DENSE_ADVICE,
-                    )?;
-                }
-                Ok(assemble_blocks(&kernel, centres, values, &grid, nb))
-            };
+            let reassemble =
+                || fallback_fits().map(|()| assemble_blocks(&kernel, centres, values, &grid, nb));
             let k = kernel.poly_count();
             stages.time(Stage::Solve, || dist::solve_2d(&job, &grid, a.solver, k, blocks, reassemble))
         }
