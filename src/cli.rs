@@ -116,8 +116,8 @@ pub struct FitArgs {
     /// (4x4) solved 1.2-2x faster than row-cyclic from N = 2000 on; on 4 and 8 ranks the two were
     /// within about 15 %. So auto takes 2d from 16 ranks on, where the squarest grid has at least
     /// 4 process rows and the system at least 2000 rows, and row-cyclic otherwise, and always for
-    /// --precision mixed and off-surface fits (their second fits border the first fit's
-    /// row-cyclic factor instead of factoring anew).
+    /// --precision mixed. An off-surface fit on a grid moves its first factor to the row-cyclic
+    /// layout once, where its second fits border it instead of factoring anew.
     #[arg(long, default_value = "auto", value_name = "auto|row-cyclic|2d|PRxPC", value_parser = with(Layout::parse))]
     pub layout: Layout,
     /// Points closer than this fraction of the bounding-box diagonal are merged into one.

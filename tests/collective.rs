@@ -2,7 +2,8 @@
 //! collectives, the agreement on errors, the distributed solvers and the Cholesky -> LU fallback,
 //! the LU and the projected Cholesky on every 2D process grid of the ranks (also on 1 and 4
 //! ranks, those checks alone),
-//! the projected Cholesky's factor bordered by appended centres,
+//! the projected Cholesky's factor bordered by appended centres (on the row-cyclic layout, and
+//! from a 2D factor moved there),
 //! the mixed-precision solve and its fallback to f64,
 //! the parallel VTKHDF writer, the per-slice fits of `contours`, and the blob search's lattice
 //! samples.
@@ -83,16 +84,18 @@ fn child() {
         }
         comm.barrier();
     }
-    let checks_2d: [(&str, Check); 2] = [
+    let checks_2d: [(&str, Check); 4] = [
         ("2D block-cyclic LU and Householder vs the dense oracles", lu2d_matches_the_oracle),
         ("2D projected Cholesky vs the dense oracle, fallback to LU", cholesky2d_matches_the_oracle),
+        ("2D blocks moved to the row-cyclic layout", blocks_move_to_row_cyclic),
+        ("2D projected Cholesky factor kept and bordered", bordered_2d_factor_matches_the_oracle),
     ];
     if std::env::var_os(ONLY_2D).is_some() {
         let failed = mpijob::run_checks(comm, &checks_2d);
         drop(world);
         std::process::exit(i32::from(failed > 0));
     }
-    let checks: [(&str, Check); 17] = [
+    let checks: [(&str, Check); 19] = [
         ("typed collectives", typed_collectives),
         ("agree: one failing rank", agree_one_failing_rank),
         ("agree: two failing ranks, the lowest wins", agree_lowest_rank_wins),
@@ -101,6 +104,8 @@ fn child() {
         ("Householder and Cholesky with and without look-ahead", row_cyclic_lookahead_matches_the_oracle),
         checks_2d[0],
         checks_2d[1],
+        checks_2d[2],
+        checks_2d[3],
         ("projected Cholesky factor bordered by appended centres", bordered_factor_matches_the_oracle),
         ("Cholesky -> LU fallback, 4 points", fallback_on_four_points),
         ("Cholesky -> LU fallback, indefinite block", fallback_on_an_indefinite_block),
@@ -369,8 +374,7 @@ fn row_cyclic_lookahead_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
 fn bordered_factor_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
     let k = Kernel::new(3, 2).unwrap();
     let prep = bunny_system(&k);
-    let total = prep.values.len();
-    let n = total * 3 / 4;
+    let n = prep.values.len() * 3 / 4;
     for panel in [7, 16, 64] {
         let job = Job::on(comm).panel(panel);
         let layout = RowCyclic::new(n + k.poly_count(), comm.size(), comm.rank());
@@ -380,42 +384,137 @@ fn bordered_factor_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
             "the first projected Cholesky",
         );
         let first = first.expect("the projected Cholesky keeps its factor");
-        let half = n + (total - n) / 2;
-        // the appended centres of each system: none, the first half, it reversed, all
-        let reversed: Vec<usize> = (n..half).rev().collect();
-        let orders: [Vec<usize>; 4] = [vec![], (n..half).collect(), reversed, (n..total).collect()];
-        for (step, order) in orders.iter().enumerate() {
-            let picked: Vec<usize> = (0..n).chain(order.iter().copied()).collect();
-            let count = picked.len();
-            let mut values: Vec<f64> = picked.iter().map(|&i| prep.values[i]).collect();
-            (0..n).step_by(9).for_each(|i| values[i] = -values[i]);
-            let centres: Vec<f64> =
-                picked.iter().flat_map(|&i| prep.centres[3 * i..3 * i + 3].to_vec()).collect();
-            let centres = &centres[..];
-            let (x, bordered) =
-                must(solve_extended(&job, &k, centres, &values, &first), "the bordered solve");
-            // kept after the first half (a sixth of n), not after the whole quarter (a third)
-            let kept = if step == 0 { 0 } else { half - n };
-            log.check(first.kept_centres() == kept, || {
-                format!("panel {panel}, step {step}: {} substitutions kept, not {kept}", first.kept_centres())
+        check_bordering(&job, log, &k, &prep, &first, &format!("panel {panel}"));
+    }
+}
+
+/// The 2D projected Cholesky's factor kept (moved to the row-cyclic layout), then bordered as in
+/// [`bordered_factor_matches_the_oracle`]: on every process grid of the ranks, blocks ending
+/// inside the border (7) and fewer blocks than ranks near the end (64), the first solve against
+/// the oracle too. A factor moved with rows or columns misplaced, or without the first k rows,
+/// fails the bordered solves.
+fn bordered_2d_factor_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
+    let k = Kernel::new(3, 2).unwrap();
+    let prep = bunny_system(&k);
+    let n = prep.values.len() * 3 / 4;
+    let first_prep = Prepared {
+        centres: prep.centres[..3 * n].to_vec(),
+        values: prep.values[..n].to_vec(),
+        ..prep.clone()
+    };
+    let want = oracle(&first_prep, &k, householder_solve);
+    let p = comm.size();
+    for shape in (1..=p).filter(|pr| p.is_multiple_of(*pr)).map(|pr| (pr, p / pr)) {
+        let grid = must(dist::ProcessGrid::new(comm, shape), "the process grid");
+        for (nb, panel) in [(7, 0), (64, 16)] {
+            let what = format!("2D {}x{} block {nb}, bordering panel {panel}", shape.0, shape.1);
+            let job = Job::on(comm).panel(panel);
+            let a = assemble_blocks_lower(&k, &first_prep.centres, &first_prep.values, &grid, nb);
+            let (s, first) = must(
+                dist::solve_2d_keeping(&job, &grid, SolverKind::Cholesky, 4, a, || unreachable!(), true),
+                &what,
+            );
+            log.close(&s.x, &want, 1e-9, || format!("{what}: the first solve"));
+            let Some(first) = first else {
+                log.check(false, || format!("{what}: no factor kept"));
+                continue;
+            };
+            log.check(first.centres() == n && first.border() == 4, || {
+                format!("{what}: factor of {}", first.centres())
             });
-            let size = system_size(&k, count);
-            let (a, b) = full_system(&k, centres, &values);
-            let want =
-                must(householder_solve(MatRef::from_column_major_slice(&a, size, size), &b), "the oracle");
-            let what = format!("panel {panel}: {n} centres bordered by {} (step {step})", count - n);
-            log.close(&x, &want, 1e-9, || what.clone());
-            same_on_every_rank(comm, log, &x, &what);
-            // other values of the same centres (every fifth negated, the appended ones too),
-            // solved with the bordered factor alone
-            (0..count).step_by(5).for_each(|i| values[i] = -values[i]);
-            let x = dist::solve_bordered(&job, &first, &bordered, &values);
-            let (_, b) = full_system(&k, centres, &values);
-            let want =
-                must(householder_solve(MatRef::from_column_major_slice(&a, size, size), &b), "the oracle");
-            let what = format!("{what}, other values by the bordered factor");
-            log.close(&x, &want, 1e-9, || what.clone());
-            same_on_every_rank(comm, log, &x, &what);
+            check_bordering(&job, log, &k, &prep, &first, &what);
+        }
+    }
+}
+
+/// Borders `first`, the factor of the first n centres of `prep` (three quarters of them), as
+/// [`bordered_factor_matches_the_oracle`] describes, and checks every solve against the oracle.
+fn check_bordering(
+    job: &Job<'_>,
+    log: &mut Log,
+    k: &Kernel,
+    prep: &Prepared,
+    first: &dist::Factored,
+    label: &str,
+) {
+    let total = prep.values.len();
+    let n = first.centres();
+    let half = n + (total - n) / 2;
+    // the appended centres of each system: none, the first half, it reversed, all
+    let reversed: Vec<usize> = (n..half).rev().collect();
+    let orders: [Vec<usize>; 4] = [vec![], (n..half).collect(), reversed, (n..total).collect()];
+    for (step, order) in orders.iter().enumerate() {
+        let picked: Vec<usize> = (0..n).chain(order.iter().copied()).collect();
+        let count = picked.len();
+        let mut values: Vec<f64> = picked.iter().map(|&i| prep.values[i]).collect();
+        (0..n).step_by(9).for_each(|i| values[i] = -values[i]);
+        let centres: Vec<f64> =
+            picked.iter().flat_map(|&i| prep.centres[3 * i..3 * i + 3].to_vec()).collect();
+        let centres = &centres[..];
+        let (x, bordered) = must(solve_extended(job, k, centres, &values, first), "the bordered solve");
+        // kept after the first half (a sixth of n), not after the whole quarter (a third)
+        let kept = if step == 0 { 0 } else { half - n };
+        log.check(first.kept_centres() == kept, || {
+            format!("{label}, step {step}: {} substitutions kept, not {kept}", first.kept_centres())
+        });
+        let size = system_size(k, count);
+        let (a, b) = full_system(k, centres, &values);
+        let want = must(householder_solve(MatRef::from_column_major_slice(&a, size, size), &b), "the oracle");
+        let what = format!("{label}: {n} centres bordered by {} (step {step})", count - n);
+        log.close(&x, &want, 1e-9, || what.clone());
+        same_on_every_rank(job.comm, log, &x, &what);
+        // other values of the same centres (every fifth negated, the appended ones too),
+        // solved with the bordered factor alone
+        (0..count).step_by(5).for_each(|i| values[i] = -values[i]);
+        let x = dist::solve_bordered(job, first, &bordered, &values);
+        let (_, b) = full_system(k, centres, &values);
+        let want = must(householder_solve(MatRef::from_column_major_slice(&a, size, size), &b), "the oracle");
+        let what = format!("{what}, other values by the bordered factor");
+        log.close(&x, &want, 1e-9, || what.clone());
+        same_on_every_rank(job.comm, log, &x, &what);
+    }
+}
+
+/// The 2D blocks moved to the row-cyclic layout ([`dist::LocalBlocks::to_row_cyclic`]) on every
+/// grid of the ranks, blocks 1, 7 and 64, in bands of one, of 5 and of all columns: the whole
+/// matrix, its lower triangle, the lower triangle and the first k rows of the centres' block (what
+/// a kept factor needs), and nothing, each exactly the row-cyclic assembly's values where moved
+/// and zero elsewhere.
+fn blocks_move_to_row_cyclic(comm: &dyn Comm, log: &mut Log) {
+    let k = Kernel::new(3, 2).unwrap();
+    let prep = bunny_system(&k);
+    let n = system_size(&k, prep.values.len());
+    let layout = RowCyclic::new(n, comm.size(), comm.rank());
+    let rows = assemble(&k, &prep.centres, &prep.values, layout);
+    let p = comm.size();
+    let parts = [
+        ("every entry", (n, n)),
+        ("the lower triangle", (n, 0)),
+        ("a factor's part", (n - 4, 4)),
+        ("nothing", (0, 0)),
+    ];
+    for shape in (1..=p).filter(|pr| p.is_multiple_of(*pr)).map(|pr| (pr, p / pr)) {
+        let grid = must(dist::ProcessGrid::new(comm, shape), "the process grid");
+        for nb in [1, 7, 64] {
+            let a = assemble_blocks(&k, &prep.centres, &prep.values, &grid, nb);
+            for band in [1, 5, usize::MAX] {
+                for (name, (count, top)) in parts {
+                    let moved = a.to_row_cyclic_in_bands(&grid, 4, (count, top), band);
+                    let what = format!("{}x{} block {nb}, bands of {band} columns: {name}", shape.0, shape.1);
+                    log.check(moved.layout == layout && moved.cols == n + 1 && moved.border == 4, || {
+                        what.clone()
+                    });
+                    let wrong = (0..layout.local_count()).flat_map(|l| (0..=n).map(move |c| (l, c))).find(
+                        |&(l, c)| {
+                            let g = layout.global(l);
+                            let wanted = g < count && c < count && (c <= g || g < top);
+                            let expect = if wanted { rows.get(l, c) } else { 0.0 };
+                            moved.get(l, c).to_bits() != expect.to_bits()
+                        },
+                    );
+                    log.check(wrong.is_none(), || format!("{what}: entry {wrong:?} differs"));
+                }
+            }
         }
     }
 }

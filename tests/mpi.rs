@@ -409,6 +409,39 @@ fn the_2d_layout_matches_the_serial_oracles_and_refuses_what_it_cannot_do() {
 }
 
 #[test]
+fn an_off_surface_fit_on_a_2d_grid_borders_its_factor_as_row_cyclic_does() {
+    // the cow with a hole (tests/data/cow-1000-open.xyz): its second fits border the first fit's
+    // factor by 224 and by 303 appended centres. On a 2D grid the factor is moved to the
+    // row-cyclic layout and bordered there: the same second fits, none factored anew, and the
+    // same spline as the serial row-cyclic fit
+    let dir = common::temp_dir("layout-2d-bordered");
+    let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/cow-1000-open.xyz");
+    let fit = |ranks: usize, layout: &str| {
+        let p = dir.join(format!("{layout}-{ranks}"));
+        let args =
+            ["fit", input.to_str().unwrap(), "--out", p.to_str().unwrap(), "--grid", "40", "--no-preview"];
+        let out = common::run_ok(ranks, &[&args[..], &["--layout", layout]].concat());
+        let model = read_model(&p.with_extension("model.h5")).unwrap();
+        (model, out, p.with_extension("hdf"))
+    };
+    let (serial, serial_out, _) = fit(1, "row-cyclic");
+    let bordered = "second fit: the first fit's factor (1231 centres) bordered by 303 appended centres";
+    assert!(serial_out.contains(bordered), "{serial_out}");
+    for (ranks, layout, grid) in [(1, "2d", "1x1"), (2, "2d", "1x2"), (2, "2x1", "2x1"), (3, "1x3", "1x3")] {
+        let (model, out, hdf) = fit(ranks, layout);
+        let what = format!("--layout {layout} on {ranks} ranks");
+        assert!(out.contains(&format!("(dense, 2D block-cyclic {grid})")), "{what}:\n{out}");
+        assert!(out.contains(bordered) && !out.contains("factoring the whole system"), "{what}:\n{out}");
+        assert_eq!(model.spline.weights.len(), serial.spline.weights.len(), "{what}");
+        let dw = common::rel_diff(&model.spline.weights, &serial.spline.weights);
+        let dc = common::rel_diff(&model.spline.poly, &serial.spline.poly);
+        assert!(dw < 1e-8 && dc < 1e-8, "{what}: weights {dw:e}, poly {dc:e}");
+        let dv = common::volume_diff(&hdf, &serial);
+        assert!(dv < 1e-8, "{what}: grid values differ from the serial spline's by {dv:e}");
+    }
+}
+
+#[test]
 fn the_auto_layout_distributes_in_2d_on_sixteen_ranks_and_row_cyclic_below() {
     // every second bunny vertex: 2526 points, above the 2000 rows from which auto takes 2D
     let dir = common::temp_dir("layout-auto");
@@ -416,7 +449,8 @@ fn the_auto_layout_distributes_in_2d_on_sixteen_ranks_and_row_cyclic_below() {
     assert!(prep.values.len() >= 2000, "{} points", prep.values.len());
     let oracle = oracle_model(&prep, &k, SolverKind::Cholesky);
     // 16 ranks (oversubscribed here): the 4x4 grid, the same spline as the serial oracle's; on 3
-    // ranks and with off-surface constraints on 16, row-cyclic
+    // ranks, row-cyclic; an off-surface fit on 16 ranks takes the 4x4 grid too (its factor is moved
+    // to the row-cyclic layout for the second fits)
     for (ranks, surface, expect) in [
         (16, "carrier", "solver cholesky (dense, 2D block-cyclic 4x4), panel 16"),
         (3, "carrier", "solver cholesky (dense, row-cyclic), panel 16"),
@@ -444,5 +478,5 @@ fn the_auto_layout_distributes_in_2d_on_sixteen_ranks_and_row_cyclic_below() {
     ];
     let out = common::run_ok(16, &args);
     assert!(out.contains("surface offsurface"), "{out}");
-    assert!(out.contains("(dense, row-cyclic)"), "an off-surface fit keeps its factor row-cyclic:\n{out}");
+    assert!(out.contains("(dense, 2D block-cyclic 4x4)"), "an off-surface fit takes the 2D grid too:\n{out}");
 }

@@ -56,6 +56,11 @@ pub trait Comm {
     /// length the caller knows). Point-to-point; `dest` must at the same time receive from this
     /// rank and `source` send to it (a shift or a pairwise exchange), so nothing deadlocks.
     fn shift_f64(&self, dest: usize, source: usize, send: &[f64], recv: &mut [f64]);
+    /// Personalised exchange (MPI_Alltoallv): `send` holds, in rank order, `send_counts[r]`
+    /// values for each rank r, and `recv` receives, in rank order, `recv_counts[r]` values from
+    /// each rank r (the caller knows both; each rank's `send_counts[r]` must equal rank r's
+    /// `recv_counts` entry for it). Redistributes a matrix between layouts.
+    fn all_to_all_f64(&self, send: &[f64], send_counts: &[usize], recv: &mut [f64], recv_counts: &[usize]);
     /// [`Comm::all_gather_f64`] of single-precision values (the factors of a mixed-precision
     /// solve travel at half the bytes).
     fn all_gather_f32(&self, send: &[f32], counts: &[usize], recv: &mut [f32]);

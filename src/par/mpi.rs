@@ -3,7 +3,7 @@
 //! only (the rayon workers never communicate).
 
 use mpi::collective::SystemOperation;
-use mpi::datatype::PartitionMut;
+use mpi::datatype::{Partition, PartitionMut};
 use mpi::environment::Universe;
 use mpi::raw::AsRaw;
 use mpi::topology::{Color, SimpleCommunicator};
@@ -194,6 +194,17 @@ impl Comm for MpiComm {
     }
     fn all_gather_f64(&self, send: &[f64], counts: &[usize], recv: &mut [f64]) {
         self.all_gather(send, counts, recv);
+    }
+    fn all_to_all_f64(&self, send: &[f64], send_counts: &[usize], recv: &mut [f64], recv_counts: &[usize]) {
+        if self.size == 1 {
+            recv.copy_from_slice(send);
+            return;
+        }
+        let (c, d) = displacements(send_counts);
+        let out = Partition::new(send, c, d);
+        let (c, d) = displacements(recv_counts);
+        let mut into = PartitionMut::new(recv, c, d);
+        self.comm.all_to_all_varcount_into(&out, &mut into);
     }
     fn all_gather_f32(&self, send: &[f32], counts: &[usize], recv: &mut [f32]) {
         self.all_gather(send, counts, recv);

@@ -16,7 +16,7 @@ pub enum CallKind {
     Reduce,
     /// All-gathers of at most `SMALL` values in all (the pivot searches of LU).
     SmallGather,
-    /// Larger all-gathers (the block rows of the factorisations).
+    /// Larger all-gathers (the block rows of the factorisations) and all-to-all exchanges.
     LargeGather,
     /// Point-to-point exchanges (row interchanges).
     Shift,
@@ -162,6 +162,11 @@ impl Comm for Timed<'_> {
     }
     fn shift_f64(&self, dest: usize, source: usize, send: &[f64], recv: &mut [f64]) {
         self.timed(CallKind::Shift, || self.comm().shift_f64(dest, source, send, recv))
+    }
+    fn all_to_all_f64(&self, send: &[f64], send_counts: &[usize], recv: &mut [f64], recv_counts: &[usize]) {
+        self.timed(gather_kind(recv.len()), || {
+            self.comm().all_to_all_f64(send, send_counts, recv, recv_counts)
+        })
     }
     fn all_gather_f32(&self, send: &[f32], counts: &[usize], recv: &mut [f32]) {
         self.timed(gather_kind(recv.len()), || self.comm().all_gather_f32(send, counts, recv))

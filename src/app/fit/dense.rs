@@ -302,7 +302,8 @@ fn fit_bordered(
 }
 
 /// Fits the spline of `kernel` to the prepared points with the dense solvers; with `keep`, the
-/// factor of a row-cyclic projected Cholesky in f64 is kept in the result for [`refit`].
+/// factor of a projected Cholesky in f64 is kept in the result for [`refit`] (on a 2D grid moved
+/// to the row-cyclic layout, where there is room for it).
 /// Collective.
 pub fn fit(
     run: &Run<'_>,
@@ -320,7 +321,6 @@ pub fn fit(
     let rows = values.len() + kernel.poly_count();
     let lookahead = lookahead_for(a.lookahead.0, dense_layout.shape(comm.size()), a.solver, rows);
     let job = Job::on(&timed).panel(a.panel).par(Par::rayon(threads)).progress(&report).lookahead(lookahead);
-    let mut kept = None;
     // the projected Cholesky (in f64 or f32, on either layout) reads the lower triangle alone; a
     // fallback to LU assembles the whole matrix again, which the check before the fit did not
     // count where the lower triangle alone was assembled
@@ -348,17 +348,9 @@ pub fn fit(
             let reassemble = || fallback_fits().map(|()| assemble(&kernel, centres, values, layout));
             stages.time(Stage::Solve, || {
                 if !(keep && a.precision == Precision::F64) {
-                    return dist::solve_in(&job, a.solver, a.precision, rows, reassemble);
+                    return dist::solve_in(&job, a.solver, a.precision, rows, reassemble).map(|s| (s, None));
                 }
-                dist::solve_keeping(&job, a.solver, rows, reassemble, true).map(|(solved, factor)| {
-                    kept = factor.map(|factor| KeptFactor {
-                        factor: Rc::new(factor),
-                        centres: centres.clone(),
-                        bordered: None,
-                        lookahead,
-                    });
-                    solved
-                })
+                dist::solve_keeping(&job, a.solver, rows, reassemble, true)
             })
         }
         Layout::BlockCyclic(_) => {
@@ -379,14 +371,44 @@ pub fn fit(
             let reassemble =
                 || fallback_fits().map(|()| assemble_blocks(&kernel, centres, values, &grid, nb));
             let k = kernel.poly_count();
-            stages.time(Stage::Solve, || dist::solve_2d(&job, &grid, a.solver, k, blocks, reassemble))
+            let keep = keep && lower && copy_fits(comm, rows);
+            stages.time(Stage::Solve, || {
+                dist::solve_2d_keeping(&job, &grid, a.solver, k, blocks, reassemble, keep)
+            })
         }
     };
     stages.add(Stage::CommWait, timed.seconds());
-    let solved = solved?;
+    let (solved, factor) = solved?;
+    let kept = factor.map(|factor| KeptFactor {
+        factor: Rc::new(factor),
+        centres: centres.clone(),
+        bordered: None,
+        lookahead,
+    });
     let mut fitted = finish(run, kernel, prep, solved, (layout, lookahead, None), &timed, stages);
     fitted.factor = kept;
     Ok(fitted)
+}
+
+/// Whether the ranks have room, beside the 2D blocks of a projected Cholesky of `rows` rows, for
+/// its factor moved to the row-cyclic layout to be kept for bordering (about as much again: the
+/// lower triangle). Where they have not, rank 0 says so and later fits factor their systems
+/// anew. Collective.
+fn copy_fits(comm: &dyn Comm, rows: usize) -> bool {
+    let one = dense_fit_bytes(rows, comm.size(), Precision::F64, true) - 200e6;
+    let need = one + dense_fit_bytes(rows, comm.size(), Precision::F64, true);
+    let room = super::agreed_room(comm);
+    if need <= room {
+        return true;
+    }
+    if comm.rank() == 0 {
+        eprintln!(
+            "volspline: the 2D factor is not kept for later fits: with its row-cyclic copy it needs about {:.2} GB per rank, {:.2} GB are free; those fits factor their systems anew",
+            need / 1e9,
+            room / 1e9
+        );
+    }
+    false
 }
 
 /// The checks, the spline and the report of a dense solve `solved` of `prep`'s system on

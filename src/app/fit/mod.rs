@@ -157,7 +157,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let prep = prepare(&raw, &base, &a.carrier, a.merge_tol)?;
     let n = prep.values.len();
     let off = surface::with_off_surface(a.surface, n);
-    let layout = a.layout.resolve(comm.size(), n + base.poly_count(), a.precision, off);
+    let layout = a.layout.resolve(comm.size(), n + base.poly_count(), a.precision);
     let run = Run { args: a, comm, threads, layout };
     let (plo, phi) = padded_box(&prep.box_lo, &prep.box_hi, a.grid.margin);
     let grid = Grid::covering(plo, phi, a.grid.grid)?;

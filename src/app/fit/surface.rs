@@ -30,9 +30,9 @@ use crate::surface::{
 /// Fewest points for which `--surface auto` adds off-surface constraints.
 pub const AUTO_MIN_POINTS: usize = 50;
 
-/// Data points below which the turns of step 7 run without a kept factor (a dense solver or
-/// layout the user chose that keeps none): each try is then a fresh fit, milliseconds on these
-/// systems.
+/// Data points below which the turns of step 7 run without a kept factor (a dense solver the
+/// user chose that keeps none, or a 2D factor without room for its row-cyclic copy): each try
+/// is then a fresh fit, milliseconds on these systems.
 const FRESH_TRIES_BELOW: usize = 1000;
 
 /// What the off-surface step did, for the report.
@@ -312,7 +312,7 @@ pub fn check_first_fit(
     };
     // the kept fit's own bordered factor where it has one (a second fit), else the first fit's
     let basis = fit.factor.take().or(factor);
-    // without a kept factor (a solver or layout the user chose) a try is a fresh fit: affordable
+    // without a kept factor (a solver the user chose, or no room to keep it) a try is a fresh fit: affordable
     // on small systems alone
     let affordable = basis.is_some() || c.prep.values.len() < FRESH_TRIES_BELOW;
     if run.args.orient_turns && affordable {

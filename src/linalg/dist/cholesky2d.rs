@@ -53,6 +53,20 @@ pub fn cholesky2d_solve(
     a: &mut LocalBlocks,
     k: usize,
 ) -> Result<Vec<f64>> {
+    factor_and_solve(job, grid, a, k).map(|(x, _, _)| x)
+}
+
+/// [`cholesky2d_solve`], which also returns the QR of the border and the sign s of the factored
+/// block (s B = L L^T), and leaves in `a` what the row-cyclic solver leaves in its rows: L in the
+/// lower triangle of rows and columns k..n, Q^T A Q in the columns 0..k and the rows 0..k. Moved
+/// to the row-cyclic layout ([`LocalBlocks::to_row_cyclic`]), that is a factor to border (see
+/// `extend`).
+pub(super) fn factor_and_solve(
+    job: &Job<'_>,
+    grid: &ProcessGrid<'_>,
+    a: &mut LocalBlocks,
+    k: usize,
+) -> Result<(Vec<f64>, Border, f64)> {
     assert!(k >= 1, "the projected Cholesky needs a polynomial border");
     let (rows, cols, ld) = (a.rows, a.cols, a.ld());
     let n = a.n() - k;
@@ -173,7 +187,7 @@ pub fn cholesky2d_solve(
         c[i] = (y[i] + t[i] - s) / r[(i, i)];
     }
     lambda.extend(c);
-    Ok(lambda)
+    Ok((lambda, border, sign))
 }
 
 /// The panels of B: from row k to the end of its block, then block by block to n.

@@ -1,6 +1,8 @@
 //! Bordering a projected Cholesky factor: the system of a fit with m centres appended after the
 //! n it had, solved from the factor of the first system in O(n^2 m) flops instead of a fresh
-//! O((n + m)^3) factorisation. The right-hand side of the first n rows may change too (a second
+//! O((n + m)^3) factorisation. The factor is row-cyclic; one from the 2D layout is moved here
+//! first (`LocalBlocks::to_row_cyclic`: L and the first k rows of Q^T A Q, the entries read
+//! below). The right-hand side of the first n rows may change too (a second
 //! fit that moves no centre but changes values is the case m = 0).
 //!
 //! # Why the first factor survives

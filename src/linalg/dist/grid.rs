@@ -31,8 +31,9 @@
 //! Rank (i, j) of the grid is world rank i pc + j; it holds the rows of process row i and the
 //! columns of process column j, column-major with its local row count as leading dimension.
 
+use super::layout::RowCyclic;
 use super::solver::Precision;
-use super::system::RowIndex;
+use super::system::{LocalRows, RowIndex};
 use crate::error::{Error, Result};
 use crate::par::Comm;
 
@@ -189,17 +190,16 @@ impl Layout {
     }
 
     /// The layout `auto` stands for, for a system of `rows` rows on `ranks` ranks solved in
-    /// `precision`, and whether its factor must stay row-cyclic (`keeps_rows`: an off-surface
-    /// fit, whose second fits border the first fit's row-cyclic factor in O(n^2 m) instead of
-    /// factoring anew): the squarest 2D grid from `AUTO_2D_RANKS` ranks with at least
-    /// `AUTO_2D_GRID_ROWS` process rows and `AUTO_2D_SYSTEM` rows, in f64, where no factor is
-    /// kept; row-cyclic otherwise. Any other layout is returned as it is.
-    pub fn resolve(self, ranks: usize, rows: usize, precision: Precision, keeps_rows: bool) -> Layout {
+    /// `precision`: the squarest 2D grid from `AUTO_2D_RANKS` ranks with at least
+    /// `AUTO_2D_GRID_ROWS` process rows and `AUTO_2D_SYSTEM` rows, in f64; row-cyclic otherwise.
+    /// (An off-surface fit, whose later fits border the first fit's factor, keeps a 2D factor
+    /// moved to the row-cyclic layout.) Any other layout is returned as it is.
+    pub fn resolve(self, ranks: usize, rows: usize, precision: Precision) -> Layout {
         if self != Layout::Auto {
             return self;
         }
         let wide = ranks >= AUTO_2D_RANKS && squarest(ranks).0 >= AUTO_2D_GRID_ROWS;
-        if wide && rows >= AUTO_2D_SYSTEM && precision == Precision::F64 && !keeps_rows {
+        if wide && rows >= AUTO_2D_SYSTEM && precision == Precision::F64 {
             Layout::BlockCyclic(None)
         } else {
             Layout::RowCyclic
@@ -265,6 +265,130 @@ impl LocalBlocks {
         comm.max_f64(&mut m);
         m[0]
     }
+
+    /// The lower triangle and the first `top` rows of the leading `count` x `count` block of the
+    /// global matrix on the row-cyclic layout of the same system (row g on rank g mod p, every
+    /// column and the right-hand side's, polynomial border `border`): the entries (g, c) with
+    /// g, c < count and c <= g or g < top. The other entries are zero, and their pages are never
+    /// written. Each rank sends those entries of its blocks to the owners of their rows, by
+    /// all-to-all exchanges of a band of global columns at a time (about `EXCHANGE_VALUES` per
+    /// rank), so the buffers stay small beside the two copies of the matrix. Both sides walk a
+    /// band in the same order (columns ascending, rows ascending within a column), which
+    /// block-cyclic local order preserves, so no indices travel. Collective over the grid.
+    pub fn to_row_cyclic(
+        &self,
+        grid: &ProcessGrid<'_>,
+        border: usize,
+        (count, top): (usize, usize),
+    ) -> LocalRows {
+        self.to_row_cyclic_in_bands(grid, border, (count, top), self.band(grid.comm.size()))
+    }
+
+    /// The columns per exchange of [`LocalBlocks::to_row_cyclic`] on `ranks` ranks: about
+    /// `EXCHANGE_VALUES` values on the rank with the most rows of either layout. The same on
+    /// every rank (the exchanges must match), so it depends on global sizes alone.
+    fn band(&self, ranks: usize) -> usize {
+        let most_rows = self.rows.count_below_on(0, self.n()).max(self.n().div_ceil(ranks)).max(1);
+        (EXCHANGE_VALUES / most_rows).max(1)
+    }
+
+    /// [`LocalBlocks::to_row_cyclic`] in bands of `band` global columns (at least one).
+    pub fn to_row_cyclic_in_bands(
+        &self,
+        grid: &ProcessGrid<'_>,
+        border: usize,
+        (count, top): (usize, usize),
+        band: usize,
+    ) -> LocalRows {
+        let comm = grid.comm;
+        let (p, n, ld) = (comm.size(), self.n(), self.ld());
+        let count = count.min(n);
+        let top = top.min(count);
+        let lay = RowCyclic::new(n, p, comm.rank());
+        let mut out = LocalRows::zeros(lay, n + 1, border);
+        // the rank each local row goes to, and the process row each of this rank's rows comes from
+        let dest: Vec<usize> = (0..ld).map(|lr| lay.owner(self.rows.global(lr))).collect();
+        let from_row: Vec<usize> = (0..lay.local_count()).map(|l| self.rows.owner(lay.global(l))).collect();
+        // the local rows of column c that move: the first `top` rows, then the rows from the
+        // diagonal down to `count` (as two ranges that do not overlap)
+        let ranges = |first_local_from: &dyn Fn(usize) -> usize, c: usize| {
+            let (t, d, e) = (first_local_from(top), first_local_from(c.max(top)), first_local_from(count));
+            [0..t, d..e]
+        };
+        let band = band.max(1);
+        // the exchange buffers, kept across the bands: fresh ones would fault in their pages
+        // for every band
+        let (mut send, mut recv) = (Vec::new(), Vec::new());
+        let mut c0 = 0;
+        while c0 < count {
+            let c1 = c0.saturating_add(band).min(count);
+            let local_cols = self.cols.first_local_from(c0)..self.cols.first_local_from(c1);
+            // what this rank sends: those entries of its columns c0..c1, by row owner
+            let mut send_counts = vec![0; p];
+            for lc in local_cols.clone() {
+                for lr in
+                    ranges(&|g| self.rows.first_local_from(g), self.cols.global(lc)).into_iter().flatten()
+                {
+                    send_counts[dest[lr]] += 1;
+                }
+            }
+            let mut at = offsets(&send_counts);
+            send.clear();
+            send.resize(at[p], 0.0);
+            for lc in local_cols {
+                let column = &self.data[lc * ld..(lc + 1) * ld];
+                for lr in
+                    ranges(&|g| self.rows.first_local_from(g), self.cols.global(lc)).into_iter().flatten()
+                {
+                    let to = &mut at[dest[lr]];
+                    send[*to] = column[lr];
+                    *to += 1;
+                }
+            }
+            // what it receives: those entries of its rows in columns c0..c1, by block owner
+            let mut recv_counts = vec![0; p];
+            for c in c0..c1 {
+                let j = self.cols.owner(c);
+                for part in ranges(&|g| lay.first_local_from(g), c) {
+                    from_row[part].iter().for_each(|&i| recv_counts[grid.rank_at(i, j)] += 1);
+                }
+            }
+            let mut at = offsets(&recv_counts);
+            recv.clear();
+            recv.resize(at[p], 0.0);
+            comm.all_to_all_f64(&send, &send_counts, &mut recv, &recv_counts);
+            let ldo = out.ld();
+            for c in c0..c1 {
+                let j = self.cols.owner(c);
+                let column = &mut out.data[c * ldo..(c + 1) * ldo];
+                for part in ranges(&|g| lay.first_local_from(g), c) {
+                    for (v, &i) in column[part.clone()].iter_mut().zip(&from_row[part]) {
+                        let from = &mut at[grid.rank_at(i, j)];
+                        *v = recv[*from];
+                        *from += 1;
+                    }
+                }
+            }
+            c0 = c1;
+        }
+        out
+    }
+}
+
+/// Values per rank moved by one exchange of [`LocalBlocks::to_row_cyclic`] (32 MB).
+pub const EXCHANGE_VALUES: usize = 1 << 22;
+
+/// The start of each rank's part of a buffer of parts of `counts` values in rank order, and the
+/// total as the last entry.
+fn offsets(counts: &[usize]) -> Vec<usize> {
+    let mut at = Vec::with_capacity(counts.len() + 1);
+    let mut sum = 0;
+    for &c in counts {
+        at.push(sum);
+        sum += c;
+    }
+    at.push(sum);
+    at
 }
 
 /// The narrowest piece of a trailing update run between two tests of a panel broadcast.
@@ -358,29 +482,46 @@ mod tests {
     }
 
     #[test]
-    fn auto_takes_the_squarest_grid_from_sixteen_ranks_for_large_f64_systems_without_a_kept_factor() {
+    fn auto_takes_the_squarest_grid_from_sixteen_ranks_for_large_f64_systems() {
         let f64 = Precision::F64;
-        let auto = |ranks, rows, precision, keeps| Layout::Auto.resolve(ranks, rows, precision, keeps);
-        assert_eq!(auto(16, 2000, f64, false), Layout::BlockCyclic(None));
+        let auto = |ranks, rows, precision| Layout::Auto.resolve(ranks, rows, precision);
+        assert_eq!(auto(16, 2000, f64), Layout::BlockCyclic(None));
         assert_eq!(Layout::BlockCyclic(None).shape(16), Some((4, 4)));
-        assert_eq!(auto(64, 100_000, f64, false), Layout::BlockCyclic(None));
-        assert_eq!(auto(24, 8000, f64, false), Layout::BlockCyclic(None), "4x6");
-        for (ranks, rows, precision, keeps, why) in [
-            (15, 8000, f64, false, "too few ranks"),
-            (17, 8000, f64, false, "a prime: 1x17"),
-            (22, 8000, f64, false, "2x11"),
-            (16, 1999, f64, false, "too few rows"),
-            (16, 8000, Precision::Mixed, false, "mixed precision runs row-cyclic"),
-            (16, 8000, f64, true, "an off-surface fit borders its row-cyclic factor"),
+        assert_eq!(auto(64, 100_000, f64), Layout::BlockCyclic(None));
+        assert_eq!(auto(24, 8000, f64), Layout::BlockCyclic(None), "4x6");
+        for (ranks, rows, precision, why) in [
+            (15, 8000, f64, "too few ranks"),
+            (17, 8000, f64, "a prime: 1x17"),
+            (22, 8000, f64, "2x11"),
+            (16, 1999, f64, "too few rows"),
+            (16, 8000, Precision::Mixed, "mixed precision runs row-cyclic"),
         ] {
-            assert_eq!(auto(ranks, rows, precision, keeps), Layout::RowCyclic, "{why}");
+            assert_eq!(auto(ranks, rows, precision), Layout::RowCyclic, "{why}");
         }
         // an explicit layout stays as asked
         for asked in [Layout::RowCyclic, Layout::BlockCyclic(Some((1, 2)))] {
-            assert_eq!(asked.resolve(16, 8000, f64, false), asked);
+            assert_eq!(asked.resolve(16, 8000, f64), asked);
         }
         assert_eq!(Layout::parse("auto").unwrap(), Layout::Auto);
         assert_eq!(Layout::Auto.shape(16), None);
+    }
+
+    #[test]
+    fn the_exchange_band_is_the_same_on_every_rank() {
+        // the process rows of a grid own different row counts; the band must not follow them
+        for (pr, pc) in [(1, 1), (2, 1), (1, 2), (3, 2), (4, 4)] {
+            for (n, nb) in [(7, 2), (3001, 64), (100_003, 128)] {
+                let band = |i: usize, j: usize| {
+                    let rows = BlockCyclic::new(n, nb, pr, i);
+                    let cols = BlockCyclic::new(n + 1, nb, pc, j);
+                    LocalBlocks { rows, cols, data: Vec::new() }.band(pr * pc)
+                };
+                let first = band(0, 0);
+                for (i, j) in (0..pr).flat_map(|i| (0..pc).map(move |j| (i, j))) {
+                    assert_eq!(band(i, j), first, "{pr}x{pc}, n {n}, nb {nb}: rank ({i}, {j})");
+                }
+            }
+        }
     }
 
     #[test]

@@ -7,9 +7,11 @@
 //! by classical refinement and GMRES-IR ([`mixed_solve`]), with a fallback to f64 when the f32
 //! factorisation fails or the refinement does not reach the accuracy of an f64 solve.
 //!
-//! [`extend_solve`] borders a kept projected Cholesky factor ([`solve_keeping`]) by appended
-//! centres, for a second fit that adds constraint points to the first; [`solve_bordered`] solves
-//! the bordered system again for other values of the same centres.
+//! [`extend_solve`] borders a kept projected Cholesky factor ([`solve_keeping`]; from the 2D
+//! layout [`solve_2d_keeping`], which moves the factor to the row-cyclic layout by all-to-all
+//! exchanges, [`LocalBlocks::to_row_cyclic`]) by appended centres, for a second fit that adds
+//! constraint points to the first; [`solve_bordered`] solves the bordered system again for other
+//! values of the same centres.
 //!
 //! Every solver takes the panel width nb and a `faer::Par`. The panel kernels and the
 //! collectives are serial; the `Par` goes to the local GEMMs and triangular solves of the
@@ -46,7 +48,7 @@ pub use lu2d::{lu2d_factor, lu2d_solve};
 pub use refine::{mixed_solve, Refinement};
 pub use scalar::Scalar;
 pub use solver::{
-    solve, solve_2d, solve_in, solve_keeping, Job, Precision, Solved, SolverKind, AUTO_CHOLESKY_FROM,
-    LOOKAHEAD,
+    solve, solve_2d, solve_2d_keeping, solve_in, solve_keeping, Job, Precision, Solved, SolverKind,
+    AUTO_CHOLESKY_FROM, LOOKAHEAD,
 };
 pub use system::{all_gather_rows, GatherBuffers, LocalRows};

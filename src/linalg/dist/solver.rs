@@ -6,6 +6,7 @@
 use faer::Par;
 
 use super::cholesky::factor_and_solve;
+use super::cholesky2d;
 use super::extend::Factored;
 use super::{
     cholesky2d_solve, cholesky_solve, householder2d_solve, householder_solve, lu2d_solve, lu_solve,
@@ -327,9 +328,27 @@ pub fn solve_2d(
     grid: &ProcessGrid<'_>,
     kind: SolverKind,
     k: usize,
-    mut a: LocalBlocks,
+    a: LocalBlocks,
     reassemble: impl FnOnce() -> Result<LocalBlocks>,
 ) -> Result<Solved> {
+    solve_2d_keeping(job, grid, kind, k, a, reassemble, false).map(|(solved, _)| solved)
+}
+
+/// [`solve_2d`], which with `keep` also returns the factor when the projected Cholesky solved the
+/// system, moved to the row-cyclic layout ([`LocalBlocks::to_row_cyclic`]: the lower triangle
+/// and the first k rows of the centres' block, about half of the matrix, travel once by
+/// all-to-all exchanges): a second fit with centres appended borders it there (see `extend`) as
+/// it borders a factor of the row-cyclic solver. The factor is the 2D one, so its panel width
+/// for the bordering is the row-cyclic default for the size unless `job.panel` names one.
+pub fn solve_2d_keeping(
+    job: &Job<'_>,
+    grid: &ProcessGrid<'_>,
+    kind: SolverKind,
+    k: usize,
+    mut a: LocalBlocks,
+    reassemble: impl FnOnce() -> Result<LocalBlocks>,
+    keep: bool,
+) -> Result<(Solved, Option<Factored>)> {
     let comm = job.comm;
     let (n, panel) = (a.n(), a.rows.nb);
     let used = match kind.resolve(n) {
@@ -339,17 +358,26 @@ pub fn solve_2d(
     let done =
         |x, used, fallback| Solved { x, used, panel, fallback, refinement: None, mixed_fallback: None };
     let outcome = match used {
-        SolverKind::Householder => householder2d_solve(job, grid, &mut a),
-        SolverKind::Lu | SolverKind::Auto => lu2d_solve(job, grid, &mut a),
-        SolverKind::Cholesky => cholesky2d_solve(job, grid, &mut a, k),
+        SolverKind::Householder => householder2d_solve(job, grid, &mut a).map(|x| (x, None)),
+        SolverKind::Lu | SolverKind::Auto => lu2d_solve(job, grid, &mut a).map(|x| (x, None)),
+        SolverKind::Cholesky if keep => cholesky2d::factor_and_solve(job, grid, &mut a, k)
+            .map(|(x, border, sign)| (x, Some((border, sign)))),
+        SolverKind::Cholesky => cholesky2d_solve(job, grid, &mut a, k).map(|x| (x, None)),
     };
     match agree(comm, outcome) {
-        Ok(x) => Ok(done(x, used, None)),
+        Ok((x, kept)) => {
+            let factor = kept.map(|(border, sign)| {
+                let rows = a.to_row_cyclic(grid, k, (n - k, k));
+                let panel = if job.panel > 0 { job.panel } else { SolverKind::Cholesky.default_panel(n) };
+                Factored::new(rows, border, sign, panel)
+            });
+            Ok((done(x, used, None), factor))
+        }
         Err(e) if e.is_not_definite() => {
             drop(a);
             let mut a = reassemble()?;
             let x = agree(comm, lu2d_solve(job, grid, &mut a))?;
-            Ok(done(x, SolverKind::Lu, Some(e)))
+            Ok((done(x, SolverKind::Lu, Some(e)), None))
         }
         Err(e) => Err(e),
     }
