@@ -425,13 +425,16 @@ fn an_off_surface_fit_on_a_2d_grid_borders_its_factor_as_row_cyclic_does() {
         (model, out, p.with_extension("hdf"))
     };
     let (serial, serial_out, _) = fit(1, "row-cyclic");
-    let bordered = "second fit: the first fit's factor (1231 centres) bordered by 303 appended centres";
-    assert!(serial_out.contains(bordered), "{serial_out}");
+    let bordered = "bordered by 303 appended centres";
+    let first = "second fit: the first fit's factor (1231 centres";
+    assert!(serial_out.contains(&format!("{first}) {bordered}")), "{serial_out}");
     for (ranks, layout, grid) in [(1, "2d", "1x1"), (2, "2d", "1x2"), (2, "2x1", "2x1"), (3, "1x3", "1x3")] {
         let (model, out, hdf) = fit(ranks, layout);
         let what = format!("--layout {layout} on {ranks} ranks");
         assert!(out.contains(&format!("(dense, 2D block-cyclic {grid})")), "{what}:\n{out}");
         assert!(out.contains(bordered) && !out.contains("factoring the whole system"), "{what}:\n{out}");
+        let moved = format!("{first}, moved from the process grid in ");
+        assert!(out.contains(&moved), "{what}:\n{out}");
         assert_eq!(model.spline.weights.len(), serial.spline.weights.len(), "{what}");
         let dw = common::rel_diff(&model.spline.weights, &serial.spline.weights);
         let dc = common::rel_diff(&model.spline.poly, &serial.spline.poly);

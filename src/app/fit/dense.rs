@@ -17,7 +17,7 @@ use crate::linalg::dist::{
     self, Bordered, Factored, Job, Layout, LocalBlocks, LocalRows, Precision, ProcessGrid, RowCyclic,
     SolverKind,
 };
-use crate::par::{agree, CallKind, Comm, Timed};
+use crate::par::{agree, max_over_ranks, CallKind, Comm, Timed};
 use crate::spline::hygiene::Prepared;
 use crate::spline::{fill_block, fill_block_lower, fill_rows_lower, residual_parts, Kernel, Spline};
 
@@ -192,6 +192,9 @@ pub struct KeptFactor {
     bordered: Option<Bordered>,
     /// Whether the first factorisation looked ahead (the report of the second fit says so).
     lookahead: bool,
+    /// The seconds the slowest rank took to move the first factor from the process grid to the
+    /// row-cyclic layout (None: factored row-cyclic).
+    moved: Option<f64>,
 }
 
 impl KeptFactor {
@@ -274,6 +277,7 @@ fn fit_bordered(
                     centres: prep.centres.clone(),
                     bordered: Some(bordered),
                     lookahead: first.lookahead,
+                    moved: first.moved,
                 };
                 (x, Some(kept))
             }),
@@ -291,8 +295,9 @@ fn fit_bordered(
     };
     let layout = RowCyclic::new(prep.values.len() + kernel.poly_count(), comm.size(), comm.rank());
     let m = prep.values.len() - n;
+    let moved = first.moved.map_or(String::new(), |s| format!(", moved from the process grid in {s:.3} s"));
     let how = format!(
-        "the first fit's factor ({n} centres) bordered by {m} appended centres{}",
+        "the first fit's factor ({n} centres{moved}) bordered by {m} appended centres{}",
         if kept.is_some() { "" } else { ", solved again for new values," }
     );
     let bordered = Some((n, format!("{how} in {seconds:.3} s")));
@@ -379,13 +384,21 @@ pub fn fit(
     };
     stages.add(Stage::CommWait, timed.seconds());
     let (solved, factor) = solved?;
+    let moved = factor.as_ref().and_then(|f| f.moved()).map(|s| max_over_ranks(comm, s));
     let kept = factor.map(|factor| KeptFactor {
         factor: Rc::new(factor),
         centres: centres.clone(),
         bordered: None,
         lookahead,
+        moved,
     });
     let mut fitted = finish(run, kernel, prep, solved, (layout, lookahead, None), &timed, stages);
+    if let Some(seconds) = moved {
+        fitted.line.push_str(&format!(
+            "\n  factor kept for later fits: moved from the process grid to the row-cyclic layout in {seconds:.3} s"
+        ));
+        fitted.figures.push(("factor_moved_max_s".into(), format!("{seconds:.6}")));
+    }
     fitted.factor = kept;
     Ok(fitted)
 }

@@ -86,6 +86,8 @@ pub struct Factored {
     sign: f64,
     panel: usize,
     kept: RefCell<Substituted>,
+    /// The seconds this rank took to move the factor from the 2D layout (None: factored here).
+    moved: Option<f64>,
 }
 
 /// Columns of Y = s L^{-1} [M_{k..n,0..k}  (Q^T E)_{k..n}] on this rank's rows k..n (see
@@ -99,7 +101,17 @@ struct Substituted {
 
 impl Factored {
     pub(super) fn new(rows: LocalRows, border: Border, sign: f64, panel: usize) -> Self {
-        Factored { rows, border, sign, panel, kept: RefCell::default() }
+        Factored { rows, border, sign, panel, kept: RefCell::default(), moved: None }
+    }
+
+    /// The factor moved from the 2D layout in `seconds` (on this rank).
+    pub(super) fn moved_in(self, seconds: f64) -> Self {
+        Factored { moved: Some(seconds), ..self }
+    }
+
+    /// The seconds this rank took to move the factor from the 2D layout, if it was moved.
+    pub fn moved(&self) -> Option<f64> {
+        self.moved
     }
 
     /// The appended centres whose substitutions this factor keeps for later extensions.

@@ -367,9 +367,10 @@ pub fn solve_2d_keeping(
     match agree(comm, outcome) {
         Ok((x, kept)) => {
             let factor = kept.map(|(border, sign)| {
+                let t0 = std::time::Instant::now();
                 let rows = a.to_row_cyclic(grid, k, (n - k, k));
                 let panel = if job.panel > 0 { job.panel } else { SolverKind::Cholesky.default_panel(n) };
-                Factored::new(rows, border, sign, panel)
+                Factored::new(rows, border, sign, panel).moved_in(t0.elapsed().as_secs_f64())
             });
             Ok((done(x, used, None), factor))
         }
