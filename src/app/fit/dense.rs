@@ -302,6 +302,9 @@ fn fit_bordered(
     );
     let bordered = Some((n, format!("{how} in {seconds:.3} s")));
     let mut fitted = finish(run, kernel, prep, solved, (layout, first.lookahead, bordered), &timed, stages);
+    if let Some(seconds) = first.moved {
+        fitted.figures.push(("factor_moved_max_s".into(), format!("{seconds:.6}")));
+    }
     fitted.factor = kept;
     Ok(fitted)
 }
