@@ -411,8 +411,8 @@ pub fn fit(
 /// lower triangle). Where they have not, rank 0 says so and later fits factor their systems
 /// anew. Collective.
 fn copy_fits(comm: &dyn Comm, rows: usize) -> bool {
-    let one = dense_fit_bytes(rows, comm.size(), Precision::F64, true) - 200e6;
-    let need = one + dense_fit_bytes(rows, comm.size(), Precision::F64, true);
+    // two copies of the lower triangle, one allowance for the rest
+    let need = 2.0 * dense_fit_bytes(rows, comm.size(), Precision::F64, true) - 200e6;
     let room = super::agreed_room(comm);
     if need <= room {
         return true;

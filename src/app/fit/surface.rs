@@ -312,8 +312,8 @@ pub fn check_first_fit(
     };
     // the kept fit's own bordered factor where it has one (a second fit), else the first fit's
     let basis = fit.factor.take().or(factor);
-    // without a kept factor (a solver the user chose, or no room to keep it) a try is a fresh fit: affordable
-    // on small systems alone
+    // without a kept factor (a solver the user chose, or no room to keep it) a try is a fresh
+    // fit: affordable on small systems alone
     let affordable = basis.is_some() || c.prep.values.len() < FRESH_TRIES_BELOW;
     if run.args.orient_turns && affordable {
         return turn_by_surface(run, data, c, (fit, values), stages, refit, (basis.as_ref(), &lattice));

@@ -326,10 +326,8 @@ impl LocalBlocks {
             // what this rank sends: those entries of its columns c0..c1, by row owner
             let mut send_counts = vec![0; p];
             for lc in local_cols.clone() {
-                for lr in
-                    ranges(&|g| self.rows.first_local_from(g), self.cols.global(lc)).into_iter().flatten()
-                {
-                    send_counts[dest[lr]] += 1;
+                for part in ranges(&|g| self.rows.first_local_from(g), self.cols.global(lc)) {
+                    dest[part].iter().for_each(|&to| send_counts[to] += 1);
                 }
             }
             let mut at = offsets(&send_counts);
@@ -337,12 +335,11 @@ impl LocalBlocks {
             send.resize(at[p], 0.0);
             for lc in local_cols {
                 let column = &self.data[lc * ld..(lc + 1) * ld];
-                for lr in
-                    ranges(&|g| self.rows.first_local_from(g), self.cols.global(lc)).into_iter().flatten()
-                {
-                    let to = &mut at[dest[lr]];
-                    send[*to] = column[lr];
-                    *to += 1;
+                for part in ranges(&|g| self.rows.first_local_from(g), self.cols.global(lc)) {
+                    for (&to, &v) in dest[part.clone()].iter().zip(&column[part]) {
+                        send[at[to]] = v;
+                        at[to] += 1;
+                    }
                 }
             }
             // what it receives: those entries of its rows in columns c0..c1, by block owner
