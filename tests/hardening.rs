@@ -318,13 +318,20 @@ fn edited_models_are_refused() {
     ];
     let (dir, model) = fitted_model("hardening-edits");
     let input = dir.join("points.xyz");
+    // HDF5 opens its files without close-on-exec and locks them, so a binary that another test
+    // of this process starts while a file is open for writing inherits the lock and holds it
+    // until it ends. The edit is made on a scratch file outside `dir`, and the binary reads a
+    // fresh copy of it: a new file, which no lock covers.
+    let scratch = temp_dir("hardening-edits-scratch");
     for (name, edit, needle) in edits {
         let edited = dir.join(format!("{name}.model.h5"));
-        std::fs::copy(&model, &edited).unwrap();
+        let draft = scratch.join(format!("{name}.model.h5"));
+        std::fs::copy(&model, &draft).unwrap();
         {
-            let f = hdf5::File::open_rw(&edited).unwrap();
-            edit(&f, &Attrs { file: &f, path: &edited });
+            let f = hdf5::File::open_rw(&draft).unwrap();
+            edit(&f, &Attrs { file: &f, path: &draft });
         }
+        std::fs::copy(&draft, &edited).unwrap();
         let ranks = if name == "order4" { 2 } else { 0 };
         let out = run(ranks, &["eval", s(&edited), "--out", s(&dir.join("e")), "--grid", "8"]);
         refused(&out, 1, needle, &dir, &[&input, &model, &edited]);
