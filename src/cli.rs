@@ -379,6 +379,12 @@ pub struct GridArgs {
     /// `key,value` CSV to this file, for scaling studies.
     #[arg(long, value_name = "FILE")]
     pub timings: Option<PathBuf>,
+    /// The most memory each rank may use: bytes with a unit, as 800MB, 4GB or 2GiB (default: the
+    /// node's available memory and the job's cgroup limit, shared by the ranks on the node). The
+    /// checks before each heavy stage, the choice of --method auto and whether a 2D factor is
+    /// kept for later fits go by the smaller of this and the system's figure.
+    #[arg(long, value_name = "SIZE", value_parser = memory_size)]
+    pub memory_per_rank: Option<f64>,
     /// Also write the mean and Gaussian curvature of the level surfaces: arrays
     /// `mean_curvature` and `gaussian_curvature` in PREFIX.hdf (at every node, of the level
     /// surface through it) and vertex properties of the same names in PREFIX.ply.
@@ -430,6 +436,17 @@ pub struct ViewArgs {
 
 impl Cli {
     /// The --threads value of whichever command was given.
+    /// The `--memory-per-rank` limit in bytes, for the commands that take it.
+    pub fn memory_per_rank(&self) -> Option<f64> {
+        match &self.command {
+            Command::Fit(a) => a.grid.memory_per_rank,
+            Command::Eval(a) => a.grid.memory_per_rank,
+            Command::Morph(a) => a.grid.memory_per_rank,
+            Command::Contours(a) => a.grid.memory_per_rank,
+            Command::Slice(_) | Command::Render(_) => None,
+        }
+    }
+
     pub fn threads(&self) -> usize {
         match &self.command {
             Command::Fit(a) => a.grid.threads,
@@ -690,6 +707,33 @@ fn colouring(s: &str) -> Parsed<Colouring> {
     }
 }
 
+/// A memory size: a number and a unit, KB, MB, GB, TB (powers of 1000; K, M, G, T alike) or KiB,
+/// MiB, GiB, TiB (powers of 1024), at least 1 MB and at most 1 PB.
+fn memory_size(s: &str) -> Parsed<f64> {
+    let t = s.trim();
+    let split = t.find(|c: char| c.is_ascii_alphabetic()).unwrap_or(t.len());
+    let (number, unit) = (t[..split].trim(), &t[split..]);
+    let scale = match unit.to_ascii_uppercase().as_str() {
+        "K" | "KB" => 1e3,
+        "M" | "MB" => 1e6,
+        "G" | "GB" => 1e9,
+        "T" | "TB" => 1e12,
+        "KIB" => 1024.0,
+        "MIB" => 1024f64.powi(2),
+        "GIB" => 1024f64.powi(3),
+        "TIB" => 1024f64.powi(4),
+        "" => return Err(format!("'{s}' has no unit: write it as 800MB, 4GB or 2GiB")),
+        other => {
+            return Err(format!("'{other}' is not a memory unit (KB, MB, GB, TB, KiB, MiB, GiB or TiB)"))
+        }
+    };
+    match number.parse::<f64>() {
+        Ok(v) if v.is_finite() && (1e6..=1e15).contains(&(v * scale)) => Ok(v * scale),
+        Ok(_) => Err(format!("'{s}': expected a memory size from 1MB to 1PB")),
+        Err(_) => Err(format!("'{s}' is not a memory size (such as 800MB, 4GB or 2GiB)")),
+    }
+}
+
 fn margin(s: &str) -> Parsed<f64> {
     number_in(s, 0.0..=10.0, "[0, 10]")
 }
@@ -728,6 +772,19 @@ mod tests {
     }
 
     #[test]
+    fn memory_sizes_take_decimal_and_binary_units() {
+        for (text, bytes) in
+            [("800MB", 8e8), ("4GB", 4e9), ("4g", 4e9), (" 1.5 TB", 1.5e12), ("2GiB", 2147483648.0)]
+        {
+            assert_eq!(memory_size(text), Ok(bytes), "{text}");
+        }
+        let cli = parse(&["contours", "c.txt", "--out", "o", "--memory-per-rank", "512MiB"]).unwrap();
+        assert_eq!(cli.memory_per_rank(), Some(512.0 * 1024.0 * 1024.0));
+        assert_eq!(parse(&["fit", "a.xyz", "--out", "o"]).unwrap().memory_per_rank(), None);
+        assert!(memory_size("12").unwrap_err().contains("no unit"));
+    }
+
+    #[test]
     fn bad_values_are_usage_errors_before_anything_runs() {
         for bad in [
             &["fit", "a.xyz", "--out", "o", "--solver", "gauss"][..],
@@ -755,6 +812,10 @@ mod tests {
             &["render", "m.h5", "--out", "p.png", "--up", "w"],
             &["render", "m.h5", "--out", "p.png", "--color", "rainbow"],
             &["fit", "a.xyz", "--out", "o", "--surface", "poisson"],
+            &["fit", "a.xyz", "--out", "o", "--memory-per-rank", "4096"],
+            &["fit", "a.xyz", "--out", "o", "--memory-per-rank", "4 bytes"],
+            &["fit", "a.xyz", "--out", "o", "--memory-per-rank", "0.5KB"],
+            &["eval", "m.h5", "--out", "o", "--memory-per-rank", "-1GB"],
             &["fit", "a.xyz", "--out", "o", "--off-points", "0"],
             &["fit", "a.xyz", "--out", "o", "--off-points", "2.5"],
             &["fit", "a.xyz", "--out", "o", "--off-points", "nan"],

@@ -25,6 +25,9 @@ fn main() {
         eprintln!("volspline: error: MPI could not be initialised");
         std::process::exit(1);
     };
+    if let Some(bytes) = cli.memory_per_rank() {
+        volspline::app::preflight::limit_memory(bytes);
+    }
     let threads = default_threads(cli.threads());
     let comm = world.comm();
     let code = match rayon::ThreadPoolBuilder::new().num_threads(threads).build_global() {

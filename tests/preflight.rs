@@ -1,11 +1,14 @@
 //! Runs that cannot finish are refused before the heavy work, with the figures and what to do, on
 //! every rank count, and leave no output: a dense system larger than the memory (a densely
 //! resampled bunny, `--method dense`), a grid larger than the memory, an output prefix that names a directory or a
-//! missing one, an absurd thread count.
+//! missing one, an absurd thread count. The user's `--memory-per-rank` decides those checks, the
+//! method `auto` takes and whether a 2D factor is kept for the second fits (the fit is the same).
 
 mod common;
 
 use std::path::Path;
+
+use volspline::io::model_file::read_model;
 
 /// `per_face` points on each bunny triangle (barycentric lattice), 3 values per point.
 fn resampled_bunny(per_face: usize) -> Vec<f64> {
@@ -74,4 +77,117 @@ fn a_grid_too_large_and_bad_prefixes_are_refused_with_reasons() {
         }
     }
     assert_eq!(files_in(&dir), ["bunny.xyz"]);
+}
+
+/// The bytes per rank the checks count for a dense off-surface fit of `rows` rows on `ranks`
+/// ranks (the projected Cholesky's lower triangle).
+fn dense_bytes(rows: usize, ranks: usize) -> f64 {
+    volspline::app::preflight::dense_fit_bytes(rows, ranks, volspline::linalg::dist::Precision::F64, true)
+}
+
+/// `--memory-per-rank` bytes, as the option takes them.
+fn megabytes(bytes: f64) -> String {
+    format!("{:.1}MB", bytes / 1e6)
+}
+
+#[test]
+fn the_memory_per_rank_the_user_sets_decides_the_checks_and_the_method() {
+    // the cow with a hole: 896 points, 335 off points in the dense fit (1235 rows); the checks
+    // count the lower triangle and 200 MB of fixed part per rank, so 213 MB on one rank
+    let dir = common::temp_dir("preflight-limit");
+    let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/cow-1000-open.xyz");
+    let i = input.to_str().unwrap();
+    let p = dir.join("o");
+    let o = p.to_str().unwrap();
+    for ranks in [1, 2] {
+        // too little for the dense system: refused before the assembly, saying whose limit it is;
+        // `auto` takes the two levels for it, whose level 0 is then that same dense fit
+        let cases: [(&[&str], &str); 2] = [
+            (&["--method", "dense"], "not enough memory: the dense system of 1235 rows"),
+            (&[], "not enough memory: level 0 of the two-level fit (a dense off-surface fit of 896 of the points)"),
+        ];
+        for (extra, message) in cases {
+            let args = [&["fit", i, "--out", o, "--memory-per-rank", "150MB"][..], extra].concat();
+            let out = common::run(ranks, &args);
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(out.status.code(), Some(1), "{args:?} on {ranks}: {err}");
+            assert!(err.contains(message), "{args:?} on {ranks}: {err}");
+            assert!(
+                err.contains("this rank can have 150 MB (--memory-per-rank)"),
+                "{args:?} on {ranks}: {err}"
+            );
+            assert_eq!(files_in(&dir), Vec::<String>::new(), "{args:?} on {ranks}");
+        }
+    }
+    // `auto` chooses by the limit: with room for level 0 (300 points and their off points) but
+    // not for the dense system of all points with theirs (at most 896 + 448 + 4 rows), the two
+    // levels; without the limit, dense
+    let most = dense_bytes(896 + 448 + 4, 1);
+    let level0 = dense_bytes(300 + 150 + 4, 1);
+    assert!(most - level0 > 8e6, "{most} vs {level0}");
+    let limit = megabytes(most - 2e6);
+    let args = ["fit", i, "--out", o, "--grid", "32", "--no-preview", "--coarse-points", "300"];
+    let text = common::run_ok(1, &[&args[..], &["--memory-per-rank", &limit]].concat());
+    assert!(text.contains("method csrbf (auto: the dense system would need 0.2 GB per rank"), "{text}");
+    assert!(
+        text.contains("two levels: level 0 dense (kernel r") && text.contains("on 300 of the points"),
+        "{text}"
+    );
+    let text = common::run_ok(1, &args);
+    assert!(text.contains("method dense (auto: the dense system fits"), "{text}");
+}
+
+#[test]
+fn a_2d_factor_without_room_for_its_copy_is_not_kept_and_the_fit_is_the_same() {
+    // the cow with a hole on a process grid: the first fit (1235 rows) keeps its factor for the
+    // second fits by moving it to the row-cyclic layout, a second copy of its lower triangle.
+    // With a limit that takes the largest fresh second fit (1231 + 303 centres) but not the
+    // two copies, the factor is not kept, the second fits factor their systems anew, the turns
+    // are skipped (none turned with the factor either), and the spline is the same
+    let dir = common::temp_dir("preflight-no-copy");
+    let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/cow-1000-open.xyz");
+    for (ranks, layout) in [(1, "2d"), (2, "1x2")] {
+        let held = dense_bytes(1235, ranks);
+        let (fresh, both) = (dense_bytes(1538, ranks), 2.0 * held - 200e6);
+        assert!(both - fresh > 4e6, "{fresh} vs {both}");
+        let limit = megabytes((fresh + both) / 2.0);
+        let fit = |name: &str, limit: Option<&str>| {
+            let p = dir.join(format!("{name}-{ranks}"));
+            let mut args = vec![
+                "fit",
+                input.to_str().unwrap(),
+                "--out",
+                p.to_str().unwrap(),
+                "--grid",
+                "40",
+                "--no-preview",
+                "--layout",
+                layout,
+            ];
+            args.extend(limit.iter().flat_map(|l| ["--memory-per-rank", l]));
+            let out = common::run(ranks, &args);
+            let text =
+                format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+            assert!(out.status.success(), "{args:?}: {text}");
+            (read_model(&p.with_extension("model.h5")).unwrap(), text, p.with_extension("hdf"))
+        };
+        let (kept, kept_text, _) = fit("kept", None);
+        assert!(kept_text.contains("moved from the process grid in"), "{kept_text}");
+        assert!(kept_text.contains("turns: 0 of 1 patches tried"), "{kept_text}");
+        let (anew, text, hdf) = fit("anew", Some(&limit));
+        let what = format!("{layout} on {ranks} ranks, --memory-per-rank {limit}");
+        assert!(text.contains("the 2D factor is not kept for later fits"), "{what}: {text}");
+        assert!(
+            !text.contains("moved from the process grid") && !text.contains("bordered by"),
+            "{what}: {text}"
+        );
+        assert!(
+            text.contains("turns: skipped (no factor kept to try them with), fitted 4 times"),
+            "{what}: {text}"
+        );
+        let dw = common::rel_diff(&anew.spline.weights, &kept.spline.weights);
+        let dc = common::rel_diff(&anew.spline.poly, &kept.spline.poly);
+        assert!(dw < 1e-8 && dc < 1e-8, "{what}: weights {dw:e}, poly {dc:e}");
+        assert!(common::volume_diff(&hdf, &kept) < 1e-8, "{what}");
+    }
 }

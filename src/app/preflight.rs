@@ -5,9 +5,14 @@
 //!
 //! What a rank can have is the smaller of the node's available memory (`MemAvailable`) and the
 //! cgroup limit of the job (v2 `memory.max`, v1 `memory.limit_in_bytes`), shared equally by the
-//! ranks on the node (`OMPI_COMM_WORLD_LOCAL_SIZE` and its equivalents).
+//! ranks on the node (`OMPI_COMM_WORLD_LOCAL_SIZE` and its equivalents), and at most the limit
+//! the user set (`--memory-per-rank`, [`limit_memory`]). The system's figures are read at the
+//! moment of the check, so they already leave out what the rank holds by then; the user's limit
+//! is on everything the rank holds, so a check made while the rank holds something
+//! ([`check_memory_beside`]) compares with the limit less that.
 
 use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 
 use crate::cli::ranks_on_this_node;
 use crate::error::{Error, Result};
@@ -32,8 +37,11 @@ pub fn dense_fit_bytes(system: usize, ranks: usize, precision: Precision, lower:
         Precision::Mixed => (12.0, 2.0),
     };
     let matrix = if lower { rows * cols * bytes / 2.0 + cols * PAGE * copies } else { rows * cols * bytes };
-    1.15 * matrix + 200e6
+    1.15 * matrix + FIXED_BYTES
 }
+
+/// The fixed part of a rank's memory in the estimates: libraries, MPI's and HDF5's buffers.
+pub const FIXED_BYTES: f64 = 200e6;
 
 /// The page size the estimates assume.
 const PAGE: f64 = 4096.0;
@@ -57,8 +65,35 @@ pub fn grid_bytes(grid: &Grid, ranks: usize) -> f64 {
     2.0 * (nx * ny * layers) as f64 * 8.0
 }
 
-/// Bytes this rank can use, and where the figure comes from, when the system says.
+/// The user's limit on the memory of each rank, in bytes (`--memory-per-rank`).
+static LIMIT: OnceLock<f64> = OnceLock::new();
+
+/// Caps what every later check lets a rank have at `bytes` (the first call holds). Called once,
+/// by the binary, from the command line; the library alone has no limit but the system's.
+pub fn limit_memory(bytes: f64) {
+    let _ = LIMIT.set(bytes);
+}
+
+/// Bytes this rank can use, and where the figure comes from, when the system or the user says.
 pub fn available_per_rank() -> Option<(f64, String)> {
+    available_beside(0.0)
+}
+
+/// Bytes this rank can take on top of the `held` bytes it holds now, and where the figure comes
+/// from: the system's figure now, or the user's limit less `held`, the smaller.
+pub fn available_beside(held: f64) -> Option<(f64, String)> {
+    let system = system_per_rank();
+    match (system, LIMIT.get()) {
+        (Some((bytes, _)), Some(&limit)) if limit - held < bytes => {
+            Some(((limit - held).max(0.0), "--memory-per-rank".into()))
+        }
+        (None, Some(&limit)) => Some(((limit - held).max(0.0), "--memory-per-rank".into())),
+        (system, _) => system,
+    }
+}
+
+/// Bytes this rank can use by the system's figures, and where they come from, when it says.
+fn system_per_rank() -> Option<(f64, String)> {
     let meminfo = std::fs::read_to_string("/proc/meminfo").ok();
     let avail = meminfo.as_deref().and_then(|m| {
         let line = m.lines().find(|l| l.starts_with("MemAvailable:"))?;
@@ -81,12 +116,22 @@ pub fn available_per_rank() -> Option<(f64, String)> {
 /// Refuses the run when a rank would need more than it can have. `what` names the need, `advice`
 /// says what to change. Collective: every rank checks its own node and all agree.
 pub fn check_memory(comm: &dyn Comm, need: f64, what: &str, advice: &str) -> Result<()> {
-    let local = match available_per_rank() {
-        Some((have, source)) if need > have => Err(Error::Memory(format!(
-            "{what} needs about {} per rank, but this rank can have {} ({source}); {advice}",
-            gigabytes(need),
-            gigabytes(have)
-        ))),
+    check_memory_beside(comm, 0.0, need, what, advice)
+}
+
+/// [`check_memory`] of a `need` on top of `held` bytes the rank holds now (a kept factor).
+/// Collective.
+pub fn check_memory_beside(comm: &dyn Comm, held: f64, need: f64, what: &str, advice: &str) -> Result<()> {
+    let local = match available_beside(held) {
+        Some((have, source)) if need > have => {
+            let beside =
+                if held > 0.0 { format!(" beside the {} it holds", gigabytes(held)) } else { String::new() };
+            Err(Error::Memory(format!(
+                "{what} needs about {} per rank, but this rank can have {}{beside} ({source}); {advice}",
+                gigabytes(need),
+                gigabytes(have)
+            )))
+        }
         _ => Ok(()),
     };
     agree(comm, local)

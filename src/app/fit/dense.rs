@@ -7,7 +7,9 @@ use std::rc::Rc;
 use faer::Par;
 
 use super::{Fitted, Run};
-use crate::app::preflight::{bordered_fit_bytes, check_memory, dense_fit_bytes};
+use crate::app::preflight::{
+    bordered_fit_bytes, check_memory, check_memory_beside, dense_fit_bytes, FIXED_BYTES,
+};
 use crate::app::progress::Progress;
 use crate::app::stages::{Stage, Stages};
 use crate::cli::FitArgs;
@@ -160,7 +162,7 @@ pub(super) fn lower_for(solver: SolverKind, kernel: &Kernel, system: usize) -> b
 }
 
 /// What a dense system's memory check advises.
-const DENSE_ADVICE: &str = "use --method csrbf (compactly supported, sparse), more ranks or nodes (the rows are split over all ranks) or fewer points";
+pub const DENSE_ADVICE: &str = "use --method csrbf (compactly supported, sparse), more ranks or nodes (the rows are split over all ranks) or fewer points";
 
 /// Refuses a dense system that does not fit in the ranks' memory: for the projected Cholesky the
 /// lower triangle it assembles (a fallback to LU checks the whole matrix before assembling it).
@@ -230,9 +232,11 @@ pub fn refit(
     }
     if let Some(first) = first.filter(|f| f.extended_by(prep)) {
         let (n, m) = (first.factor.centres(), prep.values.len() - first.factor.centres());
-        check_memory(
+        let k = kernel.poly_count();
+        check_memory_beside(
             run.comm,
-            bordered_fit_bytes(n, m, kernel.poly_count(), run.comm.size()),
+            dense_fit_bytes(n + k, run.comm.size(), Precision::F64, true),
+            bordered_fit_bytes(n, m, k, run.comm.size()),
             &format!("bordering the first fit's factor ({n} centres) by {m} more"),
             "use more ranks or nodes, --blob-choice off, or fewer points",
         )?;
@@ -406,21 +410,21 @@ pub fn fit(
     Ok(fitted)
 }
 
-/// Whether the ranks have room, beside the 2D blocks of a projected Cholesky of `rows` rows, for
-/// its factor moved to the row-cyclic layout to be kept for bordering (about as much again: the
-/// lower triangle). Where they have not, rank 0 says so and later fits factor their systems
-/// anew. Collective.
+/// Whether the ranks have room, beside the 2D blocks of a projected Cholesky of `rows` rows that
+/// they hold, for its factor moved to the row-cyclic layout to be kept for bordering (about as
+/// much again: the lower triangle). Where they have not, rank 0 says so and later fits factor
+/// their systems anew. Collective.
 fn copy_fits(comm: &dyn Comm, rows: usize) -> bool {
-    // two copies of the lower triangle, one allowance for the rest
-    let need = 2.0 * dense_fit_bytes(rows, comm.size(), Precision::F64, true) - 200e6;
-    let room = super::agreed_room(comm);
-    if need <= room {
+    let held = dense_fit_bytes(rows, comm.size(), Precision::F64, true);
+    let copy = held - FIXED_BYTES;
+    let room = super::agreed_room(comm, held);
+    if copy <= room {
         return true;
     }
     if comm.rank() == 0 {
         eprintln!(
-            "volspline: the 2D factor is not kept for later fits: with its row-cyclic copy it needs about {:.2} GB per rank, {:.2} GB are free; those fits factor their systems anew",
-            need / 1e9,
+            "volspline: the 2D factor is not kept for later fits: its row-cyclic copy needs about {:.2} GB more per rank, {:.2} GB are free; those fits factor their systems anew",
+            copy / 1e9,
             room / 1e9
         );
     }

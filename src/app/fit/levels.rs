@@ -28,7 +28,7 @@ use std::time::Instant;
 use super::surface::{check_first_fit, constrain, SurfaceSummary};
 use super::{dense, Fitted, Run};
 use crate::app::stages::{Stage, Stages};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::par::Comm;
 use crate::spline::compact::DEFAULT_NEIGHBOURS;
 use crate::spline::hygiene::Prepared;
@@ -109,6 +109,22 @@ fn eval_everywhere(comm: &dyn Comm, spline: &Spline, points: &[f64]) -> Vec<f64>
     all
 }
 
+/// A memory refusal of level 0 said as such, with the advice that helps there: the dense
+/// checks advise the compactly supported method, which this already is.
+fn in_level0(e: Error, points: usize) -> Error {
+    match e {
+        Error::Memory(m) => Error::Memory(format!(
+            "level 0 of the two-level fit (a dense off-surface fit of {points} of the points): {}",
+            m.replace(dense::DENSE_ADVICE, LEVEL0_ADVICE)
+        )),
+        e => e,
+    }
+}
+
+/// What to change where level 0 does not fit.
+const LEVEL0_ADVICE: &str =
+    "use a smaller --coarse-points (level 0 has about 1.5 rows per point), more ranks or nodes, or --surface carrier";
+
 /// Fits level 0 on a subsample of `prep` and the compactly supported `kernel` through all of its
 /// points on top (see the module doc). `kernel`'s support is the caller's. Collective.
 pub fn fit(
@@ -127,11 +143,14 @@ pub fn fit(
     let r = Kernel::new(3, 2)?.with_smoothing(run.args.smooth)?;
     let mut refit =
         |p: &Prepared, first: Option<&dense::KeptFactor>, st: &mut Stages| dense::refit(run, r, p, first, st);
-    dense::check(run.comm, &r, constrained.prep.values.len(), run.args.precision, run.args.solver)?;
-    let first = dense::fit(run, r, &constrained.prep, true, &mut inner)?;
-    // level 0 decides the sign away from the data: its spurious blobs are cleared like a
-    // single-level fit's
-    let level0 = check_first_fit(run, &sub, &mut constrained, first, &mut inner, &mut refit)?;
+    let level0 = (|| {
+        dense::check(run.comm, &r, constrained.prep.values.len(), run.args.precision, run.args.solver)?;
+        let first = dense::fit(run, r, &constrained.prep, true, &mut inner)?;
+        // level 0 decides the sign away from the data: its spurious blobs are cleared like a
+        // single-level fit's
+        check_first_fit(run, &sub, &mut constrained, first, &mut inner, &mut refit)
+    })()
+    .map_err(|e| in_level0(e, keep.len()))?;
     crate::app::finite::check_fit(&level0, &constrained.prep)?;
     let rows = constrained.prep.values.len();
     let summary = constrained.summary.clone();

@@ -13,7 +13,7 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
-use super::preflight::{available_per_rank, check_prefix, dense_fit_bytes};
+use super::preflight::{available_beside, check_prefix, dense_fit_bytes};
 use super::render::{preview_view, write_picture};
 use super::report::{run_provenance, Report};
 use super::stages::{Stage, Stages};
@@ -90,11 +90,11 @@ fn wendland(a: &FitArgs, smoothness: u8, centres: &[f64]) -> Result<Kernel> {
     Kernel::wendland(name, support)
 }
 
-/// The memory `auto` may count on for the dense system per rank: the least any rank has, so that
-/// every rank makes the same choice (each reads its own node's memory, at its own moment).
-/// Collective.
-fn agreed_room(comm: &dyn Comm) -> f64 {
-    let mut room = [available_per_rank().map_or(f64::INFINITY, |(b, _)| b)];
+/// The memory per rank that `auto` may count on for the dense system, or that a rank holding
+/// `held` bytes may take on top of them: the least any rank has, so that every rank makes the
+/// same choice (each reads its own node's memory, at its own moment). Collective.
+fn agreed_room(comm: &dyn Comm, held: f64) -> f64 {
+    let mut room = [available_beside(held).map_or(f64::INFINITY, |(b, _)| b)];
     comm.min_f64(&mut room);
     room[0]
 }
@@ -165,7 +165,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     // off-surface fit of a subsample, and the Wendland spline through all points on top of it
     // (levels.rs). The choice is made for the most rows the off points can add (the choice is
     // monotone in the rows), so a dense choice below holds once they are known
-    let machine = (comm.size(), agreed_room(comm));
+    let machine = (comm.size(), agreed_room(comm, 0.0));
     let most_rows = n + (a.off_points * n as f64).ceil() as usize;
     let most = off.then(|| choose(a, most_rows, machine, &prep.centres)).transpose()?;
     // the two-level fit takes the method and kernel chosen for those rows: `auto` may find the
@@ -528,6 +528,7 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
                 "; turns: {} of {} patches tried ({} points) turned, unsupported crossings {} -> {}",
                 t.turned, t.tried, t.turned_points, t.before, t.after
             ),
+            None if s.turns_skipped => "; turns: skipped (no factor kept to try them with)".to_string(),
             None => String::new(),
         } + &match s.fits() {
             1 => String::new(),

@@ -74,6 +74,9 @@ pub struct SurfaceSummary {
     /// The patches turned by the unsupported surface (None: not run, since `--orient-turns off`
     /// or the system is too large to refit afresh and kept no factor).
     pub turns: Option<TurnCheck>,
+    /// Whether the turns were asked for but skipped: the system was too large to refit afresh
+    /// for each try and kept no factor.
+    pub turns_skipped: bool,
 }
 
 impl SurfaceSummary {
@@ -242,6 +245,7 @@ pub fn constrain(
         second_round: None,
         restored: None,
         turns: None,
+        turns_skipped: false,
     };
     Ok(Constrained { prep: with_off_points(prep, &off), summary, hoods, normals: orientation.normals, off })
 }
@@ -318,6 +322,7 @@ pub fn check_first_fit(
     if run.args.orient_turns && affordable {
         return turn_by_surface(run, data, c, (fit, values), stages, refit, (basis.as_ref(), &lattice));
     }
+    c.summary.turns_skipped = run.args.orient_turns;
     Ok(fit)
 }
 
