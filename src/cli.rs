@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
 
+use crate::app::progress;
 use crate::contour::planes::PlaneFamily;
 use crate::contour::{Interp, Orient, SectionCarrier};
 use crate::error::{Error, Result};
@@ -379,6 +380,11 @@ pub struct GridArgs {
     /// `key,value` CSV to this file, for scaling studies.
     #[arg(long, value_name = "FILE")]
     pub timings: Option<PathBuf>,
+    /// Progress bars of the dense solve and the grid evaluation on rank 0's standard error: auto
+    /// (where that is a terminal; under Open MPI's mpirun it is a pipe, so none), on (always:
+    /// under mpirun they reach the terminal through it) or off.
+    #[arg(long, default_value = "auto", value_name = "auto|on|off", value_parser = progress::Mode::parse)]
+    pub progress: progress::Mode,
     /// The most memory each rank may use: bytes with a unit, as 800MB, 4GB or 2GiB (default: the
     /// node's available memory and the job's cgroup limit, shared by the ranks on the node). The
     /// checks before each heavy stage, the choice of --method auto and whether a 2D factor is
@@ -436,6 +442,17 @@ pub struct ViewArgs {
 
 impl Cli {
     /// The --threads value of whichever command was given.
+    /// The `--progress` mode (auto for the commands without one).
+    pub fn progress(&self) -> progress::Mode {
+        match &self.command {
+            Command::Fit(a) => a.grid.progress,
+            Command::Eval(a) => a.grid.progress,
+            Command::Morph(a) => a.grid.progress,
+            Command::Contours(a) => a.grid.progress,
+            Command::Slice(_) | Command::Render(_) => progress::Mode::Auto,
+        }
+    }
+
     /// The `--memory-per-rank` limit in bytes, for the commands that take it.
     pub fn memory_per_rank(&self) -> Option<f64> {
         match &self.command {

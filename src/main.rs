@@ -25,6 +25,7 @@ fn main() {
         eprintln!("volspline: error: MPI could not be initialised");
         std::process::exit(1);
     };
+    volspline::app::progress::set_mode(cli.progress());
     if let Some(bytes) = cli.memory_per_rank() {
         volspline::app::preflight::limit_memory(bytes);
     }

@@ -685,3 +685,43 @@ fn fits_write_only_their_own_messages_on_stderr() {
     let sample = "volspline fit: ok\nEX assemble 0.1\n-----\nA notice\n-----\n[node:12] note\n";
     assert_eq!(stray_lines(sample), ["EX assemble 0.1"]);
 }
+
+#[test]
+fn progress_bars_show_on_a_terminal_or_when_asked() {
+    // one process under `script` has a terminal on standard error: `auto` draws the solve's and
+    // the evaluation's bars, each ending full, and `off` none. Under mpirun standard error is a
+    // pipe: `auto` draws none, `on` draws them there all the same
+    let dir = temp_dir("progress");
+    let input = dir.join("p.xyz");
+    write_xyz(&input, &common::bunny_subset(8, 0));
+    let prefix = dir.join("m");
+    let full = |t: &str, stage: &str| {
+        t.lines().any(|l| l.contains(stage) && l.contains("100%") && l.contains("elapsed"))
+    };
+    let fit = format!("{} fit {} --out {} --grid 48 --no-preview", common::BIN, s(&input), s(&prefix));
+    for (mode, drawn) in [("auto", true), ("off", false)] {
+        let out = std::process::Command::new("script")
+            .args(["-qec", &format!("{fit} --progress {mode}"), "/dev/null"])
+            .env("RAYON_NUM_THREADS", "1")
+            .stdin(std::process::Stdio::null())
+            .output()
+            .expect("script (util-linux) runs the fit on a terminal");
+        let t = text(&out);
+        assert!(out.status.success(), "{mode}: {t}");
+        assert!(t.contains("peak memory per rank"), "{mode}: {t}");
+        for stage in ["solve", "evaluate"] {
+            assert_eq!(full(&t, stage), drawn, "--progress {mode} on a terminal, {stage}:\n{t}");
+        }
+    }
+    for (ranks, mode, drawn) in [(0, "auto", false), (2, "auto", false), (2, "on", true), (2, "off", false)] {
+        let args =
+            ["fit", s(&input), "--out", s(&prefix), "--grid", "48", "--no-preview", "--progress", mode];
+        let out = run(ranks, &args);
+        let (t, err) = (text(&out), String::from_utf8_lossy(&out.stderr));
+        assert!(out.status.success(), "{t}");
+        for stage in ["solve", "evaluate"] {
+            assert_eq!(full(&err, stage), drawn, "--progress {mode} on {ranks} ranks, {stage}:\n{t}");
+        }
+        assert!(!String::from_utf8_lossy(&out.stdout).contains("elapsed"), "a bar on standard output:\n{t}");
+    }
+}

@@ -1,36 +1,173 @@
-//! The progress line of a long stage, drawn by rank 0 when it writes to a terminal.
+//! The progress bar of a long stage (the dense solve, the grid evaluation), drawn by rank 0 on
+//! its standard error for a person watching.
+//!
+//! When to draw is `--progress` ([`set_mode`]): `auto` draws where rank 0's standard error is a
+//! terminal, so that output redirected to files holds the report alone. Open MPI's `mpirun`
+//! hands every rank a pseudo-terminal for standard output whatever the user's terminal is, and
+//! a pipe for standard error, so neither tells whether a person watches: under it `auto` draws
+//! nothing, and `on` draws on standard error all the same (it reaches the user's terminal
+//! through the launcher, escape codes and all).
 
+use std::cell::OnceCell;
 use std::io::{IsTerminal, Write};
+use std::sync::OnceLock;
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle, TermLike};
 
 use crate::par::Comm;
 
-/// Progress of a long stage on rank 0, redrawn in place on a terminal, silent otherwise.
+/// When progress bars are drawn (`--progress`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mode {
+    /// Where rank 0's standard error is a terminal.
+    Auto,
+    /// Always, on rank 0's standard error.
+    On,
+    /// Never.
+    Off,
+}
+
+impl Mode {
+    pub fn parse(s: &str) -> Result<Mode, String> {
+        match s {
+            "auto" => Ok(Mode::Auto),
+            "on" => Ok(Mode::On),
+            "off" => Ok(Mode::Off),
+            other => Err(format!("expected auto, on or off, not '{other}'")),
+        }
+    }
+}
+
+static MODE: OnceLock<Mode> = OnceLock::new();
+
+/// Sets when bars are drawn for the rest of the run (the first call holds; `auto` without one).
+/// Called once, by the binary, from the command line.
+pub fn set_mode(mode: Mode) {
+    let _ = MODE.set(mode);
+}
+
+/// Progress of a long stage on rank 0, redrawn in place, silent where no bar is drawn. The bar
+/// appears with the first report, so its clock starts with the work.
 pub struct Progress {
     label: &'static str,
-    enabled: bool,
-    last: std::cell::Cell<i64>,
+    draw: bool,
+    bar: OnceCell<ProgressBar>,
 }
 
 impl Progress {
+    /// A bar named `label`, drawn on rank 0 as the mode says (see the module doc). Not
+    /// collective.
     pub fn new(label: &'static str, comm: &dyn Comm) -> Self {
-        let enabled = comm.rank() == 0 && std::io::stderr().is_terminal();
-        Progress { label, enabled, last: std::cell::Cell::new(-1) }
+        let draw = comm.rank() == 0
+            && match MODE.get().copied().unwrap_or(Mode::Auto) {
+                Mode::Auto => std::io::stderr().is_terminal(),
+                Mode::On => true,
+                Mode::Off => false,
+            };
+        Progress { label, draw, bar: OnceCell::new() }
     }
 
-    /// Reports `done` of `total` units.
+    fn bar(&self, total: usize) -> ProgressBar {
+        let style = ProgressStyle::with_template(
+            "  {prefix:<8} [{bar:32}] {percent:>3}%  {elapsed} elapsed, about {eta} left",
+        )
+        .expect("a valid template")
+        .progress_chars("=> ");
+        let target = ProgressDrawTarget::term_like_with_hz(Box::new(Stderr), 10);
+        let bar = ProgressBar::with_draw_target(Some(total as u64), target);
+        bar.set_style(style);
+        bar.set_prefix(self.label);
+        bar
+    }
+
+    /// Reports `done` of `total` units; the bar ends, drawn full on a line of its own, once
+    /// `done` reaches `total`.
     pub fn update(&self, done: usize, total: usize) {
-        if !self.enabled || total == 0 {
+        if !self.draw || total == 0 {
             return;
         }
-        let pct = (100 * done / total) as i64;
-        if pct != self.last.get() {
-            self.last.set(pct);
-            let mut e = std::io::stderr();
-            let _ = write!(e, "\r  {}: {:>3}%", self.label, pct);
-            if done >= total {
-                let _ = writeln!(e);
-            }
-            let _ = e.flush();
+        let bar = self.bar.get_or_init(|| self.bar(total));
+        if bar.is_finished() {
+            return;
         }
+        bar.set_length(total as u64);
+        bar.set_position(done.min(total) as u64);
+        if done >= total {
+            bar.finish();
+            // the bar leaves the cursor at its end, where the next message would go on
+            let _ = writeln!(std::io::stderr());
+        }
+    }
+}
+
+impl Drop for Progress {
+    /// A stage that ended early (an error) leaves no half bar behind.
+    fn drop(&mut self) {
+        if let Some(bar) = self.bar.get() {
+            if !bar.is_finished() {
+                bar.finish_and_clear();
+            }
+        }
+    }
+}
+
+/// Standard error as a terminal that understands ANSI cursor movement, whatever it is connected
+/// to (a launcher's pipe that ends on a terminal).
+#[derive(Debug)]
+struct Stderr;
+
+impl Stderr {
+    fn put(&self, s: &str) -> std::io::Result<()> {
+        std::io::stderr().write_all(s.as_bytes())
+    }
+}
+
+impl TermLike for Stderr {
+    fn width(&self) -> u16 {
+        100
+    }
+
+    fn move_cursor_up(&self, n: usize) -> std::io::Result<()> {
+        if n > 0 {
+            self.put(&format!("\x1b[{n}A"))?;
+        }
+        Ok(())
+    }
+
+    fn move_cursor_down(&self, n: usize) -> std::io::Result<()> {
+        if n > 0 {
+            self.put(&format!("\x1b[{n}B"))?;
+        }
+        Ok(())
+    }
+
+    fn move_cursor_right(&self, n: usize) -> std::io::Result<()> {
+        if n > 0 {
+            self.put(&format!("\x1b[{n}C"))?;
+        }
+        Ok(())
+    }
+
+    fn move_cursor_left(&self, n: usize) -> std::io::Result<()> {
+        if n > 0 {
+            self.put(&format!("\x1b[{n}D"))?;
+        }
+        Ok(())
+    }
+
+    fn write_line(&self, s: &str) -> std::io::Result<()> {
+        self.put(&format!("{s}\n"))
+    }
+
+    fn write_str(&self, s: &str) -> std::io::Result<()> {
+        self.put(s)
+    }
+
+    fn clear_line(&self) -> std::io::Result<()> {
+        self.put("\r\x1b[2K")
+    }
+
+    fn flush(&self) -> std::io::Result<()> {
+        std::io::stderr().flush()
     }
 }

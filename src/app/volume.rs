@@ -8,6 +8,7 @@
 use std::path::{Path, PathBuf};
 
 use super::preflight::{check_memory, grid_bytes};
+use super::progress::Progress;
 use super::report::Report;
 use super::stages::{Stage, Stages};
 use crate::error::{Error, Result};
@@ -105,6 +106,40 @@ pub fn check_grid(comm: &dyn Comm, grid: &Grid) -> Result<()> {
     )
 }
 
+/// Kernel evaluations of a piece of a slab between two reports of the evaluation's progress:
+/// about half a second of one core.
+const PIECE_EVALS: f64 = 2e9;
+
+/// `field` on the `layers` layers from `k0` of `grid`, as one call of [`Field::eval_layers`]
+/// would give them (a node's value depends on its position alone), computed in pieces of whole
+/// layers of at least `piece_evals` kernel evaluations at `per_node` a node, with `report(done,
+/// total)` in layers before the first and after each.
+fn eval_in_pieces(
+    field: &dyn Field,
+    grid: &Grid,
+    (k0, layers): (usize, usize),
+    per_node: usize,
+    piece_evals: f64,
+    report: &dyn Fn(usize, usize),
+) -> Vec<f64> {
+    let [nx, ny, _] = grid.dims;
+    let per_layer = (nx * ny * per_node.max(1)) as f64;
+    let step = ((piece_evals / per_layer).ceil() as usize).clamp(1, layers.max(1));
+    if step >= layers {
+        let values = field.eval_layers(grid, k0, layers);
+        report(layers, layers);
+        return values;
+    }
+    let mut values = Vec::with_capacity(nx * ny * (layers + 1));
+    report(0, layers);
+    for start in (0..layers).step_by(step) {
+        let count = step.min(layers - start);
+        values.extend(field.eval_layers(grid, k0 + start, count));
+        report(start + count, layers);
+    }
+    values
+}
+
 /// The names of the curvature arrays, in the VTKHDF file and the PLY mesh.
 pub const CURVATURE_ARRAYS: [&str; 2] = ["mean_curvature", "gaussian_curvature"];
 
@@ -171,7 +206,10 @@ pub fn write_volume_with(
         );
     }
     let values = stages.time(Stage::Evaluate, || {
-        let mut values = field.eval_layers(grid, k0, layers);
+        let progress = Progress::new("evaluate", comm);
+        let mut values = eval_in_pieces(field, grid, (k0, layers), evals_per_node, PIECE_EVALS, &|d, t| {
+            progress.update(d, t)
+        });
         if comm.size() > 1 {
             // the ghost layer is the next rank's first layer, received rather than evaluated twice
             // (the same bits: a node's value does not depend on the rank); a cyclic shift down the
@@ -285,5 +323,46 @@ pub fn throughput_line(nodes: usize, per_node: usize, seconds: f64) -> Vec<Strin
         vec![format!("evaluation: {evals:.3e} kernel evaluations, {:.3e} per second", evals / seconds)]
     } else {
         Vec::new()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::spline::{Carrier, Kernel, Model, Normalisation, Provenance, Spline};
+
+    #[test]
+    fn a_slab_in_pieces_is_the_slab_in_one_piece() {
+        // 40 centres on a helix with uneven weights, a grid of 7 x 5 x 13 nodes: pieces of 1, 2
+        // and 5 layers (the last one short), and of all 11, give the same bits; the progress is
+        // reported before the first piece and after each
+        let centres: Vec<f64> =
+            (0..40).flat_map(|i| [(i as f64).cos(), (i as f64).sin(), i as f64 / 40.0 - 0.5]).collect();
+        let model = Model {
+            carrier: Carrier::parse("ball:0,0,0,1.5", 3).unwrap(),
+            spline: Spline {
+                kernel: Kernel::new(3, 2).unwrap(),
+                centres,
+                weights: (0..40).map(|i| ((i * 7) % 11) as f64 / 11.0 - 0.4).collect(),
+                poly: vec![0.1, -0.2, 0.3, 0.05],
+                norm: Normalisation { centre: [0.1, 0.0, -0.1], scale: 0.8 },
+            },
+            coarse: Vec::new(),
+            provenance: Provenance::default(),
+        };
+        let grid = Grid { dims: [7, 5, 13], origin: [-1.6; 3], spacing: [0.45, 0.6, 0.25] };
+        let whole = model.eval_layers(&grid, 1, 11);
+        for (layers_per_piece, reported) in [(1, 12), (2, 7), (5, 4), (11, 1), (40, 1)] {
+            let reports = std::cell::RefCell::new(Vec::new());
+            let piece_evals = (layers_per_piece * 7 * 5 * 40) as f64;
+            let v = eval_in_pieces(&model, &grid, (1, 11), 40, piece_evals, &|d, t| {
+                reports.borrow_mut().push((d, t))
+            });
+            assert_eq!(v, whole, "{layers_per_piece} layers a piece");
+            let r = reports.into_inner();
+            assert_eq!(r.len(), reported, "{layers_per_piece} layers a piece: {r:?}");
+            assert_eq!(r.last(), Some(&(11, 11)));
+            assert!(r.windows(2).all(|w| w[0].0 < w[1].0), "{r:?}");
+        }
     }
 }
