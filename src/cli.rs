@@ -413,6 +413,10 @@ pub struct RenderArgs {
     /// Also write the run's figures as `key,value` CSV to this file.
     #[arg(long, value_name = "FILE")]
     pub timings: Option<PathBuf>,
+    /// A progress bar of the ray casting (rank 0's rows) on rank 0's standard error: auto (where
+    /// that is a terminal; under Open MPI's mpirun it is a pipe, so none), on (always) or off.
+    #[arg(long, default_value = "auto", value_name = "auto|on|off", value_parser = progress::Mode::parse)]
+    pub progress: progress::Mode,
 }
 
 /// The camera and the colouring of a picture.
@@ -449,7 +453,8 @@ impl Cli {
             Command::Eval(a) => a.grid.progress,
             Command::Morph(a) => a.grid.progress,
             Command::Contours(a) => a.grid.progress,
-            Command::Slice(_) | Command::Render(_) => progress::Mode::Auto,
+            Command::Render(a) => a.progress,
+            Command::Slice(_) => progress::Mode::Auto,
         }
     }
 

@@ -724,4 +724,14 @@ fn progress_bars_show_on_a_terminal_or_when_asked() {
         }
         assert!(!String::from_utf8_lossy(&out.stdout).contains("elapsed"), "a bar on standard output:\n{t}");
     }
+    // the ray casting of `render`, rank 0's rows
+    let model = dir.join("m.model.h5");
+    let png = dir.join("m.png");
+    for (mode, drawn) in [("auto", false), ("on", true)] {
+        let args = ["render", s(&model), "--out", s(&png), "--size", "64x48", "--progress", mode];
+        let out = run(2, &args);
+        let (t, err) = (text(&out), String::from_utf8_lossy(&out.stderr));
+        assert!(out.status.success(), "{t}");
+        assert_eq!(full(&err, "render"), drawn, "render --progress {mode}:\n{t}");
+    }
 }

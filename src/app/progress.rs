@@ -8,7 +8,6 @@
 //! nothing, and `on` draws on standard error all the same (it reaches the user's terminal
 //! through the launcher, escape codes and all).
 
-use std::cell::OnceCell;
 use std::io::{IsTerminal, Write};
 use std::sync::OnceLock;
 
@@ -47,11 +46,11 @@ pub fn set_mode(mode: Mode) {
 }
 
 /// Progress of a long stage on rank 0, redrawn in place, silent where no bar is drawn. The bar
-/// appears with the first report, so its clock starts with the work.
+/// appears with the first report, so its clock starts with the work; threads may report.
 pub struct Progress {
     label: &'static str,
     draw: bool,
-    bar: OnceCell<ProgressBar>,
+    bar: OnceLock<ProgressBar>,
 }
 
 impl Progress {
@@ -64,7 +63,7 @@ impl Progress {
                 Mode::On => true,
                 Mode::Off => false,
             };
-        Progress { label, draw, bar: OnceCell::new() }
+        Progress { label, draw, bar: OnceLock::new() }
     }
 
     fn bar(&self, total: usize) -> ProgressBar {
@@ -91,7 +90,8 @@ impl Progress {
             return;
         }
         bar.set_length(total as u64);
-        bar.set_position(done.min(total) as u64);
+        // threads may report out of order: the bar never goes back
+        bar.set_position((done.min(total) as u64).max(bar.position()));
         if done >= total {
             bar.finish();
             // the bar leaves the cursor at its end, where the next message would go on

@@ -7,9 +7,11 @@
 //! and threads gives the same picture.
 
 use std::path::Path;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 
+use super::progress::Progress;
 use super::report::Report;
 use super::stages::{Stage, Stages};
 use crate::cli::{RenderArgs, ViewArgs};
@@ -95,20 +97,30 @@ pub fn render(
     let camera = Camera::frame(bounds, view);
     let (w, h) = (view.width, view.height);
     let rows: Vec<usize> = (rank..h).step_by(size).collect();
+    // rank 0's rows done, for the progress bar
+    let progress = Progress::new("render", comm);
+    let done = AtomicUsize::new(0);
+    progress.update(0, rows.len());
     let mine: Vec<Sample> = rows
         .par_iter()
-        .flat_map_iter(|&j| (0..w).map(move |i| (i, j)))
-        .map(|(i, j)| {
-            let d = camera.ray(i, j);
-            let Some(t) = first_root(solid, &lattice, camera.eye, d) else { return [0.0; 4] };
-            let x: [f64; 3] = std::array::from_fn(|a| camera.eye[a] + t * d[a]);
-            let (light, specular) = shade(&camera, solid.gradient(x), d);
-            let mean = match colouring {
-                Colouring::Curvature => curvature(solid, x).mean,
-                Colouring::Shading => f64::NAN,
-            };
-            [1.0, light, specular, mean]
+        .map(|&j| {
+            let row: Vec<Sample> = (0..w)
+                .map(|i| {
+                    let d = camera.ray(i, j);
+                    let Some(t) = first_root(solid, &lattice, camera.eye, d) else { return [0.0; 4] };
+                    let x: [f64; 3] = std::array::from_fn(|a| camera.eye[a] + t * d[a]);
+                    let (light, specular) = shade(&camera, solid.gradient(x), d);
+                    let mean = match colouring {
+                        Colouring::Curvature => curvature(solid, x).mean,
+                        Colouring::Shading => f64::NAN,
+                    };
+                    [1.0, light, specular, mean]
+                })
+                .collect();
+            progress.update(done.fetch_add(1, Ordering::Relaxed) + 1, rows.len());
+            row
         })
+        .flatten_iter()
         .collect();
     let gathered = comm.gather_values(0, &mine);
     let Some(parts) = gathered else { return Ok(None) };
