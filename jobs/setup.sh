@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Installs what volspline needs on a fresh Debian 12 machine: OpenMPI, parallel HDF5 (OpenMPI
 # flavour), MUMPS (libmumps-dev: the OpenMPI build, with ScaLAPACK for OpenMPI), libclang and
-# pkg-config for the -sys crates and build.rs, hdf5-tools, and the Python packages the tests use
-# (vtk, numpy). Idempotent and quiet when everything is present. A shell that sources it keeps its
+# pkg-config for the -sys crates and build.rs, hdf5-tools, bsdutils (script(1), with which a test
+# gives the binary a terminal), and the Python packages the tests use (vtk, numpy). Idempotent and quiet when everything is present. A shell that sources it keeps its
 # own options (errexit, nounset, pipefail) afterwards; the jobs set theirs before sourcing it.
 _volspline_caller_opts=$(set +o)
 # (a command substitution does not see errexit: take it from $-)
@@ -22,7 +22,7 @@ ensure_debs() {
         DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
     fi
 }
-ensure_debs libopenmpi-dev openmpi-bin libhdf5-openmpi-dev libclang-dev pkg-config hdf5-tools libmumps-dev
+ensure_debs libopenmpi-dev openmpi-bin libhdf5-openmpi-dev libclang-dev pkg-config hdf5-tools libmumps-dev bsdutils
 
 # two MPI flavours in one build make binaries abort at start ("Invalid communicator")
 if dpkg-query -W -f='${Status}' libmpich-dev 2>/dev/null | grep -q "install ok installed"; then
