@@ -2,8 +2,9 @@
 # Installs what volspline needs on a fresh Debian 12 machine: OpenMPI, parallel HDF5 (OpenMPI
 # flavour), MUMPS (libmumps-dev: the OpenMPI build, with ScaLAPACK for OpenMPI), libclang and
 # pkg-config for the -sys crates and build.rs, hdf5-tools, bsdutils (script(1), with which a test
-# gives the binary a terminal), and the Python packages the tests use (vtk, numpy). Idempotent and quiet when everything is present. A shell that sources it keeps its
-# own options (errexit, nounset, pipefail) afterwards; the jobs set theirs before sourcing it.
+# gives the binary a terminal), and the Python packages the tests use (vtk, numpy). Idempotent
+# and quiet when everything is present. A shell that sources it keeps its own options (errexit,
+# nounset, pipefail) afterwards; the jobs set theirs before sourcing it.
 _volspline_caller_opts=$(set +o)
 # (a command substitution does not see errexit: take it from $-)
 case $- in *e*) _volspline_caller_opts+=$'\nset -e' ;; esac
