@@ -50,8 +50,14 @@ pub fn set_mode(mode: Mode) {
 pub struct Progress {
     label: &'static str,
     draw: bool,
+    /// Whether the units reported are columns of a dense factorisation, whose trailing updates
+    /// shrink as the square of the columns left: the bar then shows the share of the flops done.
+    columns: bool,
     bar: OnceLock<ProgressBar>,
 }
+
+/// Steps of a bar that shows the flops of a factorisation.
+const FLOP_STEPS: u64 = 1000;
 
 impl Progress {
     /// A bar named `label`, drawn on rank 0 as the mode says (see the module doc). Not
@@ -63,35 +69,51 @@ impl Progress {
                 Mode::On => true,
                 Mode::Off => false,
             };
-        Progress { label, draw, bar: OnceLock::new() }
+        Progress { label, draw, columns: false, bar: OnceLock::new() }
     }
 
-    fn bar(&self, total: usize) -> ProgressBar {
+    /// [`Progress::new`] for a dense factorisation that reports its columns done: the bar
+    /// counts its flops, 1 - (1 - done / total)^3 of them, so that its estimate of the time
+    /// left holds from the start.
+    pub fn columns(label: &'static str, comm: &dyn Comm) -> Self {
+        let mut p = Self::new(label, comm);
+        p.columns = true;
+        p
+    }
+
+    fn bar(&self, total: u64) -> ProgressBar {
         let style = ProgressStyle::with_template(
             "  {prefix:<8} [{bar:32}] {percent:>3}%  {elapsed} elapsed, about {eta} left",
         )
         .expect("a valid template")
         .progress_chars("=> ");
         let target = ProgressDrawTarget::term_like_with_hz(Box::new(Stderr), 10);
-        let bar = ProgressBar::with_draw_target(Some(total as u64), target);
+        let bar = ProgressBar::with_draw_target(Some(total), target);
         bar.set_style(style);
         bar.set_prefix(self.label);
         bar
     }
 
     /// Reports `done` of `total` units; the bar ends, drawn full on a line of its own, once
-    /// `done` reaches `total`.
+    /// `done` reaches `total` (and only then).
     pub fn update(&self, done: usize, total: usize) {
         if !self.draw || total == 0 {
             return;
         }
+        let (done, total) = if self.columns {
+            // floored: full at the last column alone
+            let left = 1.0 - done.min(total) as f64 / total as f64;
+            (((1.0 - left.powi(3)) * FLOP_STEPS as f64).floor() as u64, FLOP_STEPS)
+        } else {
+            (done.min(total) as u64, total as u64)
+        };
         let bar = self.bar.get_or_init(|| self.bar(total));
         if bar.is_finished() {
             return;
         }
-        bar.set_length(total as u64);
+        bar.set_length(total);
         // threads may report out of order: the bar never goes back
-        bar.set_position((done.min(total) as u64).max(bar.position()));
+        bar.set_position(done.max(bar.position()));
         if done >= total {
             bar.finish();
             // the bar leaves the cursor at its end, where the next message would go on
@@ -169,5 +191,29 @@ impl TermLike for Stderr {
 
     fn flush(&self) -> std::io::Result<()> {
         std::io::stderr().flush()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::par::Solo;
+
+    #[test]
+    fn a_factorisation_bar_counts_flops_and_ends_with_the_last_column() {
+        let mut p = Progress::columns("solve", &Solo);
+        p.draw = true;
+        let bar = ProgressBar::hidden();
+        p.bar.set(bar.clone()).unwrap();
+        // half the columns are seven eighths of the flops
+        p.update(500, 1000);
+        assert_eq!((bar.position(), bar.length()), (875, Some(FLOP_STEPS)));
+        // the last columns but one leave the bar open, and it never goes back
+        p.update(999, 1000);
+        assert!(bar.position() < FLOP_STEPS && !bar.is_finished());
+        p.update(10, 1000);
+        assert_eq!(bar.position(), 999);
+        p.update(1000, 1000);
+        assert!(bar.is_finished() && bar.position() == FLOP_STEPS);
     }
 }

@@ -327,7 +327,7 @@ pub fn fit(
     let Run { args: a, comm, threads, layout: dense_layout } = *run;
     let (centres, values) = (&prep.centres, &prep.values);
     let layout = RowCyclic::new(values.len() + kernel.poly_count(), comm.size(), comm.rank());
-    let progress = Progress::new("solve", comm);
+    let progress = Progress::columns("solve", comm);
     let timed = Timed::new(comm);
     let report = |d, t| progress.update(d, t);
     let rows = values.len() + kernel.poly_count();
