@@ -133,8 +133,19 @@ fn the_memory_per_rank_the_user_sets_decides_the_checks_and_the_method() {
         text.contains("two levels: level 0 dense (kernel r") && text.contains("on 300 of the points"),
         "{text}"
     );
-    let text = common::run_ok(1, &args);
+    let csv = dir.join("t.csv");
+    let text = common::run_ok(1, &[&args[..], &["--timings", csv.to_str().unwrap()]].concat());
     assert!(text.contains("method dense (auto: the dense system fits"), "{text}");
+    // the report sets the largest estimate a check counted beside the measured peak: at least
+    // the first fit's dense system, and above the peak (the estimates are meant to be safe)
+    let figures = std::fs::read_to_string(&csv).unwrap();
+    let get = |k: &str| -> f64 {
+        let line = figures.lines().find(|l| l.starts_with(&format!("{k},"))).unwrap_or_else(|| panic!("{k}"));
+        line[k.len() + 1..].parse().unwrap()
+    };
+    let (estimate, peak) = (get("memory_estimate_bytes_max"), get("peak_rss_bytes_max"));
+    assert!(estimate >= dense_bytes(1235, 1) && estimate > peak, "estimate {estimate}, peak {peak}");
+    assert!(text.contains(&format!("(the memory checks counted up to {:.1} MB)", estimate / 1e6)), "{text}");
 }
 
 #[test]

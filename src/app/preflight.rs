@@ -12,6 +12,7 @@
 //! ([`check_memory_beside`]) compares with the limit less that.
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::OnceLock;
 
 use crate::cli::ranks_on_this_node;
@@ -119,9 +120,23 @@ pub fn check_memory(comm: &dyn Comm, need: f64, what: &str, advice: &str) -> Res
     check_memory_beside(comm, 0.0, need, what, advice)
 }
 
+/// The largest need (with what was held beside it) any check of this process counted, as the
+/// bits of an f64 (positive, so their order is the numbers' order).
+static LARGEST_NEED: AtomicU64 = AtomicU64::new(0);
+
+/// The most memory per rank any check of this run counted (None before the first check), for
+/// the report beside the measured peak.
+pub fn largest_need() -> Option<f64> {
+    let bits = LARGEST_NEED.load(Ordering::Relaxed);
+    (bits > 0).then(|| f64::from_bits(bits))
+}
+
 /// [`check_memory`] of a `need` on top of `held` bytes the rank holds now (a kept factor).
 /// Collective.
 pub fn check_memory_beside(comm: &dyn Comm, held: f64, need: f64, what: &str, advice: &str) -> Result<()> {
+    if (held + need).is_finite() && held + need > 0.0 {
+        LARGEST_NEED.fetch_max((held + need).to_bits(), Ordering::Relaxed);
+    }
     let local = match available_beside(held) {
         Some((have, source)) if need > have => {
             let beside =

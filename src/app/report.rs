@@ -78,6 +78,10 @@ impl Report {
         let times = stages.summarise(comm);
         let peak = max_over_ranks(comm, peak_rss_bytes().unwrap_or(0) as f64);
         self.figure("peak_rss_bytes_max", peak);
+        let estimate = max_over_ranks(comm, super::preflight::largest_need().unwrap_or(0.0));
+        if estimate > 0.0 {
+            self.figure("memory_estimate_bytes_max", format!("{estimate:.0}"));
+        }
         for t in &times.0 {
             self.figure(&format!("stage_{}_min_s", t.stage.name()), format!("{:.6}", t.min));
             self.figure(&format!("stage_{}_max_s", t.stage.name()), format!("{:.6}", t.max));
@@ -99,7 +103,12 @@ impl Report {
                 out.push_str(&format!("  {l}\n"));
             }
             if peak > 0.0 {
-                out.push_str(&format!("  peak memory per rank (max over ranks): {:.1} MB\n", peak / 1e6));
+                out.push_str(&format!("  peak memory per rank (max over ranks): {:.1} MB", peak / 1e6));
+                if estimate > 0.0 {
+                    // what --memory-per-rank and the node's memory were compared with
+                    out.push_str(&format!(" (the memory checks counted up to {:.1} MB)", estimate / 1e6));
+                }
+                out.push('\n');
             }
             if !self.outputs.is_empty() {
                 out.push_str("  outputs:\n");
