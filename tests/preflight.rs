@@ -62,8 +62,14 @@ fn a_grid_too_large_and_bad_prefixes_are_refused_with_reasons() {
     let i = input.to_str().unwrap();
     let p = dir.join("o");
     let missing = dir.join("missing/o");
-    let cases: [(&[&str], i32, &str); 4] = [
+    let cases: [(&[&str], i32, &str); 5] = [
         (&["fit", i, "--out", p.to_str().unwrap(), "--grid", "4000"], 1, "not enough memory: the grid of"),
+        // the dense system fits 300 MB, a slab of the grid of 400 nodes does not
+        (
+            &["fit", i, "--out", p.to_str().unwrap(), "--grid", "400", "--memory-per-rank", "300MB"],
+            1,
+            "(--memory-per-rank); use a coarser --grid",
+        ),
         (&["fit", i, "--out", dir.to_str().unwrap()], 2, "expected a file prefix"),
         (&["fit", i, "--out", missing.to_str().unwrap()], 1, "the output directory does not exist"),
         (&["fit", i, "--out", p.to_str().unwrap(), "--threads", "20000"], 2, "at most 1024"),
