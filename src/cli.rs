@@ -445,7 +445,6 @@ pub struct ViewArgs {
 }
 
 impl Cli {
-    /// The --threads value of whichever command was given.
     /// The `--progress` mode (auto for the commands without one).
     pub fn progress(&self) -> progress::Mode {
         match &self.command {
@@ -469,6 +468,7 @@ impl Cli {
         }
     }
 
+    /// The --threads value of whichever command was given.
     pub fn threads(&self) -> usize {
         match &self.command {
             Command::Fit(a) => a.grid.threads,

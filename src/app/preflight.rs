@@ -75,21 +75,14 @@ pub fn limit_memory(bytes: f64) {
     let _ = LIMIT.set(bytes);
 }
 
-/// Bytes this rank can use, and where the figure comes from, when the system or the user says.
-pub fn available_per_rank() -> Option<(f64, String)> {
-    available_beside(0.0)
-}
-
 /// Bytes this rank can take on top of the `held` bytes it holds now, and where the figure comes
-/// from: the system's figure now, or the user's limit less `held`, the smaller.
+/// from, when the system or the user says: the system's figure now, or the user's limit less
+/// `held`, the smaller.
 pub fn available_beside(held: f64) -> Option<(f64, String)> {
-    let system = system_per_rank();
-    match (system, LIMIT.get()) {
-        (Some((bytes, _)), Some(&limit)) if limit - held < bytes => {
-            Some(((limit - held).max(0.0), "--memory-per-rank".into()))
-        }
-        (None, Some(&limit)) => Some(((limit - held).max(0.0), "--memory-per-rank".into())),
-        (system, _) => system,
+    let capped = LIMIT.get().map(|&limit| ((limit - held).max(0.0), "--memory-per-rank".to_string()));
+    match (system_per_rank(), capped) {
+        (Some(system), Some(capped)) => Some(if capped.0 < system.0 { capped } else { system }),
+        (system, capped) => system.or(capped),
     }
 }
 

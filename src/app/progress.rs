@@ -1,5 +1,5 @@
-//! The progress bar of a long stage (the dense solve, the grid evaluation), drawn by rank 0 on
-//! its standard error for a person watching.
+//! The progress bar of a long stage (the dense solve, the grid evaluation, the ray casting), drawn
+//! by rank 0 on its standard error for a person watching.
 //!
 //! When to draw is `--progress` ([`set_mode`]): `auto` draws where rank 0's standard error is a
 //! terminal, so that output redirected to files holds the report alone. Open MPI's `mpirun`
