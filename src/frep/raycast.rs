@@ -319,13 +319,20 @@ fn clip(lo: [f64; 3], hi: [f64; 3], o: [f64; 3], d: [f64; 3]) -> Option<(f64, f6
 /// The first point where the ray from `o` along the unit `d` meets f = 0 inside the lattice's
 /// box: its parameter t (None if the ray misses).
 pub fn first_root(solid: &dyn Implicit, lattice: &Lattice, o: [f64; 3], d: [f64; 3]) -> Option<f64> {
-    let (t0, t1) = clip(lattice.lo, lattice.hi, o, d)?;
+    march(solid, lattice, o, d).0
+}
+
+/// [`first_root`] with the number of samples the ray took.
+fn march(solid: &dyn Implicit, lattice: &Lattice, o: [f64; 3], d: [f64; 3]) -> (Option<f64>, usize) {
+    let Some((t0, t1)) = clip(lattice.lo, lattice.hi, o, d) else { return (None, 0) };
     let h = lattice.min_h();
     let at = |t: f64| add(o, d, t);
     // the last sample: its parameter, whether it is inside, and f there if evaluated
     let mut prev: Option<(f64, bool, Option<f64>)> = None;
     let mut t = t0;
+    let mut samples = 0;
     while t <= t1 {
+        samples += 1;
         let x = at(t);
         let (ijk, c) = lattice.cell_of(x);
         let (inside, f, next) = if lattice.surface[c] {
@@ -333,21 +340,24 @@ pub fn first_root(solid: &dyn Implicit, lattice: &Lattice, o: [f64; 3], d: [f64;
             let step = (f.abs() / lattice.lipschitz(ijk, d)).clamp(h / MIN_STEP_DIVISOR, h);
             (f >= 0.0, Some(f), t + if step.is_finite() { step } else { h / MIN_STEP_DIVISOR })
         } else {
-            // across the cell in one step: to the nearest face it leaves through
-            let exit = (0..3)
+            // across the cell in one step: to the nearest face it leaves through, and past it by
+            // a few units in the last place of the coordinate it crosses, so that the next
+            // sample lies in the next cell however far from the origin the solid is
+            let (exit, axis) = (0..3)
                 .filter(|&a| d[a] != 0.0)
                 .map(|a| {
                     let face = lattice.lo[a] + lattice.h[a] * (ijk[a] + usize::from(d[a] > 0.0)) as f64;
-                    (face - o[a]) / d[a]
+                    ((face - o[a]) / d[a], a)
                 })
-                .fold(f64::INFINITY, f64::min);
-            (lattice.inside[c], None, exit.max(t) + 1e-9 * h)
+                .fold((f64::INFINITY, 0), |best, e| if e.0 < best.0 { e } else { best });
+            let nudge = (1e-9 * h).max(4.0 * f64::EPSILON * x[axis].abs() / d[axis].abs());
+            (lattice.inside[c], None, exit.max(t) + nudge)
         };
         match prev {
-            None if inside => return Some(t),
+            None if inside => return (Some(t), samples),
             Some((tp, was_inside, fp)) if was_inside != inside => {
                 if let Some(root) = refine(solid, at, (tp, fp), (t, f)) {
-                    return Some(root);
+                    return (Some(root), samples);
                 }
             }
             _ => {}
@@ -355,7 +365,7 @@ pub fn first_root(solid: &dyn Implicit, lattice: &Lattice, o: [f64; 3], d: [f64;
         prev = Some((t, inside, f));
         t = next;
     }
-    None
+    (None, samples)
 }
 
 /// The root of f(at(t)) in [a, b] from a sign change (values evaluated where missing), or None
@@ -461,6 +471,38 @@ mod tests {
         assert!(first_root(&ball, &lat, [10.0, 2.05, 0.0], [-1.0, 0.0, 0.0]).is_none());
         // a ray starting inside the solid is cut at its start
         assert_eq!(first_root(&ball, &lat, [0.0, 0.0, 0.0], [1.0, 0.0, 0.0]), Some(0.0));
+    }
+
+    /// A ball of radius `r` about `c`.
+    struct Away([f64; 3], f64);
+    impl Implicit for Away {
+        fn value(&self, p: [f64; 3]) -> f64 {
+            let q = add(p, self.0, -1.0);
+            self.1 * self.1 - dot(q, q)
+        }
+        fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+            (self.0.map(|c| c - 1.2 * self.1), self.0.map(|c| c + 1.2 * self.1))
+        }
+    }
+
+    #[test]
+    fn rays_cross_a_solid_far_from_the_origin_in_a_few_steps_a_cell() {
+        // at 1e12 a coordinate's last place is 1.2e-4, a millionth of the cell: a nudge of 1e-9
+        // cells past a face left the sample in the cell it leaves about half the time, for
+        // about a million steps each (a picture of such a solid took minutes a row)
+        for c in [[0.0; 3], [1e12, -3e11, 0.0]] {
+            let ball = Away(c, 2.0);
+            let lat = lattice_of(&ball);
+            let cells = Lattice::cells_for(ball.bounds()).iter().sum::<usize>();
+            let o = add(c, [10.0, 0.5, 0.0], 1.0);
+            let (t, samples) = march(&ball, &lat, o, [-1.0, 0.0, 0.0]);
+            let want = 10.0 - (4.0f64 - 0.25).sqrt();
+            assert!((t.unwrap() - want).abs() < 1e-3, "{t:?} vs {want}");
+            assert!(samples <= 2 * cells, "{samples} samples, {cells} cells along the axes");
+            // a ray passing by, across empty cells from side to side
+            let (t, samples) = march(&ball, &lat, add(c, [10.0, 0.3, 2.3], 1.0), unit([-1.0, 0.01, 0.0]));
+            assert!(t.is_none() && samples > 5 && samples <= 2 * cells, "{t:?}, {samples} samples");
+        }
     }
 
     #[test]
