@@ -735,3 +735,51 @@ fn progress_bars_show_on_a_terminal_or_when_asked() {
         assert_eq!(full(&err, "render"), drawn, "render --progress {mode}:\n{t}");
     }
 }
+
+#[test]
+fn point_files_with_more_columns_fit_as_their_coordinates() {
+    // a real scan's points with an id before them and made-up normals after, as point-cloud
+    // tools export them (a header naming the columns), and without the header (the first three)
+    let dir = temp_dir("hardening-columns");
+    let plain =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/cow-400.xyz")).unwrap();
+    let rows: Vec<&str> = plain.lines().filter(|l| !l.trim().is_empty() && !l.starts_with('#')).collect();
+    let (mut named, mut bare) = ("//ID,X,Y,Z,Nx,Ny,Nz\n".to_string(), String::new());
+    for (i, row) in rows.iter().enumerate() {
+        let xyz: Vec<&str> = row.split_whitespace().collect();
+        let n = [(i as f64).sin(), (i as f64).cos(), 0.5];
+        named.push_str(&format!("{i},{},{},{},{},{},{}\n", xyz[0], xyz[1], xyz[2], n[0], n[1], n[2]));
+        bare.push_str(&format!("{} {} {} {} {} {}\n", xyz[0], xyz[1], xyz[2], n[0], n[1], n[2]));
+    }
+    let inputs = [
+        (dir.join("plain.xyz"), plain.clone(), None),
+        (
+            dir.join("named.csv"),
+            named,
+            Some("7 values a line: x, y, z from columns 2, 3, 4 (named in the header), the other 4 ignored"),
+        ),
+        (
+            dir.join("bare.xyz"),
+            bare,
+            Some("6 values a line: x, y, z from columns 1, 2, 3, the other 3 ignored"),
+        ),
+    ];
+    let mut weights = Vec::new();
+    for (i, (input, body, note)) in inputs.iter().enumerate() {
+        std::fs::write(input, body).unwrap();
+        let prefix = dir.join(format!("m{i}"));
+        let out = run(2, &["fit", s(input), "--out", s(&prefix), "--grid", "16", "--no-preview"]);
+        let all = text(&out);
+        assert!(out.status.success(), "{all}");
+        match note {
+            Some(note) => assert!(all.contains(note), "{}: {all}", input.display()),
+            None => assert!(!all.contains("values a line"), "{all}"),
+        }
+        let model = volspline::io::model_file::read_model(&prefix.with_extension("model.h5")).unwrap();
+        assert!(model.spline.weights.len() >= 400, "{all}");
+        weights.push(model.spline.weights);
+    }
+    // the same points, so the same fit to the last bit
+    assert_eq!(weights[0], weights[1]);
+    assert_eq!(weights[0], weights[2]);
+}

@@ -65,7 +65,12 @@ pub struct Fitted {
 /// Reads the input points on rank 0 and gives them to every rank, 3 values per point.
 fn read_points_everywhere(comm: &dyn Comm, path: &Path) -> Result<Vec<f64>> {
     let local = if comm.rank() == 0 {
-        points::read_points(path).map(|set| Some(set.points.iter().flatten().copied().collect::<Vec<f64>>()))
+        points::read_points(path).map(|set| {
+            if let Some(note) = &set.note {
+                eprintln!("volspline fit: {}: {note}", path.display());
+            }
+            Some(set.points.iter().flatten().copied().collect::<Vec<f64>>())
+        })
     } else {
         Ok(None)
     };

@@ -25,15 +25,21 @@ const SUPPORTED: &str = ".obj, .ply, .xyz, .txt, .csv";
 pub struct PointSet {
     pub points: Vec<[f64; 3]>,
     pub triangles: Vec<[usize; 3]>,
+    /// What the reader made of the file's layout where the user should hear it (the columns of a
+    /// text file with more than three values a line).
+    pub note: Option<String>,
 }
 
 /// Read scattered points by extension: .obj, .ply, .xyz/.txt/.csv (case-insensitive). Triangles
 /// are filled for .obj/.ply when faces exist (polygons fan-triangulated), empty for text.
 ///
-/// Text files hold three numbers (x y z) per line, separated by whitespace and/or commas; `#`
-/// starts a comment and blank lines are ignored. The first non-blank, non-comment line may be a
-/// column header such as `x,y,z`, and is skipped, but only if none of its tokens is a number;
-/// anywhere else a non-numeric token is an error.
+/// Text files hold three or more numbers per line, as many on every line, separated by
+/// whitespace and/or commas; `#` starts a comment and blank lines are ignored. The first
+/// non-blank, non-comment line may be a column header such as `x,y,z` or `//X Y Z Nx Ny Nz`,
+/// but only if none of its tokens is a number; anywhere else a non-numeric token is an error.
+/// The coordinates are the columns the header names x, y and z (any case, leading slashes
+/// dropped), or else the first three; further columns (normals, colours, intensities) are
+/// ignored, and [`PointSet::note`] says so.
 ///
 /// Every coordinate must be finite and the file must hold at least 4 points.
 pub fn read_points(path: &Path) -> Result<PointSet> {

@@ -1,5 +1,6 @@
-//! Plain-text point lists (.xyz, .txt, .csv): three numbers per line, separated by whitespace
-//! and/or commas, with `#` comments and an optional column header (rules in [`super::read_points`]).
+//! Plain-text point lists (.xyz, .txt, .csv): three or more numbers per line, separated by
+//! whitespace and/or commas, with `#` comments and an optional column header (rules in
+//! [`super::read_points`]).
 
 use std::path::Path;
 
@@ -10,47 +11,92 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
     let text = as_text(path, bytes, "point")?;
     // Typical lines are 20-40 bytes; under-guessing costs one regrowth, over-guessing memory.
     let mut points = Vec::with_capacity(capacity(usize::MAX, text.len(), 24));
-    let mut seen_data = false;
     let is_sep = |c: char| c == ',' || c.is_ascii_whitespace();
+    // the header's names, while no data line has come
+    let mut header: Option<Vec<String>> = None;
+    // the values per line and the columns of x, y and z, from the first data line
+    let mut layout: Option<(usize, [usize; 3], usize)> = None;
+    let mut values = Vec::new();
     for (i, raw) in text.lines().enumerate() {
         let line = raw.split('#').next().unwrap_or("");
-        let mut tokens = line.split(is_sep).filter(|t| !t.is_empty());
-        let mut xyz = [0.0; 3];
-        let mut n = 0;
+        let err = |reason: String| Error::input(path, format!("line {}", i + 1), reason);
+        values.clear();
         let mut bad_token = None;
-        for tok in tokens.by_ref() {
+        for tok in line.split(is_sep).filter(|t| !t.is_empty()) {
             match tok.parse::<f64>() {
-                Ok(v) if n < 3 => xyz[n] = v,
-                Ok(_) => {}
+                Ok(v) => values.push(v),
                 Err(_) => {
                     bad_token = Some(tok);
                     break;
                 }
             }
-            n += 1;
         }
-        if n == 0 && bad_token.is_none() {
+        if values.is_empty() && bad_token.is_none() {
             continue;
         }
-        let first_data_line = !seen_data;
-        seen_data = true;
-        let err = |reason: String| Error::input(path, format!("line {}", i + 1), reason);
         if let Some(tok) = bad_token {
-            let all_words = line.split(is_sep).filter(|t| !t.is_empty()).all(|t| t.parse::<f64>().is_err());
-            if first_data_line && all_words {
+            let words: Vec<&str> = line.split(is_sep).filter(|t| !t.is_empty()).collect();
+            if layout.is_none() && header.is_none() && words.iter().all(|t| t.parse::<f64>().is_err()) {
+                header = Some(words.iter().map(|w| w.trim_start_matches('/').to_ascii_lowercase()).collect());
                 continue;
             }
             return Err(err(format!("'{tok}' is not a number")));
         }
-        if n != 3 {
-            return Err(err(format!("expected 3 coordinates (x y z), found {n} values")));
+        let n = values.len();
+        let (width, cols, _) = match layout {
+            Some(l) => l,
+            None => {
+                let l = columns(header.as_deref(), n).map_err(err)?;
+                layout = Some((n, l, i + 1));
+                (n, l, i + 1)
+            }
+        };
+        if n != width {
+            let first = layout.map_or(0, |l| l.2);
+            return Err(err(format!(
+                "found {n} values, where the first data line (line {first}) has {width}{}",
+                if width == 3 { " (x y z)" } else { "" }
+            )));
         }
-        points.push(check_finite(xyz).map_err(err)?);
+        points.push(check_finite(cols.map(|c| values[c])).map_err(err)?);
     }
     if points.is_empty() {
         return Err(Error::input(path, "", "no points found"));
     }
-    Ok(PointSet { points, triangles: Vec::new() })
+    let note = layout.filter(|l| l.0 > 3).map(|(width, cols, _)| {
+        let named = if header.as_deref().is_some_and(|h| h.iter().any(|n| n == "x")) {
+            " (named in the header)"
+        } else {
+            ""
+        };
+        format!(
+            "{width} values a line: x, y, z from columns {}, {}, {}{named}, the other {} ignored",
+            cols[0] + 1,
+            cols[1] + 1,
+            cols[2] + 1,
+            width - 3
+        )
+    });
+    Ok(PointSet { points, triangles: Vec::new(), note })
+}
+
+/// The columns of x, y and z in lines of `n` values: those the header names x, y and z, or else
+/// the first three.
+fn columns(header: Option<&[String]>, n: usize) -> std::result::Result<[usize; 3], String> {
+    if n < 3 {
+        return Err(format!("expected 3 coordinates (x y z), found {n} values"));
+    }
+    let Some(names) = header else { return Ok([0, 1, 2]) };
+    let find = |name: &str| names.iter().position(|h| h == name);
+    match (find("x"), find("y"), find("z")) {
+        (Some(x), Some(y), Some(z)) if names.len() == n => Ok([x, y, z]),
+        (Some(_), Some(_), Some(_)) => Err(format!(
+            "the header names {} columns ({}), the first data line has {n} values",
+            names.len(),
+            names.join(" ")
+        )),
+        _ => Ok([0, 1, 2]),
+    }
 }
 
 #[cfg(test)]
@@ -78,6 +124,24 @@ mod tests {
     }
 
     #[test]
+    fn text_columns_past_three_are_ignored_or_chosen_by_the_header() {
+        let dir = TempDir::new();
+        // normals after the coordinates, no header: the first three, and a note
+        let set = read_points(&dir.file("n.xyz", "0 0 0 1 0 0\n1 0 0 1 0 0\n0 1 0 0 1 0\n0 0 1 0 0 1\n"))
+            .expect("normals");
+        assert_eq!(set.points, CUBE[..4]);
+        let note = set.note.expect("a note");
+        assert!(note.contains("6 values a line: x, y, z from columns 1, 2, 3, the other 3"), "{note}");
+        // a header placing the coordinates elsewhere, as exporters write it
+        let text = "//ID Intensity X Y Z\n7,0.5,0,0,0\n8,0.5,1,0,0\n9,0.5,0,1,0\n10,0.5,0,0,1\n";
+        let set = read_points(&dir.file("h.csv", text)).expect("header");
+        assert_eq!(set.points, CUBE[..4]);
+        assert!(set.note.unwrap().contains("columns 3, 4, 5 (named in the header)"));
+        // three values a line: no note
+        assert!(read_points(&dir.file("p.xyz", "0 0 0\n1 0 0\n0 1 0\n0 0 1\n")).unwrap().note.is_none());
+    }
+
+    #[test]
     fn text_faults_name_their_line() {
         let dir = TempDir::new();
         let cases = [
@@ -86,7 +150,19 @@ mod tests {
             ("x,1,z\n0,0,0\n1,0,0\n0,1,0\n0,0,1\n", "line 1", "'x'"),
             // Too few and too many values.
             ("0 0 0\n1 0 0\n\n0 1\n0 0 1\n", "line 4", "found 2"),
-            ("0 0 0\n1 0 0 7\n0 1 0\n0 0 1\n", "line 2", "found 4"),
+            (
+                "0 0 0\n1 0 0 7\n0 1 0\n0 0 1\n",
+                "line 2",
+                "found 4 values, where the first data line (line 1) has 3",
+            ),
+            (
+                "0 0 0 1\n1 0 0 7\n0 1 0\n0 0 1 1\n",
+                "line 3",
+                "found 3 values, where the first data line (line 1) has 4",
+            ),
+            ("# x y z\n\n0 0\n1 0 0\n0 1 0\n0 0 1\n", "line 3", "expected 3 coordinates (x y z), found 2"),
+            // a header naming x, y and z for lines of another width
+            ("x y z\n0 0 0 1\n1 0 0 1\n0 1 0 1\n0 0 1 1\n", "line 2", "the header names 3 columns (x y z)"),
         ];
         for (text, at, why) in cases {
             fails_with(&dir.file("p.csv", text), at, why);
