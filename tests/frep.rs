@@ -368,3 +368,54 @@ fn a_model_whose_name_looks_like_an_expression_is_still_a_model() {
     let fo = eval(0, &dir, "eo", s(&odd), BUNNY_BOX, 12);
     assert_eq!(fa, fo);
 }
+
+#[test]
+fn grids_and_pictures_without_surface_say_why() {
+    // a reconstructed sphere (radius 1) on the box [-1.5, 1.5]^3: moved 10 away it is empty there,
+    // and its complement covers the whole box; either way no triangle can come, and the run says
+    // which, on one rank and on two
+    let dir = temp_dir("frep-nothing-to-mesh");
+    let ball = fit(&dir, "sphere", &sphere(300), &[]);
+    let bx = "-1.5,-1.5,-1.5,1.5,1.5,1.5";
+    let cases = [
+        ("translate({}, 10, 0, 0)", Some("f < 0 at all 9261 nodes of the grid: the solid is empty there")),
+        (
+            "complement(translate({}, 10, 0, 0))",
+            Some("f >= 0 at all 9261 nodes of the grid: the grid lies inside the solid"),
+        ),
+        ("{}", None),
+    ];
+    for ranks in [0, 2] {
+        for (form, warning) in cases {
+            let expr = form.replace("{}", s(&ball));
+            let out = dir.join(format!("off{ranks}"));
+            let text = run_ok(ranks, &["eval", &expr, "--out", s(&out), "--bounds", bx, "--grid", "21"]);
+            let tris: usize = text
+                .split("surface f = 0: ")
+                .nth(1)
+                .and_then(|t| t.split(' ').next())
+                .and_then(|t| t.parse().ok())
+                .unwrap_or_else(|| panic!("no surface line: {text}"));
+            match warning {
+                Some(w) => {
+                    assert!(text.contains(&format!("volspline: warning: {w}")), "{text}");
+                    assert_eq!(tris, 0, "{text}");
+                }
+                None => assert!(!text.contains("warning") && tris > 100, "{text}"),
+            }
+        }
+        // the picture of a solid empty in its box: background alone, and said so
+        let png = dir.join(format!("empty{ranks}.png"));
+        let expr = format!("intersection({0}, translate({0}, 10, 0, 0))", s(&ball));
+        let text = run_ok(ranks, &["render", &expr, "--out", s(&png), "--size", "48x32"]);
+        assert!(
+            text.contains("volspline: warning: no ray met the solid")
+                && text.contains("; 0 pixels on the solid"),
+            "{text}"
+        );
+        let png = dir.join(format!("ball{ranks}.png"));
+        let text = run_ok(ranks, &["render", s(&ball), "--out", s(&png), "--size", "48x32"]);
+        let hits: usize = text.split("; ").nth(1).and_then(|t| t.split(' ').next()).unwrap().parse().unwrap();
+        assert!(!text.contains("warning") && hits > 48 * 32 / 10, "{text}");
+    }
+}

@@ -32,6 +32,8 @@ pub struct Picture {
     pub width: usize,
     pub height: usize,
     pub rgb: Vec<u8>,
+    /// Pixels whose ray met the solid.
+    pub hits: usize,
 }
 
 /// The side of the square previews written by `fit` and `contours`.
@@ -144,7 +146,8 @@ pub fn render(
         };
         rgb.extend_from_slice(&c);
     }
-    Ok(Some(Picture { width: w, height: h, rgb }))
+    let hits = samples.iter().filter(|s| s[0] != 0.0).count();
+    Ok(Some(Picture { width: w, height: h, rgb, hits }))
 }
 
 /// The 95th percentile of |mean curvature| over the pixels that hit (1 if none or all zero).
@@ -192,7 +195,8 @@ fn check_png_path(path: &Path) -> Result<()> {
 }
 
 /// Renders `solid` with `view` and writes it to `path` from rank 0 (staged with the run's other
-/// outputs), timing the render and write stages. Collective.
+/// outputs), timing the render and write stages; returns the pixels whose ray met the solid, on
+/// every rank. Collective.
 pub fn write_picture(
     comm: &dyn Comm,
     solid: &dyn Implicit,
@@ -200,14 +204,17 @@ pub fn write_picture(
     colouring: Colouring,
     path: &Path,
     stages: &mut Stages,
-) -> Result<()> {
+) -> Result<usize> {
     let pic = stages.time(Stage::Render, || render(comm, solid, view, colouring))?;
     stages.time(Stage::Write, || {
         on_root(comm, || match &pic {
             Some(p) => crate::io::write_atomically(path, |tmp| write_png(tmp, p)),
             None => Ok(()),
         })
-    })
+    })?;
+    let mut hits = [pic.map_or(0.0, |p| p.hits as f64)];
+    comm.broadcast_f64(0, &mut hits);
+    Ok(hits[0] as usize)
 }
 
 /// The default view of a preview: from the upper front left, y up.
@@ -228,12 +235,19 @@ pub fn run(a: &RenderArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     agree(comm, if comm.rank() == 0 { check_png_path(&a.out) } else { Ok(()) })?;
     let solid = stages.time(Stage::Read, || agree(comm, load_solid(&a.model)))?;
     let view = view_of(&a.view);
-    write_picture(comm, solid.as_ref(), &view, a.view.color, &a.out, &mut stages)?;
+    let hits = write_picture(comm, solid.as_ref(), &view, a.view.color, &a.out, &mut stages)?;
+    if hits == 0 && comm.rank() == 0 {
+        eprintln!(
+            "volspline: warning: no ray met the solid, so the picture shows the background alone: the solid \
+             is empty in its box (f < 0 wherever the rays sampled it) or thinner than the rays' steps"
+        );
+    }
     let mut r = Report::new("render", Path::new(&a.model));
     r.line(format!(
-        "{} x {} pixels, azimuth {} deg, elevation {} deg, colouring {:?}",
+        "{} x {} pixels, azimuth {} deg, elevation {} deg, colouring {:?}; {hits} pixels on the solid",
         view.width, view.height, view.azimuth, view.elevation, a.view.color
     ));
+    r.figure("pixels_on_solid", hits);
     r.line(format!("ranks = {}, threads per rank = {threads}", comm.size()));
     r.figure("model", &a.model);
     r.figure("width", view.width);

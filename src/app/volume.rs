@@ -233,6 +233,13 @@ pub fn write_volume_with(
     });
     // a non-finite value would make an unusable volume and mesh: refuse it with the cause
     super::finite::check_slab(comm, &values[..layer * layers])?;
+    let mut inside = [values[..layer * layers].iter().filter(|&&f| f >= 0.0).count() as u64];
+    comm.sum_u64(&mut inside);
+    if comm.rank() == 0 {
+        if let Some(w) = nothing_to_mesh(inside[0], grid.node_count() as u64) {
+            eprintln!("volspline: warning: {w}");
+        }
+    }
 
     let node_curvature = curvature.map(|solid| {
         stages.time(Stage::Evaluate, || {
@@ -314,6 +321,24 @@ pub fn write_volume_with(
         evals_per_node,
         trimmed,
     })
+}
+
+/// Why no surface can come from a grid with `inside` of its `nodes` nodes at f >= 0, when none
+/// can: every node outside or every node inside.
+pub fn nothing_to_mesh(inside: u64, nodes: u64) -> Option<String> {
+    if inside == 0 {
+        Some(format!(
+            "f < 0 at all {nodes} nodes of the grid: the solid is empty there (or thinner than a cell), \
+             so the surface has no triangles"
+        ))
+    } else if inside == nodes {
+        Some(format!(
+            "f >= 0 at all {nodes} nodes of the grid: the grid lies inside the solid, so the surface has \
+             no triangles; a larger --bounds (or --margin) reaches its outside"
+        ))
+    } else {
+        None
+    }
 }
 
 /// Evaluations per second of the evaluate stage, as a report line.
