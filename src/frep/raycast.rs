@@ -18,7 +18,11 @@
 //! cell's diagonal) cannot hold the surface, since every point of the cell is within r of a
 //! corner. Rays cross such cells in one step, knowing the sign of f there without evaluating it.
 //! In the other cells the ray advances by s = |f| / L, but at least h / [`MIN_STEP_DIVISOR`] and
-//! at most h (h the shortest side of a cell), evaluating f exactly at every sample; L is here the
+//! at most h, evaluating f exactly at every sample. Here h is the length of ray that crosses a
+//! cell's width along the axis it crosses soonest (min over the axes of h_a / |d_a|): a step of
+//! h moves the ray by at most one cell width along every axis, and a ray across a flat box (a
+//! solid of zero thickness) takes a few steps a cell, not the box's thinnest side's fraction of
+//! its length. L is here the
 //! largest over the cells such a step can reach (the cell and its neighbours on the side the ray
 //! is heading). A sign change between two samples brackets the root; regula falsi with the
 //! Illinois modification (every fourth step a bisection) narrows it to [`REFINE_TOLERANCE`] of
@@ -294,8 +298,10 @@ impl Lattice {
         SAFETY * m
     }
 
-    fn min_h(&self) -> f64 {
-        self.h[0].min(self.h[1]).min(self.h[2])
+    /// The length of the ray along `d` that crosses one cell width along the axis it crosses
+    /// soonest: at least the shortest side of a cell (for a unit `d`).
+    fn ray_h(&self, d: [f64; 3]) -> f64 {
+        (0..3).filter(|&a| d[a] != 0.0).map(|a| self.h[a] / d[a].abs()).fold(f64::INFINITY, f64::min)
     }
 }
 
@@ -325,13 +331,16 @@ pub fn first_root(solid: &dyn Implicit, lattice: &Lattice, o: [f64; 3], d: [f64;
 /// [`first_root`] with the number of samples the ray took.
 fn march(solid: &dyn Implicit, lattice: &Lattice, o: [f64; 3], d: [f64; 3]) -> (Option<f64>, usize) {
     let Some((t0, t1)) = clip(lattice.lo, lattice.hi, o, d) else { return (None, 0) };
-    let h = lattice.min_h();
+    let h = lattice.ray_h(d);
     let at = |t: f64| add(o, d, t);
     // the last sample: its parameter, whether it is inside, and f there if evaluated
     let mut prev: Option<(f64, bool, Option<f64>)> = None;
     let mut t = t0;
     let mut samples = 0;
-    while t <= t1 {
+    // each step is at least a quarter of h, and the ray crosses at most `cells` widths of the
+    // soonest axis: this bound is never reached, and ends the loop however the steps round
+    let limit = 16 * (lattice.cells.iter().sum::<usize>() + 1);
+    while t <= t1 && samples < limit {
         samples += 1;
         let x = at(t);
         let (ijk, c) = lattice.cell_of(x);
@@ -363,7 +372,8 @@ fn march(solid: &dyn Implicit, lattice: &Lattice, o: [f64; 3], d: [f64; 3]) -> (
             _ => {}
         }
         prev = Some((t, inside, f));
-        t = next;
+        // a step below the last place of t (a box thinner than that along the ray) still moves on
+        t = next.max(t.next_up());
     }
     (None, samples)
 }
@@ -502,6 +512,40 @@ mod tests {
             // a ray passing by, across empty cells from side to side
             let (t, samples) = march(&ball, &lat, add(c, [10.0, 0.3, 2.3], 1.0), unit([-1.0, 0.01, 0.0]));
             assert!(t.is_none() && samples > 5 && samples <= 2 * cells, "{t:?}, {samples} samples");
+        }
+    }
+
+    /// The disc x^2 + y^2 <= 1 of the box [-2, 2]^2 x [0, thickness].
+    struct Flat(f64);
+    impl Implicit for Flat {
+        fn value(&self, p: [f64; 3]) -> f64 {
+            1.0 - p[0] * p[0] - p[1] * p[1]
+        }
+        fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+            ([-2.0, -2.0, 0.0], [2.0, 2.0, self.0])
+        }
+    }
+
+    #[test]
+    fn rays_cross_a_box_of_next_to_no_thickness_in_a_few_steps() {
+        // a box 1e-300 thick (contour slices that close) made steps of a quarter of its thickness,
+        // below the last place of t, so the ray stood still; 1e-6 made billions of steps
+        for thickness in [1e-300, 1e-6, 0.5] {
+            let flat = Flat(thickness);
+            let lat = lattice_of(&flat);
+            let cells = Lattice::cells_for(flat.bounds()).iter().sum::<usize>();
+            for (o, d) in [
+                ([-8.0, 0.3, 0.5 * thickness], [1.0, 0.0, 0.0]),
+                ([-8.0, 0.3, 8.0], unit([1.0, 0.01, -1.0])),
+                ([-8.0, 1.5, 0.5 * thickness], unit([1.0, 0.1, 0.0])),
+            ] {
+                let (t, samples) = march(&flat, &lat, o, d);
+                assert!(samples <= 8 * cells, "{thickness:e}, {d:?}: {samples} samples for {cells} cells");
+                if d[2] == 0.0 && o[1] < 1.0 {
+                    let want = 8.0 - (1.0f64 - 0.09).sqrt();
+                    assert!((t.unwrap() - want).abs() < 1e-3, "{thickness:e}: {t:?} vs {want}");
+                }
+            }
         }
     }
 
