@@ -90,6 +90,16 @@ pub fn read_mesh(path: &Path) -> Result<PointSet> {
 /// Text formats are decoded in one pass up front so that a binary file with the wrong
 /// extension is reported once, with a position, instead of as a confusing parse error.
 fn as_text<'a>(path: &Path, bytes: &'a [u8], what: &str) -> Result<&'a str> {
+    if bytes.starts_with(&[0xff, 0xfe]) || bytes.starts_with(&[0xfe, 0xff]) {
+        return Err(Error::input(
+            path,
+            "line 1",
+            format!(
+                "UTF-16 text (a byte-order mark at byte offset 0); {what} files are read as ASCII or UTF-8: \
+                 convert it, for instance with iconv -f UTF-16 -t UTF-8"
+            ),
+        ));
+    }
     let nul = bytes.iter().position(|&b| b == 0);
     let prefix = &bytes[..nul.unwrap_or(bytes.len())];
     let bad_at = match std::str::from_utf8(prefix) {
@@ -213,8 +223,10 @@ mod tests {
         let dir = TempDir::new();
         let elf = [0x7f, b'E', b'L', b'F', 2, 1, 1, 0, 0xc3];
         let supported = ".obj, .ply, .xyz, .txt, .csv";
-        let cases: [(&str, &[u8], &str, &str); 6] = [
+        let cases: [(&str, &[u8], &str, &str); 8] = [
             ("few.xyz", b"0 0 0\n1 0 0\n0 1 0\n", "", "at least 4"),
+            ("le.xyz", b"\xff\xfe0\x00 \x000\x00", "line 1", "UTF-16 text"),
+            ("be.obj", b"\xfe\xff\x00v\x00 ", "line 1", "iconv -f UTF-16"),
             ("empty.xyz", b"", "", "no points"),
             ("binary.xyz", b"0 0 0\n1 0 0\n\x00\x01\xff\x80 junk", "line 3", "binary"),
             ("elf.obj", &elf, "line 1", "not a text OBJ"),
