@@ -9,7 +9,9 @@ use faer::MatRef;
 use crate::error::{Error, Result};
 use crate::linalg::dense;
 use crate::spline::carrier::Carrier;
-use crate::spline::hygiene::{bounding_box, check_unisolvent, diagonal, merge_duplicates, MIN_SPREAD};
+use crate::spline::hygiene::{
+    after_merging, bounding_box, check_unisolvent, diagonal, merge_duplicates, MIN_SPREAD,
+};
 use crate::spline::kernel::Kernel;
 use crate::spline::{full_system, Normalisation, Spline};
 
@@ -140,9 +142,12 @@ pub fn fit_section(
             where_()
         )));
     }
-    let (spline, residual) = fit_values(kernel, &points, &values).map_err(|e| match e {
-        Error::Numerical(m) => Error::Numerical(format!("{}: {m}", where_())),
-        other => other,
+    let total = raw.len() / 2;
+    let (spline, residual) = fit_values(kernel, &points, &values).map_err(|e| {
+        match after_merging(e, merged, total, merge_tol) {
+            Error::Numerical(m) => Error::Numerical(format!("{}: {m}", where_())),
+            other => other,
+        }
     })?;
     let max_abs_at_points =
         points.chunks_exact(2).map(|p| (carrier.eval(p) - spline.eval(p)).abs()).fold(0.0, f64::max);

@@ -87,6 +87,19 @@ pub fn merge_indices(points: &[f64], dim: usize, tol: f64) -> Vec<usize> {
     kept
 }
 
+/// `e` (a numerical failure of the points that remain) saying, when `merged` of the `total`
+/// points were merged as duplicates (closer than `merge_tol` times the diagonal), that it
+/// concerns the points left, and which option decides the merging.
+pub fn after_merging(e: Error, merged: usize, total: usize, merge_tol: f64) -> Error {
+    match e {
+        Error::Numerical(m) if merged > 0 => Error::Numerical(format!(
+            "{m} ({merged} of the {total} points were merged into others as closer than --merge-tol \
+             {merge_tol:e} times the diagonal)"
+        )),
+        other => other,
+    }
+}
+
 /// Checks that the (normalised) points determine the polynomial part uniquely: the N x k matrix
 /// of the basis polynomials must have full column rank. Says what is wrong when it has not.
 pub fn check_unisolvent(kernel: &Kernel, points: &[f64]) -> Result<()> {
@@ -218,7 +231,7 @@ pub fn prepare(raw: &[f64], kernel: &Kernel, carrier: &Carrier, merge_tol: f64) 
     let pick =
         |v: &[f64]| -> Vec<f64> { keep.iter().flat_map(|&i| v[3 * i..3 * i + 3].iter().copied()).collect() };
     let (points, centres) = (pick(raw), pick(&all));
-    check_unisolvent(kernel, &centres)?;
+    check_unisolvent(kernel, &centres).map_err(|e| after_merging(e, merged, raw.len() / 3, merge_tol))?;
     let carrier = carrier.resolve(&lo, &hi);
     let values: Vec<f64> = points.chunks_exact(3).map(|p| carrier.eval(p)).collect();
     if let Some(bad) = values.iter().find(|v| !v.is_finite()) {
@@ -294,5 +307,22 @@ mod tests {
         let line = Kernel::new(2, 2).unwrap();
         let collinear: Vec<f64> = (0..10).flat_map(|i| [i as f64, 2.0 * i as f64 + 1.0]).collect();
         assert!(check_unisolvent(&line, &collinear).unwrap_err().to_string().contains("line"));
+    }
+
+    #[test]
+    fn too_few_points_after_merging_say_so() {
+        // a triangle and a fourth point 3.5e-4 from a corner (of a diagonal about 1.7): merged
+        // into it with a tolerance of 1e-3, which leaves three points
+        let k = Kernel::new(3, 2).unwrap();
+        let pts = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 2e-4, 2e-4, 2e-4];
+        let e = prepare(&pts, &k, &Carrier::AutoBall, 1e-3).unwrap_err().to_string();
+        assert!(e.contains("3 distinct points are too few"), "{e}");
+        assert!(
+            e.contains("(1 of the 4 points were merged into others as closer than --merge-tol 1e-3"),
+            "{e}"
+        );
+        // a failure with nothing merged says nothing of merging
+        let e = prepare(&pts[..9], &k, &Carrier::AutoBall, 1e-3).unwrap_err().to_string();
+        assert!(e.contains("3 distinct points are too few") && !e.contains("merged"), "{e}");
     }
 }
