@@ -531,6 +531,30 @@ fn an_unbounded_solid_is_reported() {
     }
 }
 
+#[test]
+fn a_long_thin_scan_is_bounded_and_said_to_be() {
+    // the bunny's points stretched 25 times along x: the ball carrier is as wide as the box's
+    // diagonal on every axis, so the far points of a box grown in proportion to its sides lay
+    // inside it across the scan, and a correct fit was reported inside-out
+    let dir = temp_dir("hardening-long-thin");
+    let input = dir.join("long.xyz");
+    let pts: Vec<f64> =
+        scaled_bunny(1.0).iter().enumerate().map(|(i, v)| if i % 3 == 0 { 25.0 * v } else { *v }).collect();
+    write_xyz(&input, &pts);
+    for (surface, ranks) in [("carrier", 1), ("offsurface", 2)] {
+        let timings = dir.join(format!("{surface}.csv"));
+        let prefix = dir.join(surface);
+        let args = ["fit", s(&input), "--out", s(&prefix), "--surface", surface, "--grid", "48"];
+        let out = run(ranks, &[&args[..], &["--no-preview", "--timings", s(&timings)]].concat());
+        let t = text(&out);
+        assert!(out.status.success(), "{t}");
+        assert!(!t.contains("warning"), "{t}");
+        let csv = std::fs::read_to_string(&timings).unwrap();
+        assert!(csv.contains("bounded,true"), "{csv}");
+        assert!(triangles(&out) > 500, "{t}");
+    }
+}
+
 /// Outputs of one run in one directory named in two spellings (`dir` and `dir/sub/..`, as `--out`
 /// with an absolute path and `--timings` relative to the working directory are): the set is
 /// renamed into place under one lock on the directory, where two locks of it used to wait on each

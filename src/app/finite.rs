@@ -50,14 +50,18 @@ pub fn check_fit(fitted: &Fitted, prep: &Prepared) -> Result<()> {
 }
 
 /// Whether a model is negative far from the data: f is evaluated at the 8 corners and 6 face
-/// centres of the data's box grown to 9 times its size about its centre (4 half-diagonals beyond
-/// each side). Returns a warning naming the first place where f >= 0 and how many of the 14 are
+/// centres of the data's box grown by 4 half-diagonals beyond each side. The growth is the same
+/// on every axis: the default ball carrier is as wide as the box's diagonal on every axis, so a
+/// box grown in proportion to its sides (9 times each) left the far points of a long, thin scan
+/// inside the ball, where f > 0 is right. Returns a warning naming the first place where f >= 0 and how many of the 14 are
 /// not negative, or None for a bounded solid. The same on every rank (every rank holds the whole
 /// model).
 pub fn check_bounded(model: &Model, kernel_name: &str) -> Option<String> {
     let (lo, hi) = (model.provenance.box_lo, model.provenance.box_hi);
     let c: Vec<f64> = (0..3).map(|d| 0.5 * (lo[d] + hi[d])).collect();
-    let h: Vec<f64> = (0..3).map(|d| 4.5 * (hi[d] - lo[d]).max(f64::MIN_POSITIVE)).collect();
+    let half_diagonal = 0.5 * crate::spline::hygiene::diagonal(&lo, &hi);
+    let h: Vec<f64> =
+        (0..3).map(|d| (0.5 * (hi[d] - lo[d]) + 4.0 * half_diagonal).max(f64::MIN_POSITIVE)).collect();
     let mut far = Vec::with_capacity(14);
     for corner in 0..8 {
         far.push(
