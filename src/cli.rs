@@ -124,6 +124,12 @@ pub struct FitArgs {
     /// Points closer than this fraction of the bounding-box diagonal are merged into one.
     #[arg(long, allow_hyphen_values = true, default_value = "1e-6", value_name = "F", value_parser = merge_tol)]
     pub merge_tol: f64,
+    /// Isolated points (their 8th nearest neighbour more than 10 times the median such distance
+    /// away: stray scanner returns, alone or in small groups) are named in a warning and fitted
+    /// (off), or left out of the fit (on). Kept, they stretch the carrier and the grid over empty
+    /// space and the surface is pulled out to them.
+    #[arg(long, default_value = "off", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
+    pub drop_isolated: bool,
     /// Do not write the picture PREFIX.png of the solid.
     #[arg(long)]
     pub no_preview: bool,

@@ -807,3 +807,44 @@ fn point_files_with_more_columns_fit_as_their_coordinates() {
     assert_eq!(weights[0], weights[1]);
     assert_eq!(weights[0], weights[2]);
 }
+
+#[test]
+fn isolated_points_of_a_real_scan_are_named_and_left_out_on_request() {
+    // the cow's 400 points with five stray returns as a scanner leaves them: three alone and a
+    // pair, far beyond the cow (its box is about 1.2 wide)
+    let dir = temp_dir("hardening-isolated");
+    let plain = dir.join("cow.xyz");
+    std::fs::copy(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/cow-400.xyz"), &plain).unwrap();
+    let strays = "6.0 0.1 0.2\n-0.3 7.5 0.0\n0.2 -0.1 -9.0\n-6.0 -6.0 3.0\n-6.02 -6.0 3.01\n";
+    let stray = dir.join("cow-strays.xyz");
+    std::fs::write(&stray, std::fs::read_to_string(&plain).unwrap() + strays).unwrap();
+    let fit = |input: &Path, name: &str, ranks: usize, extra: &[&str]| {
+        let prefix = dir.join(name);
+        let timings = dir.join(format!("{name}.csv"));
+        let args =
+            ["fit", s(input), "--out", s(&prefix), "--grid", "32", "--no-preview", "--timings", s(&timings)];
+        let out = run(ranks, &[&args[..], extra].concat());
+        let t = text(&out);
+        assert!(out.status.success(), "{t}");
+        let model = volspline::io::model_file::read_model(&prefix.with_extension("model.h5")).unwrap();
+        (t, std::fs::read_to_string(&timings).unwrap(), model)
+    };
+    let (t, csv, clean) = fit(&plain, "plain", 2, &[]);
+    assert!(!t.contains("are isolated") && csv.contains("isolated_points,0"), "{t}");
+    for ranks in [1, 2] {
+        // kept: named in a warning, the box stretched to them
+        let (t, csv, kept) = fit(&stray, &format!("kept{ranks}"), ranks, &[]);
+        let named = "volspline: warning: 5 of the 405 points are isolated";
+        assert!(t.contains(named) && t.contains("#401 (6.0000e0, 1.0000e-1, 2.0000e-1), #402"), "{t}");
+        assert!(t.contains("405 read, 5 isolated kept") && csv.contains("isolated_points,5"), "{t}");
+        assert!(kept.provenance.box_hi[0] >= 6.0, "{:?}", kept.provenance);
+        // left out: the fit of the scan without them, to the last bit
+        let (t, csv, dropped) = fit(&stray, &format!("dropped{ranks}"), ranks, &["--drop-isolated", "on"]);
+        assert!(t.contains("left out of the fit (--drop-isolated on)") && !t.contains("warning"), "{t}");
+        assert!(t.contains("405 read, 5 isolated left out") && csv.contains("isolated_dropped,true"), "{t}");
+        assert_eq!(dropped.provenance.box_hi, clean.provenance.box_hi);
+        if ranks == 2 {
+            assert_eq!(dropped.spline.weights, clean.spline.weights);
+        }
+    }
+}

@@ -37,6 +37,40 @@ pub fn diagonal(lo: &[f64], hi: &[f64]) -> f64 {
     longest * lo.iter().zip(hi).map(|(a, b)| ((b - a) / longest).powi(2)).sum::<f64>().sqrt()
 }
 
+/// The neighbour whose distance decides whether a point is isolated ([`isolated_points`]).
+pub const ISOLATION_NEIGHBOUR: usize = 8;
+
+/// How many times the median distance to the [`ISOLATION_NEIGHBOUR`]-th nearest other point a
+/// point's own must exceed for it to count as isolated.
+pub const ISOLATION_FACTOR: f64 = 10.0;
+
+/// The points (indices, ascending) whose [`ISOLATION_NEIGHBOUR`]-th nearest other point lies
+/// more than [`ISOLATION_FACTOR`] times the median of that distance away: stray returns of a
+/// scanner, alone or in small groups far from the surface. They are few by construction (fewer
+/// than half the points can lie above ten times the median) and the groups found have fewer
+/// members than the neighbour counted. Empty for fewer than 2 (k + 1) points, and where the
+/// median distance is 0 (most points repeated k times).
+pub fn isolated_points(points: &[f64]) -> Vec<usize> {
+    use rayon::prelude::*;
+    let k = ISOLATION_NEIGHBOUR;
+    let n = points.len() / 3;
+    if n < 2 * (k + 1) {
+        return Vec::new();
+    }
+    let tree = crate::spline::octree::Octree::new(points, crate::spline::octree::DEFAULT_LEAF_CAPACITY);
+    let (lo, hi) = bounding_box(points, 3);
+    let guess = diagonal(&lo, &hi) / (n as f64).cbrt();
+    let dist: Vec<f64> =
+        points.par_chunks_exact(3).map(|p| tree.kth_distance([p[0], p[1], p[2]], k + 1, guess)).collect();
+    let mut sorted = dist.clone();
+    let mid = n / 2;
+    let median = *sorted.select_nth_unstable_by(mid, f64::total_cmp).1;
+    if !(median > 0.0) {
+        return Vec::new();
+    }
+    (0..n).filter(|&i| dist[i] > ISOLATION_FACTOR * median).collect()
+}
+
 /// Removes every point closer than `tol` to an earlier kept point (the first of a cluster is
 /// kept, so the result does not depend on anything but the input order). Returns the kept points
 /// and how many were merged away.
@@ -307,6 +341,32 @@ mod tests {
         let line = Kernel::new(2, 2).unwrap();
         let collinear: Vec<f64> = (0..10).flat_map(|i| [i as f64, 2.0 * i as f64 + 1.0]).collect();
         assert!(check_unisolvent(&line, &collinear).unwrap_err().to_string().contains("line"));
+    }
+
+    #[test]
+    fn isolated_points_are_the_stray_ones() {
+        // 200 points on a sphere of radius 1, then three strays alone and a group of four, all
+        // well away from it
+        let mut pts = sphere(1.0);
+        pts.extend_from_slice(&[15.0, 0.0, 0.0, 0.0, -12.0, 0.0, 0.0, 0.0, 30.0]);
+        for q in 0..4 {
+            pts.extend_from_slice(&[-20.0 + 0.1 * q as f64, 20.0, 0.0]);
+        }
+        assert_eq!(isolated_points(&pts), (200..207).collect::<Vec<_>>());
+        // the sphere alone, and too few points to say: none
+        assert!(isolated_points(&sphere(1.0)).is_empty());
+        assert!(isolated_points(&pts[..3 * 17]).is_empty());
+        // a stray nearer than ten times the spacing of the 8th neighbour (about 0.4 here) is not
+        // told from the data
+        let mut near = sphere(1.0);
+        near.extend_from_slice(&[4.0, 0.0, 0.0]);
+        assert!(isolated_points(&near).is_empty());
+        // a group of as many points as the neighbour counted is a part of the data, not strays
+        let mut group = sphere(1.0);
+        for q in 0..ISOLATION_NEIGHBOUR + 1 {
+            group.extend_from_slice(&[-20.0 + 0.1 * q as f64, 20.0, 0.0]);
+        }
+        assert!(isolated_points(&group).is_empty());
     }
 
     #[test]

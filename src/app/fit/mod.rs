@@ -27,7 +27,7 @@ use crate::io::{self, model_file, points};
 use crate::linalg::dist::Layout;
 use crate::par::{agree, on_root, Comm};
 use crate::spline::compact::{default_support, DEFAULT_NEIGHBOURS};
-use crate::spline::hygiene::{prepare, Prepared};
+use crate::spline::hygiene::{isolated_points, prepare, Prepared, ISOLATION_FACTOR, ISOLATION_NEIGHBOUR};
 use crate::spline::system::power_of_two_below_inverse;
 use crate::spline::{Evaluator, Kernel, Model, Provenance, Spline};
 use crate::surface::support::DataSupport;
@@ -60,6 +60,35 @@ pub struct Fitted {
     pub figures: Vec<(String, String)>,
     /// The factor of a dense first fit, kept for a second fit that borders it.
     pub factor: Option<dense::KeptFactor>,
+}
+
+/// What a fit says of the `isolated` points of `raw` (indices), kept or `dropped`: how many,
+/// the first few by their number in the file, and what they do.
+fn isolated_line(raw: &[f64], isolated: &[usize], dropped: bool) -> String {
+    const SHOWN: usize = 5;
+    let mut named: Vec<String> = isolated
+        .iter()
+        .take(SHOWN)
+        .map(|&i| format!("#{} ({:.4e}, {:.4e}, {:.4e})", i + 1, raw[3 * i], raw[3 * i + 1], raw[3 * i + 2]))
+        .collect();
+    if isolated.len() > SHOWN {
+        named.push(format!("and {} more", isolated.len() - SHOWN));
+    }
+    format!(
+        "{} of the {} points are isolated (their {}th nearest neighbour more than {} times the median such \
+         distance away; stray returns?): {}; {}",
+        isolated.len(),
+        raw.len() / 3,
+        ISOLATION_NEIGHBOUR,
+        ISOLATION_FACTOR,
+        named.join(", "),
+        if dropped {
+            "left out of the fit (--drop-isolated on)"
+        } else {
+            "fitted as they are, which stretches the carrier and the grid towards them (--drop-isolated on \
+             leaves them out)"
+        }
+    )
 }
 
 /// Reads the input points on rank 0 and gives them to every rank, 3 values per point.
@@ -154,6 +183,23 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     check_prefix(comm, &a.out, a.grid.timings.as_deref(), Some(&a.input))?;
     let raw = stages.time(Stage::Read, || read_points_everywhere(comm, &a.input))?;
     let points_read = raw.len() / 3;
+    // the same points on every rank, so the same isolated ones
+    let isolated = stages.time(Stage::Read, || isolated_points(&raw));
+    if comm.rank() == 0 && !isolated.is_empty() {
+        let line = isolated_line(&raw, &isolated, a.drop_isolated);
+        if a.drop_isolated {
+            eprintln!("volspline fit: {line}");
+        } else {
+            eprintln!("volspline: warning: {line}");
+        }
+    }
+    let raw = if a.drop_isolated && !isolated.is_empty() {
+        let mut keep = vec![true; points_read];
+        isolated.iter().for_each(|&i| keep[i] = false);
+        raw.chunks_exact(3).zip(keep).filter(|(_, k)| *k).flat_map(|(p, _)| p.iter().copied()).collect()
+    } else {
+        raw
+    };
     // hygiene needs only the polynomial part, linear for every kernel but r3
     let base = match a.kernel {
         KernelChoice::Global(k) => k,
@@ -338,8 +384,13 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         0.0 => String::new(),
         l => format!(", smoothing {l} (|f| at the data is the misfit it allows)"),
     };
+    let isolated_part = match (isolated.len(), a.drop_isolated) {
+        (0, _) => String::new(),
+        (k, true) => format!(", {k} isolated left out"),
+        (k, false) => format!(", {k} isolated kept"),
+    };
     r.line(format!(
-        "N = {n} points ({points_read} read, {merged} duplicates merged), method {method_name} ({why}), kernel {}{smoothing}",
+        "N = {n} points ({points_read} read{isolated_part}, {merged} duplicates merged), method {method_name} ({why}), kernel {}{smoothing}",
         kernel.name()
     ));
     if let Some((line, ..)) = &denoised {
@@ -355,6 +406,8 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     }
     r.figure("bounded", unbounded.is_none());
     r.figure("input", a.input.display());
+    r.figure("isolated_points", isolated.len());
+    r.figure("isolated_dropped", a.drop_isolated && !isolated.is_empty());
     r.figure("points", n);
     r.figure("method", method_name);
     r.figure("kernel", kernel.name());
