@@ -46,30 +46,60 @@ pub const ISOLATION_FACTOR: f64 = 10.0;
 
 /// The points (indices, ascending) whose [`ISOLATION_NEIGHBOUR`]-th nearest other point lies
 /// more than [`ISOLATION_FACTOR`] times the median of that distance away: stray returns of a
-/// scanner, alone or in small groups far from the surface. They are few by construction (fewer
-/// than half the points can lie above ten times the median) and the groups found have fewer
+/// scanner, alone or in small groups far from the surface. The median is taken over at most
+/// [`ISOLATION_SAMPLES`] points evenly spaced in the input's order. The groups found have fewer
 /// members than the neighbour counted. Empty for fewer than 2 (k + 1) points, and where the
 /// median distance is 0 (most points repeated k times).
+///
+/// Only few points need their distance: on a lattice of cubes whose diagonal is the threshold,
+/// a point whose cube holds at least k others has them within the threshold. The others (points
+/// of cubes the data only graze, and the strays) are measured through an octree.
 pub fn isolated_points(points: &[f64]) -> Vec<usize> {
+    use crate::spline::octree::{Octree, DEFAULT_LEAF_CAPACITY};
     use rayon::prelude::*;
     let k = ISOLATION_NEIGHBOUR;
     let n = points.len() / 3;
     if n < 2 * (k + 1) {
         return Vec::new();
     }
-    let tree = crate::spline::octree::Octree::new(points, crate::spline::octree::DEFAULT_LEAF_CAPACITY);
+    let tree = Octree::new(points, DEFAULT_LEAF_CAPACITY);
     let (lo, hi) = bounding_box(points, 3);
-    let guess = diagonal(&lo, &hi) / (n as f64).cbrt();
-    let dist: Vec<f64> =
-        points.par_chunks_exact(3).map(|p| tree.kth_distance([p[0], p[1], p[2]], k + 1, guess)).collect();
-    let mut sorted = dist.clone();
-    let mid = n / 2;
-    let median = *sorted.select_nth_unstable_by(mid, f64::total_cmp).1;
-    if !(median > 0.0) {
+    // the radius holding k + 1 points where they sample a surface spanning the box (smaller
+    // where they fill it: the search then widens a few times)
+    let guess = diagonal(&lo, &hi) * ((k + 1) as f64 / n as f64).sqrt();
+    let kth =
+        |i: usize| tree.kth_distance([points[3 * i], points[3 * i + 1], points[3 * i + 2]], k + 1, guess);
+    let stride = n.div_ceil(ISOLATION_SAMPLES);
+    let mut sampled: Vec<f64> =
+        (0..n).step_by(stride).collect::<Vec<_>>().par_iter().map(|&i| kth(i)).collect();
+    let mid = sampled.len() / 2;
+    let median = *sampled.select_nth_unstable_by(mid, f64::total_cmp).1;
+    let threshold = ISOLATION_FACTOR * median;
+    if !(median > 0.0) || !threshold.is_finite() {
         return Vec::new();
     }
-    (0..n).filter(|&i| dist[i] > ISOLATION_FACTOR * median).collect()
+    let side = threshold / 3f64.sqrt();
+    let cells: Option<Vec<[i64; 3]>> = points
+        .chunks_exact(3)
+        .map(|p| {
+            let c: [f64; 3] = std::array::from_fn(|d| ((p[d] - lo[d]) / side).floor());
+            c.iter().all(|v| *v < 1e15).then(|| c.map(|v| v as i64))
+        })
+        .collect();
+    let candidates: Vec<usize> = match &cells {
+        Some(cells) => {
+            let mut count: HashMap<[i64; 3], usize> = HashMap::new();
+            cells.iter().for_each(|c| *count.entry(*c).or_default() += 1);
+            (0..n).filter(|&i| count[&cells[i]] <= k).collect()
+        }
+        // a lattice too fine to number (a few points spread over 1e15 thresholds)
+        None => (0..n).collect(),
+    };
+    candidates.into_par_iter().filter(|&i| kth(i) > threshold).collect()
 }
+
+/// The most points whose distances set the median of [`isolated_points`].
+pub const ISOLATION_SAMPLES: usize = 4096;
 
 /// Removes every point closer than `tol` to an earlier kept point (the first of a cluster is
 /// kept, so the result does not depend on anything but the input order). Returns the kept points
@@ -361,6 +391,41 @@ mod tests {
         let mut near = sphere(1.0);
         near.extend_from_slice(&[4.0, 0.0, 0.0]);
         assert!(isolated_points(&near).is_empty());
+        // against the definition, by all distances: a noisy shell of 3000 points (some cubes of
+        // the lattice grazed) with strays at several distances
+        let mut state = 7u64;
+        let mut unit = || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut cloud = Vec::new();
+        for i in 0..3000 {
+            let z = -1.0 + (2 * i + 1) as f64 / 3000.0;
+            let (r, t) = ((1.0 - z * z).sqrt() * (1.0 + 0.05 * unit()), i as f64 * 2.399963);
+            cloud.extend_from_slice(&[r * t.cos(), r * t.sin(), z]);
+        }
+        for q in 0..12 {
+            cloud.extend_from_slice(&[1.0 + 0.2 * q as f64, 0.3 * unit(), 0.0]);
+        }
+        let n = cloud.len() / 3;
+        let kth: Vec<f64> = (0..n)
+            .map(|i| {
+                let mut d: Vec<f64> = (0..n)
+                    .filter(|&j| j != i)
+                    .map(|j| {
+                        (0..3).map(|a| (cloud[3 * i + a] - cloud[3 * j + a]).powi(2)).sum::<f64>().sqrt()
+                    })
+                    .collect();
+                d.sort_by(f64::total_cmp);
+                d[ISOLATION_NEIGHBOUR - 1]
+            })
+            .collect();
+        let mut sampled: Vec<f64> = kth.iter().step_by(n.div_ceil(ISOLATION_SAMPLES)).copied().collect();
+        sampled.sort_by(f64::total_cmp);
+        let threshold = ISOLATION_FACTOR * sampled[sampled.len() / 2];
+        let want: Vec<usize> = (0..n).filter(|&i| kth[i] > threshold).collect();
+        assert!(!want.is_empty() && want.len() < 12, "{want:?}");
+        assert_eq!(isolated_points(&cloud), want);
         // a group of as many points as the neighbour counted is a part of the data, not strays
         let mut group = sphere(1.0);
         for q in 0..ISOLATION_NEIGHBOUR + 1 {
