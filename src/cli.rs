@@ -125,10 +125,10 @@ pub struct FitArgs {
     #[arg(long, allow_hyphen_values = true, default_value = "1e-6", value_name = "F", value_parser = merge_tol)]
     pub merge_tol: f64,
     /// Isolated points (their 8th nearest neighbour more than 10 times the median such distance
-    /// away: stray scanner returns, alone or in small groups) are named in a warning and fitted
-    /// (off), or left out of the fit (on). Kept, they stretch the carrier and the grid over empty
-    /// space and the surface is pulled out to them.
-    #[arg(long, default_value = "off", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
+    /// away: stray scanner returns, alone or in groups of up to 8) are named and left out of the
+    /// fit (on), or named in a warning and fitted (off). Kept, they stretch the carrier and the
+    /// grid over empty space and the surface is pulled out to them.
+    #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub drop_isolated: bool,
     /// Do not write the picture PREFIX.png of the solid.
     #[arg(long)]
@@ -791,6 +791,7 @@ mod tests {
         assert_eq!(a.leaf, 10);
         assert_eq!(a.grid.grid, GridSize::Longest(64));
         assert_eq!(a.merge_tol, 1e-6);
+        assert!(a.drop_isolated);
         assert_eq!((a.surface, a.off_points, a.doubtful_share), (Surface::Auto, 0.5, 0.4));
         assert!(a.carrier.to_string().starts_with("ball:"));
         let cli =

@@ -809,7 +809,7 @@ fn point_files_with_more_columns_fit_as_their_coordinates() {
 }
 
 #[test]
-fn isolated_points_of_a_real_scan_are_named_and_left_out_on_request() {
+fn isolated_points_of_a_real_scan_are_named_and_left_out() {
     // the cow's 400 points with five stray returns as a scanner leaves them: three alone and a
     // pair, far beyond the cow (its box is about 1.2 wide)
     let dir = temp_dir("hardening-isolated");
@@ -832,15 +832,19 @@ fn isolated_points_of_a_real_scan_are_named_and_left_out_on_request() {
     let (t, csv, clean) = fit(&plain, "plain", 2, &[]);
     assert!(!t.contains("are isolated") && csv.contains("isolated_points,0"), "{t}");
     for ranks in [1, 2] {
-        // kept: named in a warning, the box stretched to them
-        let (t, csv, kept) = fit(&stray, &format!("kept{ranks}"), ranks, &[]);
+        // kept on request: named in a warning, the box stretched to them
+        let (t, csv, kept) = fit(&stray, &format!("kept{ranks}"), ranks, &["--drop-isolated", "off"]);
         let named = "volspline: warning: 5 of the 405 points are isolated";
         assert!(t.contains(named) && t.contains("#401 (6.0000e0, 1.0000e-1, 2.0000e-1), #402"), "{t}");
         assert!(t.contains("405 read, 5 isolated kept") && csv.contains("isolated_points,5"), "{t}");
+        assert!(csv.contains("isolated_dropped,false"), "{csv}");
         assert!(kept.provenance.box_hi[0] >= 6.0, "{:?}", kept.provenance);
-        // left out: the fit of the scan without them, to the last bit
-        let (t, csv, dropped) = fit(&stray, &format!("dropped{ranks}"), ranks, &["--drop-isolated", "on"]);
-        assert!(t.contains("left out of the fit (--drop-isolated on)") && !t.contains("warning"), "{t}");
+        // left out by default: the fit of the scan without them, to the last bit
+        let (t, csv, dropped) = fit(&stray, &format!("dropped{ranks}"), ranks, &[]);
+        assert!(
+            t.contains("left out of the fit (--drop-isolated off fits them)") && !t.contains("warning"),
+            "{t}"
+        );
         assert!(t.contains("405 read, 5 isolated left out") && csv.contains("isolated_dropped,true"), "{t}");
         assert_eq!(dropped.provenance.box_hi, clean.provenance.box_hi);
         if ranks == 2 {

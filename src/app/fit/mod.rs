@@ -83,10 +83,9 @@ fn isolated_line(raw: &[f64], isolated: &[usize], dropped: bool) -> String {
         ISOLATION_FACTOR,
         named.join(", "),
         if dropped {
-            "left out of the fit (--drop-isolated on)"
+            "left out of the fit (--drop-isolated off fits them)"
         } else {
-            "fitted as they are, which stretches the carrier and the grid towards them (--drop-isolated on \
-             leaves them out)"
+            "fitted as they are (--drop-isolated off), which stretches the carrier and the grid towards them"
         }
     )
 }
