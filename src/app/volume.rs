@@ -325,7 +325,7 @@ pub fn write_volume_with(
 
 /// Why no surface can come from a grid with `inside` of its `nodes` nodes at f >= 0, when none
 /// can: every node outside or every node inside.
-pub fn nothing_to_mesh(inside: u64, nodes: u64) -> Option<String> {
+fn nothing_to_mesh(inside: u64, nodes: u64) -> Option<String> {
     if inside == 0 {
         Some(format!(
             "f < 0 at all {nodes} nodes of the grid: the solid is empty there (or thinner than a cell), \

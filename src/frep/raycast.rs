@@ -483,7 +483,7 @@ mod tests {
         assert_eq!(first_root(&ball, &lat, [0.0, 0.0, 0.0], [1.0, 0.0, 0.0]), Some(0.0));
     }
 
-    /// A ball of radius `r` about `c`.
+    /// A ball: its centre, then its radius.
     struct Away([f64; 3], f64);
     impl Implicit for Away {
         fn value(&self, p: [f64; 3]) -> f64 {

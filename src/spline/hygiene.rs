@@ -7,11 +7,13 @@
 use std::collections::HashMap;
 
 use faer::Mat;
+use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::linalg::dense::qr_r_diagonal;
 use crate::spline::carrier::Carrier;
 use crate::spline::kernel::Kernel;
+use crate::spline::octree::{Octree, DEFAULT_LEAF_CAPACITY};
 use crate::spline::system::Normalisation;
 
 /// Axis-aligned bounding box of `dim`-dimensional points stored `dim` values per point.
@@ -55,8 +57,6 @@ pub const ISOLATION_FACTOR: f64 = 10.0;
 /// a point whose cube holds at least k others has them within the threshold. The others (points
 /// of cubes the data only graze, and the strays) are measured through an octree.
 pub fn isolated_points(points: &[f64]) -> Vec<usize> {
-    use crate::spline::octree::{Octree, DEFAULT_LEAF_CAPACITY};
-    use rayon::prelude::*;
     let k = ISOLATION_NEIGHBOUR;
     let n = points.len() / 3;
     if n < 2 * (k + 1) {
@@ -70,8 +70,7 @@ pub fn isolated_points(points: &[f64]) -> Vec<usize> {
     let kth =
         |i: usize| tree.kth_distance([points[3 * i], points[3 * i + 1], points[3 * i + 2]], k + 1, guess);
     let stride = n.div_ceil(ISOLATION_SAMPLES);
-    let mut sampled: Vec<f64> =
-        (0..n).step_by(stride).collect::<Vec<_>>().par_iter().map(|&i| kth(i)).collect();
+    let mut sampled: Vec<f64> = (0..n).into_par_iter().step_by(stride).map(kth).collect();
     let mid = sampled.len() / 2;
     let median = *sampled.select_nth_unstable_by(mid, f64::total_cmp).1;
     let threshold = ISOLATION_FACTOR * median;

@@ -43,16 +43,11 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
             return Err(err(format!("'{tok}' is not a number")));
         }
         let n = values.len();
-        let (width, cols, _) = match layout {
+        let (width, cols, first) = match layout {
             Some(l) => l,
-            None => {
-                let l = columns(header.as_deref(), n).map_err(err)?;
-                layout = Some((n, l, i + 1));
-                (n, l, i + 1)
-            }
+            None => *layout.insert((n, columns(header.as_deref(), n).map_err(err)?, i + 1)),
         };
         if n != width {
-            let first = layout.map_or(0, |l| l.2);
             return Err(err(format!(
                 "found {n} values, where the first data line (line {first}) has {width}{}",
                 if width == 3 { " (x y z)" } else { "" }
