@@ -398,7 +398,8 @@ fn grids_and_pictures_without_surface_say_why() {
                 .unwrap_or_else(|| panic!("no surface line: {text}"));
             match warning {
                 Some(w) => {
-                    assert!(text.contains(&format!("volspline: warning: {w}")), "{text}");
+                    let ply = dir.join(format!("off{ranks}.ply"));
+                    assert!(text.contains(&format!("volspline: warning: {}: {w}", ply.display())), "{text}");
                     assert_eq!(tris, 0, "{text}");
                 }
                 None => assert!(!text.contains("warning") && tris > 100, "{text}"),

@@ -852,3 +852,47 @@ fn isolated_points_of_a_real_scan_are_named_and_left_out() {
         }
     }
 }
+
+#[test]
+fn a_solid_cut_open_by_the_grid_s_box_is_reported() {
+    // the carrier method on 400 points of the cow grows bulges past the data's box plus the
+    // default margin of 5 %: the grid's faces cut them off and the mesh has holes there. With a
+    // margin of 40 % the whole solid is inside the grid and the mesh is closed.
+    let cow = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/cow-400.xyz");
+    let dir = temp_dir("hardening-cut-open");
+    for (margin, ranks, open) in [("0.05", 1, true), ("0.05", 2, true), ("0.4", 2, false)] {
+        let prefix = dir.join(format!("cow-{margin}-{ranks}"));
+        let timings = dir.join(format!("cow-{margin}-{ranks}.csv"));
+        let args = [
+            "fit",
+            cow,
+            "--out",
+            s(&prefix),
+            "--surface",
+            "carrier",
+            "--grid",
+            "40",
+            "--margin",
+            margin,
+            "--no-preview",
+            "--timings",
+            s(&timings),
+        ];
+        let out = run(ranks, &args);
+        let t = text(&out);
+        assert!(out.status.success(), "{t}");
+        let csv = std::fs::read_to_string(&timings).unwrap();
+        let on_faces: u64 = csv
+            .lines()
+            .find_map(|l| l.strip_prefix("face_nodes_inside,"))
+            .unwrap_or_else(|| panic!("{csv}"))
+            .parse()
+            .unwrap();
+        let ply = dir.join(format!("cow-{margin}-{ranks}.ply"));
+        let closed = volspline::mesh::topology::is_closed_manifold_edges(&common::load_mesh(&ply));
+        assert_eq!(on_faces > 0, open, "{on_faces} face nodes inside\n{t}");
+        assert_eq!(closed, !open, "{t}");
+        let warned = format!("warning: {}: the solid reaches the grid's faces", ply.display());
+        assert_eq!(t.contains(&warned), open, "{t}");
+    }
+}

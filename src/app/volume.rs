@@ -34,6 +34,8 @@ pub struct VolumeSummary {
     pub evals_per_node: usize,
     /// The trimmed surface, when asked for.
     pub trimmed: Option<Trimmed>,
+    /// Grid nodes on the grid's faces with f >= 0: where the solid is cut open by the box.
+    pub face_nodes_inside: u64,
 }
 
 impl VolumeSummary {
@@ -55,6 +57,7 @@ impl VolumeSummary {
         report.line(format!("surface f = 0: {} triangles, {} vertices", self.triangles, self.vertices));
         report.figure("grid_nodes", g.node_count());
         report.figure("triangles", self.triangles);
+        report.figure("face_nodes_inside", self.face_nodes_inside);
         report.output(&self.hdf_path);
         report.output(&self.ply_path);
         if let Some(t) = &self.trimmed {
@@ -233,11 +236,16 @@ pub fn write_volume_with(
     });
     // a non-finite value would make an unusable volume and mesh: refuse it with the cause
     super::finite::check_slab(comm, &values[..layer * layers])?;
-    let mut inside = [values[..layer * layers].iter().filter(|&&f| f >= 0.0).count() as u64];
+    let ply_path = output_path(prefix, ".ply");
+    let [on_faces, faces] = inside_on_faces(&values[..layer * layers], grid.dims, k0);
+    let mut inside = [values[..layer * layers].iter().filter(|&&f| f >= 0.0).count() as u64, on_faces, faces];
     comm.sum_u64(&mut inside);
+    let [inside, on_faces, faces] = inside;
     if comm.rank() == 0 {
-        if let Some(w) = nothing_to_mesh(inside[0], grid.node_count() as u64) {
-            eprintln!("volspline: warning: {w}");
+        let nodes = grid.node_count() as u64;
+        let why = nothing_to_mesh(inside, nodes).or_else(|| cut_open(on_faces, faces));
+        if let Some(w) = why {
+            eprintln!("volspline: warning: {}: {w}", ply_path.display());
         }
     }
 
@@ -261,7 +269,6 @@ pub fn write_volume_with(
             .map_err(|e| io::staging::named_as_output(e, &hdf_path, &tmp))
     })?;
 
-    let ply_path = output_path(prefix, ".ply");
     let trimmed_path = output_path(prefix, ".trimmed.ply");
     // triangles kept and share of the area left out, on rank 0
     let mut trim_figures = [0.0f64; 2];
@@ -320,6 +327,7 @@ pub fn write_volume_with(
         ply_path,
         evals_per_node,
         trimmed,
+        face_nodes_inside: on_faces,
     })
 }
 
@@ -339,6 +347,39 @@ fn nothing_to_mesh(inside: u64, nodes: u64) -> Option<String> {
     } else {
         None
     }
+}
+
+/// Of this rank's nodes of a grid of `dims` nodes, its layers from `k0` in `values`, those on the
+/// grid's six faces with f >= 0, and all those on the faces.
+fn inside_on_faces(values: &[f64], dims: [usize; 3], k0: usize) -> [u64; 2] {
+    let [nx, ny, nz] = dims;
+    let layer = nx * ny;
+    let (mut inside, mut faces) = (0, 0);
+    for (t, slab) in values.chunks_exact(layer.max(1)).enumerate() {
+        let k = k0 + t;
+        let whole = k == 0 || k + 1 == nz;
+        for (q, &f) in slab.iter().enumerate() {
+            let (i, j) = (q % nx, q / nx);
+            if whole || i == 0 || i + 1 == nx || j == 0 || j + 1 == ny {
+                faces += 1;
+                inside += u64::from(f >= 0.0);
+            }
+        }
+    }
+    [inside, faces]
+}
+
+/// Why the surface is open, when the solid reaches the grid's faces: `on_faces` of the `faces`
+/// nodes on them at f >= 0. Marching cubes closes no surface at the grid's faces, so the mesh
+/// then has holes there, and the volume shows a solid cut off by the box.
+fn cut_open(on_faces: u64, faces: u64) -> Option<String> {
+    (on_faces > 0).then(|| {
+        format!(
+            "the solid reaches the grid's faces (f >= 0 at {on_faces} of the {faces} nodes on them), so the \
+             surface is cut open there and the mesh has holes; a larger --margin (or --bounds) takes in \
+             the whole solid"
+        )
+    })
 }
 
 /// Evaluations per second of the evaluate stage, as a report line.
@@ -389,5 +430,23 @@ mod tests {
             assert_eq!(r.last(), Some(&(11, 11)));
             assert!(r.windows(2).all(|w| w[0].0 < w[1].0), "{r:?}");
         }
+    }
+
+    #[test]
+    fn the_nodes_on_the_grid_s_faces_are_counted_by_slab() {
+        // a grid of 4 x 3 x 5 nodes: the faces hold all but the 2 x 1 x 3 interior nodes; the
+        // slabs of layers 0..2 and 2..5 count them between them, and f >= 0 at one interior node
+        // and one face node counts the face node alone
+        let dims = [4, 3, 5];
+        let mut values = vec![-1.0; 60];
+        values[12 + 4 + 1] = 1.0; // (1, 1, 1): interior
+        values[2 * 12 + 4] = 0.0; // (0, 1, 2): on the face i = 0
+        let low = inside_on_faces(&values[..24], dims, 0);
+        let high = inside_on_faces(&values[24..], dims, 2);
+        assert_eq!(low, [0, 12 + 10]);
+        assert_eq!(high, [1, 10 + 10 + 12]);
+        assert_eq!(low[1] + high[1], 60 - 2 * 1 * 3);
+        assert!(cut_open(0, 54).is_none());
+        assert!(cut_open(1, 54).is_some_and(|w| w.contains("f >= 0 at 1 of the 54 nodes")));
     }
 }
