@@ -445,7 +445,7 @@ mod tests {
         let high = inside_on_faces(&values[24..], dims, 2);
         assert_eq!(low, [0, 12 + 10]);
         assert_eq!(high, [1, 10 + 10 + 12]);
-        assert_eq!(low[1] + high[1], 60 - 2 * 1 * 3);
+        assert_eq!(low[1] + high[1], 60 - 2 * 3);
         assert!(cut_open(0, 54).is_none());
         assert!(cut_open(1, 54).is_some_and(|w| w.contains("f >= 0 at 1 of the 54 nodes")));
     }
