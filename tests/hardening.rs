@@ -896,3 +896,30 @@ fn a_solid_cut_open_by_the_grid_s_box_is_reported() {
         assert_eq!(t.contains(&warned), open, "{t}");
     }
 }
+
+#[test]
+fn text_inputs_with_latin1_comments_fit_as_without() {
+    // an editor that saves in Latin-1 turns "µm" in a comment into the single byte 0xb5, which is
+    // not UTF-8: the point file and the contour file still read, and fit as without the comment
+    let dir = temp_dir("hardening-latin1");
+    let plain = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/cow-400.xyz")).unwrap();
+    let slices = dir.join("bunny.contours");
+    let out = run(0, &["slice", common::BUNNY, "--out", s(&slices), "--planes", "y:12"]);
+    assert!(out.status.success(), "{}", text(&out));
+    let contours = std::fs::read(&slices).unwrap();
+    for (name, command, body) in [("cow.xyz", "fit", plain), ("bunny.contours", "contours", contours)] {
+        let mut meshes = Vec::new();
+        for (tag, comment) in [("utf8", &b""[..]), ("latin1", &b"# unit: \xb5m, scanned in M\xfcnchen\n"[..])]
+        {
+            let input = dir.join(format!("{tag}-{name}"));
+            std::fs::write(&input, [comment, &body].concat()).unwrap();
+            let prefix = dir.join(format!("{tag}-{command}"));
+            let out = run(2, &[command, s(&input), "--out", s(&prefix), "--grid", "20", "--no-preview"]);
+            assert!(out.status.success(), "{}: {}", input.display(), text(&out));
+            let mesh = common::load_mesh(&dir.join(format!("{tag}-{command}.ply")));
+            assert!(mesh.triangles.len() > 100, "{}", text(&out));
+            meshes.push((mesh.vertices, mesh.triangles));
+        }
+        assert!(meshes[0] == meshes[1], "{command}: the comment changed the surface");
+    }
+}

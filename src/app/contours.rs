@@ -26,10 +26,7 @@ use crate::spline::{Kernel, Provenance};
 fn read_sections_everywhere(comm: &dyn Comm, path: &Path) -> Result<Vec<Section>> {
     let local = if comm.rank() == 0 {
         io::staging::note_input(path);
-        std::fs::read_to_string(path).map(Some).map_err(|e| match e.kind() {
-            std::io::ErrorKind::InvalidData => Error::input(path, "", format!("not UTF-8 text: {e}")),
-            _ => Error::io(path, &e),
-        })
+        io::text::read(path, "contour").map(Some)
     } else {
         Ok(None)
     };

@@ -213,10 +213,7 @@ fn check_complete(path: &Path, s: &Section, line: usize) -> Result<()> {
 /// Reads and parses a contour file.
 pub fn read(path: &Path) -> Result<Vec<Section>> {
     crate::io::staging::note_input(path);
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
-    let text =
-        String::from_utf8(bytes).map_err(|e| Error::input(path, "", format!("not UTF-8 text: {e}")))?;
-    parse(path, &text)
+    parse(path, &crate::io::text::read(path, "contour")?)
 }
 
 /// The text of a contour file holding `sections`; every slice is written as `slice plane` (or

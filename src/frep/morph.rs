@@ -65,7 +65,7 @@ pub type Pair = ([f64; 3], [f64; 3]);
 /// Reads point pairs `x y z x' y' z'`, one per line; blank lines and `#` comments are skipped.
 pub fn read_pairs(path: &Path) -> Result<Vec<Pair>> {
     crate::io::staging::note_input(path);
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, &e))?;
+    let text = crate::io::text::read(path, "point-pair")?;
     let mut pairs = Vec::new();
     for (no, line) in text.lines().enumerate() {
         let line = line.split('#').next().unwrap_or("").trim();

@@ -1,12 +1,14 @@
 //! Files in and out: scattered points and meshes (`points`), the VTKHDF volume (`vtkhdf`, written
 //! in parallel by all ranks), the model file (`model_file`) and the staging of outputs
-//! under temporary names, renamed into place as a set (`staging`).
+//! under temporary names, renamed into place as a set (`staging`), and the decoding of text
+//! inputs (`text`).
 
 pub mod contour_model_file;
 pub mod h5;
 pub mod model_file;
 pub mod points;
 pub mod staging;
+pub mod text;
 pub mod vtkhdf;
 
 use std::path::Path;

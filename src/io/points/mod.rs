@@ -87,36 +87,6 @@ pub fn read_mesh(path: &Path) -> Result<PointSet> {
 // ---------------------------------------------------------------------------------------------
 // Helpers shared by the parsers.
 
-/// Text formats are decoded in one pass up front so that a binary file with the wrong
-/// extension is reported once, with a position, instead of as a confusing parse error.
-fn as_text<'a>(path: &Path, bytes: &'a [u8], what: &str) -> Result<&'a str> {
-    if bytes.starts_with(&[0xff, 0xfe]) || bytes.starts_with(&[0xfe, 0xff]) {
-        return Err(Error::input(
-            path,
-            "line 1",
-            format!(
-                "UTF-16 text (a byte-order mark at byte offset 0); {what} files are read as ASCII or UTF-8: \
-                 convert it, for instance with iconv -f UTF-16 -t UTF-8"
-            ),
-        ));
-    }
-    let nul = bytes.iter().position(|&b| b == 0);
-    let prefix = &bytes[..nul.unwrap_or(bytes.len())];
-    let bad_at = match std::str::from_utf8(prefix) {
-        Ok(text) => match nul {
-            None => return Ok(text.strip_prefix('\u{feff}').unwrap_or(text)),
-            Some(at) => at,
-        },
-        Err(e) => e.valid_up_to(),
-    };
-    let line = bytes[..bad_at].iter().filter(|&&b| b == b'\n').count() + 1;
-    Err(Error::input(
-        path,
-        format!("line {line}"),
-        format!("binary data at byte offset {bad_at}; this is not a text {what} file"),
-    ))
-}
-
 fn check_finite(p: [f64; 3]) -> std::result::Result<[f64; 3], String> {
     if p.iter().all(|c| c.is_finite()) {
         Ok(p)

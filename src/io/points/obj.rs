@@ -7,11 +7,13 @@
 
 use std::path::Path;
 
-use super::{as_text, check_corners, check_finite, Fan, PointSet};
+use super::{check_corners, check_finite, Fan, PointSet};
 use crate::error::{Error, Result};
 
 pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
-    let text = as_text(path, bytes, "OBJ")?;
+    // decoded in one pass up front, so that a binary file with the wrong extension is reported
+    // once, with a position, instead of as a confusing parse error
+    let text = crate::io::text::decode(path, bytes, "OBJ")?;
     let mut set = PointSet::default();
     // Positive indices may in principle point forward, so they are checked once all vertices
     // are known; remember the largest one and where it was.

@@ -4,11 +4,13 @@
 
 use std::path::Path;
 
-use super::{as_text, capacity, check_finite, PointSet};
+use super::{capacity, check_finite, PointSet};
 use crate::error::{Error, Result};
 
 pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
-    let text = as_text(path, bytes, "point")?;
+    // decoded in one pass up front, so that a binary file with the wrong extension is reported
+    // once, with a position, instead of as a confusing parse error
+    let text = crate::io::text::decode(path, bytes, "point")?;
     // Typical lines are 20-40 bytes; under-guessing costs one regrowth, over-guessing memory.
     let mut points = Vec::with_capacity(capacity(usize::MAX, text.len(), 24));
     let is_sep = |c: char| c == ',' || c.is_ascii_whitespace();

@@ -156,8 +156,13 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header> {
         pos = next;
         lineno += 1;
         let err = |reason: String| Error::input(path, format!("line {lineno}"), reason);
-        let line = std::str::from_utf8(raw)
-            .map_err(|_| err("header line is not text (missing 'end_header'?)".into()))?;
+        // comments are free text in whatever encoding the writing tool used
+        let Ok(line) = std::str::from_utf8(raw) else {
+            if lineno > 1 && (raw.starts_with(b"comment") || raw.starts_with(b"obj_info")) {
+                continue;
+            }
+            return Err(err("header line is not text (missing 'end_header'?)".into()));
+        };
         let mut tokens = line.split_ascii_whitespace();
         let keyword = tokens.next();
         let args: Vec<&str> = tokens.collect();
@@ -354,6 +359,19 @@ mod tests {
                     0 0 0\r\n1 0 0\r\n0 1 0\r\n0 0 1\r\n";
         let set = read_points(&dir.file("c.ply", text)).expect("crlf");
         assert_eq!(set.points, CUBE[..4]);
+    }
+
+    #[test]
+    fn ply_comments_in_latin1_are_skipped_and_other_lines_must_be_text() {
+        let dir = TempDir::new();
+        let mut bytes = ply(&four_vertices("float"), &unit_rows(), Encoding::LittleEndian);
+        // a comment written in Latin-1 ("comment unit: \xb5m"), after the one of `ply`
+        let at = bytes.windows(7).rposition(|w| w == b"comment").unwrap();
+        bytes.splice(at..at, b"comment unit: \xb5m\n".iter().copied());
+        assert_eq!(read_points(&dir.file("latin1.ply", &bytes)).expect("latin1 comment").points, CUBE[..4]);
+        let at = bytes.windows(7).position(|w| w == b"element").unwrap();
+        bytes.splice(at..at, b"obj_info \xe9t\xe9\nelem\xe9nt\n".iter().copied());
+        fails_with(&dir.file("bad.ply", &bytes), "line 6", "not text");
     }
 
     #[test]
