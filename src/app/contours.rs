@@ -11,6 +11,7 @@ use super::report::{run_provenance, Report};
 use super::stages::{Stage, Stages};
 use super::volume::{check_grid, output_path, write_volume};
 use crate::cli::ContoursArgs;
+use crate::contour::crossing;
 use crate::contour::format::{self, Section};
 use crate::contour::{fit_section, ContourModel, SectionCarrier, SectionFit, SectionModel};
 use crate::error::{Error, Result};
@@ -65,6 +66,47 @@ pub fn solve_sections(
         .collect())
 }
 
+/// Crossings counted in each slice up to this many.
+const CROSSINGS_COUNTED: usize = 1000;
+
+/// The crossings of contours in all slices (each slice's counted up to [`CROSSINGS_COUNTED`]), and
+/// the warning about them naming the first three places, when there are some.
+fn contour_crossings(path: &Path, sections: &[Section]) -> (usize, Option<String>) {
+    const SHOWN: usize = 3;
+    let mut places = Vec::new();
+    let (mut total, mut slices) = (0, 0);
+    for s in sections {
+        let (found, n) = crossing::crossings(s, SHOWN, CROSSINGS_COUNTED);
+        if n == 0 {
+            continue;
+        }
+        total += n;
+        slices += 1;
+        for c in found.iter().take(SHOWN - places.len().min(SHOWN)) {
+            let x = s.world(c.at);
+            let what = match c.contours {
+                [i, j] if i == j => format!("contour {} crosses itself", i + 1),
+                [i, j] => format!("contours {} and {} cross", i.min(j) + 1, i.max(j) + 1),
+            };
+            places.push(format!(
+                "the slice of line {}: {what} at ({:.6e}, {:.6e}, {:.6e})",
+                s.line, x.x, x.y, x.z
+            ));
+        }
+    }
+    let warning = (total > 0).then(|| {
+        let more = if total > places.len() { ", ..." } else { "" };
+        format!(
+            "{}: contours cross {total} time(s) in {slices} slice(s) ({}{more}; contours numbered from 1 in \
+             their slice): near a crossing the section's inside follows no reading of the drawing, and the \
+             surface pinches or fills a lobe there; mend the contours",
+            path.display(),
+            places.join("; ")
+        )
+    });
+    (total, warning)
+}
+
 /// Runs `volspline contours`. Collective.
 pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
@@ -88,6 +130,10 @@ pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             a.kernel.name(),
             a.carrier.name()
         );
+    }
+    let (crossings, warning) = contour_crossings(&a.input, &sections);
+    if let (0, Some(w)) = (comm.rank(), warning) {
+        eprintln!("volspline: warning: {w}");
     }
     let fits = stages.time(Stage::Solve, || {
         solve_sections(comm, &a.input, &sections, &a.kernel, a.carrier, a.merge_tol)
@@ -151,6 +197,7 @@ pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     r.figure("ranks", comm.size());
     r.figure("threads", threads);
     r.figure("residual", format!("{max_residual:e}"));
+    r.figure("contour_crossings", crossings);
     r.output(&model_path);
     volume.report(&mut r);
     if !a.no_preview {

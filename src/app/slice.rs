@@ -53,14 +53,25 @@ pub fn run(a: &SliceArgs, comm: &dyn Comm) -> Result<()> {
     ));
     if s.joined > 0 {
         r.line(format!(
-            "{} chains ended on holes of the mesh and were closed by joining their ends",
+            "{} chains ended on holes of the mesh and were closed by joining each end to the nearest free end",
             s.joined
         ));
+    }
+    if s.crossings > 0 && comm.rank() == 0 {
+        eprintln!(
+            "volspline: warning: {}: the contours cross {} time(s), where the mesh intersects itself (or \
+             where chains ending on its holes could not be joined without crossing); `volspline \
+             contours` names the places",
+            a.out.display(),
+            s.crossings
+        );
     }
     r.figure("planes", s.planes);
     r.figure("slices", s.slices);
     r.figure("contours", s.contours);
     r.figure("points", s.points);
+    r.figure("joined_chains", s.joined);
+    r.figure("contour_crossings", s.crossings);
     r.output(&a.out);
     r.finish(comm, &stages, &|_| Vec::new(), None)?;
     Ok(())

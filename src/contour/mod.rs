@@ -75,6 +75,7 @@
 //! The file format is in [`format`](mod@format), the plane families and mesh cutting of `volspline slice` in
 //! [`planes`]. Nothing here communicates: the commands that distribute the work are in `app`.
 
+pub mod crossing;
 pub mod format;
 pub mod interp;
 pub mod orientation;

@@ -4,6 +4,7 @@
 
 use glam::{DMat3, DVec3};
 
+use super::crossing::crossings;
 use super::format::Section;
 use crate::error::{Error, Result};
 use crate::mesh::{cut_by_plane, TriMesh};
@@ -118,8 +119,47 @@ pub struct SliceSummary {
     pub slices: usize,
     pub contours: usize,
     pub points: usize,
-    /// Chains that ended on holes of the mesh and were closed by joining their ends.
+    /// Chains that ended on holes of the mesh, joined end to nearest end into closed contours.
     pub joined: usize,
+    /// Places where the contours cross (where the mesh intersects itself, or where joining
+    /// chains across holes could not avoid it), each slice's counted up to 1000.
+    pub crossings: usize,
+}
+
+/// Closes the chains a plane cut that end on holes of the mesh: from the end of a chain, the
+/// nearest free end, of another chain or its own start, is joined next, until the loop closes.
+/// A plane that passes through one hole leaves one chain, closed across the hole by its own
+/// ends; a plane through two holes leaves two chains, one on either side of the body between
+/// the holes, whose ends lie pairwise at the holes. Each chain closed by its own ends would bridge
+/// the body and the two contours would cross; joined at the nearest ends, they make the one
+/// loop round the body that the mesh, its holes filled, would give.
+fn join_open_chains(mut chains: Vec<Vec<[f64; 3]>>) -> Vec<Vec<[f64; 3]>> {
+    let dist = |a: &[f64; 3], b: &[f64; 3]| (0..3).map(|d| (a[d] - b[d]).powi(2)).sum::<f64>();
+    let mut loops = Vec::new();
+    while let Some(mut cur) = chains.pop() {
+        loop {
+            let (Some(end), Some(start)) = (cur.last(), cur.first()) else { break };
+            let own = dist(end, start);
+            // the nearest end of another chain: (distance, chain, joined at its last point)
+            let best = chains
+                .iter()
+                .enumerate()
+                .flat_map(|(i, c)| [(dist(end, &c[0]), i, false), (dist(end, &c[c.len() - 1]), i, true)])
+                .min_by(|x, y| x.0.total_cmp(&y.0));
+            match best {
+                Some((d, i, reversed)) if d < own => {
+                    let mut next = chains.swap_remove(i);
+                    if reversed {
+                        next.reverse();
+                    }
+                    cur.extend(next);
+                }
+                _ => break,
+            }
+        }
+        loops.push(cur);
+    }
+    loops
 }
 
 /// Cuts `mesh` by `planes` into sections (planes that miss the mesh give no slice).
@@ -128,11 +168,12 @@ pub fn slice_mesh(mesh: &TriMesh, planes: &[(DVec3, DMat3)]) -> (Vec<Section>, S
     let mut sections = Vec::new();
     for (o, m) in planes {
         let cut = cut_by_plane(mesh, o.to_array(), m.z_axis.to_array());
-        summary.joined += cut.open.iter().filter(|c| c.len() >= 3).count();
+        summary.joined += cut.open.len();
+        let joined = join_open_chains(cut.open);
         let contours: Vec<Vec<[f64; 2]>> = cut
             .closed
             .iter()
-            .chain(&cut.open)
+            .chain(&joined)
             .filter(|c| c.len() >= 3)
             .map(|c| {
                 c.iter()
@@ -148,7 +189,9 @@ pub fn slice_mesh(mesh: &TriMesh, planes: &[(DVec3, DMat3)]) -> (Vec<Section>, S
         }
         summary.contours += contours.len();
         summary.points += contours.iter().map(Vec::len).sum::<usize>();
-        sections.push(Section { line: 0, origin: *o, frame: *m, kind: "plane", contours });
+        let section = Section { line: 0, origin: *o, frame: *m, kind: "plane", contours };
+        summary.crossings += crossings(&section, 0, 1000).1;
+        sections.push(section);
     }
     summary.slices = sections.len();
     (sections, summary)
@@ -158,6 +201,39 @@ pub fn slice_mesh(mesh: &TriMesh, planes: &[(DVec3, DMat3)]) -> (Vec<Section>, S
 mod tests {
     use super::*;
     use crate::contour::knots_of;
+
+    #[test]
+    fn chains_ending_on_holes_are_joined_at_their_nearest_ends() {
+        // a circle cut open at two holes (at 0 and 180 degrees) into two arcs, the second
+        // traced the other way round, and a third chain alone across a hole of its own
+        let arc = |from: f64, to: f64| -> Vec<[f64; 3]> {
+            (0..=16).map(|k| from + (to - from) * k as f64 / 16.0).map(|a| [a.cos(), a.sin(), 0.0]).collect()
+        };
+        let deg = std::f64::consts::PI / 180.0;
+        let lone: Vec<[f64; 3]> =
+            (0..=8).map(|k| [5.0 + (k as f64 * 0.7).cos(), (k as f64 * 0.7).sin(), 0.0]).collect();
+        let loops =
+            join_open_chains(vec![arc(10.0 * deg, 170.0 * deg), arc(350.0 * deg, 190.0 * deg), lone.clone()]);
+        assert_eq!(loops.len(), 2);
+        let circle = loops.iter().find(|l| l.len() == 34).expect("the two arcs in one loop");
+        assert!(loops.contains(&lone), "the lone chain closed by its own ends");
+        // one loop round the circle: its area is the polygon's, the points' order kept
+        let area: f64 = (0..34)
+            .map(|i| {
+                let (p, q) = (circle[i], circle[(i + 1) % 34]);
+                0.5 * (p[0] * q[1] - q[0] * p[1])
+            })
+            .sum();
+        assert!((area.abs() - 3.1).abs() < 0.05, "{area}");
+        let section = Section {
+            line: 0,
+            origin: DVec3::ZERO,
+            frame: DMat3::IDENTITY,
+            kind: "z",
+            contours: loops.iter().map(|l| l.iter().map(|p| [p[0], p[1]]).collect()).collect(),
+        };
+        assert_eq!(crossings(&section, 0, 100).1, 0);
+    }
 
     #[test]
     fn plane_families_parse_and_are_ordered() {
