@@ -137,8 +137,7 @@ fn join_open_chains(mut chains: Vec<Vec<[f64; 3]>>) -> Vec<Vec<[f64; 3]>> {
     let dist = |a: &[f64; 3], b: &[f64; 3]| (0..3).map(|d| (a[d] - b[d]).powi(2)).sum::<f64>();
     let mut loops = Vec::new();
     while let Some(mut cur) = chains.pop() {
-        loop {
-            let (Some(end), Some(start)) = (cur.last(), cur.first()) else { break };
+        while let (Some(end), Some(start)) = (cur.last(), cur.first()) {
             let own = dist(end, start);
             // the nearest end of another chain: (distance, chain, joined at its last point)
             let best = chains
