@@ -418,5 +418,15 @@ fn grids_and_pictures_without_surface_say_why() {
         let text = run_ok(ranks, &["render", s(&ball), "--out", s(&png), "--size", "48x32"]);
         let hits: usize = text.split("; ").nth(1).and_then(|t| t.split(' ').next()).unwrap().parse().unwrap();
         assert!(!text.contains("warning") && hits > 48 * 32 / 10, "{text}");
+        // the same ball from too far to fill a pixel, and from inside it: the view is the cause
+        for (distance, hits, why) in [
+            ("1e30", 0, "spans less than a pixel; leave out --distance to fill the view"),
+            ("1e-6", 48 * 32, "is inside the solid, so every ray starts inside"),
+        ] {
+            let args = ["render", s(&ball), "--out", s(&png), "--size", "48x32", "--distance", distance];
+            let text = run_ok(ranks, &args);
+            assert!(text.contains(&format!("; {hits} pixels on the solid")), "{text}");
+            assert!(text.contains("volspline: warning: ") && text.contains(why), "{text}");
+        }
     }
 }

@@ -229,6 +229,39 @@ pub fn preview_view() -> View {
     }
 }
 
+/// Why a picture with `hits` pixels on the solid shows little of it, when the view is the cause
+/// or nothing was hit: the solid's box smaller than a pixel from the camera, the camera inside
+/// the solid (every ray starts inside), or no ray meeting the solid.
+fn view_warning(solid: &dyn Implicit, view: &View, hits: usize) -> Option<String> {
+    let pixels = view.width * view.height;
+    let bounds = checked_bounds(solid).ok()?;
+    let camera = Camera::frame(bounds, view);
+    let (lo, hi) = bounds;
+    let centre: [f64; 3] = std::array::from_fn(|d| 0.5 * (lo[d] + hi[d]));
+    let radius = 0.5 * (0..3).map(|d| (hi[d] - lo[d]).powi(2)).sum::<f64>().sqrt();
+    let distance = (0..3).map(|d| (camera.eye[d] - centre[d]).powi(2)).sum::<f64>().sqrt();
+    // the half-width of a pixel at the centre's distance
+    let pixel = distance * camera.tan_half / view.height as f64;
+    if hits == 0 && radius < pixel {
+        return Some(format!(
+            "no ray met the solid: from the camera's distance {distance:.4e} the solid's box (radius \
+             {radius:.4e}) spans less than a pixel; leave out --distance to fill the view"
+        ));
+    }
+    if hits == pixels && distance < radius && solid.value(camera.eye) >= 0.0 {
+        return Some(format!(
+            "the camera (at distance {distance:.4e} from the centre of the solid's box) is inside the solid, \
+             so every ray starts inside and the picture shows no surface; a --distance above {radius:.4e} \
+             puts it outside the box"
+        ));
+    }
+    (hits == 0).then(|| {
+        "no ray met the solid, so the picture shows the background alone: the solid is empty in its box \
+         (f < 0 wherever the rays sampled it) or thinner than the rays' steps"
+            .to_string()
+    })
+}
+
 /// Runs `volspline render`. Collective.
 pub fn run(a: &RenderArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
@@ -236,11 +269,10 @@ pub fn run(a: &RenderArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let solid = stages.time(Stage::Read, || agree(comm, load_solid(&a.model)))?;
     let view = view_of(&a.view);
     let hits = write_picture(comm, solid.as_ref(), &view, a.view.color, &a.out, &mut stages)?;
-    if hits == 0 && comm.rank() == 0 {
-        eprintln!(
-            "volspline: warning: no ray met the solid, so the picture shows the background alone: the solid \
-             is empty in its box (f < 0 wherever the rays sampled it) or thinner than the rays' steps"
-        );
+    if comm.rank() == 0 {
+        if let Some(w) = view_warning(solid.as_ref(), &view, hits) {
+            eprintln!("volspline: warning: {w}");
+        }
     }
     let mut r = Report::new("render", Path::new(&a.model));
     r.line(format!(
