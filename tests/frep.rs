@@ -218,6 +218,21 @@ fn malformed_expressions_fail_cleanly_without_output() {
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains("pairs.txt: line 2"), "{err}");
     assert!(std::fs::read_dir(&out).unwrap().next().is_none(), "morph left output behind");
+    // two features of the bunny swapping places: their paths meet half-way, where one point
+    // would have to show both; refused with the two lines and the place, before any frame
+    std::fs::write(
+        &pairs,
+        "# ear tips swap\n-0.5 1.5 0 0.5 1.5 0\n0 0 0 0 0 0\n0.5 1.5 0 -0.5 1.5 0\n1 0 0 1 0 0\n0 0 1 0 0 1\n",
+    )
+    .unwrap();
+    let o = run(2, &["morph", s(&a), s(&a), "--out", s(&prefix), "--pairs", s(&pairs), "--frames", "3"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("pairs.txt: lines 2 and 4: the two pairs meet on their way at t = 0.5000, (0.000000e0, 1.500000e0, 0.000000e0)"),
+        "{err}"
+    );
+    assert!(std::fs::read_dir(&out).unwrap().next().is_none(), "morph left output behind");
 }
 
 #[test]

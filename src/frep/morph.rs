@@ -66,7 +66,7 @@ pub type Pair = ([f64; 3], [f64; 3]);
 pub fn read_pairs(path: &Path) -> Result<Vec<Pair>> {
     crate::io::staging::note_input(path);
     let text = crate::io::text::read(path, "point-pair")?;
-    let mut pairs = Vec::new();
+    let (mut pairs, mut lines) = (Vec::new(), Vec::new());
     for (no, line) in text.lines().enumerate() {
         let line = line.split('#').next().unwrap_or("").trim();
         if line.is_empty() {
@@ -87,6 +87,7 @@ pub fn read_pairs(path: &Path) -> Result<Vec<Pair>> {
             ));
         }
         pairs.push(([v[0], v[1], v[2]], [v[3], v[4], v[5]]));
+        lines.push(no + 1);
     }
     if pairs.len() < 4 || pairs.len() > MAX_PAIRS {
         return Err(Error::input(
@@ -95,7 +96,51 @@ pub fn read_pairs(path: &Path) -> Result<Vec<Pair>> {
             format!("{} point pairs: a space mapping needs 4 to {MAX_PAIRS} pairs", pairs.len()),
         ));
     }
+    if let Some((i, j, t)) = paths_meeting(&pairs) {
+        let x: [f64; 3] = std::array::from_fn(|d| (1.0 - t) * pairs[i].0[d] + t * pairs[i].1[d]);
+        let when = match t {
+            0.0 => "start at one point of A".to_string(),
+            1.0 => "end at one point of B".to_string(),
+            t => format!("meet on their way at t = {t:.4}"),
+        };
+        return Err(Error::input(
+            path,
+            format!("lines {} and {}", lines[i], lines[j]),
+            format!(
+                "the two pairs {when}, ({:.6e}, {:.6e}, {:.6e}): at that frame one point would have to show two \
+                 features; move one of them",
+                x[0], x[1], x[2]
+            ),
+        ));
+    }
     Ok(pairs)
+}
+
+/// Two pairs whose features travel through one point: i < j and the t in [0, 1] where the
+/// straight paths q_i(t) = (1 - t) p_i + t p'_i and q_j(t) come closest, when that is closer than
+/// 1e-9 of the pairs' extent (the displacement splines of that frame would be singular, and of
+/// the frames near it fold space). The first such i, then j.
+fn paths_meeting(pairs: &[Pair]) -> Option<(usize, usize, f64)> {
+    let all: Vec<f64> = pairs.iter().flat_map(|(p, r)| p.iter().chain(r).copied()).collect();
+    let (lo, hi) = bounding_box(&all, 3);
+    let extent = (0..3).map(|d| (hi[d] - lo[d]).powi(2)).sum::<f64>().sqrt();
+    let tol = 1e-9 * extent;
+    for i in 0..pairs.len() {
+        for j in i + 1..pairs.len() {
+            // q_i(t) - q_j(t) = a + t b
+            let a: [f64; 3] = std::array::from_fn(|d| pairs[i].0[d] - pairs[j].0[d]);
+            let b: [f64; 3] =
+                std::array::from_fn(|d| (pairs[i].1[d] - pairs[i].0[d]) - (pairs[j].1[d] - pairs[j].0[d]));
+            let bb: f64 = b.iter().map(|v| v * v).sum();
+            let t =
+                if bb > 0.0 { (-(0..3).map(|d| a[d] * b[d]).sum::<f64>() / bb).clamp(0.0, 1.0) } else { 0.0 };
+            let gap = (0..3).map(|d| (a[d] + t * b[d]).powi(2)).sum::<f64>().sqrt();
+            if gap <= tol {
+                return Some((i, j, t));
+            }
+        }
+    }
+    None
 }
 
 /// x -> x + D(x), D a volume spline (kernel r, linear polynomial) per component.
@@ -116,13 +161,19 @@ impl SpaceMap {
             norm.apply(p, c);
         }
         let why = "the pair points of a space mapping must be distinct and not all on one plane";
-        check_unisolvent(&kernel, &centres).map_err(|e| Error::Numerical(format!("{why}: {e}")))?;
+        let because = |e: Error| {
+            Error::Numerical(match e {
+                Error::Numerical(m) => format!("{why}: {m}"),
+                e => format!("{why}: {e}"),
+            })
+        };
+        check_unisolvent(&kernel, &centres).map_err(because)?;
         let solve = |d: usize| -> Result<Spline> {
             let values: Vec<f64> = from.iter().zip(to).map(|(a, b)| b[d] - a[d]).collect();
             let (m, b) = full_system(&kernel, &centres, &values);
             let n = b.len();
             let mat = MatRef::from_column_major_slice(&m, n, n);
-            let x = lu_solve(mat, &b).map_err(|e| Error::Numerical(format!("{why}: {e}")))?;
+            let x = lu_solve(mat, &b).map_err(because)?;
             if !(relative_residual(mat, &x, &b) < 1e-8) {
                 return Err(Error::Numerical(format!("{why} (the displacement system is singular)")));
             }
@@ -306,5 +357,25 @@ mod tests {
         // four points on one plane do not determine the linear part
         let flat = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]];
         assert!(SpaceMap::through(&flat, &flat).is_err());
+    }
+
+    #[test]
+    fn pairs_whose_paths_meet_are_found_with_the_time() {
+        let still = |p: [f64; 3]| (p, p);
+        let base = [still([0.0, 0.0, 1.0]), still([3.0, 3.0, 3.0]), still([0.0, 3.0, 0.0])];
+        let with = |a: Pair, b: Pair| [&base[..], &[a, b]].concat();
+        // the same start, the same end, crossing at a quarter of the way, passing at a distance
+        let cases = [
+            (with(([1.0, 1.0, 0.0], [2.0, 2.0, 0.0]), ([1.0, 1.0, 0.0], [0.0, 2.0, 0.0])), Some((3, 4, 0.0))),
+            (with(([1.0, 1.0, 0.0], [2.0, 2.0, 0.0]), ([0.0, 0.0, 2.0], [2.0, 2.0, 0.0])), Some((3, 4, 1.0))),
+            (
+                with(([0.0, 0.0, 0.0], [4.0, 0.0, 0.0]), ([1.0, 1.0, 0.0], [1.0, -3.0, 0.0])),
+                Some((3, 4, 0.25)),
+            ),
+            (with(([0.0, 0.0, 0.0], [4.0, 0.0, 0.0]), ([1.0, 1.0, 0.1], [1.0, -3.0, 0.1])), None),
+        ];
+        for (pairs, want) in cases {
+            assert_eq!(paths_meeting(&pairs), want, "{pairs:?}");
+        }
     }
 }
