@@ -548,7 +548,16 @@ fn a_long_thin_scan_is_bounded_and_said_to_be() {
         let out = run(ranks, &[&args[..], &["--no-preview", "--timings", s(&timings)]].concat());
         let t = text(&out);
         assert!(out.status.success(), "{t}");
-        assert!(!t.contains("warning"), "{t}");
+        // the carrier method's solid is as wide as its ball on every axis, so the thin box cuts
+        // it open (and says so); the default's solid lies within the box
+        let warnings: Vec<&str> = t.lines().filter(|l| l.contains("warning")).collect();
+        match surface {
+            "carrier" => assert!(
+                warnings.len() == 1 && warnings[0].contains("the solid reaches the grid's faces"),
+                "{t}"
+            ),
+            _ => assert!(warnings.is_empty(), "{t}"),
+        }
         let csv = std::fs::read_to_string(&timings).unwrap();
         assert!(csv.contains("bounded,true"), "{csv}");
         assert!(triangles(&out) > 500, "{t}");
