@@ -778,11 +778,14 @@ fn point_files_with_more_columns_fit_as_their_coordinates() {
         std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/cow-400.xyz")).unwrap();
     let rows: Vec<&str> = plain.lines().filter(|l| !l.trim().is_empty() && !l.starts_with('#')).collect();
     let (mut named, mut bare) = ("//ID,X,Y,Z,Nx,Ny,Nz\n".to_string(), String::new());
+    // and as a spreadsheet in a decimal-comma locale exports it: semicolons, decimal commas
+    let mut semicolons = "X;Y;Z\r\n".to_string();
     for (i, row) in rows.iter().enumerate() {
         let xyz: Vec<&str> = row.split_whitespace().collect();
         let n = [(i as f64).sin(), (i as f64).cos(), 0.5];
         named.push_str(&format!("{i},{},{},{},{},{},{}\n", xyz[0], xyz[1], xyz[2], n[0], n[1], n[2]));
         bare.push_str(&format!("{} {} {} {} {} {}\n", xyz[0], xyz[1], xyz[2], n[0], n[1], n[2]));
+        semicolons.push_str(&(xyz[..3].join(";").replace('.', ",") + "\r\n"));
     }
     let inputs = [
         (dir.join("plain.xyz"), plain.clone(), None),
@@ -795,6 +798,11 @@ fn point_files_with_more_columns_fit_as_their_coordinates() {
             dir.join("bare.xyz"),
             bare,
             Some("6 values a line: x, y, z from columns 1, 2, 3, the other 3 ignored"),
+        ),
+        (
+            dir.join("semicolons.csv"),
+            semicolons,
+            Some("values separated by ';', a ',' in a value read as its decimal mark"),
         ),
     ];
     let mut weights = Vec::new();
@@ -815,6 +823,7 @@ fn point_files_with_more_columns_fit_as_their_coordinates() {
     // the same points, so the same fit to the last bit
     assert_eq!(weights[0], weights[1]);
     assert_eq!(weights[0], weights[2]);
+    assert_eq!(weights[0], weights[3]);
 }
 
 #[test]

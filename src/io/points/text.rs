@@ -1,6 +1,6 @@
 //! Plain-text point lists (.xyz, .txt, .csv): three or more numbers per line, separated by
-//! whitespace and/or commas, with `#` comments and an optional column header (rules in
-//! [`super::read_points`]).
+//! whitespace and/or commas (or semicolons, with decimal commas), with `#` comments and an
+//! optional column header (rules in [`super::read_points`]).
 
 use std::path::Path;
 
@@ -13,7 +13,21 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
     let text = crate::io::text::decode(path, bytes, "point")?;
     // Typical lines are 20-40 bytes; under-guessing costs one regrowth, over-guessing memory.
     let mut points = Vec::with_capacity(capacity(usize::MAX, text.len(), 24));
-    let is_sep = |c: char| c == ',' || c.is_ascii_whitespace();
+    // semicolons between values (spreadsheets in locales that write decimal commas): then a comma
+    // inside a value is its decimal mark
+    let semicolons = text
+        .lines()
+        .map(|l| l.split('#').next().unwrap_or(""))
+        .find(|l| !l.trim().is_empty())
+        .is_some_and(|l| l.contains(';'));
+    let is_sep = |c: char| c.is_ascii_whitespace() || if semicolons { c == ';' } else { c == ',' };
+    let number = |tok: &str| -> Option<f64> {
+        if semicolons && tok.contains(',') {
+            tok.replacen(',', ".", 1).parse().ok()
+        } else {
+            tok.parse().ok()
+        }
+    };
     // the header's names, while no data line has come
     let mut header: Option<Vec<String>> = None;
     // the values per line and the columns of x, y and z, from the first data line
@@ -25,9 +39,9 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
         values.clear();
         let mut bad_token = None;
         for tok in line.split(is_sep).filter(|t| !t.is_empty()) {
-            match tok.parse::<f64>() {
-                Ok(v) => values.push(v),
-                Err(_) => {
+            match number(tok) {
+                Some(v) => values.push(v),
+                None => {
                     bad_token = Some(tok);
                     break;
                 }
@@ -38,11 +52,16 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
         }
         if let Some(tok) = bad_token {
             let words: Vec<&str> = line.split(is_sep).filter(|t| !t.is_empty()).collect();
-            if layout.is_none() && header.is_none() && words.iter().all(|t| t.parse::<f64>().is_err()) {
+            if layout.is_none() && header.is_none() && words.iter().all(|t| number(t).is_none()) {
                 header = Some(words.iter().map(|w| w.trim_start_matches('/').to_ascii_lowercase()).collect());
                 continue;
             }
-            return Err(err(format!("'{tok}' is not a number")));
+            let hint = if tok.contains(';') {
+                " (';' separates values in files whose first line has one)"
+            } else {
+                ""
+            };
+            return Err(err(format!("'{tok}' is not a number{hint}")));
         }
         let n = values.len();
         let (width, cols, first) = match layout {
@@ -60,7 +79,7 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
     if points.is_empty() {
         return Err(Error::input(path, "", "no points found"));
     }
-    let note = layout.filter(|l| l.0 > 3).map(|(width, cols, _)| {
+    let columns_note = layout.filter(|l| l.0 > 3).map(|(width, cols, _)| {
         let named = if header.as_deref().is_some_and(|h| h.iter().any(|n| n == "x")) {
             " (named in the header)"
         } else {
@@ -74,6 +93,10 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
             width - 3
         )
     });
+    let decimal_note =
+        semicolons.then(|| "values separated by ';', a ',' in a value read as its decimal mark".to_string());
+    let notes: Vec<String> = decimal_note.into_iter().chain(columns_note).collect();
+    let note = (!notes.is_empty()).then(|| notes.join("; "));
     Ok(PointSet { points, triangles: Vec::new(), note })
 }
 
@@ -110,6 +133,23 @@ mod tests {
             assert_eq!(set.points, CUBE);
             assert!(set.triangles.is_empty());
         }
+    }
+
+    #[test]
+    fn semicolons_separate_values_with_decimal_commas() {
+        let dir = TempDir::new();
+        // as a spreadsheet in a decimal-comma locale exports it, header and all
+        let text = "X;Y;Z\r\n0;0;0\r\n1;0;0\r\n0;1;0\r\n0;0;1\r\n0,5; -2,25e0 ;3e-3\r\n";
+        let set = read_points(&dir.file("p.csv", text)).expect("semicolons");
+        assert_eq!(set.points, CUBE);
+        assert!(set.note.unwrap().contains("separated by ';', a ',' in a value read as its decimal mark"));
+        // one value with two commas is no number; a ';' in a comma-separated file is named
+        fails_with(&dir.file("q.csv", "0;0;0\n1,0,0;0;0\n"), "line 2", "'1,0,0' is not a number");
+        fails_with(
+            &dir.file("r.csv", "0,0,0\n1;0;0\n"),
+            "line 2",
+            "';' separates values in files whose first line",
+        );
     }
 
     #[test]
