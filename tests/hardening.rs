@@ -941,3 +941,27 @@ fn text_inputs_with_latin1_comments_fit_as_without() {
         assert!(meshes[0] == meshes[1], "{command}: the comment changed the surface");
     }
 }
+
+#[test]
+fn directories_and_non_models_are_named_for_what_they_are() {
+    // a point file given where a model goes, and directories where files go: the error says
+    // what the argument is, not the HDF5 library's or the system's words
+    let data = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data");
+    let scan = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/cow-400.xyz");
+    let dir = temp_dir("hardening-not-models");
+    let out = dir.join("out");
+    let png = dir.join("out.png");
+    let cases: [(&[&str], &str); 4] = [
+        (&["eval", scan, "--out", s(&out)], "cow-400.xyz: not an HDF5 file, so not a model"),
+        (&["eval", data, "--out", s(&out)], "data: a directory, not a model file"),
+        (&["render", data, "--out", s(&png)], "data: a directory, not a model file"),
+        (&["fit", data, "--out", s(&out)], "data: a directory, not a point file"),
+    ];
+    for (args, why) in cases {
+        for ranks in [0, 2] {
+            let o = run(ranks, args);
+            refused(&o, 1, why, &dir, &[]);
+            assert!(!text(&o).contains("HDF5 error") && !text(&o).contains("os error"), "{}", text(&o));
+        }
+    }
+}

@@ -154,13 +154,29 @@ pub fn close_library() {
     });
 }
 
+/// What a model file is, for the errors about files that are not one.
+const MODEL_FILES: &str =
+    "a model is the PREFIX.model.h5 that `volspline fit` or `volspline contours` writes";
+
 /// The `format` attribute of an HDF5 model file (which of the model formats it holds).
 pub fn format_of(path: &Path) -> Result<String> {
     if !path.exists() {
         return Err(Error::Io { path: path.into(), reason: "no such file".into() });
     }
+    if path.is_dir() {
+        return Err(Error::input(path, "", format!("a directory, not a model file ({MODEL_FILES})")));
+    }
     super::staging::note_input(path);
-    let f = hdf5::File::open(path).map_err(|e| Error::hdf5(path, e))?;
+    let f = hdf5::File::open(path).map_err(|e| {
+        // a file without the HDF5 signature where it starts is named so, not by HDF5's own words
+        let mut head = [0u8; 8];
+        let read = std::fs::File::open(path).and_then(|mut f| std::io::Read::read_exact(&mut f, &mut head));
+        if read.is_err() || head != *b"\x89HDF\r\n\x1a\n" {
+            Error::input(path, "", format!("not an HDF5 file, so not a model ({MODEL_FILES})"))
+        } else {
+            Error::hdf5(path, e)
+        }
+    })?;
     let a = Attrs { file: &f, path };
     if f.attr("format").is_err() {
         return Err(a.bad("not a volspline model: no 'format' attribute"));

@@ -46,6 +46,9 @@ pub struct PointSet {
 ///
 /// Every coordinate must be finite and the file must hold at least 4 points.
 pub fn read_points(path: &Path) -> Result<PointSet> {
+    if path.is_dir() {
+        return Err(Error::input(path, "", format!("a directory, not a point file ({SUPPORTED})")));
+    }
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     let parse: fn(&Path, &[u8]) -> Result<PointSet> = match ext.as_str() {
         "obj" => obj::parse,
@@ -208,6 +211,15 @@ mod tests {
         ];
         for (name, contents, at, why) in cases {
             fails_with(&dir.file(name, contents), at, why);
+        }
+    }
+
+    #[test]
+    fn a_directory_is_named_as_such() {
+        let dir = TempDir::new();
+        for name in ["scans", "scan.xyz"] {
+            std::fs::create_dir_all(dir.0.join(name)).unwrap();
+            fails_with(&dir.0.join(name), "", "a directory, not a point file");
         }
     }
 
