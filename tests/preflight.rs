@@ -208,3 +208,65 @@ fn a_2d_factor_without_room_for_its_copy_is_not_kept_and_the_fit_is_the_same() {
         assert!(common::volume_diff(&hdf, &kept) < 1e-8, "{what}");
     }
 }
+
+#[test]
+fn a_slice_too_large_for_memory_is_refused_before_its_solve() {
+    // the bunny in 12 slices, and the same with the middle slice's contours traced 40 times more
+    // finely (as a segmentation at full resolution would): the slices' dense systems fit 800 MB
+    // a rank, the fine slice's does not, and the run says which slice before solving any
+    let dir = common::temp_dir("preflight-slice");
+    let coarse = dir.join("coarse.txt");
+    common::run_ok(0, &["slice", common::BUNNY, "--out", coarse.to_str().unwrap(), "--planes", "y:12"]);
+    let mut sections = volspline::contour::format::read(&coarse).unwrap();
+    let mid = sections.len() / 2;
+    for c in &mut sections[mid].contours {
+        let n = c.len();
+        *c = (0..40 * n)
+            .map(|k| {
+                let (i, t) = (k / 40, (k % 40) as f64 / 40.0);
+                let (p, q) = (c[i], c[(i + 1) % n]);
+                [p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1])]
+            })
+            .collect();
+    }
+    let fine = dir.join("fine.txt");
+    std::fs::write(&fine, volspline::contour::format::to_text(&sections, "fine middle slice")).unwrap();
+    let points = sections[mid].point_count();
+    let line = volspline::contour::format::read(&fine).unwrap()[mid].line;
+    // the matrix and the LU's copy of it, the fixed part beside
+    let need = 2.0 * ((points + 3) as f64).powi(2) * 8.0 + 200e6;
+    assert!(need > 800e6 * 1.1, "{points} points");
+    for ranks in [1, 2] {
+        let out = dir.join(format!("r{ranks}"));
+        let args = [
+            "contours",
+            fine.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--memory-per-rank",
+            "500MB",
+        ];
+        let run = common::run(ranks, &args);
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(1), "{err}");
+        let said = format!(
+            "not enough memory: the dense system of the slice of line {line} ({points} points, the most of any \
+             slice) needs about {}",
+            if need >= 1e9 { format!("{:.1} GB", need / 1e9) } else { format!("{:.0} MB", need / 1e6) }
+        );
+        assert!(err.contains(&said) && err.contains("thin its contours"), "{said}\n{err}");
+        let args = [
+            "contours",
+            coarse.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--memory-per-rank",
+            "500MB",
+        ];
+        common::run_ok(ranks, &[&args[..], &["--grid", "24", "--no-preview"]].concat());
+    }
+    assert_eq!(
+        files_in(&dir),
+        ["coarse.txt", "fine.txt", "r1.hdf", "r1.model.h5", "r1.ply", "r2.hdf", "r2.model.h5", "r2.ply"]
+    );
+}

@@ -66,6 +66,27 @@ pub fn solve_sections(
         .collect())
 }
 
+/// Refuses the run before any slice is solved when the dense system of the largest slice does
+/// not fit in a rank's memory: the matrix of its points and polynomial terms, and the copy the
+/// LU factors (both f64), beside the program's fixed part. Collective.
+fn check_slice_systems(comm: &dyn Comm, sections: &[Section], kernel: &Kernel) -> Result<()> {
+    let Some(largest) = sections.iter().max_by_key(|s| s.point_count()) else { return Ok(()) };
+    let n = (largest.point_count() + kernel.poly_count()) as f64;
+    let need = 2.0 * n * n * 8.0 + super::preflight::FIXED_BYTES;
+    let what = format!(
+        "the dense system of the slice of line {} ({} points, the most of any slice)",
+        largest.line,
+        largest.point_count()
+    );
+    super::preflight::check_memory(
+        comm,
+        need,
+        &what,
+        "thin its contours (every k-th point: the spline through fewer points is smooth) or give the ranks \
+         more memory (fewer ranks per node, --memory-per-rank)",
+    )
+}
+
 /// Crossings counted in each slice up to this many.
 const CROSSINGS_COUNTED: usize = 1000;
 
@@ -122,6 +143,7 @@ pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let (plo, phi) = padded_box(&lo, &hi, a.grid.margin);
     let grid = Grid::covering(plo, phi, a.grid.grid)?;
     check_grid(comm, &grid)?;
+    check_slice_systems(comm, &sections, &a.kernel)?;
     if comm.rank() == 0 {
         eprintln!(
             "volspline contours: {} slices, {contours} contours, {points_read} points from {}; kernel {}, carrier {}",
