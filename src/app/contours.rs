@@ -1,9 +1,12 @@
 //! `volspline contours`: planar cross-sections -> the solid. Rank 0 reads the contour file and
-//! every rank parses its text; the slices' systems are independent, so slice i is solved serially
-//! by rank i mod P and broadcast by its owner (every rank then holds every section bit for bit the
-//! same whatever P is); rank 0 writes the model; the volume outputs follow.
+//! every rank parses its text; the slices' systems are independent, so slice i is solved by rank
+//! i mod P (a rank's slices side by side on its threads, each on one) and broadcast by its owner
+//! (every rank then holds every section bit for bit the same whatever P and the threads are);
+//! rank 0 writes the model; the volume outputs follow.
 
 use std::path::Path;
+
+use rayon::prelude::*;
 
 use super::preflight::check_prefix;
 use super::render::{preview_view, write_picture};
@@ -46,8 +49,10 @@ pub fn solve_sections(
     merge_tol: f64,
 ) -> Result<Vec<SectionFit>> {
     let (p, r) = (comm.size(), comm.rank());
-    let mine: Result<Vec<SectionFit>> = sections
-        .iter()
+    // this rank's slices side by side on its threads; the first failure in slice order is the one
+    // reported, whatever the threads' order
+    let fits: Vec<Result<SectionFit>> = sections
+        .par_iter()
         .skip(r)
         .step_by(p)
         .map(|s| {
@@ -57,6 +62,7 @@ pub fn solve_sections(
             })
         })
         .collect();
+    let mine: Result<Vec<SectionFit>> = fits.into_iter().collect();
     let mut mine = agree(comm, mine)?.into_iter();
     Ok((0..sections.len())
         .map(|i| {
