@@ -497,6 +497,23 @@ pub fn default_threads(requested: usize) -> usize {
     (cores / ranks_on_this_node()).max(1)
 }
 
+/// The warning when `--threads` asks for more threads than the CPUs this process may run on (its
+/// affinity mask, which the launcher sets: Open MPI binds each rank to one core when it starts
+/// two or fewer, `srun` to its `--cpus-per-task`): the threads would share those CPUs, and a
+/// hybrid run would be no faster than one thread a rank. None for the default (0), which counts
+/// only those CPUs.
+pub fn threads_warning(requested: usize) -> Option<String> {
+    let cpus = std::thread::available_parallelism().ok()?.get();
+    (requested > cpus).then(|| {
+        format!(
+            "--threads {requested}, but this rank may run on {cpus} CPU(s) (its affinity mask, as the \
+             launcher set it: Open MPI binds each rank to a core when it starts 2 or fewer), so the \
+             threads share them; start the ranks unbound (mpirun --bind-to none) or with {requested} \
+             CPUs each (mpirun --map-by slot:PE={requested}, srun --cpus-per-task={requested})"
+        )
+    })
+}
+
 /// The number of ranks the launcher started on this node (1 without a launcher).
 pub fn ranks_on_this_node() -> usize {
     ["OMPI_COMM_WORLD_LOCAL_SIZE", "MPI_LOCALNRANKS", "MV2_COMM_WORLD_LOCAL_SIZE", "SLURM_NTASKS_PER_NODE"]

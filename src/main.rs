@@ -3,7 +3,7 @@
 //! turns its result into an exit status. All logic is in the library.
 
 use clap::Parser;
-use volspline::cli::{default_threads, launcher_rank, Cli};
+use volspline::cli::{default_threads, launcher_rank, threads_warning, Cli};
 use volspline::par::mpi::World;
 use volspline::par::Comm;
 
@@ -31,6 +31,9 @@ fn main() {
     }
     let threads = default_threads(cli.threads());
     let comm = world.comm();
+    if let (0, Some(w)) = (comm.rank(), threads_warning(cli.threads())) {
+        eprintln!("volspline: warning: {w}");
+    }
     let code = match rayon::ThreadPoolBuilder::new().num_threads(threads).build_global() {
         Err(e) => {
             eprintln!("volspline: error: cannot start {threads} threads: {e}");

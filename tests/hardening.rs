@@ -965,3 +965,25 @@ fn directories_and_non_models_are_named_for_what_they_are() {
         }
     }
 }
+
+#[test]
+fn more_threads_than_the_rank_s_cpus_are_named() {
+    // a rank confined to one CPU (as Open MPI binds each of up to 2 ranks, here by taskset) asked
+    // for 2 threads: the threads would share the CPU, and the run says how to start it unbound
+    let dir = temp_dir("hardening-threads");
+    let cow = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/cow-400.xyz");
+    for threads in ["2", "1"] {
+        let out = std::process::Command::new("taskset")
+            .args(["-c", "0", common::BIN, "fit", cow, "--out", s(&dir.join("o")), "--grid", "8"])
+            .args(["--no-preview", "--threads", threads])
+            .output()
+            .unwrap();
+        let t = text(&out);
+        assert!(out.status.success(), "{t}");
+        let warned = t.contains(
+            "volspline: warning: --threads 2, but this rank may run on 1 CPU(s) (its affinity mask, as the launcher set it",
+        ) && t.contains("mpirun --bind-to none");
+        assert_eq!(warned, threads == "2", "{t}");
+        assert!(t.contains(&format!("threads per rank = {threads}")), "{t}");
+    }
+}
