@@ -235,18 +235,17 @@ fn a_slice_too_large_for_memory_is_refused_before_its_solve() {
     let line = volspline::contour::format::read(&fine).unwrap()[mid].line;
     // the matrix and the LU's copy of it, the fixed part beside
     let need = 2.0 * ((points + 3) as f64).powi(2) * 8.0 + 200e6;
+    let limit = "800MB";
     assert!(need > 800e6 * 1.1, "{points} points");
+    let contours = |input: &Path, out: &Path| {
+        ["contours", input.to_str().unwrap(), "--out", out.to_str().unwrap(), "--memory-per-rank", limit]
+            .map(String::from)
+            .to_vec()
+    };
     for ranks in [1, 2] {
         let out = dir.join(format!("r{ranks}"));
-        let args = [
-            "contours",
-            fine.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--memory-per-rank",
-            "500MB",
-        ];
-        let run = common::run(ranks, &args);
+        let args = contours(&fine, &out);
+        let run = common::run(ranks, &args.iter().map(String::as_str).collect::<Vec<_>>());
         let err = String::from_utf8_lossy(&run.stderr);
         assert_eq!(run.status.code(), Some(1), "{err}");
         let said = format!(
@@ -255,15 +254,9 @@ fn a_slice_too_large_for_memory_is_refused_before_its_solve() {
             if need >= 1e9 { format!("{:.1} GB", need / 1e9) } else { format!("{:.0} MB", need / 1e6) }
         );
         assert!(err.contains(&said) && err.contains("thin its contours"), "{said}\n{err}");
-        let args = [
-            "contours",
-            coarse.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--memory-per-rank",
-            "500MB",
-        ];
-        common::run_ok(ranks, &[&args[..], &["--grid", "24", "--no-preview"]].concat());
+        let mut args = contours(&coarse, &out);
+        args.extend(["--grid", "24", "--no-preview"].map(String::from));
+        common::run_ok(ranks, &args.iter().map(String::as_str).collect::<Vec<_>>());
     }
     assert_eq!(
         files_in(&dir),
