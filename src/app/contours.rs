@@ -93,17 +93,15 @@ fn check_slice_systems(comm: &dyn Comm, sections: &[Section], kernel: &Kernel) -
     )
 }
 
-/// Crossings counted in each slice up to this many.
-const CROSSINGS_COUNTED: usize = 1000;
-
-/// The crossings of contours in all slices (each slice's counted up to [`CROSSINGS_COUNTED`]), and
-/// the warning about them naming the first three places, when there are some.
+/// The crossings of contours in all slices (each slice's counted up to
+/// [`crossing::COUNTED_PER_SLICE`]), and the warning about them naming the first three places,
+/// when there are some.
 fn contour_crossings(path: &Path, sections: &[Section]) -> (usize, Option<String>) {
     const SHOWN: usize = 3;
     let mut places = Vec::new();
     let (mut total, mut slices) = (0, 0);
     for s in sections {
-        let (found, n) = crossing::crossings(s, SHOWN, CROSSINGS_COUNTED);
+        let (found, n) = crossing::crossings(s, SHOWN, crossing::COUNTED_PER_SLICE);
         if n == 0 {
             continue;
         }

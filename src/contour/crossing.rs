@@ -13,6 +13,10 @@
 
 use super::format::Section;
 
+/// The most crossings counted in one slice: enough to tell a slip from a drawing that crosses
+/// everywhere, without sweeping on through a pathological one.
+pub const COUNTED_PER_SLICE: usize = 1000;
+
 /// Where two edges of one slice's contours cross.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Crossing {

@@ -4,7 +4,7 @@
 
 use glam::{DMat3, DVec3};
 
-use super::crossing::crossings;
+use super::crossing::{crossings, COUNTED_PER_SLICE};
 use super::format::Section;
 use crate::error::{Error, Result};
 use crate::mesh::{cut_by_plane, TriMesh};
@@ -122,7 +122,8 @@ pub struct SliceSummary {
     /// Chains that ended on holes of the mesh, joined end to nearest end into closed contours.
     pub joined: usize,
     /// Places where the contours cross (where the mesh intersects itself, or where joining
-    /// chains across holes could not avoid it), each slice's counted up to 1000.
+    /// chains across holes could not avoid it), each slice's counted up to
+    /// [`COUNTED_PER_SLICE`].
     pub crossings: usize,
 }
 
@@ -189,7 +190,7 @@ pub fn slice_mesh(mesh: &TriMesh, planes: &[(DVec3, DMat3)]) -> (Vec<Section>, S
         summary.contours += contours.len();
         summary.points += contours.iter().map(Vec::len).sum::<usize>();
         let section = Section { line: 0, origin: *o, frame: *m, kind: "plane", contours };
-        summary.crossings += crossings(&section, 0, 1000).1;
+        summary.crossings += crossings(&section, 0, COUNTED_PER_SLICE).1;
         sections.push(section);
     }
     summary.slices = sections.len();
