@@ -4,8 +4,7 @@
 //! disc). F_i = f_c,i - U_i >= 0 inside the section. Also serves any dimension through
 //! [`fit_values`] (the 1D line splines of the sliced accuracy test in `tests/contours.rs`).
 
-use faer::linalg::triangular_solve::{solve_unit_lower_triangular_in_place, solve_upper_triangular_in_place};
-use faer::{MatRef, Par};
+use faer::MatRef;
 
 use crate::error::{Error, Result};
 use crate::linalg::dense;
@@ -82,31 +81,9 @@ pub fn fit_values(kernel: &Kernel, points: &[f64], values: &[f64]) -> Result<(Sp
     let n = values.len() + kernel.poly_count();
     let (data, b) = full_system(kernel, &centres, values);
     let m = MatRef::from_column_major_slice(&data, n, n);
-    let x = lu_solve_seq(m, &b)?;
+    let x = dense::lu_solve_blocked(m, &b)?;
     let residual = dense::relative_residual(m, &x, &b);
     Ok((Spline::from_solution(*kernel, centres, &x, norm), residual))
-}
-
-/// M x = b by faer's blocked LU with partial pivoting, on the calling thread.
-fn lu_solve_seq(m: MatRef<'_, f64>, b: &[f64]) -> Result<Vec<f64>> {
-    use faer::dyn_stack::{MemBuffer, MemStack};
-    use faer::linalg::lu::partial_pivoting::factor;
-    let n = m.nrows();
-    let scale = (0..n).flat_map(|j| (0..n).map(move |i| m[(i, j)].abs())).fold(0.0, f64::max);
-    let mut lu = m.to_owned();
-    let (mut fwd, mut bwd) = (vec![0usize; n], vec![0usize; n]);
-    let params = Default::default();
-    let mut mem = MemBuffer::new(factor::lu_in_place_scratch::<usize, f64>(n, n, Par::Seq, params));
-    let (_, perm) =
-        factor::lu_in_place(lu.as_mut(), &mut fwd, &mut bwd, Par::Seq, MemStack::new(&mut mem), params);
-    if let Some(j) = (0..n).find(|&j| !(lu[(j, j)].abs() > scale * 1e-14 * n as f64)) {
-        return Err(Error::Numerical(format!("matrix is singular: no pivot in column {j}")));
-    }
-    // x = U^-1 L^-1 P b
-    let mut x = faer::Mat::<f64>::from_fn(n, 1, |i, _| b[perm.arrays().0[i]]);
-    solve_unit_lower_triangular_in_place(lu.as_ref(), x.as_mut(), Par::Seq);
-    solve_upper_triangular_in_place(lu.as_ref(), x.as_mut(), Par::Seq);
-    Ok((0..n).map(|i| x[(i, 0)]).collect())
 }
 
 /// The disc round a 2D point set: centre of the bounding box, radius half its diagonal.
@@ -213,7 +190,7 @@ mod tests {
         let (data, b) = full_system(&k, &pts, &values);
         let n = b.len();
         let m = MatRef::from_column_major_slice(&data, n, n);
-        let (got, want) = (lu_solve_seq(m, &b).unwrap(), dense::lu_solve(m, &b).unwrap());
+        let (got, want) = (dense::lu_solve_blocked(m, &b).unwrap(), dense::lu_solve(m, &b).unwrap());
         let scale = want.iter().fold(0.0f64, |s, v| s.max(v.abs()));
         let diff = got.iter().zip(&want).fold(0.0f64, |s, (g, w)| s.max((g - w).abs()));
         assert!(diff < 1e-9 * scale, "{diff} of {scale}");
@@ -224,7 +201,7 @@ mod tests {
         let values: Vec<f64> = twice.chunks_exact(2).map(|p| p[0]).collect();
         let (data, b) = full_system(&k, &twice, &values);
         let m = MatRef::from_column_major_slice(&data, b.len(), b.len());
-        let e = lu_solve_seq(m, &b).unwrap_err().to_string();
+        let e = dense::lu_solve_blocked(m, &b).unwrap_err().to_string();
         assert!(e.contains("matrix is singular: no pivot in column"), "{e}");
     }
 

@@ -1,8 +1,9 @@
 //! Serial dense solvers on one process: unblocked Householder QR (the reflectors of
 //! [`crate::linalg::reflector`]) and LU with partial pivoting (Golub & Van Loan, algorithms 5.2.1
 //! and 3.4.1). They are the oracle the distributed solvers are tested against and the tool for
-//! small local problems (rank checks, per-slice systems). They take faer matrix views of any
-//! strides, work on a column-major copy and never touch MPI.
+//! small local problems (rank checks, space maps); [`lu_solve_blocked`] is faer's blocked LU on
+//! one thread, for the per-slice systems. They take faer matrix views of any strides, work on a
+//! copy and never touch MPI.
 
 mod householder;
 mod lu;
@@ -10,7 +11,7 @@ mod lu;
 use faer::MatRef;
 
 pub use householder::{householder_solve, qr_r_diagonal};
-pub use lu::lu_solve;
+pub use lu::{lu_solve, lu_solve_blocked};
 
 /// The entries of `m`, column-major with leading dimension `m.nrows()`, whatever its strides.
 fn column_major(m: MatRef<'_, f64>) -> Vec<f64> {
