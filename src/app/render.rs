@@ -236,10 +236,7 @@ fn view_warning(solid: &dyn Implicit, view: &View, hits: usize) -> Option<String
     let pixels = view.width * view.height;
     let bounds = checked_bounds(solid).ok()?;
     let camera = Camera::frame(bounds, view);
-    let (lo, hi) = bounds;
-    let centre: [f64; 3] = std::array::from_fn(|d| 0.5 * (lo[d] + hi[d]));
-    let radius = 0.5 * (0..3).map(|d| (hi[d] - lo[d]).powi(2)).sum::<f64>().sqrt();
-    let distance = (0..3).map(|d| (camera.eye[d] - centre[d]).powi(2)).sum::<f64>().sqrt();
+    let (distance, radius) = (camera.distance, camera.radius);
     // the half-width of a pixel at the centre's distance
     let pixel = distance * camera.tan_half / view.height as f64;
     if hits == 0 && radius < pixel {

@@ -115,6 +115,10 @@ pub struct Camera {
     pub up: [f64; 3],
     /// tan of half the vertical field of view.
     pub tan_half: f64,
+    /// The eye's distance from the centre of the box it looks at, and the radius of the ball
+    /// round the box.
+    pub distance: f64,
+    pub radius: f64,
     pub width: usize,
     pub height: usize,
 }
@@ -170,6 +174,8 @@ impl Camera {
             right,
             up,
             tan_half,
+            distance,
+            radius,
             width: view.width,
             height: view.height,
         }
