@@ -313,6 +313,34 @@ fn morph_writes_frames_from_a_to_b_and_a_series() {
     // fit make f steeper beside one bunny than beside the other, and the blend weighs them so)
     assert!(tp[1] < tp[0] * 3 / 4, "plain morph triangles {tp:?}");
     assert!(tc[1] > tc[0] * 4 / 5 && tc[1] > tc[2] * 4 / 5, "controlled morph triangles {tc:?}");
+    // pairs that follow the shift fold nothing
+    assert!(!controlled.contains("fold"), "{controlled}");
+
+    // two more features, 2 apart on the bunny's back, cross on their way (0.1 apart at t = 0.25):
+    // half-way the map into A has to take them back past each other and folds space there
+    let crossing = dir.join("crossing.txt");
+    let text =
+        std::fs::read_to_string(&pairs).unwrap() + "-1 10 0 9 12 0\n# the other one\n1 10 0.2 3 12 -0.2\n";
+    std::fs::write(&crossing, text).unwrap();
+    for ranks in [1, 2] {
+        let timings = dir.join(format!("fold{ranks}.csv"));
+        let args = ["morph", s(&a), s(&b), "--frames", "3", "--out", s(&pp), "--pairs", s(&crossing)];
+        let grid = ["--bounds", BUNNY_BOX, "--grid", "16", "--timings", s(&timings)];
+        let out = run_ok(ranks, &[&args[..], &grid[..]].concat());
+        assert_eq!(out.matches("the space maps fold space").count(), 1, "{out}");
+        assert!(out.contains("in 1 of the 3 frames, frame 1 (t = 0.5000)"), "{out}");
+        assert!(out.contains("whose map into A folds"), "{out}");
+        assert!(out.contains("lines 7 and 9") || out.contains("lines 9 and 7"), "{out}");
+        let csv = std::fs::read_to_string(&timings).unwrap();
+        assert!(csv.contains("folded_frames,1\n"), "{csv}");
+    }
+    // the same features travelling side by side fold nothing
+    let apart = dir.join("apart.txt");
+    let text = std::fs::read_to_string(&pairs).unwrap() + "-1 10 0 9 12 0\n1 10 0.2 11 12 0.2\n";
+    std::fs::write(&apart, text).unwrap();
+    let args = ["morph", s(&a), s(&b), "--frames", "3", "--out", s(&pp), "--pairs", s(&apart)];
+    let out = run_ok(2, &[&args[..], &["--bounds", BUNNY_BOX, "--grid", "16"][..]].concat());
+    assert!(!out.contains("fold"), "{out}");
 }
 
 /// The triangles of each frame, from the report of `morph`.

@@ -22,7 +22,7 @@ use super::volume::{check_grid, output_path, throughput_line, write_volume};
 use crate::cli::MorphArgs;
 use crate::error::{Error, Result};
 use crate::frep::expr::{hull, Expr};
-use crate::frep::morph::{read_pairs, Morph, SlabCache};
+use crate::frep::morph::{read_pairs_with_lines, Fold, Morph, SlabCache};
 use crate::grid::{padded_box, Grid};
 use crate::io;
 use crate::par::{agree, on_root, Comm};
@@ -53,9 +53,12 @@ pub fn run(a: &MorphArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut r = Report::new("morph", Path::new(&subject));
     let (ea, eb) = stages
         .time(Stage::Read, || agree(comm, Expr::load(&a.a).and_then(|x| Ok((x, Expr::load(&a.b)?)))))?;
-    let pairs = match &a.pairs {
-        Some(p) => Some(stages.time(Stage::Read, || agree(comm, read_pairs(p)))?),
-        None => None,
+    let (pairs, lines) = match &a.pairs {
+        Some(p) => {
+            let (pairs, lines) = stages.time(Stage::Read, || agree(comm, read_pairs_with_lines(p)))?;
+            (Some(pairs), lines)
+        }
+        None => (None, Vec::new()),
     };
     let (lo, hi) = match (a.bounds, ea.domain(), eb.domain()) {
         (Some(b), ..) => b,
@@ -70,6 +73,7 @@ pub fn run(a: &MorphArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     };
     let grid = Grid::covering(lo, hi, a.grid.grid)?;
     check_grid(comm, &grid)?;
+    let [nx, ny, nz] = grid.dims;
 
     let k = a.frames;
     let times: Vec<f64> = (0..k).map(|i| i as f64 / (k - 1) as f64).collect();
@@ -77,10 +81,21 @@ pub fn run(a: &MorphArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut per_node = 0;
     let mut triangles = Vec::with_capacity(k);
     let cache = SlabCache::default();
+    let (lo, hi) = (grid.origin, grid.node(nx - 1, ny - 1, nz - 1));
+    let mut folds = Vec::new();
     for (i, &t) in times.iter().enumerate() {
-        let frame = agree(comm, Morph::new(&ea, &eb, t, pairs.as_deref()))?.with_cache(&cache);
+        // the space maps of the frame (every rank solves the same small systems)
+        let frame = stages
+            .time(Stage::Solve, || agree(comm, Morph::new(&ea, &eb, t, pairs.as_deref())))?
+            .with_cache(&cache);
         if i == 0 {
             check_grid_field(comm, &frame, &grid)?;
+        }
+        let [fa, fb] = stages.time(Stage::Check, || frame.folds(lo, hi, FOLD_LATTICE));
+        for (solid, fold) in [("A", fa), ("B", fb)] {
+            if let Some(fold) = fold {
+                folds.push(FrameFold { frame: i, t, solid, fold, pairs: frame.nearest_pairs(fold.worst) });
+            }
         }
         let prefix = frame_prefix(&a.out, i);
         let v = write_volume(comm, &frame, None, &grid, &prefix, &mut stages)?;
@@ -98,7 +113,12 @@ pub fn run(a: &MorphArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     })?;
     r.output(&series);
 
-    let [nx, ny, nz] = grid.dims;
+    r.figure("folded_frames", folded_frames(&folds));
+    if comm.rank() == 0 {
+        if let Some(w) = fold_warning(&folds, k, &lines) {
+            eprintln!("volspline: warning: {}: {w}", a.pairs.as_deref().unwrap_or(Path::new("")).display());
+        }
+    }
     r.line(format!(
         "{k} frames on a {nx} x {ny} x {nz} grid{}; triangles per frame: {:?}",
         if pairs.is_some() { ", controlled by point pairs" } else { "" },
@@ -117,6 +137,69 @@ pub fn run(a: &MorphArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         a.grid.timings.as_deref(),
     )?;
     Ok(())
+}
+
+/// The lattice of the folding check: points a side over the grid's box (besides the samples
+/// between neighbouring pairs, see [`Morph::folds`]).
+const FOLD_LATTICE: usize = 16;
+
+/// A frame's space map that folds space.
+struct FrameFold {
+    frame: usize,
+    t: f64,
+    /// "A" or "B": the solid the map looks into.
+    solid: &'static str,
+    fold: Fold,
+    /// The pairs nearest the worst point (indices into the pairs).
+    pairs: Vec<usize>,
+}
+
+/// The frames in which a space map folds.
+fn folded_frames(folds: &[FrameFold]) -> usize {
+    let mut frames: Vec<usize> = folds.iter().map(|f| f.frame).collect();
+    frames.dedup();
+    frames.len()
+}
+
+/// The warning about folding space maps, naming the frames and, for the map that folds most, the
+/// place and the pairs (by their lines in the pairs file) nearest it; `None` where none folds.
+fn fold_warning(folds: &[FrameFold], frames: usize, lines: &[usize]) -> Option<String> {
+    let worst = folds.iter().max_by(|a, b| {
+        let share = |f: &FrameFold| f.fold.folded as f64 / f.fold.sampled as f64;
+        share(a).total_cmp(&share(b)).then(b.fold.det.total_cmp(&a.fold.det))
+    })?;
+    let mut which: Vec<(usize, f64)> = folds.iter().map(|f| (f.frame, f.t)).collect();
+    which.dedup_by_key(|f| f.0);
+    let when = match which.as_slice() {
+        [(i, t)] => format!("frame {i} (t = {t:.4})"),
+        few if few.len() <= 6 => {
+            let list: Vec<String> = few.iter().map(|(i, t)| format!("{i} (t = {t:.4})")).collect();
+            format!("frames {}", list.join(", "))
+        }
+        many => {
+            let ((i, t), (j, u)) = (many[0], many[many.len() - 1]);
+            format!("frames {i} to {j} (t = {t:.4} to {u:.4})")
+        }
+    };
+    let near: Vec<String> =
+        worst.pairs.iter().map(|&i| lines.get(i).map_or(i + 1, |l| *l).to_string()).collect();
+    let [x, y, z] = worst.fold.worst;
+    Some(format!(
+        "the space maps fold space in {} of the {frames} frames, {when}: where a map folds, the frame shows \
+         the solid's features there mirrored or twice. Most in frame {} (t = {:.4}), whose map into {} folds at \
+         {} of the {} points sampled in the grid's box, deepest at ({x:.6e}, {y:.6e}, {z:.6e}) (Jacobian \
+         determinant {:.3e}), nearest the pairs on lines {}: pairs close to one another whose features move \
+         apart in different directions, or pass across one another, fold space between them; moving or \
+         leaving out one of them removes the fold (more frames do not)",
+        folded_frames(folds),
+        worst.frame,
+        worst.t,
+        worst.solid,
+        worst.fold.folded,
+        worst.fold.sampled,
+        worst.fold.det,
+        near.join(" and "),
+    ))
 }
 
 #[cfg(test)]

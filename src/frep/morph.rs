@@ -52,7 +52,7 @@ use super::expr::Expr;
 use super::{pointwise, Implicit};
 use crate::error::{Error, Result};
 use crate::grid::Grid;
-use crate::linalg::dense::{lu_solve, relative_residual};
+use crate::linalg::dense::{relative_residual, BlockedLu};
 use crate::spline::hygiene::{bounding_box, check_unisolvent};
 use crate::spline::{full_system, Field, Kernel, Normalisation, Spline};
 
@@ -64,6 +64,11 @@ pub type Pair = ([f64; 3], [f64; 3]);
 
 /// Reads point pairs `x y z x' y' z'`, one per line; blank lines and `#` comments are skipped.
 pub fn read_pairs(path: &Path) -> Result<Vec<Pair>> {
+    Ok(read_pairs_with_lines(path)?.0)
+}
+
+/// [`read_pairs`] with the line of each pair in the file (from 1), for messages about them.
+pub fn read_pairs_with_lines(path: &Path) -> Result<(Vec<Pair>, Vec<usize>)> {
     crate::io::staging::note_input(path);
     let text = crate::io::text::read(path, "point-pair")?;
     let (mut pairs, mut lines) = (Vec::new(), Vec::new());
@@ -113,7 +118,7 @@ pub fn read_pairs(path: &Path) -> Result<Vec<Pair>> {
             ),
         ));
     }
-    Ok(pairs)
+    Ok((pairs, lines))
 }
 
 /// Two pairs whose features travel through one point: i < j and the t in [0, 1] where the
@@ -168,12 +173,16 @@ impl SpaceMap {
             })
         };
         check_unisolvent(&kernel, &centres).map_err(because)?;
+        let (m, _) = full_system(&kernel, &centres, &vec![0.0; from.len()]);
+        let n = m.len().isqrt();
+        let mat = MatRef::from_column_major_slice(&m, n, n);
+        let lu = BlockedLu::factor(mat).map_err(because)?;
         let solve = |d: usize| -> Result<Spline> {
-            let values: Vec<f64> = from.iter().zip(to).map(|(a, b)| b[d] - a[d]).collect();
-            let (m, b) = full_system(&kernel, &centres, &values);
-            let n = b.len();
-            let mat = MatRef::from_column_major_slice(&m, n, n);
-            let x = lu_solve(mat, &b).map_err(because)?;
+            let mut b = vec![0.0; n];
+            for (v, (a, t)) in b.iter_mut().zip(from.iter().zip(to)) {
+                *v = t[d] - a[d];
+            }
+            let x = lu.solve(&b);
             if !(relative_residual(mat, &x, &b) < 1e-8) {
                 return Err(Error::Numerical(format!("{why} (the displacement system is singular)")));
             }
@@ -185,6 +194,76 @@ impl SpaceMap {
     pub fn apply(&self, x: [f64; 3]) -> [f64; 3] {
         [0, 1, 2].map(|k| x[k] + self.d[k].eval(&x))
     }
+
+    /// The Jacobian of x -> x + D(x) at `x`, row k the gradient of component k. With
+    /// D_k(x) = sum_i mu_ki G(|x' - q_i|) + c_k0 + c_k . x' in the normalised x' = (x - centre) / s
+    /// and G(r) = G(1) r, dD_k/dx_j = (G(1) sum_i mu_ki (x'_j - q_ij) / |x' - q_i| + c_kj) / s (at a
+    /// centre itself, where G is not differentiable, its term is left out). The three components
+    /// share their centres and normalisation, so one pass over the centres gives all nine.
+    pub fn jacobian(&self, x: [f64; 3]) -> [[f64; 3]; 3] {
+        let sp = &self.d[0];
+        let mut xn = [0.0; 3];
+        sp.norm.apply(&x, &mut xn);
+        let mut g = [[0.0; 3]; 3];
+        let [w0, w1, w2] = [0, 1, 2].map(|k| &self.d[k].weights);
+        for (i, q) in sp.centres.chunks_exact(3).enumerate() {
+            let d = [xn[0] - q[0], xn[1] - q[1], xn[2] - q[2]];
+            let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            if r > 0.0 {
+                let u = [d[0] / r, d[1] / r, d[2] / r];
+                for (gk, w) in g.iter_mut().zip([w0[i], w1[i], w2[i]]) {
+                    for j in 0..3 {
+                        gk[j] += w * u[j];
+                    }
+                }
+            }
+        }
+        let g1 = sp.kernel.eval_r2(1.0);
+        std::array::from_fn(|k| {
+            let sp = &self.d[k];
+            // the polynomial is linear: its differences along the axes are its gradient
+            let terms = sp.poly.len();
+            let poly = |x: &[f64; 3]| {
+                let mut pv = [0.0; 10];
+                sp.kernel.poly_eval(x, &mut pv[..terms]);
+                pv[..terms].iter().zip(&sp.poly).map(|(a, b)| a * b).sum::<f64>()
+            };
+            let p0 = poly(&xn);
+            std::array::from_fn(|j| {
+                let mut e = xn;
+                e[j] += 1.0;
+                let own = if j == k { 1.0 } else { 0.0 };
+                own + (g1 * g[k][j] + poly(&e) - p0) / sp.norm.scale
+            })
+        })
+    }
+}
+
+/// Where a space map folds space: the points sampled at which the determinant of its Jacobian is
+/// not positive. There the map turns space inside out, so the frame shows the solid's features
+/// there mirrored, or twice.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Fold {
+    pub folded: usize,
+    pub sampled: usize,
+    /// The sampled point with the smallest determinant, and that determinant.
+    pub worst: [f64; 3],
+    pub det: f64,
+}
+
+/// Samples of a folding check along the way between a pair and each of its nearest neighbours
+/// (where two features moving apart or across each other fold space first).
+const FOLD_NEIGHBOURS: usize = 3;
+const FOLD_STEPS: usize = 4;
+
+fn dist2(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    (0..3).map(|d| (a[d] - b[d]).powi(2)).sum()
+}
+
+/// The determinant of a 3 x 3 matrix.
+fn det3(m: &[[f64; 3]; 3]) -> f64 {
+    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
 }
 
 /// The values of A and B on the slabs a rank evaluates, kept from frame to frame (without point
@@ -234,23 +313,96 @@ pub struct Morph<'a> {
     b: &'a Expr,
     t: f64,
     maps: Option<(SpaceMap, SpaceMap)>,
+    /// The pairs' positions q_i(t) at this frame.
+    q: Vec<[f64; 3]>,
     cache: Option<&'a SlabCache>,
 }
 
 impl<'a> Morph<'a> {
     /// Frame `t` in [0, 1], controlled by `pairs` when given.
     pub fn new(a: &'a Expr, b: &'a Expr, t: f64, pairs: Option<&[Pair]>) -> Result<Self> {
-        let maps = match pairs {
-            None => None,
-            Some(pairs) => {
-                let q: Vec<[f64; 3]> =
-                    pairs.iter().map(|(p, r)| [0, 1, 2].map(|d| (1.0 - t) * p[d] + t * r[d])).collect();
-                let pa: Vec<[f64; 3]> = pairs.iter().map(|x| x.0).collect();
-                let pb: Vec<[f64; 3]> = pairs.iter().map(|x| x.1).collect();
-                Some((SpaceMap::through(&q, &pa)?, SpaceMap::through(&q, &pb)?))
-            }
+        let pairs = pairs.unwrap_or(&[]);
+        let q: Vec<[f64; 3]> =
+            pairs.iter().map(|(p, r)| [0, 1, 2].map(|d| (1.0 - t) * p[d] + t * r[d])).collect();
+        let maps = if pairs.is_empty() {
+            None
+        } else {
+            let pa: Vec<[f64; 3]> = pairs.iter().map(|x| x.0).collect();
+            let pb: Vec<[f64; 3]> = pairs.iter().map(|x| x.1).collect();
+            let (ma, mb) = rayon::join(|| SpaceMap::through(&q, &pa), || SpaceMap::through(&q, &pb));
+            Some((ma?, mb?))
         };
-        Ok(Morph { a, b, t, maps, cache: None })
+        Ok(Morph { a, b, t, maps, q, cache: None })
+    }
+
+    /// Where the maps of this frame fold space inside the box (lo, hi): A's map first, then B's,
+    /// each `None` where it does not fold at any point sampled (both without pairs, and at t = 0
+    /// and t = 1, whose frames are the solids as they are). The samples are a lattice of
+    /// `per_side` points a side spanning the box and the points a quarter, half and three quarters
+    /// of the way from each pair's position to those of its three nearest pairs, in the box.
+    pub fn folds(&self, lo: [f64; 3], hi: [f64; 3], per_side: usize) -> [Option<Fold>; 2] {
+        let Some((ma, mb)) = self.maps.as_ref().filter(|_| self.t > 0.0 && self.t < 1.0) else {
+            return [None, None];
+        };
+        let samples = self.fold_samples(lo, hi, per_side);
+        let fold = |m: &SpaceMap| {
+            let dets: Vec<f64> = samples.par_iter().map(|&x| det3(&m.jacobian(x))).collect();
+            let folded = dets.iter().filter(|d| !(**d > 0.0)).count();
+            let (i, det) = dets
+                .iter()
+                .enumerate()
+                .fold((0, f64::INFINITY), |b, (i, &d)| if d < b.1 { (i, d) } else { b });
+            (folded > 0).then(|| Fold { folded, sampled: samples.len(), worst: samples[i], det })
+        };
+        [fold(ma), fold(mb)]
+    }
+
+    fn fold_samples(&self, lo: [f64; 3], hi: [f64; 3], per_side: usize) -> Vec<[f64; 3]> {
+        let per_side = per_side.max(2);
+        let at = |i: usize, d: usize| lo[d] + (hi[d] - lo[d]) * i as f64 / (per_side - 1) as f64;
+        let mut samples: Vec<[f64; 3]> = (0..per_side.pow(3))
+            .map(|i| {
+                [at(i % per_side, 0), at((i / per_side) % per_side, 1), at(i / (per_side * per_side), 2)]
+            })
+            .collect();
+        let inside = |x: &[f64; 3]| (0..3).all(|d| x[d] >= lo[d] && x[d] <= hi[d]);
+        let q = &self.q;
+        let near: Vec<Vec<usize>> = (0..q.len())
+            .into_par_iter()
+            .map(|i| {
+                let mut near: Vec<(f64, usize)> =
+                    (0..q.len()).filter(|&j| j != i).map(|j| (dist2(&q[i], &q[j]), j)).collect();
+                let k = FOLD_NEIGHBOURS.min(near.len());
+                if k > 0 && k < near.len() {
+                    near.select_nth_unstable_by(k - 1, |a, b| a.0.total_cmp(&b.0));
+                }
+                near[..k].iter().map(|&(_, j)| j).collect()
+            })
+            .collect();
+        let near = &near;
+        // a couple that are each other's neighbours is sampled once
+        let between: Vec<[f64; 3]> = (0..q.len())
+            .flat_map(|i| {
+                near[i].iter().filter(move |&&j| i < j || !near[j].contains(&i)).map(move |&j| (i, j))
+            })
+            .flat_map(|(i, j)| {
+                (1..FOLD_STEPS).map(move |s| {
+                    let s = s as f64 / FOLD_STEPS as f64;
+                    [0, 1, 2].map(|d| q[i][d] + s * (q[j][d] - q[i][d]))
+                })
+            })
+            .filter(inside)
+            .collect();
+        samples.extend(between);
+        samples
+    }
+
+    /// The two pairs (indices into the pairs given) whose positions at this frame lie nearest `x`.
+    pub fn nearest_pairs(&self, x: [f64; 3]) -> Vec<usize> {
+        let mut order: Vec<usize> = (0..self.q.len()).collect();
+        order.sort_by(|&a, &b| dist2(&self.q[a], &x).total_cmp(&dist2(&self.q[b], &x)));
+        order.truncate(2);
+        order
     }
 
     /// Takes the values of A and B on the grid from `cache` (filled by the first frame that needs
@@ -357,6 +509,67 @@ mod tests {
         // four points on one plane do not determine the linear part
         let flat = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]];
         assert!(SpaceMap::through(&flat, &flat).is_err());
+    }
+
+    #[test]
+    fn a_space_map_s_jacobian_is_its_derivative() {
+        let from = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [0.3, 0.4, 0.5],
+            [0.9, 0.8, 0.1],
+        ];
+        let bend = |p: [f64; 3]| [p[0] + 0.2 * p[1] * p[1], p[1] - 0.1 * p[2], p[2] + 0.3 * p[0] * p[2]];
+        let to: Vec<[f64; 3]> = from.iter().map(|&p| bend(p)).collect();
+        let m = SpaceMap::through(&from, &to).unwrap();
+        let h = 1e-6;
+        for x in [[0.2, 0.7, -0.3], [1.5, 0.1, 0.4], [0.31, 0.42, 0.53]] {
+            let j = m.jacobian(x);
+            for c in 0..3 {
+                let (mut a, mut b) = (x, x);
+                a[c] += h;
+                b[c] -= h;
+                let (fa, fb) = (m.apply(a), m.apply(b));
+                for k in 0..3 {
+                    let fd = (fa[k] - fb[k]) / (2.0 * h);
+                    assert!((j[k][c] - fd).abs() < 1e-6, "d{k}/d{c} at {x:?}: {} against {fd}", j[k][c]);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn maps_that_fold_space_are_found_and_smooth_ones_are_not() {
+        let ball = Expr::from_text("ball:0,0,0,1").unwrap();
+        let corners =
+            [[-2.0, -2.0, -2.0], [2.0, -2.0, -2.0], [-2.0, 2.0, -2.0], [-2.0, -2.0, 2.0], [2.0, 2.0, 2.0]];
+        let shift = |p: [f64; 3]| (p, [p[0] + 0.5, p[1], p[2]]);
+        let mut pairs: Vec<Pair> = corners.iter().map(|&p| shift(p)).collect();
+        // two features 0.5 apart moving past each other, 0.05 apart half-way
+        pairs.push(([-0.25, 0.0, 0.0], [0.75, 0.0, 0.05]));
+        pairs.push(([0.25, 0.0, 0.0], [-0.75, 0.0, -0.05]));
+        let (lo, hi) = ([-2.0; 3], [2.0; 3]);
+        let half = Morph::new(&ball, &ball, 0.5, Some(&pairs)).unwrap();
+        let [fa, fb] = half.folds(lo, hi, 12);
+        let fa = fa.expect("A's map folds");
+        println!("{fa:?}");
+        assert!(fa.det <= 0.0 && fa.folded > 0 && fa.folded < fa.sampled, "{fa:?}");
+        // B's map only stretches the way between them: the features keep their order towards B
+        assert_eq!(fb, None);
+        // the fold lies between the two crossing features
+        let near = half.nearest_pairs(fa.worst);
+        assert!(near.contains(&5) || near.contains(&6), "{fa:?} near {near:?}");
+        // the shift alone folds nothing, at any frame, and the end frames look through the identity
+        let plain: Vec<Pair> = corners.iter().chain(&[[0.3, 0.1, -0.2]]).map(|&p| shift(p)).collect();
+        for t in [0.0, 0.25, 0.5, 1.0] {
+            assert_eq!(Morph::new(&ball, &ball, t, Some(&plain)).unwrap().folds(lo, hi, 12), [None, None]);
+        }
+        for t in [0.0, 1.0] {
+            assert_eq!(Morph::new(&ball, &ball, t, Some(&pairs)).unwrap().folds(lo, hi, 12), [None, None]);
+        }
+        assert_eq!(Morph::new(&ball, &ball, 0.5, None).unwrap().folds(lo, hi, 12), [None, None]);
     }
 
     #[test]

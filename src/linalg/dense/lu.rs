@@ -1,7 +1,7 @@
 //! LU with partial pivoting, x = U^-1 L^-1 P b: unblocked (the oracle) and faer's blocked one.
 
 use faer::linalg::triangular_solve::{solve_unit_lower_triangular_in_place, solve_upper_triangular_in_place};
-use faer::{MatRef, Par};
+use faer::{Mat, MatRef, Par};
 
 use super::column_major;
 use crate::error::{Error, Result};
@@ -59,22 +59,45 @@ pub fn lu_solve(m: MatRef<'_, f64>, b: &[f64]) -> Result<Vec<f64>> {
 /// faster at 3000), several of which run side by side on a rank's threads. Singular by the same
 /// test as [`lu_solve`]: a pivot not above 1e-14 n times the largest entry.
 pub fn lu_solve_blocked(m: MatRef<'_, f64>, b: &[f64]) -> Result<Vec<f64>> {
-    use faer::dyn_stack::{MemBuffer, MemStack};
-    use faer::linalg::lu::partial_pivoting::factor;
-    let n = m.nrows();
-    let scale = (0..n).flat_map(|j| (0..n).map(move |i| m[(i, j)].abs())).fold(0.0, f64::max);
-    let mut lu = m.to_owned();
-    let (mut fwd, mut bwd) = (vec![0usize; n], vec![0usize; n]);
-    let params = Default::default();
-    let mut mem = MemBuffer::new(factor::lu_in_place_scratch::<usize, f64>(n, n, Par::Seq, params));
-    let (_, perm) =
-        factor::lu_in_place(lu.as_mut(), &mut fwd, &mut bwd, Par::Seq, MemStack::new(&mut mem), params);
-    if let Some(j) = (0..n).find(|&j| !(lu[(j, j)].abs() > scale * 1e-14 * n as f64)) {
-        return Err(Error::Numerical(format!("matrix is singular: no pivot in column {j}")));
+    Ok(BlockedLu::factor(m)?.solve(b))
+}
+
+/// faer's blocked LU with partial pivoting of a square matrix, P M = L U, computed on the calling
+/// thread and kept for several right-hand sides (the three components of a space map share one).
+pub struct BlockedLu {
+    lu: Mat<f64>,
+    /// Row i of P M is row `perm[i]` of M.
+    perm: Vec<usize>,
+}
+
+impl BlockedLu {
+    /// Factors `m`; singular by the test of [`lu_solve`].
+    pub fn factor(m: MatRef<'_, f64>) -> Result<Self> {
+        use faer::dyn_stack::{MemBuffer, MemStack};
+        use faer::linalg::lu::partial_pivoting::factor;
+        assert_eq!(m.nrows(), m.ncols(), "BlockedLu::factor needs a square matrix");
+        let n = m.nrows();
+        let scale = (0..n).map(|j| m.col(j).iter().map(|v| v.abs()).fold(0.0, f64::max)).fold(0.0, f64::max);
+        let mut lu = m.to_owned();
+        let (mut fwd, mut bwd) = (vec![0usize; n], vec![0usize; n]);
+        let params = Default::default();
+        let mut mem = MemBuffer::new(factor::lu_in_place_scratch::<usize, f64>(n, n, Par::Seq, params));
+        let (_, perm) =
+            factor::lu_in_place(lu.as_mut(), &mut fwd, &mut bwd, Par::Seq, MemStack::new(&mut mem), params);
+        let perm = perm.arrays().0.to_vec();
+        if let Some(j) = (0..n).find(|&j| !(lu[(j, j)].abs() > scale * 1e-14 * n as f64)) {
+            return Err(Error::Numerical(format!("matrix is singular: no pivot in column {j}")));
+        }
+        Ok(BlockedLu { lu, perm })
     }
-    // x = U^-1 L^-1 P b
-    let mut x = faer::Mat::<f64>::from_fn(n, 1, |i, _| b[perm.arrays().0[i]]);
-    solve_unit_lower_triangular_in_place(lu.as_ref(), x.as_mut(), Par::Seq);
-    solve_upper_triangular_in_place(lu.as_ref(), x.as_mut(), Par::Seq);
-    Ok((0..n).map(|i| x[(i, 0)]).collect())
+
+    /// x = U^-1 L^-1 P b.
+    pub fn solve(&self, b: &[f64]) -> Vec<f64> {
+        let n = self.perm.len();
+        assert_eq!(b.len(), n);
+        let mut x = Mat::<f64>::from_fn(n, 1, |i, _| b[self.perm[i]]);
+        solve_unit_lower_triangular_in_place(self.lu.as_ref(), x.as_mut(), Par::Seq);
+        solve_upper_triangular_in_place(self.lu.as_ref(), x.as_mut(), Par::Seq);
+        x.col(0).iter().copied().collect()
+    }
 }

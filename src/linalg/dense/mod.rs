@@ -11,19 +11,21 @@ mod lu;
 use faer::MatRef;
 
 pub use householder::{householder_solve, qr_r_diagonal};
-pub use lu::{lu_solve, lu_solve_blocked};
+pub use lu::{lu_solve, lu_solve_blocked, BlockedLu};
 
 /// The entries of `m`, column-major with leading dimension `m.nrows()`, whatever its strides.
 fn column_major(m: MatRef<'_, f64>) -> Vec<f64> {
     (0..m.ncols()).flat_map(|j| (0..m.nrows()).map(move |i| m[(i, j)])).collect()
 }
 
-/// ||M x - b|| / ||b|| (or ||M x - b|| when b = 0).
+/// ||M x - b|| / ||b|| (or ||M x - b|| when b = 0), column by column.
 pub fn relative_residual(m: MatRef<'_, f64>, x: &[f64], b: &[f64]) -> f64 {
     let mut r: Vec<f64> = b.iter().map(|v| -v).collect();
-    for (j, xj) in x.iter().enumerate().take(m.ncols()) {
-        for (i, ri) in r.iter_mut().enumerate() {
-            *ri += m[(i, j)] * xj;
+    for (j, &xj) in x.iter().enumerate().take(m.ncols()) {
+        if xj != 0.0 {
+            for (ri, mij) in r.iter_mut().zip(m.col(j).iter()) {
+                *ri += mij * xj;
+            }
         }
     }
     let num: f64 = r.iter().map(|v| v * v).sum::<f64>().sqrt();
