@@ -43,7 +43,7 @@ pub enum Command {
     /// Reconstruct a solid from planar cross-sections (a contour file, see README.md): one 2D
     /// spline per slice, interpolated between slices; write PREFIX.model.h5, PREFIX.hdf, PREFIX.ply.
     Contours(ContoursArgs),
-    /// Cut a triangle mesh (.obj/.ply) by a family of planes and write the contour file.
+    /// Cut a triangle mesh (.obj/.ply/.stl) by a family of planes and write the contour file.
     Slice(SliceArgs),
     /// Ray-cast a solid into a PNG picture (shaded from the analytic gradient, or coloured by
     /// mean curvature), pixel rows split over ranks.
@@ -52,7 +52,8 @@ pub enum Command {
 
 #[derive(Debug, Args)]
 pub struct FitArgs {
-    /// Points: .obj (vertices), .ply (ascii or binary; vertex x, y, z), .xyz/.txt/.csv (x y z per line).
+    /// Points: .obj (vertices), .ply (ascii or binary; vertex x, y, z), .stl (ascii or binary; the facets'
+    /// corners, shared ones once), .xyz/.txt/.csv (x y z per line).
     pub input: PathBuf,
     /// Output prefix: writes PREFIX.model.h5, PREFIX.hdf, PREFIX.ply.
     #[arg(long, value_name = "PREFIX")]
@@ -360,7 +361,7 @@ pub struct ContoursArgs {
 
 #[derive(Debug, Args)]
 pub struct SliceArgs {
-    /// Triangle mesh: .obj or .ply with faces.
+    /// Triangle mesh: .obj or .ply with faces, or .stl.
     pub mesh: PathBuf,
     /// The contour file to write.
     #[arg(long, value_name = "CONTOURS")]

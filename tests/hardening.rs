@@ -413,7 +413,13 @@ fn readers_refuse_random_and_mutated_bytes_without_panicking() {
     let contours =
         b"# contours\nslice z 0.5\ncontour\n1.0 0.0\n0.0 1.0\n-1.0 0.0\nslice plane 0 0 1  1 0 0  0 1 0\n\
                      contour\n0 0\n1 0\n1 1\nslice omega 0 0.1 0  0 0 2\ncontour\n0 0\n1 0\n1 1\n";
+    let mesh = common::load_mesh(Path::new(COW));
+    let few = &mesh.triangles[..60];
+    let stl_ascii = stl_text(&mesh.vertices, few).into_bytes();
+    let stl_binary = stl_bytes(&mesh.vertices, few);
     for _ in 0..300 {
+        no_panic(&dir.join("p.stl"), &rng.mutate(&stl_ascii), &read_points);
+        no_panic(&dir.join("b.stl"), &rng.mutate(&stl_binary), &read_points);
         no_panic(&dir.join("p.xyz"), &rng.mutate(&xyz), &read_points);
         no_panic(&dir.join("p.obj"), &rng.mutate(obj), &read_points);
         no_panic(&dir.join("p.ply"), &rng.mutate(ply), &read_points);
@@ -475,6 +481,91 @@ fn readers_refuse_random_and_mutated_bytes_without_panicking() {
         let caught = std::panic::catch_unwind(|| read_model(&path));
         assert!(caught.is_ok(), "the model reader panicked on an edited model");
     }
+}
+
+/// The triangles as ascii STL (facet normals left zero).
+fn stl_text(points: &[[f64; 3]], triangles: &[[u32; 3]]) -> String {
+    let mut t = String::from("solid mesh\n");
+    for tri in triangles {
+        t.push_str("  facet normal 0 0 0\n    outer loop\n");
+        for &i in tri {
+            let [x, y, z] = points[i as usize];
+            t.push_str(&format!("      vertex {x:e} {y:e} {z:e}\n"));
+        }
+        t.push_str("    endloop\n  endfacet\n");
+    }
+    t + "endsolid mesh\n"
+}
+
+/// The triangles as binary STL, whose header begins with "solid" as some writers' do.
+fn stl_bytes(points: &[[f64; 3]], triangles: &[[u32; 3]]) -> Vec<u8> {
+    let mut b = b"solid mesh, binary".to_vec();
+    b.resize(80, b' ');
+    b.extend((triangles.len() as u32).to_le_bytes());
+    for tri in triangles {
+        b.extend([0u8; 12]);
+        for &i in tri {
+            b.extend(points[i as usize].iter().flat_map(|&c| (c as f32).to_le_bytes()));
+        }
+        b.extend([0u8; 2]);
+    }
+    b
+}
+
+/// The numbers of a contour file after its first line (which names the mesh), sorted: the
+/// slices' points as a set (a mesh whose vertices come in another order may start a contour at
+/// another of its points).
+fn contour_numbers(path: &Path) -> Vec<f64> {
+    let t = std::fs::read_to_string(path).unwrap();
+    let mut v: Vec<f64> =
+        t.lines().skip(1).flat_map(|l| l.split_whitespace()).filter_map(|w| w.parse().ok()).collect();
+    v.sort_by(f64::total_cmp);
+    v
+}
+
+/// A mesh given as STL (the CAD and printing format) is read as the same mesh given as OBJ: the
+/// bunny's contours from ascii STL are the OBJ's, from binary STL (f32 corners) to f32 rounding;
+/// a fit of its corners is the fit of the OBJ's vertices (in another order).
+#[test]
+fn meshes_in_stl_slice_and_fit_as_their_obj() {
+    let dir = temp_dir("hardening-stl");
+    let mesh = common::load_mesh(Path::new(common::BUNNY));
+    let ascii = dir.join("bunny.stl");
+    let binary = dir.join("bunny-binary.STL");
+    std::fs::write(&ascii, stl_text(&mesh.vertices, &mesh.triangles)).unwrap();
+    std::fs::write(&binary, stl_bytes(&mesh.vertices, &mesh.triangles)).unwrap();
+    let slice = |input: &Path, name: &str| {
+        let out = dir.join(name);
+        let o = run(2, &["slice", s(input), "--out", s(&out), "--planes", "y:10"]);
+        assert!(o.status.success(), "{}", text(&o));
+        (text(&o), contour_numbers(&out))
+    };
+    let worst = |a: &[f64], b: &[f64]| {
+        assert_eq!(a.len(), b.len(), "the contour files differ in length");
+        a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+    };
+    let (_, want) = slice(Path::new(common::BUNNY), "obj.txt");
+    let (said, got) = slice(&ascii, "ascii.txt");
+    assert!(said.contains("ascii STL: 9999 facets, 5051 distinct corners"), "{said}");
+    let d = worst(&got, &want);
+    assert!(d < 1e-12, "ascii STL contours differ by {d}");
+    let (said, got) = slice(&binary, "binary.txt");
+    assert!(said.contains("binary STL: 9999 facets, 5051 distinct corners"), "{said}");
+    // the bunny is about 16 across; f32 keeps 24 bits, a contour point on a flat edge fewer
+    let d = worst(&got, &want);
+    assert!(d > 0.0 && d < 1e-4, "binary STL contours differ by {d}");
+
+    let fit = |input: &str, name: &str| {
+        let out = dir.join(name);
+        let args =
+            ["fit", input, "--out", s(&out), "--surface", "carrier", "--method", "dense", "--grid", "20"];
+        let o = run(2, &args);
+        assert!(o.status.success(), "{}", text(&o));
+        volspline::io::vtkhdf::read_image(&dir.join(format!("{name}.hdf")), "f").unwrap().1
+    };
+    let (want, got) = (fit(common::BUNNY, "obj"), fit(s(&ascii), "stl"));
+    let diff = common::rel_diff(&got, &want);
+    assert!(diff < 1e-9, "the fits of the OBJ and of its STL differ by {diff}");
 }
 
 /// Points of a torus (tube radius 0.7 about a circle of radius 2 in the xy plane), a fixed

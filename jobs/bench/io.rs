@@ -1,5 +1,7 @@
 //! Reading speed of the point readers on large inputs: the same synthetic points as a text list
-//! (.xyz), an ascii PLY and a binary little-endian PLY, and the bunny OBJ shipped with the tests.
+//! (.xyz), an ascii PLY, a binary little-endian PLY and a binary STL (a strip of facets through
+//! consecutive points, so each point is the corner of three facets and the reader merges them),
+//! and the bunny OBJ shipped with the tests.
 //!
 //! Usage: `bench_io WORKDIR POINTS REPEAT`. Writes the files into WORKDIR (which must exist),
 //! reads each REPEAT times through `volspline::io::points::read_points` and prints one CSV row
@@ -37,10 +39,20 @@ fn write_inputs(dir: &Path, n: usize) -> std::io::Result<Vec<(&'static str, Path
         let _ = writeln!(ascii, "{} {} {}", f[0], f[1], f[2]);
         f.iter().for_each(|c| binary.extend_from_slice(&c.to_le_bytes()));
     }
+    let mut stl = vec![b' '; 80];
+    stl.extend((n as u32 - 2).to_le_bytes());
+    for i in 0..n - 2 {
+        stl.extend([0u8; 12]);
+        for p in [point(i), point(i + 1), point(i + 2)] {
+            p.iter().for_each(|&c| stl.extend_from_slice(&(c as f32).to_le_bytes()));
+        }
+        stl.extend([0u8; 2]);
+    }
     let files = [
         ("xyz", "points.xyz", text.into_bytes()),
         ("ply_ascii", "ascii.ply", ascii.into_bytes()),
         ("ply_binary", "binary.ply", binary),
+        ("stl_binary", "strip.stl", stl),
     ];
     let mut out = Vec::new();
     for (format, name, bytes) in files {

@@ -18,6 +18,9 @@ pub fn run(a: &SliceArgs, comm: &dyn Comm) -> Result<()> {
     stages.time(Stage::Slice, || {
         on_root(comm, || {
             let set = points::read_mesh(&a.mesh)?;
+            if let Some(note) = &set.note {
+                eprintln!("volspline slice: {}: {note}", a.mesh.display());
+            }
             let mesh = TriMesh {
                 vertices: set.points.clone(),
                 triangles: set.triangles.iter().map(|t| [t[0] as u32, t[1] as u32, t[2] as u32]).collect(),

@@ -1,7 +1,8 @@
 //! Reading scattered surface points, and the triangles of ground-truth meshes, from files.
 //!
 //! This module owns the input file formats: plain-text point lists (.xyz/.txt/.csv, `text`),
-//! Wavefront OBJ (`obj`) and PLY, ascii and both binary byte orders (`ply`). It picks the
+//! Wavefront OBJ (`obj`), PLY, ascii and both binary byte orders (`ply`), and STL, ascii and
+//! binary (`stl`, its corners merged into indexed points). It picks the
 //! parser by extension and holds what they share. Everything is returned in the file's own
 //! coordinates; normalisation belongs to the caller. The files come from users, so every parser
 //! validates as it goes and reports the line, vertex or byte offset at fault instead of
@@ -9,6 +10,7 @@
 
 mod obj;
 mod ply;
+mod stl;
 mod text;
 
 use std::path::Path;
@@ -18,7 +20,7 @@ use crate::error::{Error, Result};
 /// Fewer points than this cannot define a volume.
 const MIN_POINTS: usize = 4;
 
-const SUPPORTED: &str = ".obj, .ply, .xyz, .txt, .csv";
+const SUPPORTED: &str = ".obj, .ply, .stl, .xyz, .txt, .csv";
 
 /// Points and (optional) triangles read from a file, in the file's coordinates.
 #[derive(Debug, Clone, Default)]
@@ -30,8 +32,9 @@ pub struct PointSet {
     pub note: Option<String>,
 }
 
-/// Read scattered points by extension: .obj, .ply, .xyz/.txt/.csv (case-insensitive). Triangles
-/// are filled for .obj/.ply when faces exist (polygons fan-triangulated), empty for text.
+/// Read scattered points by extension: .obj, .ply, .stl, .xyz/.txt/.csv (case-insensitive).
+/// Triangles are filled for .obj/.ply when faces exist (polygons fan-triangulated) and for .stl,
+/// empty for text.
 ///
 /// Text files hold three or more numbers per line, as many on every line, separated by
 /// whitespace and/or commas; `#` starts a comment and blank lines are ignored. Where the first
@@ -53,6 +56,7 @@ pub fn read_points(path: &Path) -> Result<PointSet> {
     let parse: fn(&Path, &[u8]) -> Result<PointSet> = match ext.as_str() {
         "obj" => obj::parse,
         "ply" => ply::parse,
+        "stl" => stl::parse,
         "xyz" | "txt" | "csv" => text::parse,
         _ => {
             let shown = if ext.is_empty() { "none".to_string() } else { format!("'.{ext}'") };
@@ -84,7 +88,7 @@ pub fn read_mesh(path: &Path) -> Result<PointSet> {
         return Err(Error::input(
             path,
             "",
-            "no faces: a mesh file (.obj or .ply with faces) is needed here, not just points",
+            "no faces: a mesh file (.obj or .ply with faces, or .stl) is needed here, not just points",
         ));
     }
     Ok(set)
@@ -198,7 +202,7 @@ mod tests {
     fn faults_before_and_after_parsing() {
         let dir = TempDir::new();
         let elf = [0x7f, b'E', b'L', b'F', 2, 1, 1, 0, 0xc3];
-        let supported = ".obj, .ply, .xyz, .txt, .csv";
+        let supported = ".obj, .ply, .stl, .xyz, .txt, .csv";
         let cases: [(&str, &[u8], &str, &str); 8] = [
             ("few.xyz", b"0 0 0\n1 0 0\n0 1 0\n", "", "at least 4"),
             ("le.xyz", b"\xff\xfe0\x00 \x000\x00", "line 1", "UTF-16 text"),
@@ -206,7 +210,7 @@ mod tests {
             ("empty.xyz", b"", "", "no points"),
             ("binary.xyz", b"0 0 0\n1 0 0\n\x00\x01\xff\x80 junk", "line 3", "binary"),
             ("elf.obj", &elf, "line 1", "not a text OBJ"),
-            ("p.stl", b"0 0 0\n", "", supported),
+            ("p.las", b"0 0 0\n", "", supported),
             ("noext", b"0 0 0\n", "", supported),
         ];
         for (name, contents, at, why) in cases {
