@@ -871,30 +871,59 @@ fn point_files_with_more_columns_fit_as_their_coordinates() {
     let (mut named, mut bare) = ("//ID,X,Y,Z,Nx,Ny,Nz\n".to_string(), String::new());
     // and as a spreadsheet in a decimal-comma locale exports it: semicolons, decimal commas
     let mut semicolons = "X;Y;Z\r\n".to_string();
+    // and as an organised cloud keeps the pixels with no return: NaN rows among the points, in text
+    // and in binary PLY
+    let mut organised = String::new();
+    let mut ply = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty double x\nproperty double y\n\
+         property double z\nproperty float intensity\nend_header\n",
+        rows.len() + rows.len().div_ceil(9)
+    )
+    .into_bytes();
     for (i, row) in rows.iter().enumerate() {
         let xyz: Vec<&str> = row.split_whitespace().collect();
         let n = [(i as f64).sin(), (i as f64).cos(), 0.5];
         named.push_str(&format!("{i},{},{},{},{},{},{}\n", xyz[0], xyz[1], xyz[2], n[0], n[1], n[2]));
         bare.push_str(&format!("{} {} {} {} {} {}\n", xyz[0], xyz[1], xyz[2], n[0], n[1], n[2]));
         semicolons.push_str(&(xyz[..3].join(";").replace('.', ",") + "\r\n"));
+        if i % 5 == 1 {
+            organised.push_str(if i % 2 == 0 { "nan nan nan 0\n" } else { "-nan NaN NAN 0\n" });
+        }
+        organised.push_str(&format!("{} {} {} 0.5\n", xyz[0], xyz[1], xyz[2]));
+        if i % 9 == 0 {
+            ply.extend([f64::NAN; 3].iter().flat_map(|v| v.to_le_bytes()));
+            ply.extend(0f32.to_le_bytes());
+        }
+        for v in &xyz[..3] {
+            ply.extend(v.parse::<f64>().unwrap().to_le_bytes());
+        }
+        ply.extend(1f32.to_le_bytes());
     }
+    let organised_note = format!(
+        "{} point(s) without coordinates (x, y and z all NaN: scanner pixels with no return) left out, the \
+         first at line 2",
+        rows.len().div_ceil(5)
+    );
+    let ply_note = format!("{} point(s) without coordinates", rows.len().div_ceil(9));
     let inputs = [
-        (dir.join("plain.xyz"), plain.clone(), None),
+        (dir.join("plain.xyz"), plain.clone().into_bytes(), None),
         (
             dir.join("named.csv"),
-            named,
+            named.into_bytes(),
             Some("7 values a line: x, y, z from columns 2, 3, 4 (named in the header), the other 4 ignored"),
         ),
         (
             dir.join("bare.xyz"),
-            bare,
+            bare.into_bytes(),
             Some("6 values a line: x, y, z from columns 1, 2, 3, the other 3 ignored"),
         ),
         (
             dir.join("semicolons.csv"),
-            semicolons,
+            semicolons.into_bytes(),
             Some("values separated by ';', a ',' in a value read as its decimal mark"),
         ),
+        (dir.join("organised.txt"), organised.into_bytes(), Some(organised_note.as_str())),
+        (dir.join("organised.ply"), ply, Some(ply_note.as_str())),
     ];
     let mut weights = Vec::new();
     for (i, (input, body, note)) in inputs.iter().enumerate() {
@@ -915,6 +944,8 @@ fn point_files_with_more_columns_fit_as_their_coordinates() {
     assert_eq!(weights[0], weights[1]);
     assert_eq!(weights[0], weights[2]);
     assert_eq!(weights[0], weights[3]);
+    assert_eq!(weights[0], weights[4]);
+    assert_eq!(weights[0], weights[5]);
 }
 
 #[test]

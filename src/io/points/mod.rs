@@ -47,7 +47,9 @@ pub struct PointSet {
 /// dropped), or else the first three; further columns (normals, colours, intensities) are
 /// ignored, and [`PointSet::note`] says so.
 ///
-/// Every coordinate must be finite and the file must hold at least 4 points.
+/// Every coordinate must be finite, except that a line (or PLY vertex, where the file has no
+/// faces) whose x, y and z are all NaN is a scanner's pixel without a return: such points are left
+/// out and [`PointSet::note`] counts them. The file must hold at least 4 points.
 pub fn read_points(path: &Path) -> Result<PointSet> {
     if path.is_dir() {
         return Err(Error::input(path, "", format!("a directory, not a point file ({SUPPORTED})")));
@@ -74,7 +76,11 @@ pub fn read_points(path: &Path) -> Result<PointSet> {
         return Err(Error::input(
             path,
             "",
-            format!("only {} point(s); at least {MIN_POINTS} are needed", set.points.len()),
+            format!(
+                "only {} point(s); at least {MIN_POINTS} are needed{}",
+                set.points.len(),
+                set.note.as_ref().map_or(String::new(), |n| format!(" ({n})"))
+            ),
         ));
     }
     Ok(set)
@@ -96,6 +102,22 @@ pub fn read_mesh(path: &Path) -> Result<PointSet> {
 
 // ---------------------------------------------------------------------------------------------
 // Helpers shared by the parsers.
+
+/// A point with no coordinates at all: x, y and z NaN, as range scanners and depth cameras write
+/// the pixels that had no return (organised point clouds keep them to keep the image's shape).
+/// Point lists leave such points out, with a note; meshes cannot (faces may use them).
+fn no_return(p: &[f64; 3]) -> bool {
+    p.iter().all(|c| c.is_nan())
+}
+
+/// The note on the points without a return left out of a point list: `count` of them, the first
+/// at `first` (a line or a vertex).
+fn no_return_note(count: usize, first: &str) -> String {
+    format!(
+        "{count} point(s) without coordinates (x, y and z all NaN: scanner pixels with no return) left out, \
+         the first at {first}"
+    )
+}
 
 fn check_finite(p: [f64; 3]) -> std::result::Result<[f64; 3], String> {
     if p.iter().all(|c| c.is_finite()) {

@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use super::{capacity, check_finite, PointSet};
+use super::{capacity, check_finite, no_return, no_return_note, PointSet};
 use crate::error::{Error, Result};
 
 pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
@@ -33,6 +33,8 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
     // the values per line and the columns of x, y and z, from the first data line
     let mut layout: Option<(usize, [usize; 3], usize)> = None;
     let mut values = Vec::new();
+    // the points without a return left out: how many, and the first one's line
+    let mut missing: (usize, Option<usize>) = (0, None);
     for (i, raw) in text.lines().enumerate() {
         let line = raw.split('#').next().unwrap_or("");
         let err = |reason: String| Error::input(path, format!("line {}", i + 1), reason);
@@ -74,10 +76,18 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
                 if width == 3 { " (x y z)" } else { "" }
             )));
         }
-        points.push(check_finite(cols.map(|c| values[c])).map_err(err)?);
+        let p = cols.map(|c| values[c]);
+        if no_return(&p) {
+            missing.0 += 1;
+            missing.1.get_or_insert(i + 1);
+            continue;
+        }
+        points.push(check_finite(p).map_err(err)?);
     }
+    let missing_note = missing.1.map(|line| no_return_note(missing.0, &format!("line {line}")));
     if points.is_empty() {
-        return Err(Error::input(path, "", "no points found"));
+        let why = missing_note.map_or(String::new(), |n| format!(" ({n})"));
+        return Err(Error::input(path, "", format!("no points found{why}")));
     }
     let columns_note = layout.filter(|l| l.0 > 3).map(|(width, cols, _)| {
         let named = if header.as_deref().is_some_and(|h| h.iter().any(|n| n == "x")) {
@@ -95,7 +105,7 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
     });
     let decimal_note =
         semicolons.then(|| "values separated by ';', a ',' in a value read as its decimal mark".to_string());
-    let notes: Vec<String> = decimal_note.into_iter().chain(columns_note).collect();
+    let notes: Vec<String> = decimal_note.into_iter().chain(columns_note).chain(missing_note).collect();
     let note = (!notes.is_empty()).then(|| notes.join("; "));
     Ok(PointSet { points, triangles: Vec::new(), note })
 }
@@ -211,5 +221,27 @@ mod tests {
                 "non-finite",
             );
         }
+        // a point with no coordinates at all is a pixel without a return: left out, and counted
+        fails_with(&dir.file("b.txt", "0 0 0\nnan nan nan\n0 1 0\n0 0 1\n"), "", "only 3 point(s)");
+        fails_with(
+            &dir.file("c.txt", "nan nan nan\n-nan NaN NAN\n"),
+            "",
+            "no points found (2 point(s) without",
+        );
+        fails_with(&dir.file("d.txt", "0 0 0\nnan nan inf\n0 1 0\n0 0 1\n"), "line 2", "non-finite");
+    }
+
+    #[test]
+    fn points_without_a_return_are_left_out_and_counted() {
+        let dir = TempDir::new();
+        let set = read_points(&dir.file(
+            "o.xyz",
+            "# organised\n0 0 0 1\nnan nan nan 0\n1 0 0 1\n0 1 0 1\n\n-nan nan NaN 0\n0 0 1 1\n",
+        ))
+        .unwrap();
+        assert_eq!(set.points, [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]);
+        let note = set.note.unwrap();
+        assert!(note.ends_with("2 point(s) without coordinates (x, y and z all NaN: scanner pixels with no return) left out, the first at line 3"), "{note}");
+        assert!(note.starts_with("4 values a line"), "{note}");
     }
 }

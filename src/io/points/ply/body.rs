@@ -6,7 +6,7 @@ use std::path::Path;
 
 use super::{Element, Encoding, Header, Kind, Role, Scalar};
 use crate::error::{Error, Result};
-use crate::io::points::{capacity, check_corners, check_finite, Fan, PointSet};
+use crate::io::points::{capacity, check_corners, check_finite, no_return, Fan, PointSet};
 
 const TRUNC: &str = "truncated file, or wrong counts in the PLY header";
 const BAD_COUNTS: &str = "wrong counts in the PLY header?";
@@ -266,7 +266,12 @@ fn read_fixed_records(
     // stride > 0 because the vertex element has at least x, y and z.
     for (i, rec) in src.data[start..start + total].chunks_exact(stride).enumerate() {
         let p = layout.map(|(off, ty)| decode_f64(&rec[off..], ty, src.big));
-        let p = check_finite(p).map_err(|r| Error::input(path, format!("vertex {i}"), r))?;
+        // kept for now: whether they can be left out depends on faces yet to come
+        let p = if no_return(&p) {
+            p
+        } else {
+            check_finite(p).map_err(|r| Error::input(path, format!("vertex {i}"), r))?
+        };
         set.points.push(p);
     }
     Ok(())
@@ -349,7 +354,8 @@ fn read_instance<S: Source>(
         }
     }
     if let Role::Vertex(_) = el.role {
-        set.points.push(check_finite(xyz).map_err(InstanceError::Invalid)?);
+        let p = if no_return(&xyz) { xyz } else { check_finite(xyz).map_err(InstanceError::Invalid)? };
+        set.points.push(p);
     }
     Ok(())
 }
@@ -570,6 +576,26 @@ mod tests {
             .collect();
         for enc in ENCODINGS {
             fails_with(&dir.file("l.ply", ply(header, &rows, enc)), &at(enc, 13, "vertex 3"), "non-finite");
+        }
+    }
+
+    #[test]
+    fn ply_vertices_without_a_return_are_left_out_of_points_and_refused_in_meshes() {
+        let dir = TempDir::new();
+        let mut rows = unit_rows();
+        rows.insert(1, vec![V::F32(f32::NAN); 3]);
+        rows.push(vec![V::F32(f32::NAN); 3]);
+        let header = "element vertex 6\nproperty float x\nproperty float y\nproperty float z\n";
+        for enc in ENCODINGS {
+            let set = read_points(&dir.file("o.ply", ply(header, &rows, enc))).unwrap();
+            assert_eq!(set.points.len(), 4, "{enc:?}");
+            assert!(set.note.as_deref().unwrap().contains("2 point(s) without coordinates"), "{enc:?}");
+            assert!(set.note.as_deref().unwrap().ends_with("the first at vertex 1"), "{enc:?}");
+            // with faces the vertex cannot go
+            let mut with_face = rows.clone();
+            with_face.push(vec![V::U8(3), V::I32(0), V::I32(2), V::I32(3)]);
+            let header = format!("{header}element face 1\nproperty list uchar int vertex_indices\n");
+            fails_with(&dir.file("m.ply", ply(&header, &with_face, enc)), "vertex 1", "faces that may use");
         }
     }
 

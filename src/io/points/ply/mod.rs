@@ -11,7 +11,7 @@ mod body;
 
 use std::path::Path;
 
-use super::PointSet;
+use super::{no_return, no_return_note, PointSet};
 use crate::error::{Error, Result};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -132,7 +132,26 @@ impl Property {
 /// Reads a whole PLY file: its header, then the body as the header declares it.
 pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
     let header = parse_header(path, bytes)?;
-    body::read(path, bytes, &header)
+    let mut set = body::read(path, bytes, &header)?;
+    // vertices without a return: left out of a point cloud, an error in a mesh
+    if let Some(first) = set.points.iter().position(no_return) {
+        let at = format!("vertex {first}");
+        if !set.triangles.is_empty() {
+            return Err(Error::input(
+                path,
+                at,
+                "x, y and z are NaN (no coordinates), and the file has faces that may use the vertex",
+            ));
+        }
+        let before = set.points.len();
+        set.points.retain(|p| !no_return(p));
+        let note = no_return_note(before - set.points.len(), &at);
+        set.note = Some(match set.note.take() {
+            Some(n) => format!("{n}; {note}"),
+            None => note,
+        });
+    }
+    Ok(set)
 }
 
 fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header> {
