@@ -417,7 +417,30 @@ fn readers_refuse_random_and_mutated_bytes_without_panicking() {
     let few = &mesh.triangles[..60];
     let stl_ascii = stl_text(&mesh.vertices, few).into_bytes();
     let stl_binary = stl_bytes(&mesh.vertices, few);
+    let pcd_head = |data: &str| {
+        format!(
+            "VERSION 0.7\nFIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\nWIDTH 4\nHEIGHT 1\n\
+             VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 4\nDATA {data}\n"
+        )
+    };
+    let pcd_ascii = (pcd_head("ascii") + "0 0 0 1\n1 0 0 2\n0 1 0 3\n0 0 1 4\n").into_bytes();
+    // 64 bytes of data as two literal runs of 32 and a back reference
+    let mut pcd_packed = pcd_head("binary_compressed").into_bytes();
+    let mut stream = vec![31u8];
+    stream.extend((0..32u8).map(|b| b.wrapping_mul(37)));
+    stream.extend([7 << 5, 30 - 7, 31]);
+    pcd_packed.extend((stream.len() as u32).to_le_bytes());
+    pcd_packed.extend(64u32.to_le_bytes());
+    pcd_packed.extend(stream);
+    assert!(volspline::io::points::read_points(&{
+        let p = dir.join("check.pcd");
+        std::fs::write(&p, &pcd_packed).unwrap();
+        p
+    })
+    .is_ok());
     for _ in 0..300 {
+        no_panic(&dir.join("p.pcd"), &rng.mutate(&pcd_ascii), &read_points);
+        no_panic(&dir.join("c.pcd"), &rng.mutate(&pcd_packed), &read_points);
         no_panic(&dir.join("p.stl"), &rng.mutate(&stl_ascii), &read_points);
         no_panic(&dir.join("b.stl"), &rng.mutate(&stl_binary), &read_points);
         no_panic(&dir.join("p.xyz"), &rng.mutate(&xyz), &read_points);
@@ -899,6 +922,26 @@ fn point_files_with_more_columns_fit_as_their_coordinates() {
         }
         ply.extend(1f32.to_le_bytes());
     }
+    // and as the Point Cloud Library writes an organised cloud: binary PCD, doubles, NaN pixels
+    let pcd_nan = rows.len().div_ceil(7);
+    let mut pcd = format!(
+        "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z intensity\nSIZE 8 8 8 4\n\
+         TYPE F F F F\nCOUNT 1 1 1 1\nWIDTH {}\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS {}\nDATA binary\n",
+        rows.len() + pcd_nan,
+        rows.len() + pcd_nan
+    )
+    .into_bytes();
+    for (i, row) in rows.iter().enumerate() {
+        if i % 7 == 0 {
+            pcd.extend([f64::NAN; 3].iter().flat_map(|v| v.to_le_bytes()));
+            pcd.extend(0f32.to_le_bytes());
+        }
+        for v in row.split_whitespace().take(3) {
+            pcd.extend(v.parse::<f64>().unwrap().to_le_bytes());
+        }
+        pcd.extend(1f32.to_le_bytes());
+    }
+    let pcd_note = format!("{pcd_nan} point(s) without coordinates (x, y and z all NaN: scanner pixels with no return) left out, the first at point 0");
     let organised_note = format!(
         "{} point(s) without coordinates (x, y and z all NaN: scanner pixels with no return) left out, the \
          first at line 2",
@@ -924,6 +967,7 @@ fn point_files_with_more_columns_fit_as_their_coordinates() {
         ),
         (dir.join("organised.txt"), organised.into_bytes(), Some(organised_note.as_str())),
         (dir.join("organised.ply"), ply, Some(ply_note.as_str())),
+        (dir.join("organised.pcd"), pcd, Some(pcd_note.as_str())),
     ];
     let mut weights = Vec::new();
     for (i, (input, body, note)) in inputs.iter().enumerate() {
@@ -946,6 +990,7 @@ fn point_files_with_more_columns_fit_as_their_coordinates() {
     assert_eq!(weights[0], weights[3]);
     assert_eq!(weights[0], weights[4]);
     assert_eq!(weights[0], weights[5]);
+    assert_eq!(weights[0], weights[6]);
 }
 
 #[test]

@@ -1,5 +1,5 @@
 //! Reading speed of the point readers on large inputs: the same synthetic points as a text list
-//! (.xyz), an ascii PLY, a binary little-endian PLY and a binary STL (a strip of facets through
+//! (.xyz), an ascii PLY, a binary little-endian PLY, a binary PCD and a binary STL (a strip of facets through
 //! consecutive points, so each point is the corner of three facets and the reader merges them),
 //! and the bunny OBJ shipped with the tests.
 //!
@@ -48,8 +48,15 @@ fn write_inputs(dir: &Path, n: usize) -> std::io::Result<Vec<(&'static str, Path
         }
         stl.extend([0u8; 2]);
     }
+    let mut pcd = format!(
+        "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH {n}\nHEIGHT 1\n\
+         VIEWPOINT 0 0 0 1 0 0 0\nPOINTS {n}\nDATA binary\n"
+    )
+    .into_bytes();
+    pcd.extend_from_slice(&binary[binary.len() - 12 * n..]);
     let files = [
         ("xyz", "points.xyz", text.into_bytes()),
+        ("pcd_binary", "binary.pcd", pcd),
         ("ply_ascii", "ascii.ply", ascii.into_bytes()),
         ("ply_binary", "binary.ply", binary),
         ("stl_binary", "strip.stl", stl),

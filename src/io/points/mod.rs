@@ -2,13 +2,15 @@
 //!
 //! This module owns the input file formats: plain-text point lists (.xyz/.txt/.csv, `text`),
 //! Wavefront OBJ (`obj`), PLY, ascii and both binary byte orders (`ply`), and STL, ascii and
-//! binary (`stl`, its corners merged into indexed points). It picks the
+//! binary (`stl`, its corners merged into indexed points), and the Point Cloud Library's PCD
+//! (`pcd`, ascii, binary and LZF-compressed). It picks the
 //! parser by extension and holds what they share. Everything is returned in the file's own
 //! coordinates; normalisation belongs to the caller. The files come from users, so every parser
 //! validates as it goes and reports the line, vertex or byte offset at fault instead of
 //! panicking or guessing.
 
 mod obj;
+mod pcd;
 mod ply;
 mod stl;
 mod text;
@@ -20,7 +22,7 @@ use crate::error::{Error, Result};
 /// Fewer points than this cannot define a volume.
 const MIN_POINTS: usize = 4;
 
-const SUPPORTED: &str = ".obj, .ply, .stl, .xyz, .txt, .csv";
+const SUPPORTED: &str = ".obj, .ply, .stl, .pcd, .xyz, .txt, .csv";
 
 /// Points and (optional) triangles read from a file, in the file's coordinates.
 #[derive(Debug, Clone, Default)]
@@ -32,7 +34,7 @@ pub struct PointSet {
     pub note: Option<String>,
 }
 
-/// Read scattered points by extension: .obj, .ply, .stl, .xyz/.txt/.csv (case-insensitive).
+/// Read scattered points by extension: .obj, .ply, .stl, .pcd, .xyz/.txt/.csv (case-insensitive).
 /// Triangles are filled for .obj/.ply when faces exist (polygons fan-triangulated) and for .stl,
 /// empty for text.
 ///
@@ -59,6 +61,7 @@ pub fn read_points(path: &Path) -> Result<PointSet> {
         "obj" => obj::parse,
         "ply" => ply::parse,
         "stl" => stl::parse,
+        "pcd" => pcd::parse,
         "xyz" | "txt" | "csv" => text::parse,
         _ => {
             let shown = if ext.is_empty() { "none".to_string() } else { format!("'.{ext}'") };
@@ -224,7 +227,7 @@ mod tests {
     fn faults_before_and_after_parsing() {
         let dir = TempDir::new();
         let elf = [0x7f, b'E', b'L', b'F', 2, 1, 1, 0, 0xc3];
-        let supported = ".obj, .ply, .stl, .xyz, .txt, .csv";
+        let supported = ".obj, .ply, .stl, .pcd, .xyz, .txt, .csv";
         let cases: [(&str, &[u8], &str, &str); 8] = [
             ("few.xyz", b"0 0 0\n1 0 0\n0 1 0\n", "", "at least 4"),
             ("le.xyz", b"\xff\xfe0\x00 \x000\x00", "line 1", "UTF-16 text"),
