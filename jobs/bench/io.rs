@@ -1,7 +1,7 @@
 //! Reading speed of the point readers on large inputs: the same synthetic points as a text list
-//! (.xyz), an ascii PLY, a binary little-endian PLY, a binary PCD and a binary STL (a strip of facets through
-//! consecutive points, so each point is the corner of three facets and the reader merges them),
-//! and the bunny OBJ shipped with the tests.
+//! (.xyz), an ascii PLY, a binary little-endian PLY, a binary PCD and a binary STL (a strip of
+//! facets through consecutive points, so each point is the corner of three facets and the reader
+//! merges them), and the bunny OBJ shipped with the tests.
 //!
 //! Usage: `bench_io WORKDIR POINTS REPEAT`. Writes the files into WORKDIR (which must exist),
 //! reads each REPEAT times through `volspline::io::points::read_points` and prints one CSV row
