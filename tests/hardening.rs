@@ -438,7 +438,27 @@ fn readers_refuse_random_and_mutated_bytes_without_panicking() {
         p
     })
     .is_ok());
+    // a LAS 1.2 header of 227 bytes and four records of format 1 (28 bytes)
+    let mut las = vec![0u8; 227];
+    las[..4].copy_from_slice(b"LASF");
+    (las[24], las[25], las[104]) = (1, 2, 1);
+    las[94..96].copy_from_slice(&227u16.to_le_bytes());
+    las[96..100].copy_from_slice(&227u32.to_le_bytes());
+    las[105..107].copy_from_slice(&28u16.to_le_bytes());
+    las[107..111].copy_from_slice(&4u32.to_le_bytes());
+    las[131..155].copy_from_slice(&[0.01f64; 3].map(f64::to_le_bytes).concat());
+    for i in 0..4i32 {
+        las.extend([i, 1 - i, 2 * i].map(i32::to_le_bytes).concat());
+        las.extend([0u8; 16]);
+    }
+    assert!(volspline::io::points::read_points(&{
+        let p = dir.join("check.las");
+        std::fs::write(&p, &las).unwrap();
+        p
+    })
+    .is_ok());
     for _ in 0..300 {
+        no_panic(&dir.join("p.las"), &rng.mutate(&las), &read_points);
         no_panic(&dir.join("p.pcd"), &rng.mutate(&pcd_ascii), &read_points);
         no_panic(&dir.join("c.pcd"), &rng.mutate(&pcd_packed), &read_points);
         no_panic(&dir.join("p.stl"), &rng.mutate(&stl_ascii), &read_points);
@@ -991,6 +1011,38 @@ fn point_files_with_more_columns_fit_as_their_coordinates() {
     assert_eq!(weights[0], weights[4]);
     assert_eq!(weights[0], weights[5]);
     assert_eq!(weights[0], weights[6]);
+
+    // and as lidar writes it: LAS 1.4, record format 6, integer coordinates in steps of 1e-9
+    let mut las = vec![0u8; 375];
+    las[..4].copy_from_slice(b"LASF");
+    (las[24], las[25]) = (1, 4);
+    las[94..96].copy_from_slice(&375u16.to_le_bytes());
+    las[96..100].copy_from_slice(&375u32.to_le_bytes());
+    las[104] = 6;
+    las[105..107].copy_from_slice(&34u16.to_le_bytes());
+    las[247..255].copy_from_slice(&(rows.len() as u64).to_le_bytes());
+    for d in 0..3 {
+        las[131 + 8 * d..139 + 8 * d].copy_from_slice(&1e-9f64.to_le_bytes());
+        las[155 + 8 * d..163 + 8 * d].copy_from_slice(&0.25f64.to_le_bytes());
+    }
+    for row in &rows {
+        for v in row.split_whitespace().take(3) {
+            let q = ((v.parse::<f64>().unwrap() - 0.25) / 1e-9).round() as i32;
+            las.extend(q.to_le_bytes());
+        }
+        las.extend([0u8; 22]);
+    }
+    let input = dir.join("scan.las");
+    std::fs::write(&input, las).unwrap();
+    let prefix = dir.join("las");
+    let out = run(2, &["fit", s(&input), "--out", s(&prefix), "--grid", "16", "--no-preview"]);
+    let all = text(&out);
+    assert!(out.status.success(), "{all}");
+    assert!(all.contains("LAS 1.4, point data record format 6: 400 points, scales 1e-9 1e-9 1e-9"), "{all}");
+    let f = |p: &Path| volspline::io::vtkhdf::read_image(p, "f").unwrap().1;
+    let diff = common::rel_diff(&f(&prefix.with_extension("hdf")), &f(&dir.join("m0.hdf")));
+    println!("LAS volume against the plain file: {diff:e}");
+    assert!(diff < 1e-6, "the LAS points' volume differs from the plain file's by {diff}");
 }
 
 #[test]

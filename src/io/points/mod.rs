@@ -3,12 +3,13 @@
 //! This module owns the input file formats: plain-text point lists (.xyz/.txt/.csv, `text`),
 //! Wavefront OBJ (`obj`), PLY, ascii and both binary byte orders (`ply`), and STL, ascii and
 //! binary (`stl`, its corners merged into indexed points), and the Point Cloud Library's PCD
-//! (`pcd`, ascii, binary and LZF-compressed). It picks the
+//! (`pcd`, ascii, binary and LZF-compressed), and lidar's LAS (`las`). It picks the
 //! parser by extension and holds what they share. Everything is returned in the file's own
 //! coordinates; normalisation belongs to the caller. The files come from users, so every parser
 //! validates as it goes and reports the line, vertex or byte offset at fault instead of
 //! panicking or guessing.
 
+mod las;
 mod obj;
 mod pcd;
 mod ply;
@@ -22,7 +23,7 @@ use crate::error::{Error, Result};
 /// Fewer points than this cannot define a volume.
 const MIN_POINTS: usize = 4;
 
-const SUPPORTED: &str = ".obj, .ply, .stl, .pcd, .xyz, .txt, .csv";
+const SUPPORTED: &str = ".obj, .ply, .stl, .pcd, .las, .xyz, .txt, .csv";
 
 /// Points and (optional) triangles read from a file, in the file's coordinates.
 #[derive(Debug, Clone, Default)]
@@ -34,7 +35,8 @@ pub struct PointSet {
     pub note: Option<String>,
 }
 
-/// Read scattered points by extension: .obj, .ply, .stl, .pcd, .xyz/.txt/.csv (case-insensitive).
+/// Read scattered points by extension: .obj, .ply, .stl, .pcd, .las, .xyz/.txt/.csv
+/// (case-insensitive).
 /// Triangles are filled for .obj/.ply when faces exist (polygons fan-triangulated) and for .stl,
 /// empty for text.
 ///
@@ -62,6 +64,8 @@ pub fn read_points(path: &Path) -> Result<PointSet> {
         "ply" => ply::parse,
         "stl" => stl::parse,
         "pcd" => pcd::parse,
+        "las" => las::parse,
+        "laz" => return Err(Error::input(path, "", las::LAZ)),
         "xyz" | "txt" | "csv" => text::parse,
         _ => {
             let shown = if ext.is_empty() { "none".to_string() } else { format!("'.{ext}'") };
@@ -227,7 +231,7 @@ mod tests {
     fn faults_before_and_after_parsing() {
         let dir = TempDir::new();
         let elf = [0x7f, b'E', b'L', b'F', 2, 1, 1, 0, 0xc3];
-        let supported = ".obj, .ply, .stl, .pcd, .xyz, .txt, .csv";
+        let supported = ".obj, .ply, .stl, .pcd, .las, .xyz, .txt, .csv";
         let cases: [(&str, &[u8], &str, &str); 8] = [
             ("few.xyz", b"0 0 0\n1 0 0\n0 1 0\n", "", "at least 4"),
             ("le.xyz", b"\xff\xfe0\x00 \x000\x00", "line 1", "UTF-16 text"),
