@@ -263,3 +263,46 @@ fn a_slice_too_large_for_memory_is_refused_before_its_solve() {
         ["coarse.txt", "fine.txt", "r1.hdf", "r1.model.h5", "r1.ply", "r2.hdf", "r2.model.h5", "r2.ply"]
     );
 }
+
+#[test]
+fn morph_pairs_too_many_for_memory_are_refused_before_any_frame() {
+    // 2000 of the bunny's vertices as features moving with it by (6, 2, 0): each frame solves two
+    // space maps side by side, each a 2004 x 2004 system and its LU's copy
+    let dir = common::temp_dir("preflight-morph");
+    let bunny = common::bunny();
+    let pairs: String = bunny
+        .chunks_exact(3)
+        .step_by(2)
+        .take(2000)
+        .map(|p| format!("{} {} {} {} {} {}\n", p[0], p[1], p[2], p[0] + 6.0, p[1] + 2.0, p[2]))
+        .collect();
+    let file = dir.join("pairs.txt");
+    std::fs::write(&file, pairs).unwrap();
+    let need = 4.0 * 2004f64.powi(2) * 8.0 + 200e6;
+    for ranks in [1, 2] {
+        let out = dir.join(format!("m{ranks}"));
+        let args = [
+            "morph",
+            "ball:-2,10,0,8",
+            "ball:4,12,0,8",
+            "--out",
+            out.to_str().unwrap(),
+            "--pairs",
+            file.to_str().unwrap(),
+            "--frames",
+            "3",
+            "--memory-per-rank",
+            "250MB",
+        ];
+        let run = common::run(ranks, &args);
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(1), "{err}");
+        let said = format!("solving the space maps of 2000 point pairs needs about {:.0} MB", need / 1e6);
+        assert!(err.contains(&said), "{said} not in {err}");
+        assert!(std::fs::read_dir(&dir).unwrap().all(|e| !e
+            .unwrap()
+            .file_name()
+            .to_string_lossy()
+            .starts_with('m')));
+    }
+}

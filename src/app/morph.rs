@@ -74,6 +74,17 @@ pub fn run(a: &MorphArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let grid = Grid::covering(lo, hi, a.grid.grid)?;
     check_grid(comm, &grid)?;
     let [nx, ny, nz] = grid.dims;
+    if let Some(p) = &pairs {
+        // each frame solves the two maps side by side, each a bordered system and its LU
+        let n = (p.len() + 4) as f64;
+        let need = 2.0 * 2.0 * n * n * 8.0 + super::preflight::FIXED_BYTES;
+        super::preflight::check_memory(
+            comm,
+            need,
+            &format!("solving the space maps of {} point pairs", p.len()),
+            "give fewer pairs or the ranks more memory (fewer ranks per node, --memory-per-rank)",
+        )?;
+    }
 
     let k = a.frames;
     let times: Vec<f64> = (0..k).map(|i| i as f64 / (k - 1) as f64).collect();
