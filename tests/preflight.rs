@@ -306,3 +306,72 @@ fn morph_pairs_too_many_for_memory_are_refused_before_any_frame() {
             .starts_with('m')));
     }
 }
+
+#[test]
+fn slices_solved_side_by_side_are_counted_together() {
+    // the bunny in 12 slices, two neighbouring ones traced 15 times more finely: one such system
+    // fits 400 MB a rank, two at once on one rank's two threads do not; on two ranks each takes one
+    let dir = common::temp_dir("preflight-threads");
+    let coarse = dir.join("coarse.txt");
+    common::run_ok(0, &["slice", common::BUNNY, "--out", coarse.to_str().unwrap(), "--planes", "y:12"]);
+    let mut sections = volspline::contour::format::read(&coarse).unwrap();
+    let mid = sections.len() / 2;
+    for s in &mut sections[mid..mid + 2] {
+        for c in &mut s.contours {
+            let n = c.len();
+            // on the Catmull-Rom curve through the traced points (points on straight edges would
+            // make the slice's system needlessly ill-conditioned)
+            *c = (0..15 * n)
+                .map(|k| {
+                    let (i, t) = (k / 15, (k % 15) as f64 / 15.0);
+                    let [a, p, q, b] = [c[(i + n - 1) % n], c[i], c[(i + 1) % n], c[(i + 2) % n]];
+                    let (t2, t3) = (t * t, t * t * t);
+                    let w = [
+                        -0.5 * t3 + t2 - 0.5 * t,
+                        1.5 * t3 - 2.5 * t2 + 1.0,
+                        -1.5 * t3 + 2.0 * t2 + 0.5 * t,
+                        0.5 * t3 - 0.5 * t2,
+                    ];
+                    [0, 1].map(|d| w[0] * a[d] + w[1] * p[d] + w[2] * q[d] + w[3] * b[d])
+                })
+                .collect();
+        }
+    }
+    let fine = dir.join("fine.txt");
+    std::fs::write(&fine, volspline::contour::format::to_text(&sections, "two fine slices")).unwrap();
+    let need = |n: usize| 2.0 * ((n + 3) as f64).powi(2) * 8.0;
+    let (a, b) = (sections[mid].point_count(), sections[mid + 1].point_count());
+    assert!(need(a.max(b)) + 200e6 < 400e6 && need(a) + need(b) + 200e6 > 400e6, "{a} and {b} points");
+    let contours = |ranks: usize, threads: &str| {
+        let out = dir.join(format!("r{ranks}t{threads}"));
+        let args = [
+            "contours",
+            fine.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--grid",
+            "24",
+            "--memory-per-rank",
+            "400MB",
+            "--threads",
+            threads,
+        ];
+        common::run(ranks, &args)
+    };
+    let refused = contours(1, "2");
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("the dense systems of the 2 slices this rank solves side by side on its threads"),
+        "{err}"
+    );
+    assert!(err.contains("fewer --threads"), "{err}");
+    for (ranks, threads) in [(1, "1"), (2, "2")] {
+        let run = contours(ranks, threads);
+        assert!(
+            run.status.success(),
+            "{ranks} ranks, {threads} threads: {}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+    }
+}

@@ -72,24 +72,54 @@ pub fn solve_sections(
         .collect())
 }
 
-/// Refuses the run before any slice is solved when the dense system of the largest slice does
-/// not fit in a rank's memory: the matrix of its points and polynomial terms, and the copy the
-/// LU factors (both f64), beside the program's fixed part. Collective.
+/// Refuses the run before any slice is solved when the dense systems a rank solves at once do not
+/// fit in its memory: each the matrix of a slice's points and polynomial terms and the copy the
+/// LU factors (both f64), for the largest of the rank's slices, as many as it has threads (its
+/// slices are solved side by side), beside the program's fixed part. Collective.
 fn check_slice_systems(comm: &dyn Comm, sections: &[Section], kernel: &Kernel) -> Result<()> {
-    let Some(largest) = sections.iter().max_by_key(|s| s.point_count()) else { return Ok(()) };
-    let n = (largest.point_count() + kernel.poly_count()) as f64;
-    let need = 2.0 * n * n * 8.0 + super::preflight::FIXED_BYTES;
-    let what = format!(
-        "the dense system of the slice of line {} ({} points, the most of any slice)",
-        largest.line,
-        largest.point_count()
-    );
+    let (p, r) = (comm.size(), comm.rank());
+    let mut mine: Vec<&Section> = sections.iter().skip(r).step_by(p).collect();
+    mine.sort_by_key(|s| std::cmp::Reverse(s.point_count()));
+    mine.truncate(rayon::current_num_threads().max(1));
+    let system = |s: &Section| 2.0 * ((s.point_count() + kernel.poly_count()) as f64).powi(2) * 8.0;
+    let need = mine.iter().map(|s| system(s)).sum::<f64>() + super::preflight::FIXED_BYTES;
+    let Some(largest) = mine.first() else {
+        // a rank without slices (more ranks than slices) takes part in the collective check all
+        // the same
+        return super::preflight::check_memory(comm, need, "the program", "");
+    };
+    let most = if sections.iter().all(|s| s.point_count() <= largest.point_count()) {
+        ", the most of any slice"
+    } else {
+        ""
+    };
+    let (what, advice) = if mine.len() == 1 {
+        (
+            format!(
+                "the dense system of the slice of line {} ({} points{most}",
+                largest.line,
+                largest.point_count()
+            ),
+            "",
+        )
+    } else {
+        let what = format!(
+            "the dense systems of the {} slices this rank solves side by side on its threads (the largest the \
+             slice of line {}, {} points{most}",
+            mine.len(),
+            largest.line,
+            largest.point_count()
+        );
+        (what, ", fewer --threads")
+    };
     super::preflight::check_memory(
         comm,
         need,
-        &what,
-        "thin its contours (every k-th point: the spline through fewer points is smooth) or give the ranks \
-         more memory (fewer ranks per node, --memory-per-rank)",
+        &format!("{what})"),
+        &format!(
+            "thin its contours (every k-th point: the spline through fewer points is smooth) or give the ranks \
+             more memory (fewer ranks per node, --memory-per-rank{advice})"
+        ),
     )
 }
 
