@@ -825,3 +825,42 @@ fn contours_that_cross_are_named_and_chains_on_holes_are_joined() {
         }
     }
 }
+
+/// A slice traced ten times more densely along its edges (points on straight runs, some a
+/// millionth of the slice apart where the plane grazed a vertex) has a numerically singular
+/// system: the error names the steps and the --merge-tol that merges the closest, and with that
+/// tolerance the run succeeds, on 1 and 2 ranks.
+#[test]
+fn a_densely_traced_slice_s_singular_system_says_how_to_mend_it() {
+    let dir = common::temp_dir("contours-dense");
+    let coarse = dir.join("coarse.txt");
+    common::run_ok(0, &["slice", common::BUNNY, "--out", s(&coarse), "--planes", "y:12"]);
+    let mut sections = format::read(&coarse).unwrap();
+    let mid = sections.len() / 2;
+    for c in &mut sections[mid].contours {
+        let n = c.len();
+        *c = (0..10 * n)
+            .map(|k| {
+                let (i, t) = (k / 10, (k % 10) as f64 / 10.0);
+                let (p, q) = (c[i], c[(i + 1) % n]);
+                [p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1])]
+            })
+            .collect();
+    }
+    let dense = dir.join("dense.txt");
+    write_sections(&dense, &sections);
+    let line = format::read(&dense).unwrap()[mid].line;
+    for ranks in [1, 2] {
+        let out = dir.join(format!("r{ranks}"));
+        let run = common::run(ranks, &["contours", s(&dense), "--out", s(&out), "--grid", "20"]);
+        let err = String::from_utf8_lossy(&run.stderr).into_owned();
+        assert_eq!(run.status.code(), Some(1), "{err}");
+        assert!(err.contains(&format!("the slice of line {line}: matrix is singular")), "{err}");
+        assert!(err.contains("its contours hold points closer together than"), "{err}");
+        let tol = err.split("--merge-tol ").nth(1).and_then(|t| t.split_whitespace().next()).unwrap();
+        assert_eq!(tol, "1e-5", "{err}");
+        let args = ["contours", s(&dense), "--out", s(&out), "--grid", "20", "--merge-tol", tol];
+        let said = common::run_ok(ranks, &args);
+        assert!(said.contains("largest relative residual"), "{said}");
+    }
+}

@@ -86,6 +86,44 @@ pub fn fit_values(kernel: &Kernel, points: &[f64], values: &[f64]) -> Result<(Sp
     Ok((Spline::from_solution(*kernel, centres, &x, norm), residual))
 }
 
+/// Consecutive points of a contour a median step apart shorter than this fraction of the slice's
+/// diagonal, or a shortest step shorter than [`CLOSE_STEP`] of it, are the likely cause of a
+/// singular slice system.
+const DENSE_STEP: f64 = 1.0 / 300.0;
+const CLOSE_STEP: f64 = 1e-4;
+
+/// Why a slice's system may be singular when its contours hold points very close together: the
+/// median and the shortest step between consecutive points as fractions of the slice's diagonal
+/// `diag`, and what to do (the --merge-tol that merges the closest); empty where the steps are
+/// not that short.
+fn dense_hint(section: &Section, diag: f64) -> String {
+    let mut steps: Vec<f64> = section
+        .contours
+        .iter()
+        .flat_map(|c| (0..c.len()).map(move |i| (c[i], c[(i + 1) % c.len()])))
+        .map(|(p, q)| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt() / diag)
+        .filter(|d| *d > 0.0)
+        .collect();
+    if steps.is_empty() || !diag.is_finite() {
+        return String::new();
+    }
+    steps.sort_by(f64::total_cmp);
+    let (median, shortest) = (steps[steps.len() / 2], steps[0]);
+    if median >= DENSE_STEP && shortest >= CLOSE_STEP {
+        return String::new();
+    }
+    // the power of ten at or above twice the shortest step
+    let tol = 10f64.powf((2.0 * shortest).log10().ceil());
+    format!(
+        "; its contours hold points closer together than the spline's system can tell apart in double \
+         precision (consecutive points a median 1/{:.0} of the slice's diagonal apart, the closest two \
+         1/{:.0}): merge close points with --merge-tol {tol:e} or more, or thin the contours (every k-th \
+         point)",
+        1.0 / median,
+        1.0 / shortest
+    )
+}
+
 /// The disc round a 2D point set: centre of the bounding box, radius half its diagonal.
 fn disc_around(points: &[f64]) -> Carrier {
     let (lo, hi) = bounding_box(points, 2);
@@ -148,7 +186,9 @@ pub fn fit_section(
     let total = raw.len() / 2;
     let (spline, residual) = fit_values(kernel, &points, &values).map_err(|e| {
         match after_merging(e, merged, total, merge_tol) {
-            Error::Numerical(m) => Error::Numerical(format!("{}: {m}", where_())),
+            Error::Numerical(m) => {
+                Error::Numerical(format!("{}: {m}{}", where_(), dense_hint(section, diag)))
+            }
             other => other,
         }
     })?;
