@@ -838,14 +838,7 @@ fn a_densely_traced_slice_s_singular_system_says_how_to_mend_it() {
     let mut sections = format::read(&coarse).unwrap();
     let mid = sections.len() / 2;
     for c in &mut sections[mid].contours {
-        let n = c.len();
-        *c = (0..10 * n)
-            .map(|k| {
-                let (i, t) = (k / 10, (k % 10) as f64 / 10.0);
-                let (p, q) = (c[i], c[(i + 1) % n]);
-                [p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1])]
-            })
-            .collect();
+        *c = common::traced_finer(c, 10);
     }
     let dense = dir.join("dense.txt");
     write_sections(&dense, &sections);

@@ -220,14 +220,7 @@ fn a_slice_too_large_for_memory_is_refused_before_its_solve() {
     let mut sections = volspline::contour::format::read(&coarse).unwrap();
     let mid = sections.len() / 2;
     for c in &mut sections[mid].contours {
-        let n = c.len();
-        *c = (0..40 * n)
-            .map(|k| {
-                let (i, t) = (k / 40, (k % 40) as f64 / 40.0);
-                let (p, q) = (c[i], c[(i + 1) % n]);
-                [p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1])]
-            })
-            .collect();
+        *c = common::traced_finer(c, 40);
     }
     let fine = dir.join("fine.txt");
     std::fs::write(&fine, volspline::contour::format::to_text(&sections, "fine middle slice")).unwrap();

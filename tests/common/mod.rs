@@ -263,3 +263,16 @@ pub fn volume_diff(hdf: &Path, model: &volspline::spline::Model) -> f64 {
         .collect();
     rel_diff(&values, &expect)
 }
+
+/// A closed contour traced `k` times more finely: k points evenly along each edge, on the
+/// straight line between its ends (as a segmentation traced at full resolution gives them).
+pub fn traced_finer(c: &[[f64; 2]], k: usize) -> Vec<[f64; 2]> {
+    let n = c.len();
+    (0..k * n)
+        .map(|j| {
+            let (i, t) = (j / k, (j % k) as f64 / k as f64);
+            let (p, q) = (c[i], c[(i + 1) % n]);
+            [p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1])]
+        })
+        .collect()
+}
