@@ -317,7 +317,8 @@ fn compressed(path: &Path, body: &[u8], h: &Header, axes: [usize; 3], out: &mut 
 /// copies the next c + 1 bytes; otherwise it repeats len = (c >> 5) + 2 bytes (with a further
 /// length byte added when c >> 5 is 7) from ((c & 31) << 8) + next byte + 1 bytes back.
 fn lzf_expand(input: &[u8], size: usize) -> std::result::Result<Vec<u8>, String> {
-    let mut out = Vec::with_capacity(size);
+    // a run of three bytes expands to at most 264: a header that lies cannot make us reserve more
+    let mut out = Vec::with_capacity(size.min(input.len().saturating_mul(88)));
     let mut ip = 0;
     let short = |at: usize| format!("the stream ends inside the run at byte {at}");
     while ip < input.len() {
