@@ -239,7 +239,7 @@ mod tests {
             ("empty.xyz", b"", "", "no points"),
             ("binary.xyz", b"0 0 0\n1 0 0\n\x00\x01\xff\x80 junk", "line 3", "binary"),
             ("elf.obj", &elf, "line 1", "not a text OBJ"),
-            ("p.las", b"0 0 0\n", "", supported),
+            ("p.e57", b"0 0 0\n", "", supported),
             ("noext", b"0 0 0\n", "", supported),
         ];
         for (name, contents, at, why) in cases {
