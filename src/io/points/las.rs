@@ -1,8 +1,9 @@
 //! LAS, the ASPRS format of airborne and terrestrial lidar (versions 1.0 to 1.4, point data record
 //! formats 0 to 10). Every record begins with the coordinates as three little-endian i32, which
 //! the public header's scale and offset turn into numbers: x = X x_scale + x_offset, and so on.
-//! The rest of a record (intensity, returns, classification, GPS time, colour, waveform) is
-//! skipped.
+//! Points classified as noise (class 7, and 18 in formats 6-10) or flagged withheld are left out
+//! and counted in the note; the rest of a record (intensity, returns, GPS time, colour, waveform)
+//! is skipped.
 //!
 //! The header fields read (byte offsets, little-endian): the signature `LASF` (0), the version
 //! (24, 25), the header size (94), the offset to the point data (96), the record format (104) and
@@ -102,21 +103,57 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
     })?;
     let mut set = PointSet::default();
     set.points.reserve(count);
+    let (mut noise, mut withheld) = (0, 0);
     for (i, rec) in body[..need].chunks_exact(record).enumerate() {
-        let p: [f64; 3] = std::array::from_fn(|d| {
-            let v = i32::from_le_bytes([rec[4 * d], rec[4 * d + 1], rec[4 * d + 2], rec[4 * d + 3]]);
-            v as f64 * scale[d] + offset[d]
-        });
-        set.points.push(check_finite(p).map_err(|why| err(&format!("point {i}"), why))?);
+        match classify(format, rec) {
+            Kept::Noise => noise += 1,
+            Kept::Withheld => withheld += 1,
+            Kept::Yes => {
+                let p: [f64; 3] = std::array::from_fn(|d| {
+                    let v = i32::from_le_bytes([rec[4 * d], rec[4 * d + 1], rec[4 * d + 2], rec[4 * d + 3]]);
+                    v as f64 * scale[d] + offset[d]
+                });
+                set.points.push(check_finite(p).map_err(|why| err(&format!("point {i}"), why))?);
+            }
+        }
     }
-    if set.points.is_empty() {
-        return Err(err("", "no points (the header's point count is 0)".into()));
-    }
-    set.note = Some(format!(
+    let mut note = format!(
         "LAS {major}.{minor}, point data record format {format}: {count} points, scales {:e} {:e} {:e}",
         scale[0], scale[1], scale[2]
-    ));
+    );
+    if noise + withheld > 0 {
+        note.push_str(&format!(
+            "; left out: {noise} classified as noise (class 7 or 18), {withheld} flagged withheld"
+        ));
+    }
+    if set.points.is_empty() {
+        let why = if count > 0 { format!(" ({note})") } else { " (the header's point count is 0)".into() };
+        return Err(err("", format!("no points{why}")));
+    }
+    set.note = Some(note);
     Ok(set)
+}
+
+/// Whether a record's point is kept: not if its class is noise (7, low noise; 18, high noise in
+/// formats 6-10) or its withheld flag is set (the point is to be treated as deleted).
+enum Kept {
+    Yes,
+    Noise,
+    Withheld,
+}
+
+fn classify(format: u8, rec: &[u8]) -> Kept {
+    // formats 0-5: byte 15 holds the class (bits 0-4) and the withheld flag (bit 7); formats
+    // 6-10: byte 15 holds the flags (withheld is bit 2) and byte 16 the class
+    let (class, withheld) =
+        if format <= 5 { (rec[15] & 0x1f, rec[15] & 0x80 != 0) } else { (rec[16], rec[15] & 0x04 != 0) };
+    if withheld {
+        Kept::Withheld
+    } else if class == 7 || class == 18 {
+        Kept::Noise
+    } else {
+        Kept::Yes
+    }
 }
 
 #[cfg(test)]
@@ -156,7 +193,9 @@ mod tests {
         }
         b.extend([7u8; 60]);
         for p in pts {
-            let mut r = vec![0xabu8; record as usize];
+            // the rest of the record: class 2 (ground), no flags
+            let mut r = vec![0u8; record as usize];
+            r[if format <= 5 { 15 } else { 16 }] = 2;
             for d in 0..3 {
                 r[4 * d..4 * d + 4].copy_from_slice(&p[d].to_le_bytes());
             }
@@ -182,6 +221,36 @@ mod tests {
                 .note
                 .unwrap()
                 .starts_with(&format!("LAS 1.{minor}, point data record format {format}: 4 points")));
+        }
+    }
+
+    #[test]
+    fn noise_and_withheld_points_are_left_out_and_counted() {
+        let dir = TempDir::new();
+        let raw: Vec<[i32; 3]> = (0..8).map(|i| [i, i * i, 1 - i]).collect();
+        for (format, record) in [(1u8, 28u16), (6, 30)] {
+            let mut b = las(&raw, [0.5; 3], [0.0; 3], format, record, if format == 6 { 4 } else { 2 });
+            let first = b.len() - raw.len() * record as usize;
+            let byte = |i: usize, at: usize| first + i * record as usize + at;
+            if format <= 5 {
+                b[byte(1, 15)] = 7;
+                b[byte(4, 15)] = 0x80 | 2;
+            } else {
+                b[byte(1, 16)] = 18;
+                b[byte(3, 16)] = 7;
+                b[byte(4, 15)] = 0x04;
+            }
+            let set = read_points(&dir.file("n.las", b)).unwrap();
+            let left: Vec<usize> = if format <= 5 { vec![1, 4] } else { vec![1, 3, 4] };
+            let want: Vec<[f64; 3]> =
+                (0..8).filter(|i| !left.contains(i)).map(|i| raw[i].map(|v| v as f64 * 0.5)).collect();
+            assert_eq!(set.points, want, "format {format}");
+            let note = set.note.unwrap();
+            let counts = if format <= 5 { "1 classified as noise" } else { "2 classified as noise" };
+            assert!(
+                note.ends_with(&format!("left out: {counts} (class 7 or 18), 1 flagged withheld")),
+                "{note}"
+            );
         }
     }
 
