@@ -54,6 +54,7 @@ use crate::error::{Error, Result};
 use crate::grid::Grid;
 use crate::linalg::dense::{relative_residual, BlockedLu};
 use crate::spline::hygiene::{bounding_box, check_unisolvent};
+use crate::spline::system::dist2;
 use crate::spline::{full_system, Field, Kernel, Normalisation, Spline};
 
 /// Most point pairs (the displacement systems are dense and solved on one process per frame).
@@ -256,16 +257,6 @@ pub struct Fold {
 const FOLD_NEIGHBOURS: usize = 3;
 const FOLD_STEPS: usize = 4;
 
-fn dist2(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-    (0..3).map(|d| (a[d] - b[d]).powi(2)).sum()
-}
-
-/// The determinant of a 3 x 3 matrix.
-fn det3(m: &[[f64; 3]; 3]) -> f64 {
-    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
-}
-
 /// The values of A and B on the slabs a rank evaluates, kept from frame to frame (without point
 /// pairs they do not depend on t, so every frame after the first costs no model evaluation).
 #[derive(Default)]
@@ -346,7 +337,10 @@ impl<'a> Morph<'a> {
         };
         let samples = self.fold_samples(lo, hi, per_side);
         let fold = |m: &SpaceMap| {
-            let dets: Vec<f64> = samples.par_iter().map(|&x| det3(&m.jacobian(x))).collect();
+            let dets: Vec<f64> = samples
+                .par_iter()
+                .map(|&x| glam::DMat3::from_cols_array_2d(&m.jacobian(x)).determinant())
+                .collect();
             let folded = dets.iter().filter(|d| !(**d > 0.0)).count();
             let (i, det) = dets
                 .iter()
