@@ -833,9 +833,7 @@ fn contours_that_cross_are_named_and_chains_on_holes_are_joined() {
 #[test]
 fn a_densely_traced_slice_s_singular_system_says_how_to_mend_it() {
     let dir = common::temp_dir("contours-dense");
-    let coarse = dir.join("coarse.txt");
-    common::run_ok(0, &["slice", common::BUNNY, "--out", s(&coarse), "--planes", "y:12"]);
-    let mut sections = format::read(&coarse).unwrap();
+    let mut sections = common::bunny_slices(&dir, "y:12");
     let mid = sections.len() / 2;
     for c in &mut sections[mid].contours {
         *c = common::traced_finer(c, 10);

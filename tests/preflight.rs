@@ -305,9 +305,7 @@ fn slices_solved_side_by_side_are_counted_together() {
     // the bunny in 12 slices, two neighbouring ones traced 15 times more finely: one such system
     // fits 400 MB a rank, two at once on one rank's two threads do not; on two ranks each takes one
     let dir = common::temp_dir("preflight-threads");
-    let coarse = dir.join("coarse.txt");
-    common::run_ok(0, &["slice", common::BUNNY, "--out", coarse.to_str().unwrap(), "--planes", "y:12"]);
-    let mut sections = volspline::contour::format::read(&coarse).unwrap();
+    let mut sections = common::bunny_slices(&dir, "y:12");
     let mid = sections.len() / 2;
     for s in &mut sections[mid..mid + 2] {
         for c in &mut s.contours {

@@ -276,3 +276,11 @@ pub fn traced_finer(c: &[[f64; 2]], k: usize) -> Vec<[f64; 2]> {
         })
         .collect()
 }
+
+/// The bunny cut by `planes` (as `slice --planes` takes them), the contour file written into
+/// `dir` and read back.
+pub fn bunny_slices(dir: &Path, planes: &str) -> Vec<volspline::contour::format::Section> {
+    let file = dir.join(format!("bunny-{}.txt", planes.replace(':', "-")));
+    run_ok(0, &["slice", BUNNY, "--out", file.to_str().unwrap(), "--planes", planes]);
+    volspline::contour::format::read(&file).unwrap()
+}
