@@ -60,6 +60,14 @@ pub fn run(a: &SliceArgs, comm: &dyn Comm) -> Result<()> {
             s.joined
         ));
     }
+    if s.merged > 0 {
+        r.line(format!(
+            "{} cuts lay within {} % of an edge's length of the cut before them (a plane passing next to \
+             a vertex, or across a sliver triangle) and were merged with it",
+            s.merged,
+            crate::mesh::NEAR_CUT * 100.0
+        ));
+    }
     if s.crossings > 0 && comm.rank() == 0 {
         eprintln!(
             "volspline: warning: {}: the contours cross {} time(s), where the mesh intersects itself (or \
@@ -74,6 +82,7 @@ pub fn run(a: &SliceArgs, comm: &dyn Comm) -> Result<()> {
     r.figure("contours", s.contours);
     r.figure("points", s.points);
     r.figure("joined_chains", s.joined);
+    r.figure("merged_cuts", s.merged);
     r.figure("contour_crossings", s.crossings);
     r.output(&a.out);
     r.finish(comm, &stages, &|_| Vec::new(), None)?;

@@ -77,11 +77,12 @@ impl Wire for SectionFit {
 
 impl Wire for SliceSummary {
     fn put(&self, out: &mut Vec<u8>) {
-        [self.planes, self.slices, self.contours, self.points, self.joined, self.crossings].put(out);
+        [self.planes, self.slices, self.contours, self.points, self.joined, self.merged, self.crossings]
+            .put(out);
     }
     fn take(r: &mut Reader<'_>) -> Self {
-        let [planes, slices, contours, points, joined, crossings] = Wire::take(r);
-        SliceSummary { planes, slices, contours, points, joined, crossings }
+        let [planes, slices, contours, points, joined, merged, crossings] = Wire::take(r);
+        SliceSummary { planes, slices, contours, points, joined, merged, crossings }
     }
 }
 

@@ -121,6 +121,8 @@ pub struct SliceSummary {
     pub points: usize,
     /// Chains that ended on holes of the mesh, joined end to nearest end into closed contours.
     pub joined: usize,
+    /// Cuts dropped as one with their neighbour (a plane next to a vertex, or across a sliver).
+    pub merged: usize,
     /// Places where the contours cross (where the mesh intersects itself, or where joining
     /// chains across holes could not avoid it), each slice's counted up to
     /// [`COUNTED_PER_SLICE`].
@@ -169,6 +171,7 @@ pub fn slice_mesh(mesh: &TriMesh, planes: &[(DVec3, DMat3)]) -> (Vec<Section>, S
     for (o, m) in planes {
         let cut = cut_by_plane(mesh, o.to_array(), m.z_axis.to_array());
         summary.joined += cut.open.len();
+        summary.merged += cut.merged;
         let joined = join_open_chains(cut.open);
         let contours: Vec<Vec<[f64; 2]>> = cut
             .closed

@@ -27,7 +27,7 @@ pub mod weld;
 pub use distance::point_mesh_distances;
 pub use marching_cubes::{polygonise, MeshPiece, SlabGrid};
 pub use ply::{write_ply, write_ply_to, write_ply_with, VertexProperty};
-pub use slice::{cut_by_plane, PlaneCut};
+pub use slice::{cut_by_plane, PlaneCut, NEAR_CUT};
 pub use topology::{connected_components, euler_characteristic, is_closed_manifold_edges, signed_volume};
 pub use weld::weld;
 
