@@ -18,9 +18,12 @@
 //! On the ranks: the pivot search of column j is one all-gather of each rank's best candidate,
 //! which carries its row's panel part along, so the pivot row is known everywhere without a
 //! broadcast; a swap is a message between the two owners. Per panel, the block row [A11 A12] is
-//! all-gathered (each rank's rows column by column, as they lie, so neither side transposes),
-//! every rank solves for U12 redundantly (cheap: nb rows) and updates its own rows of A22 with
-//! one local GEMM, which carries almost all the flops. The matrix is never gathered.
+//! all-gathered (each rank's rows column by column, as they lie, so neither side transposes).
+//! Each rank solves for its share of U12's columns and the shares are all-gathered, so every rank
+//! holds U12 and updates its own rows of A22 with one local GEMM, which carries almost all the
+//! flops. (Solved whole on every rank, U12 cost each rank nb n^2 / 2 multiply-adds whatever the
+//! rank count: at n = 8000 and nb = 320 a quarter of a rank's share of the flops on 8 ranks.)
+//! The matrix is never gathered.
 //!
 //! Look-ahead: the panel factorisation is a chain of small collectives (nb all-gathers of pivot
 //! candidates, each waiting for every rank), and on the row-cyclic layout every rank takes part
@@ -44,7 +47,7 @@ use faer::{Accum, MatMut, MatRef, Par};
 use super::backsub::back_substitute;
 use super::scalar::Scalar;
 use super::solver::Job;
-use super::system::{GatherBuffers, LocalRows};
+use super::system::{column_share, GatherBuffers, LocalRows};
 use crate::error::{Error, Result};
 use crate::par::Comm;
 
@@ -113,6 +116,14 @@ const LEAF: usize = 8;
 /// reads all of L21 again, so narrow pieces lose the GEMM's speed (on one rank, pieces of 32
 /// columns took 10 % longer than one GEMM at N = 4000, pieces of 1024 the same time).
 const MIN_PIECE: usize = 256;
+
+/// U12 = L11^-1 A12 with at least this many multiply-adds (w^2 rest for a block row of height w
+/// and `rest` columns right of it) is solved in shares of its columns, one a rank, and the shares
+/// gathered; smaller ones are solved whole on every rank, where the gather's latency would cost
+/// more than the flops it saves. Solved whole, the block row costs every rank nb n^2 / 2
+/// multiply-adds over a factorisation whatever the rank count: 1e10 at n = 8000 and nb = 320,
+/// a third of each rank's trailing updates on 16 ranks.
+const SHARED_SOLVE_MIN: usize = 1 << 20;
 
 /// LU of the panel columns a..b (rows a..n), recursively: the left half, its block elimination
 /// on the right half (a GEMM), then the right half. Swaps whole rows. `work` is the pending
@@ -200,7 +211,15 @@ impl<T: Scalar> Trailing<T> {
             }
             at += cnt * width;
         }
-        solve_unit_lower_triangular_in_place(l11.as_ref(), u12.as_mut(), Par::Seq);
+        if lay.ranks > 1 && w * w * rest >= SHARED_SOLVE_MIN {
+            // each rank solves its share of the columns, and the shares are gathered
+            let mine = column_share(rest, lay.ranks, lay.rank);
+            let share = u12.as_mut().subcols_mut(mine.start, mine.len());
+            solve_unit_lower_triangular_in_place(l11.as_ref(), share, Par::Seq);
+            bufs.all_gather_column_shares(comm, &mut u12);
+        } else {
+            solve_unit_lower_triangular_in_place(l11.as_ref(), u12.as_mut(), Par::Seq);
+        }
         let (o0, o1) = (lay.first_local_from(a), lay.first_local_from(m));
         for j in 0..rest {
             for l in o0..o1 {

@@ -338,6 +338,34 @@ impl<T: Scalar> GatherBuffers<T> {
     }
 }
 
+/// The columns of a `cols`-column block that rank `r` of `ranks` computes when the ranks share
+/// the block's columns: contiguous ranges of nearly equal width, in rank order.
+pub(crate) fn column_share(cols: usize, ranks: usize, r: usize) -> Range<usize> {
+    cols * r / ranks..cols * (r + 1) / ranks
+}
+
+impl<T: Scalar> GatherBuffers<T> {
+    /// Completes a block whose columns the ranks computed in shares ([`column_share`]): every
+    /// rank holds its own share of `m` on entry and the whole of `m` on return. Collective.
+    pub(crate) fn all_gather_column_shares(&mut self, comm: &dyn Comm, m: &mut faer::Mat<T>) {
+        let (rows, cols, p) = (m.nrows(), m.ncols(), comm.size());
+        if rows == 0 || cols == 0 {
+            return;
+        }
+        let mine = column_share(cols, p, comm.rank());
+        set_len(&mut self.send, mine.len() * rows);
+        for (j, to) in mine.zip(self.send.chunks_exact_mut(rows)) {
+            to.copy_from_slice(m.col_as_slice(j));
+        }
+        let counts: Vec<usize> = (0..p).map(|r| column_share(cols, p, r).len() * rows).collect();
+        set_len(&mut self.recv, cols * rows);
+        T::all_gather(comm, &self.send, &counts, &mut self.recv);
+        for (j, from) in self.recv.chunks_exact(rows).enumerate() {
+            m.col_as_slice_mut(j).copy_from_slice(from);
+        }
+    }
+}
+
 impl<T> Default for GatherBuffers<T> {
     fn default() -> Self {
         GatherBuffers { send: Vec::new(), recv: Vec::new(), out: Vec::new() }
