@@ -39,7 +39,9 @@ use volspline::surface::blobs::{data_cells, sample, sample_nodes, sample_window,
 use common::mpijob::{self, must, same_on_every_rank, Case, Check, Expect, Log};
 
 const BREAK: &str = "VOLSPLINE_COLLECTIVE_BREAK";
-/// Set: the job runs only the checks of the 2D block-cyclic solvers (on 1 and 4 ranks).
+/// Set: the job runs only the checks of the 2D block-cyclic solvers (on 1 and 4 ranks), and on
+/// 4 ranks those of the row-cyclic LU and Householder too, which share their block rows' solves
+/// from 4 ranks on.
 const ONLY_2D: &str = "VOLSPLINE_COLLECTIVE_ONLY_2D";
 const HANG: &str = "VOLSPLINE_COLLECTIVE_HANG";
 
@@ -91,7 +93,18 @@ fn child() {
         ("2D projected Cholesky factor kept and bordered", bordered_2d_factor_matches_the_oracle),
     ];
     if std::env::var_os(ONLY_2D).is_some() {
-        let failed = mpijob::run_checks(comm, &checks_2d);
+        let mut failed = mpijob::run_checks(comm, &checks_2d);
+        if comm.size() >= 4 {
+            let shared: [(&str, Check); 3] = [
+                ("typed collectives", typed_collectives),
+                ("LU with and without look-ahead vs the dense oracle", lookahead_matches_the_oracle),
+                (
+                    "Householder and Cholesky with and without look-ahead",
+                    row_cyclic_lookahead_matches_the_oracle,
+                ),
+            ];
+            failed += mpijob::run_checks(comm, &shared);
+        }
         drop(world);
         std::process::exit(i32::from(failed > 0));
     }
@@ -161,6 +174,13 @@ fn typed_collectives(comm: &dyn Comm, log: &mut Log) {
     let want_sum = (p * (p - 1) / 2) as f64 + 0.25 * p as f64;
     log.check(sum[0] == want_sum, || format!("sum_f64: {}, expected {want_sum}", sum[0]));
     log.check(max[0] == (p - 1) as f64 && min[0] == -7.0, || format!("max_f64 {max:?}, min_f64 {min:?}"));
+    // reduce-scatter: rank q contributes 1000 q + i at position i of p blocks of 3; rank r gets
+    // block r of the sums, sum over q of (1000 q + 3 r + j)
+    let send: Vec<f64> = (0..3 * p).map(|i| (1000 * r + i) as f64).collect();
+    let mut block = [f64::NAN; 3];
+    comm.reduce_scatter_sum_f64(&send, &mut block);
+    let want: Vec<f64> = (0..3).map(|j| (1000 * p * (p - 1) / 2 + p * (3 * r + j)) as f64).collect();
+    log.check(block[..] == want[..], || format!("reduce_scatter_sum_f64: {block:?}, expected {want:?}"));
     // uneven counts: rank q sends 2q values (rank 0 none)
     let counts: Vec<usize> = (0..p).map(|q| 2 * q).collect();
     let send: Vec<f64> = (0..2 * r).map(|i| (100 * r + i) as f64).collect();
@@ -334,7 +354,11 @@ fn row_cyclic_lookahead_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
                 same_on_every_rank(comm, log, &x, &what);
                 factors.push(rows.data);
             }
-            log.close(&factors[1], &factors[0], 1e-12, || {
+            // the look-ahead sums its panel's all-reduces in rank order, the all-reduce in its
+            // own: on 4 ranks the factors differ by up to 3.4e-12 (panel 3), on 2 and 3 by less
+            // than 1e-12
+            let tol = if comm.size() >= 4 { 1e-11 } else { 1e-12 };
+            log.close(&factors[1], &factors[0], tol, || {
                 format!("{} panel {panel}: the factors with look-ahead against those without", kind.name())
             });
         }

@@ -34,12 +34,16 @@ the collectives (no overlap, as in the code: no look-ahead).
 
 Row-cyclic (volspline, src/linalg/dist):
   Householder  per column one all-reduce of ~nb + 2 values (norm, x^T A, the pivot row); per
-               panel all-reduces of V^T V (nb^2) and of W = V^T A_trail (nb x m_j), the redundant
-               T^T W (2 nb^2 m_j flops on every rank) and the local update 4 (m_j/P) nb m_j.
+               panel all-reduces of V^T V (nb^2) and of W = V^T A_trail (nb x m_j), T^T W (2 nb^2
+               m_j flops on every rank; from 4 ranks on a reduce-scatter of W, 2 nb^2 m_j / P flops
+               a rank and an all-gather, counted as the all-reduce) and the local update
+               4 (m_j/P) nb m_j.
   LU           per column one all-gather of every rank's candidate with its row's leaf part
                (P (8 + 2) values: grows with P) and a row swap (point-to-point); per panel the interchange of the
-               trailing rows (P - 1 shifts), the all-gather of the nb x m_j block row, the
-               redundant U12 = L11^-1 A12 (nb^2 m_j) and the local GEMM 2 (m_j/P) nb m_j; the
+               trailing rows (P - 1 shifts), the all-gather of the nb x m_j block row and
+               U12 = L11^-1 A12 solved on every rank (nb^2 m_j; from 4 ranks on L11 all-gathered,
+               A12 dealt in column shares, counted as an all-gather of 1/P of it, nb^2 m_j / P a
+               rank and the all-gather of U12), and the local GEMM 2 (m_j/P) nb m_j; the
                recursive panel's leaves (8 columns) are BLAS-2.
   Cholesky     the projection (6 n^2 k / P flops, one all-gather of n x k); per panel an all-gather
                of the diagonal block, its redundant Cholesky (nb^3 / 3), the local L21 solve, the
@@ -68,6 +72,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 LEAF = 8  # columns of the leaves of volspline's recursive LU panel
+SHARED_MIN = 1 << 20  # U12 (LU) and T^T W (Householder) of at least this many multiply-adds are shared
+SHARED_FROM = 4  # ... from this many ranks on
 NB = {"householder": 64, "lu": 128, "cholesky": 256}  # volspline's default panels
 BORDER = 4  # k: polynomial columns of the bordered system (linear polynomials in 3D)
 SOLVERS = ["householder", "lu", "cholesky"]
@@ -223,17 +229,21 @@ def model_time(solver, layout, n, p, mach, eff, col_s, nb=None, grid=None):
         locr = np.ceil(rest / p)
         if solver == "householder":
             flops = 2 * loc * kb**2 / g2 + 4 * loc * kb * cols / rate(loc)
-            redundant = 2 * kb**2 * cols / g3 + kb**3 / 3 / g2
-            comm = kb * allreduce(net, 8 * (kb + 2), p) + allreduce(net, 8 * kb**2, p) + allreduce(net, 8 * kb * cols, p)
+            # shared: a reduce-scatter of W and an all-gather of T^T W, the traffic of the all-reduce
+            shared = (kb**2 * cols >= SHARED_MIN) & (p >= SHARED_FROM)
+            redundant = 2 * kb**2 * cols / np.where(shared, p, 1) / g3 + kb**3 / 3 / g2
+            comm = (kb * allreduce(net, 8 * (kb + 2), p) + allreduce(net, 8 * kb**2, p) + allreduce(net, 8 * kb * cols, p))
         elif solver == "lu":
             leaf = loc * kb * LEAF
             flops = leaf / g2 + np.maximum(loc * kb**2 - leaf, 0) / rate(loc) + 2 * locr * kb * cols / rate(np.maximum(locr, 1))
-            redundant = kb**2 * cols / g3
+            shared = (kb**2 * cols >= SHARED_MIN) & (p >= SHARED_FROM)
+            redundant = kb**2 * cols / np.where(shared, p, 1) / g3
             inner = np.maximum(kb / LEAF - 1, 0)
             comm = (kb * (allgather(net, 8 * p * (LEAF + 2), p) + p2p(net, 8 * kb, p))
                     + inner * allgather(net, 0, p) + allgather(net, 8 * kb**2 * np.log2(np.maximum(kb / LEAF, 1)) / 2, p)
                     + (p - 1) * p2p(net, 0, p) + (2 * 8 * kb * cols / p * net["pingpong"][1] if p > 1 else 0)
-                    + allgather(net, 8 * kb * (cols + kb), p))
+                    + np.where(shared, allgather(net, 8 * kb * kb, p) + allgather(net, 8 * kb * cols / p, p)
+                               + allgather(net, 8 * kb * cols, p), allgather(net, 8 * kb * (cols + kb), p)))
         else:
             flops = loc * kb**2 / rate(loc) + kb * locr * rest / rate(np.maximum(locr, 1))
             redundant = kb**3 / 3 / g3

@@ -78,6 +78,25 @@ impl MpiComm {
         self.comm.all_gather_varcount_into(send, &mut part);
     }
 
+    /// The personalised exchange as MPI_Alltoallv (see [`Comm::all_to_all_f64`]).
+    fn all_to_all<T: Equivalence + Copy>(
+        &self,
+        send: &[T],
+        send_counts: &[usize],
+        recv: &mut [T],
+        recv_counts: &[usize],
+    ) {
+        if self.size == 1 {
+            recv.copy_from_slice(send);
+            return;
+        }
+        let (c, d) = displacements(send_counts);
+        let out = Partition::new(send, c, d);
+        let (c, d) = displacements(recv_counts);
+        let mut into = PartitionMut::new(recv, c, d);
+        self.comm.all_to_all_varcount_into(&out, &mut into);
+    }
+
     /// The all-gather as MPI_Iallgatherv, with `work` run while it is in flight (see
     /// [`Comm::all_gather_f64_while`]); MPI_Test between the pieces of work drives its progress.
     fn all_gather_while<T: Equivalence + Copy>(
@@ -196,15 +215,17 @@ impl Comm for MpiComm {
         self.all_gather(send, counts, recv);
     }
     fn all_to_all_f64(&self, send: &[f64], send_counts: &[usize], recv: &mut [f64], recv_counts: &[usize]) {
+        self.all_to_all(send, send_counts, recv, recv_counts);
+    }
+    fn all_to_all_f32(&self, send: &[f32], send_counts: &[usize], recv: &mut [f32], recv_counts: &[usize]) {
+        self.all_to_all(send, send_counts, recv, recv_counts);
+    }
+    fn reduce_scatter_sum_f64(&self, send: &[f64], recv: &mut [f64]) {
         if self.size == 1 {
             recv.copy_from_slice(send);
             return;
         }
-        let (c, d) = displacements(send_counts);
-        let out = Partition::new(send, c, d);
-        let (c, d) = displacements(recv_counts);
-        let mut into = PartitionMut::new(recv, c, d);
-        self.comm.all_to_all_varcount_into(&out, &mut into);
+        self.comm.reduce_scatter_block_into(send, recv, SystemOperation::sum());
     }
     fn all_gather_f32(&self, send: &[f32], counts: &[usize], recv: &mut [f32]) {
         self.all_gather(send, counts, recv);

@@ -11,8 +11,12 @@
 //!
 //! The trailing columns (the right-hand side among them, so that it receives Q^T b without a pass
 //! of its own) are then updated at once with Q_panel^T = I - V T^T V^T: each rank forms its part
-//! of V^T V and of W = V^T A_trail, one all-reduce each sums them, every rank builds the same T
-//! and applies A_trail <- A_trail - V (T^T W) to its own rows with one local GEMM. That GEMM
+//! of V^T V and of W = V^T A_trail, an all-reduce sums V^T V and every rank builds the same T.
+//! On 2 and 3 ranks an
+//! all-reduce sums W and every rank forms T^T W whole; from 4 ranks on ([`SHARED_FROM_RANKS`])
+//! a reduce-scatter sums W in blocks of columns, one a rank, each rank forms its block of T^T W
+//! and the blocks are all-gathered (the traffic of the one all-reduce).
+//! Every rank then applies A_trail <- A_trail - V (T^T W) to its own rows with one local GEMM. That GEMM
 //! carries almost all the flops (4/3 n^3 in total, twice LU's). The matrix is never gathered;
 //! back substitution on R finishes the solve.
 //!
@@ -35,7 +39,7 @@ use faer::{Accum, MatMut, MatRef, Par};
 use super::backsub::back_substitute;
 use super::layout::RowCyclic;
 use super::solver::Job;
-use super::system::{LocalRows, RowIndex};
+use super::system::{LocalRows, RowIndex, SHARED_FROM_RANKS};
 use crate::error::Result;
 use crate::linalg::reflector::{wy_t, Reflector};
 use crate::par::Comm;
@@ -171,6 +175,11 @@ impl PanelWy {
     }
 }
 
+/// From [`SHARED_FROM_RANKS`] ranks on, T^T W with at least this many multiply-adds (kb^2 per
+/// trailing column) is formed in blocks of its columns, one a rank; smaller ones whole on every
+/// rank, where the collectives' latency would cost more than the flops they save.
+const SHARED_PRODUCT_MIN: usize = 1 << 20;
+
 /// The update of the trailing columns by a panel's Q^T = I - V T^T V^T: V and T^T W, W = V^T
 /// A_trail summed over the ranks, for the columns from the panel's end to `cols`.
 struct Update<'a> {
@@ -198,16 +207,41 @@ impl<'a> Update<'a> {
                 par,
             );
         }
-        comm.sum_f64(&mut wbuf);
         let mut tw = vec![0.0; kb * rest];
-        matmul(
-            MatMut::from_column_major_slice_mut(&mut tw, kb, rest),
-            Accum::Replace,
-            wy.t.as_ref().transpose(),
-            MatRef::from_column_major_slice(&wbuf, kb, rest),
-            1.0,
-            par,
-        );
+        let tt = wy.t.as_ref().transpose();
+        let p = comm.size();
+        if p >= SHARED_FROM_RANKS && kb * kb * rest >= SHARED_PRODUCT_MIN {
+            // W summed in blocks of `width` columns (the last ones padded), one a rank; each rank
+            // forms its block of T^T W and the blocks are gathered: the traffic of the one
+            // all-reduce of W, with the product divided among the ranks
+            let width = rest.div_ceil(p);
+            let cols_of = |r: usize| (r * width).min(rest)..((r + 1) * width).min(rest);
+            wbuf.resize(kb * width * p, 0.0);
+            let mut sums = vec![0.0; kb * width];
+            comm.reduce_scatter_sum_f64(&wbuf, &mut sums);
+            let mine = cols_of(comm.rank()).len();
+            let mut part = vec![0.0; kb * mine];
+            matmul(
+                MatMut::from_column_major_slice_mut(&mut part, kb, mine),
+                Accum::Replace,
+                tt,
+                MatRef::from_column_major_slice(&sums[..kb * mine], kb, mine),
+                1.0,
+                par,
+            );
+            let counts: Vec<usize> = (0..p).map(|r| cols_of(r).len() * kb).collect();
+            comm.all_gather_f64(&part, &counts, &mut tw);
+        } else {
+            comm.sum_f64(&mut wbuf);
+            matmul(
+                MatMut::from_column_major_slice_mut(&mut tw, kb, rest),
+                Accum::Replace,
+                tt,
+                MatRef::from_column_major_slice(&wbuf, kb, rest),
+                1.0,
+                par,
+            );
+        }
         Update { wy, c0, tw, par }
     }
 

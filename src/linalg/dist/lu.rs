@@ -18,11 +18,12 @@
 //! On the ranks: the pivot search of column j is one all-gather of each rank's best candidate,
 //! which carries its row's panel part along, so the pivot row is known everywhere without a
 //! broadcast; a swap is a message between the two owners. Per panel, the block row [A11 A12] is
-//! all-gathered (each rank's rows column by column, as they lie, so neither side transposes).
-//! Each rank solves for its share of U12's columns and the shares are all-gathered, so every rank
-//! holds U12 and updates its own rows of A22 with one local GEMM, which carries almost all the
-//! flops. (Solved whole on every rank, U12 cost each rank nb n^2 / 2 multiply-adds whatever the
-//! rank count: at n = 8000 and nb = 320 a quarter of a rank's share of the flops on 8 ranks.)
+//! exchanged (each rank's rows column by column, as they lie, so neither side transposes). On
+//! 2 and 3 ranks it is all-gathered and every rank solves for U12 whole; from 4 ranks on
+//! ([`SHARED_FROM_RANKS`]) L11 is all-gathered, A12 goes to the ranks in shares of its columns
+//! (one all-to-all), each rank solves for its share of U12 and the shares are all-gathered.
+//! Either way every rank then holds U12 and updates its own rows of A22 with one local GEMM,
+//! which carries almost all the flops.
 //! The matrix is never gathered.
 //!
 //! Look-ahead: the panel factorisation is a chain of small collectives (nb all-gathers of pivot
@@ -45,9 +46,10 @@ use faer::reborrow::Reborrow;
 use faer::{Accum, MatMut, MatRef, Par};
 
 use super::backsub::back_substitute;
+use super::layout::RowCyclic;
 use super::scalar::Scalar;
 use super::solver::Job;
-use super::system::{column_share, GatherBuffers, LocalRows};
+use super::system::{column_share, GatherBuffers, LocalRows, SHARED_FROM_RANKS};
 use crate::error::{Error, Result};
 use crate::par::Comm;
 
@@ -117,12 +119,10 @@ const LEAF: usize = 8;
 /// columns took 10 % longer than one GEMM at N = 4000, pieces of 1024 the same time).
 const MIN_PIECE: usize = 256;
 
-/// U12 = L11^-1 A12 with at least this many multiply-adds (w^2 rest for a block row of height w
-/// and `rest` columns right of it) is solved in shares of its columns, one a rank, and the shares
-/// gathered; smaller ones are solved whole on every rank, where the gather's latency would cost
-/// more than the flops it saves. Solved whole, the block row costs every rank nb n^2 / 2
-/// multiply-adds over a factorisation whatever the rank count: 1e10 at n = 8000 and nb = 320,
-/// a third of each rank's trailing updates on 16 ranks.
+/// From [`SHARED_FROM_RANKS`] ranks on, U12 = L11^-1 A12 with at least this many multiply-adds
+/// (w^2 rest for a block row of height w and `rest` columns right of it) is solved in shares of
+/// its columns, one a rank; smaller ones (the halves inside a panel) are solved whole on every
+/// rank, where the collectives' latency would cost more than the flops they save.
 const SHARED_SOLVE_MIN: usize = 1 << 20;
 
 /// LU of the panel columns a..b (rows a..n), recursively: the left half, its block elimination
@@ -180,8 +180,8 @@ impl<T: Scalar> Trailing<T> {
         }
     }
 
-    /// Computes U12 for columns m..c1 from the gathered block row (redundantly on every rank)
-    /// and stores it in the owners' rows; the update of A22 is left to do. Collective.
+    /// Computes U12 for columns m..c1 from the block row (whole on every rank, or in shares of
+    /// its columns, see [`SHARED_SOLVE_MIN`]) and stores it in the owners' rows; the update of A22 is left to do. Collective.
     fn of(
         comm: &dyn Comm,
         rows: &mut LocalRows<T>,
@@ -194,26 +194,19 @@ impl<T: Scalar> Trailing<T> {
         if rest == 0 {
             return Trailing::none();
         }
-        let width = c1 - a;
-        let by_rank = rows.gather_columns_by_rank(comm, (a, m), (a, c1), bufs);
-        // [L11 A12], column-major: rank r holds the block's rows i = first, first + P, ...
+        // shared: [L11] is all-gathered, A12 reaches each rank only in its share of the columns
+        // (one all-to-all), each rank solves its share and the shares are all-gathered;
+        // otherwise [L11 A12] is all-gathered and solved whole on every rank
+        let shared = lay.ranks >= SHARED_FROM_RANKS && w * w * rest >= SHARED_SOLVE_MIN;
+        let gathered = if shared { m } else { c1 };
         let (mut l11, mut u12) = (faer::Mat::<T>::zeros(w, w), faer::Mat::<T>::zeros(w, rest));
-        let mut at = 0;
-        for r in 0..lay.ranks {
-            let cnt = lay.count_in_on(r, a, m);
-            let first = (r + lay.ranks - a % lay.ranks) % lay.ranks;
-            for c in 0..width {
-                let from = &by_rank[at + c * cnt..at + (c + 1) * cnt];
-                let to = if c < w { l11.col_as_slice_mut(c) } else { u12.col_as_slice_mut(c - w) };
-                for (t, v) in from.iter().enumerate() {
-                    to[first + t * lay.ranks] = *v;
-                }
-            }
-            at += cnt * width;
-        }
-        if lay.ranks > 1 && w * w * rest >= SHARED_SOLVE_MIN {
-            // each rank solves its share of the columns, and the shares are gathered
+        let by_rank = rows.gather_columns_by_rank(comm, (a, m), (a, gathered), bufs);
+        place_by_rank(by_rank, &lay, (a, m), gathered - a, 0..w, &mut l11, 0);
+        place_by_rank(by_rank, &lay, (a, m), gathered - a, w..gathered - a, &mut u12, 0);
+        if shared {
             let mine = column_share(rest, lay.ranks, lay.rank);
+            let by_rank = rows.share_columns_by_rank(comm, (a, m), (m, c1), bufs);
+            place_by_rank(by_rank, &lay, (a, m), mine.len(), 0..mine.len(), &mut u12, mine.start);
             let share = u12.as_mut().subcols_mut(mine.start, mine.len());
             solve_unit_lower_triangular_in_place(l11.as_ref(), share, Par::Seq);
             bufs.all_gather_column_shares(comm, &mut u12);
@@ -273,6 +266,33 @@ impl<T: Scalar> Trailing<T> {
     fn finish(&mut self, rows: &mut LocalRows<T>) {
         self.apply(rows, self.next, self.c1);
         self.next = self.c1;
+    }
+}
+
+/// Of the rows a..m of `cols` columns received by rank (rank r's rows of the range in local
+/// order, column by column), puts the columns `take` in place: column c as column `to0 + c -
+/// take.start` of `to`, row g as row g - a.
+fn place_by_rank<T: Scalar>(
+    by_rank: &[T],
+    lay: &RowCyclic,
+    (a, m): (usize, usize),
+    cols: usize,
+    take: std::ops::Range<usize>,
+    to: &mut faer::Mat<T>,
+    to0: usize,
+) {
+    let mut at = 0;
+    for r in 0..lay.ranks {
+        // rank r holds the block's rows i = first, first + P, ...
+        let cnt = lay.count_in_on(r, a, m);
+        let first = (r + lay.ranks - a % lay.ranks) % lay.ranks;
+        for c in take.clone() {
+            let dest = to.col_as_slice_mut(to0 + c - take.start);
+            for (t, v) in by_rank[at + c * cnt..at + (c + 1) * cnt].iter().enumerate() {
+                dest[first + t * lay.ranks] = *v;
+            }
+        }
+        at += cnt * cols;
     }
 }
 
