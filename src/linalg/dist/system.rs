@@ -143,7 +143,7 @@ impl<T: Scalar> LocalRows<T> {
     /// every rank by one all-to-all: in rank order, rank r's rows of the range (local order),
     /// column by column over the share. Collective. Each rank receives its share alone, where
     /// [`LocalRows::gather_columns_by_rank`] gives every rank every column.
-    pub fn share_columns_by_rank<'b>(
+    pub(crate) fn share_columns_by_rank<'b>(
         &self,
         comm: &dyn Comm,
         (g0, g1): (usize, usize),
