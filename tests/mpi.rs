@@ -42,9 +42,10 @@ fn oracle_model(prep: &Prepared, k: &Kernel, solver: SolverKind) -> Model {
     }
 }
 
-/// Fits `input` on `ranks` ranks with the carrier method, panel 16 and grid 20 (panels of 16 over
-/// 257 rows: many panels, rows and blocks of each on every rank), plus `extra`; checks the model's
-/// weights, residual and grid values against `oracle` and returns the model and the report.
+/// Fits `input` on `ranks` ranks with the carrier method, panel 16 (unless `extra` gives one) and
+/// grid 20 (panels of 16 over 257 rows: many panels, rows and blocks of each on every rank), plus
+/// `extra`; checks the model's weights, residual and grid values against `oracle` and returns the
+/// model and the report.
 fn fit_like_the_oracle(
     ranks: usize,
     input: &Path,
@@ -54,9 +55,9 @@ fn fit_like_the_oracle(
     what: &str,
 ) -> (Model, String) {
     let p = prefix.to_str().unwrap();
-    let args =
-        ["fit", input.to_str().unwrap(), "--out", p, "--grid", "20", "--panel", "16", "--surface", "carrier"];
-    let out = common::run_ok(ranks, &[&args[..], extra].concat());
+    let args = ["fit", input.to_str().unwrap(), "--out", p, "--grid", "20", "--surface", "carrier"];
+    let panel: &[&str] = if extra.contains(&"--panel") { &[] } else { &["--panel", "16"] };
+    let out = common::run_ok(ranks, &[&args[..], panel, extra].concat());
     let model = read_model(Path::new(&format!("{p}.model.h5"))).unwrap();
     let dw = common::rel_diff(&model.spline.weights, &oracle.spline.weights);
     let dc = common::rel_diff(&model.spline.poly, &oracle.spline.poly);
@@ -94,6 +95,37 @@ fn distributed_runs_match_the_serial_oracle() {
             let (_, out) = fit_like_the_oracle(ranks, &input, &prefix, &extra, &oracle, &what);
             let line = format!("solver {} (dense, row-cyclic), panel 16, look-ahead on", solver.name());
             assert!(out.contains(&line), "{what}: {out}");
+        }
+    }
+}
+
+/// From 4 ranks on, the row-cyclic LU and Householder solve their block rows (U12, T^T W) in
+/// column shares, one a rank: on 4 ranks with panels of 64 over about 640 rows (the first panels'
+/// blocks large enough to be shared), with and without look-ahead, the same model as the serial
+/// oracles'.
+#[test]
+fn four_ranks_share_the_block_row_solves_and_match_the_serial_oracle() {
+    let dir = common::temp_dir("oracle-shared");
+    let (input, k, prep) = bunny_every(&dir, 8);
+    assert!(prep.values.len() > 600, "{} points", prep.values.len());
+    for solver in [SolverKind::Householder, SolverKind::Lu] {
+        let oracle = oracle_model(&prep, &k, solver);
+        for lookahead in ["off", "on"] {
+            let prefix = dir.join(format!("{}-{lookahead}", solver.name()));
+            let what = format!("{solver:?} on 4 ranks, look-ahead {lookahead}");
+            let extra = [
+                "--solver",
+                solver.name(),
+                "--layout",
+                "row-cyclic",
+                "--panel",
+                "64",
+                "--lookahead",
+                lookahead,
+            ];
+            let (model, out) = fit_like_the_oracle(4, &input, &prefix, &extra, &oracle, &what);
+            assert_eq!(model.provenance.ranks, 4);
+            assert!(out.contains("(dense, row-cyclic), panel 64"), "{what}: {out}");
         }
     }
 }
