@@ -322,7 +322,10 @@ fn morph_writes_frames_from_a_to_b_and_a_series() {
     let text =
         std::fs::read_to_string(&pairs).unwrap() + "-1 10 0 9 12 0\n# the other one\n1 10 0.2 3 12 -0.2\n";
     std::fs::write(&crossing, text).unwrap();
-    for ranks in [1, 2] {
+    // the fold's samples are dealt over the ranks: the same warning, place and determinant on
+    // 1, 2 and 3 ranks
+    let mut warnings = Vec::new();
+    for ranks in [1, 2, 3] {
         let timings = dir.join(format!("fold{ranks}.csv"));
         let args = ["morph", s(&a), s(&b), "--frames", "3", "--out", s(&pp), "--pairs", s(&crossing)];
         let grid = ["--bounds", BUNNY_BOX, "--grid", "16", "--timings", s(&timings)];
@@ -333,7 +336,9 @@ fn morph_writes_frames_from_a_to_b_and_a_series() {
         assert!(out.contains("lines 7 and 9") || out.contains("lines 9 and 7"), "{out}");
         let csv = std::fs::read_to_string(&timings).unwrap();
         assert!(csv.contains("folded_frames,1\n"), "{csv}");
+        warnings.push(out.lines().find(|l| l.contains("the space maps fold space")).unwrap().to_string());
     }
+    assert!(warnings.iter().all(|w| *w == warnings[0]), "{warnings:#?}");
     // the same features travelling side by side fold nothing
     let apart = dir.join("apart.txt");
     let text = std::fs::read_to_string(&pairs).unwrap() + "-1 10 0 9 12 0\n1 10 0.2 11 12 0.2\n";

@@ -22,7 +22,7 @@ use super::volume::{check_grid, output_path, throughput_line, write_volume};
 use crate::cli::MorphArgs;
 use crate::error::{Error, Result};
 use crate::frep::expr::{hull, Expr};
-use crate::frep::morph::{read_pairs_with_lines, Fold, Morph, SlabCache};
+use crate::frep::morph::{read_pairs_with_lines, Fold, FoldTally, Morph, SlabCache};
 use crate::grid::{padded_box, Grid};
 use crate::io;
 use crate::par::{agree, on_root, Comm};
@@ -102,7 +102,7 @@ pub fn run(a: &MorphArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         if i == 0 {
             check_grid_field(comm, &frame, &grid)?;
         }
-        let [fa, fb] = stages.time(Stage::Check, || frame.folds(lo, hi, FOLD_LATTICE));
+        let [fa, fb] = stages.time(Stage::Check, || folds_over(comm, &frame, lo, hi));
         for (solid, fold) in [("A", fa), ("B", fb)] {
             if let Some(fold) = fold {
                 folds.push(FrameFold { frame: i, t, solid, fold, pairs: frame.nearest_pairs(fold.worst) });
@@ -166,6 +166,26 @@ struct FrameFold {
 }
 
 /// The frames in which a space map folds.
+/// The frame's folds, the samples dealt over the ranks (sample i on rank i mod P) and the
+/// ranks' tallies all-gathered: the same folds on every rank as one rank's whole sampling finds.
+/// Collective.
+fn folds_over(comm: &dyn Comm, frame: &Morph, lo: [f64; 3], hi: [f64; 3]) -> [Option<Fold>; 2] {
+    let Some(mine) = frame.fold_tallies(lo, hi, FOLD_LATTICE, (comm.rank(), comm.size())) else {
+        return [None, None];
+    };
+    let n = 2 * FoldTally::VALUES;
+    let send: Vec<f64> = mine.iter().flat_map(|t| t.to_values()).collect();
+    let mut all = vec![0.0; n * comm.size()];
+    comm.all_gather_f64(&send, &vec![n; comm.size()], &mut all);
+    [0, 1].map(|m| {
+        let parts: Vec<FoldTally> = all
+            .chunks_exact(n)
+            .map(|r| FoldTally::from_values(&r[m * FoldTally::VALUES..(m + 1) * FoldTally::VALUES]))
+            .collect();
+        FoldTally::combine(&parts)
+    })
+}
+
 fn folded_frames(folds: &[FrameFold]) -> usize {
     let mut frames: Vec<usize> = folds.iter().map(|f| f.frame).collect();
     frames.dedup();

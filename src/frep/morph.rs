@@ -252,6 +252,45 @@ pub struct Fold {
     pub det: f64,
 }
 
+/// What a folding check found over one rank's share of the samples: how many folded of how
+/// many, and the first sample (by index over all samples) with the smallest determinant.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FoldTally {
+    pub folded: usize,
+    pub sampled: usize,
+    pub det: f64,
+    pub index: usize,
+    pub worst: [f64; 3],
+}
+
+impl FoldTally {
+    /// Values a tally travels as between ranks ([`FoldTally::to_values`]).
+    pub const VALUES: usize = 7;
+
+    /// The tally as [`FoldTally::VALUES`] numbers (counts and index exact below 2^53).
+    pub fn to_values(&self) -> [f64; Self::VALUES] {
+        let [x, y, z] = self.worst;
+        [self.folded as f64, self.sampled as f64, self.det, self.index as f64, x, y, z]
+    }
+
+    pub fn from_values(v: &[f64]) -> Self {
+        let at = |i: usize| if v[i].is_finite() { v[i] as usize } else { usize::MAX };
+        FoldTally { folded: at(0), sampled: at(1), det: v[2], index: at(3), worst: [v[4], v[5], v[6]] }
+    }
+
+    /// The ranks' tallies as one fold: counts summed, the smallest determinant (the lowest index
+    /// among equal ones); `None` where nothing folded.
+    pub fn combine(parts: &[FoldTally]) -> Option<Fold> {
+        let folded: usize = parts.iter().map(|p| p.folded).sum();
+        let sampled = parts.iter().map(|p| p.sampled).sum();
+        let worst = parts
+            .iter()
+            .filter(|p| p.sampled > 0)
+            .min_by(|a, b| a.det.total_cmp(&b.det).then(a.index.cmp(&b.index)))?;
+        (folded > 0).then_some(Fold { folded, sampled, worst: worst.worst, det: worst.det })
+    }
+}
+
 /// Samples of a folding check along the way between a pair and each of its nearest neighbours
 /// (where two features moving apart or across each other fold space first).
 const FOLD_NEIGHBOURS: usize = 3;
@@ -332,23 +371,38 @@ impl<'a> Morph<'a> {
     /// `per_side` points a side spanning the box and the points a quarter, half and three quarters
     /// of the way from each pair's position to those of its three nearest pairs, in the box.
     pub fn folds(&self, lo: [f64; 3], hi: [f64; 3], per_side: usize) -> [Option<Fold>; 2] {
-        let Some((ma, mb)) = self.maps.as_ref().filter(|_| self.t > 0.0 && self.t < 1.0) else {
-            return [None, None];
-        };
+        match self.fold_tallies(lo, hi, per_side, (0, 1)) {
+            Some([a, b]) => [FoldTally::combine(&[a]), FoldTally::combine(&[b])],
+            None => [None, None],
+        }
+    }
+
+    /// [`Morph::folds`] over one rank's share of the samples (sample i on rank i mod `ranks`),
+    /// A's map first: the tallies of all ranks, [`FoldTally::combine`]d, give the same folds as
+    /// the whole sampling. `None` where nothing is checked (no pairs, t = 0 or 1).
+    pub fn fold_tallies(
+        &self,
+        lo: [f64; 3],
+        hi: [f64; 3],
+        per_side: usize,
+        (rank, ranks): (usize, usize),
+    ) -> Option<[FoldTally; 2]> {
+        let (ma, mb) = self.maps.as_ref().filter(|_| self.t > 0.0 && self.t < 1.0)?;
         let samples = self.fold_samples(lo, hi, per_side);
-        let fold = |m: &SpaceMap| {
-            let dets: Vec<f64> = samples
-                .par_iter()
-                .map(|&x| glam::DMat3::from_cols_array_2d(&m.jacobian(x)).determinant())
+        let tally = |m: &SpaceMap| {
+            let dets: Vec<(usize, f64)> = (rank..samples.len())
+                .into_par_iter()
+                .step_by(ranks.max(1))
+                .map(|i| (i, glam::DMat3::from_cols_array_2d(&m.jacobian(samples[i])).determinant()))
                 .collect();
-            let folded = dets.iter().filter(|d| !(**d > 0.0)).count();
-            let (i, det) = dets
-                .iter()
-                .enumerate()
-                .fold((0, f64::INFINITY), |b, (i, &d)| if d < b.1 { (i, d) } else { b });
-            (folded > 0).then(|| Fold { folded, sampled: samples.len(), worst: samples[i], det })
+            let folded = dets.iter().filter(|(_, d)| !(*d > 0.0)).count();
+            // the first of the smallest, as the whole sampling finds it
+            let (index, det) =
+                dets.iter().fold((usize::MAX, f64::INFINITY), |b, &(i, d)| if d < b.1 { (i, d) } else { b });
+            let worst = samples.get(index).copied().unwrap_or([f64::NAN; 3]);
+            FoldTally { folded, sampled: dets.len(), det, index, worst }
         };
-        [fold(ma), fold(mb)]
+        Some([tally(ma), tally(mb)])
     }
 
     fn fold_samples(&self, lo: [f64; 3], hi: [f64; 3], per_side: usize) -> Vec<[f64; 3]> {
@@ -552,6 +606,16 @@ mod tests {
         assert!(fa.det <= 0.0 && fa.folded > 0 && fa.folded < fa.sampled, "{fa:?}");
         // B's map only stretches the way between them: the features keep their order towards B
         assert_eq!(fb, None);
+        // dealt over 1 to 4 ranks and sent as values, the tallies combine to the same folds
+        for ranks in 1..=4 {
+            let parts: Vec<[FoldTally; 2]> = (0..ranks)
+                .map(|r| half.fold_tallies(lo, hi, 12, (r, ranks)).unwrap())
+                .map(|t| t.map(|p| FoldTally::from_values(&p.to_values())))
+                .collect();
+            let whole = [0, 1].map(|m| FoldTally::combine(&parts.iter().map(|p| p[m]).collect::<Vec<_>>()));
+            assert_eq!(whole, [Some(fa), None], "{ranks} ranks");
+            assert!(parts.iter().all(|p| p[0].sampled >= fa.sampled / ranks), "{ranks} ranks: dealt evenly");
+        }
         // the fold lies between the two crossing features
         let near = half.nearest_pairs(fa.worst);
         assert!(near.contains(&5) || near.contains(&6), "{fa:?} near {near:?}");
