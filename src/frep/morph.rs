@@ -273,6 +273,8 @@ impl FoldTally {
         [self.folded as f64, self.sampled as f64, self.det, self.index as f64, x, y, z]
     }
 
+    /// The tally from the numbers of [`FoldTally::to_values`] (a rank with no samples sends the
+    /// index `usize::MAX`, which the saturating conversion reads back as such).
     pub fn from_values(v: &[f64]) -> Self {
         let at = |i: usize| if v[i].is_finite() { v[i] as usize } else { usize::MAX };
         FoldTally { folded: at(0), sampled: at(1), det: v[2], index: at(3), worst: [v[4], v[5], v[6]] }

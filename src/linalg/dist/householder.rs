@@ -12,12 +12,11 @@
 //! The trailing columns (the right-hand side among them, so that it receives Q^T b without a pass
 //! of its own) are then updated at once with Q_panel^T = I - V T^T V^T: each rank forms its part
 //! of V^T V and of W = V^T A_trail, an all-reduce sums V^T V and every rank builds the same T.
-//! On 2 and 3 ranks an
-//! all-reduce sums W and every rank forms T^T W whole; from 4 ranks on ([`SHARED_FROM_RANKS`])
-//! a reduce-scatter sums W in blocks of columns, one a rank, each rank forms its block of T^T W
-//! and the blocks are all-gathered (the traffic of the one all-reduce).
-//! Every rank then applies A_trail <- A_trail - V (T^T W) to its own rows with one local GEMM. That GEMM
-//! carries almost all the flops (4/3 n^3 in total, twice LU's). The matrix is never gathered;
+//! On 2 and 3 ranks an all-reduce sums W and every rank forms T^T W whole; from 4 ranks on
+//! ([`SHARED_FROM_RANKS`]) a reduce-scatter sums W in blocks of columns, one a rank, each rank
+//! forms its block of T^T W and the blocks are all-gathered (the traffic of the one all-reduce).
+//! Every rank then applies A_trail <- A_trail - V (T^T W) to its own rows with one local GEMM.
+//! That GEMM carries almost all the flops (4/3 n^3 in total, twice LU's). The matrix is never gathered;
 //! back substitution on R finishes the solve.
 //!
 //! Look-ahead: on the row-cyclic layout every rank holds rows of every panel and takes part in

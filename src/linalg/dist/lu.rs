@@ -23,8 +23,7 @@
 //! ([`SHARED_FROM_RANKS`]) L11 is all-gathered, A12 goes to the ranks in shares of its columns
 //! (one all-to-all), each rank solves for its share of U12 and the shares are all-gathered.
 //! Either way every rank then holds U12 and updates its own rows of A22 with one local GEMM,
-//! which carries almost all the flops.
-//! The matrix is never gathered.
+//! which carries almost all the flops. The matrix is never gathered.
 //!
 //! Look-ahead: the panel factorisation is a chain of small collectives (nb all-gathers of pivot
 //! candidates, each waiting for every rank), and on the row-cyclic layout every rank takes part
@@ -181,7 +180,8 @@ impl<T: Scalar> Trailing<T> {
     }
 
     /// Computes U12 for columns m..c1 from the block row (whole on every rank, or in shares of
-    /// its columns, see [`SHARED_SOLVE_MIN`]) and stores it in the owners' rows; the update of A22 is left to do. Collective.
+    /// its columns, see [`SHARED_SOLVE_MIN`]) and stores it in the owners' rows; the update of
+    /// A22 is left to do. Collective.
     fn of(
         comm: &dyn Comm,
         rows: &mut LocalRows<T>,
