@@ -23,7 +23,7 @@ ensure_debs() {
         DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
     fi
 }
-ensure_debs libopenmpi-dev openmpi-bin libhdf5-openmpi-dev libclang-dev pkg-config hdf5-tools libmumps-dev bsdutils
+ensure_debs libopenmpi-dev openmpi-bin libhdf5-openmpi-dev libclang-dev pkg-config hdf5-tools libmumps-dev bsdutils libopenblas0-serial
 
 # two MPI flavours in one build make binaries abort at start ("Invalid communicator")
 if dpkg-query -W -f='${Status}' libmpich-dev 2>/dev/null | grep -q "install ok installed"; then

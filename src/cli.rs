@@ -14,6 +14,7 @@ use crate::frep::raycast::{Axis, Colouring};
 use crate::frep::Syntax;
 use crate::grid::{parse_bounds, GridSize};
 use crate::linalg::dist::{Layout, Precision, SolverKind};
+use crate::linalg::gemm::Engine;
 use crate::spline::{Carrier, Kernel};
 
 /// volspline: reconstruct solids from scattered surface points as a volume spline f(x,y,z) with
@@ -98,6 +99,14 @@ pub struct FitArgs {
     /// factorisation or the refinement fails, the --solver solve in f64, with a message).
     #[arg(long, default_value = "f64", value_name = "f64|mixed", value_parser = with(Precision::parse))]
     pub precision: Precision,
+    /// Library of the dense solvers' local matrix products (almost all their flops): auto (the
+    /// machine's BLAS behind libblas.so.3 where it is an optimised one: OpenBLAS, MKL or BLIS;
+    /// faer otherwise), blas (the loaded BLAS, whichever it is) or faer. The BLAS computes a
+    /// rank's products when the rank runs one thread (as many ranks as cores, or --threads 1);
+    /// with more threads a rank's products are faer's, threaded. On a 2-core AVX2 node OpenBLAS
+    /// made the N+k = 8000 solves 17-28 % faster than faer's product.
+    #[arg(long, default_value = "auto", value_name = "auto|blas|faer", value_parser = with(Engine::parse))]
+    pub gemm: Engine,
     /// Panel (block) width of the distributed solvers (0: automatic, 128 for householder, 192 for
     /// lu below 6000 rows and 320 from 6000, 256 for cholesky below 6000 rows and 384 from 6000; on
     /// a 2D grid the block size, 128).

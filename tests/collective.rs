@@ -333,8 +333,9 @@ fn lookahead_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
 /// The row-cyclic Householder QR and projected Cholesky with look-ahead (the trailing update in
 /// pieces inside the next panel's collectives) and without, on about 1000 rows against the dense
 /// QR oracle, with panels narrower than the border (1 and 3 < k = 4), ending inside a rank's rows
-/// (16) and wider (64): the factors (the overwritten rows) agree to 1e-12 either way. The f32
-/// projected Cholesky of a mixed-precision solve looks ahead too.
+/// (16) and wider (64): the factors (the overwritten rows) agree to 1e-12 either way on 2 and 3
+/// ranks (1e-10 from 4 on, see below). The f32 projected Cholesky of a mixed-precision solve
+/// looks ahead too.
 fn row_cyclic_lookahead_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
     let k = Kernel::new(3, 2).unwrap();
     let prep =
@@ -355,9 +356,9 @@ fn row_cyclic_lookahead_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
                 factors.push(rows.data);
             }
             // the look-ahead sums its panel's all-reduces in rank order, the all-reduce in its
-            // own: on 4 ranks the factors differ by up to 3.4e-12 (panel 3), on 2 and 3 by less
-            // than 1e-12
-            let tol = if comm.size() >= 4 { 1e-11 } else { 1e-12 };
+            // own: on 4 ranks the factors differ by up to 1.6e-11 with the products by the BLAS
+            // (panel 1; 3.4e-12 with faer's, panel 3), on 2 and 3 by less than 1e-12
+            let tol = if comm.size() >= 4 { 1e-10 } else { 1e-12 };
             log.close(&factors[1], &factors[0], tol, || {
                 format!("{} panel {panel}: the factors with look-ahead against those without", kind.name())
             });

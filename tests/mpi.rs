@@ -96,6 +96,16 @@ fn distributed_runs_match_the_serial_oracle() {
             let line = format!("solver {} (dense, row-cyclic), panel 16, look-ahead on", solver.name());
             assert!(out.contains(&line), "{what}: {out}");
         }
+        // the local products by either engine, each named in the report: the same model
+        for ranks in [2, 3] {
+            for (engine, named) in [("blas", "products BLAS ("), ("faer", "products faer")] {
+                let prefix = dir.join(format!("{}-{ranks}-{engine}", solver.name()));
+                let what = format!("{solver:?} on {ranks} ranks, products by {engine}");
+                let extra = ["--solver", solver.name(), "--gemm", engine, "--threads", "1"];
+                let (_, out) = fit_like_the_oracle(ranks, &input, &prefix, &extra, &oracle, &what);
+                assert!(out.contains(named), "{what}: {out}");
+            }
+        }
     }
 }
 
@@ -323,6 +333,7 @@ fn help_documents_every_option_with_its_default() {
         "--doubtful-share",
         "[default: 0.4]",
         "--lookahead",
+        "--gemm <auto|blas|faer>",
         "--threads",
         "--merge-tol",
     ] {

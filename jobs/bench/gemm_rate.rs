@@ -1,5 +1,7 @@
-//! The rate of the local kernel volspline's factorisations are built on: faer's matrix product
-//! C -= A B (one thread), on the shapes of `micro_blas.c` (m = 2000 local rows, n = 4000 trailing
+//! The rate of the local kernels volspline's factorisations are built on: faer's matrix product
+//! C -= A B (one thread) and volspline's own `linalg::gemm::gemm`, the product the solvers call
+//! (the machine's optimised BLAS where `auto` finds one, faer otherwise; its rows are named
+//! `volspline_gemm_<engine>`), on the shapes of `micro_blas.c` (m = 2000 local rows, n = 4000 trailing
 //! columns, inner dimension k = 16..256, the panel width) and on the projected Cholesky's
 //! row-chunked update (96 rows, k = 384). Beside OpenBLAS's DGEMM rate it separates what the
 //! choice of local kernel costs from what the distribution costs. Prints CSV:
@@ -11,9 +13,19 @@ use std::time::Instant;
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, Par};
+use volspline::linalg::gemm::{self, Engine};
 
 fn main() {
     println!("kernel,m,n,k,seconds,gflops");
+    let engine = gemm::choose(Engine::Auto);
+    let ours = format!("volspline_gemm_{}", engine.name());
+    for (name, faer_only) in [("faer_gemm", true), (ours.as_str(), false)] {
+        rates(name, faer_only);
+    }
+}
+
+/// Prints the rows of one kernel: faer's `matmul`, or volspline's `gemm`.
+fn rates(name: &str, faer_only: bool) {
     let shapes = [(2000, 4000, 16), (2000, 4000, 32), (2000, 4000, 64), (2000, 4000, 128), (2000, 4000, 256)];
     for (m, n, k) in shapes.into_iter().chain([(96, 4000, 384)]) {
         let a = Mat::<f64>::from_fn(m, k, |i, j| ((i * 7 + j * 3) % 11) as f64 * 0.1 - 0.5);
@@ -23,7 +35,11 @@ fn main() {
         let (mut best, mut spent) = (f64::INFINITY, 0.0);
         for _ in 0..5 {
             let t = Instant::now();
-            matmul(c.as_mut(), Accum::Add, a.as_ref(), b.as_ref(), -1.0, Par::Seq);
+            if faer_only {
+                matmul(c.as_mut(), Accum::Add, a.as_ref(), b.as_ref(), -1.0, Par::Seq);
+            } else {
+                gemm::gemm(c.as_mut(), Accum::Add, a.as_ref(), b.as_ref(), -1.0, Par::Seq);
+            }
             let dt = t.elapsed().as_secs_f64();
             best = best.min(dt);
             spent += dt;
@@ -32,6 +48,6 @@ fn main() {
             }
         }
         std::hint::black_box(&c);
-        println!("faer_gemm,{m},{n},{k},{best:.6e},{:.3}", 2.0 * (m * n * k) as f64 / best / 1e9);
+        println!("{name},{m},{n},{k},{best:.6e},{:.3}", 2.0 * (m * n * k) as f64 / best / 1e9);
     }
 }

@@ -48,6 +48,7 @@
 
 pub mod dense;
 pub mod dist;
+pub mod gemm;
 pub mod mumps;
 pub mod reflector;
 pub mod sparse;

@@ -19,6 +19,7 @@ use crate::linalg::dist::{
     self, Bordered, Factored, Job, Layout, LocalBlocks, LocalRows, Precision, ProcessGrid, RowCyclic,
     SolverKind,
 };
+use crate::linalg::gemm;
 use crate::par::{agree, max_over_ranks, CallKind, Comm, Timed};
 use crate::spline::hygiene::Prepared;
 use crate::spline::{fill_block, fill_block_lower, fill_rows_lower, residual_parts, Kernel, Spline};
@@ -473,10 +474,11 @@ fn finish(
     let lookahead_used = lookahead;
     let lookahead = if lookahead { ", look-ahead on" } else { ", look-ahead off" };
     let mut line = format!(
-        "solver {} (dense, {}), panel {}{lookahead}, precision {precision}",
+        "solver {} (dense, {}), panel {}{lookahead}, precision {precision}, products {}",
         solved.used.name(),
         run.layout.name(comm.size()),
-        solved.panel
+        solved.panel,
+        gemm::describe(run.threads)
     );
     if let Some((_, how)) = &bordered {
         line.push_str(&format!("\n  second fit: {how}"));
@@ -505,6 +507,7 @@ fn finish(
             ("solver".into(), solved.used.name().into()),
             ("panel".into(), solved.panel.to_string()),
             ("lookahead".into(), lookahead_used.to_string()),
+            ("gemm".into(), gemm::figure(run.threads).into()),
             ("layout".into(), run.layout.name(comm.size())),
             ("comm_calls".into(), calls.to_string()),
             ("system_size".into(), layout.n.to_string()),

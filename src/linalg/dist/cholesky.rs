@@ -68,8 +68,7 @@
 //! GEMMs on the same pieces: the factors are the same, bit for bit in the tests on two and three
 //! ranks.
 
-use faer::linalg::matmul::matmul;
-use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
+use crate::linalg::gemm::{gemm, solve_lower};
 use faer::reborrow::{Reborrow, ReborrowMut};
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 
@@ -133,7 +132,7 @@ pub(super) fn factor_and_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<(V
         let block =
             MatMut::from_column_major_slice_with_stride_mut(&mut rows.data[c0 * ld + a..], b - a, w, ld);
         let l = left.as_ref().subrows(a, b - a);
-        matmul(block, Accum::Add, l, right.as_ref().subcols(c0, w), -1.0, par);
+        gemm(block, Accum::Add, l, right.as_ref().subcols(c0, w), -1.0, par);
     }
     border.project_rhs(comm, rows);
     let sign = factor_projected(job, rows, k, n, None)?;
@@ -434,7 +433,7 @@ pub(super) fn project_into<T: Scalar>(
         }
         let tm = MatMut::from_column_major_slice_mut(t, h, w);
         let l = left.as_ref().subrows(a, h);
-        matmul(tm, Accum::Add, l, right.as_ref().subcols(c0, w), -1.0, par);
+        gemm(tm, Accum::Add, l, right.as_ref().subcols(c0, w), -1.0, par);
         for c in 0..w {
             let col = (c0 + c) * ld;
             let to = &mut dst.data[col + a..col + b];
@@ -464,7 +463,7 @@ pub(super) fn projected_top(
     let lay = src.layout;
     let (ld, top) = (src.ld(), lay.first_local_from(k));
     let mut t = Mat::<f64>::from_fn(top, n, |l, c| src.data[c * ld + l]);
-    matmul(t.as_mut(), Accum::Add, left.as_ref().subrows(0, top), right.as_ref(), -1.0, Par::Seq);
+    gemm(t.as_mut(), Accum::Add, left.as_ref().subrows(0, top), right.as_ref(), -1.0, Par::Seq);
     let send: Vec<f64> = (0..top).flat_map(|l| (0..n).map(move |c| (l, c))).map(|(l, c)| t[(l, c)]).collect();
     all_gather_rows(comm, lay, &send, 0..k, n)
 }
@@ -584,7 +583,7 @@ pub(super) fn factor_projected<T: Scalar>(
                     stride,
                 );
                 let out = cols.submatrix_mut(a, 0, b - a, cnt);
-                matmul(out, Accum::Add, l, lt.subcols(at, cnt), T::of(-1.0), par);
+                gemm(out, Accum::Add, l, lt.subcols(at, cnt), T::of(-1.0), par);
             }
         };
         if !lookahead {
@@ -717,7 +716,7 @@ fn prepare_panel<T: Scalar>(
         }
     }
     let mut z1 = Mat::<T>::from_fn(pb, 1, |i, _| diag.out[i * w + pb]);
-    solve_lower_triangular_in_place(l11.as_ref(), z1.as_mut(), Par::Seq);
+    solve_lower(l11.as_ref(), false, z1.as_mut(), Par::Seq);
     for l in l0..l1 {
         y[l] = z1[(lay.global(l) - p0, 0)];
     }
@@ -732,10 +731,10 @@ fn prepare_panel<T: Scalar>(
     if la > t0 {
         let all = MatMut::from_column_major_slice_mut(data, ld, pb);
         let mut b21 = all.submatrix_mut(t0, 0, la - t0, pb);
-        solve_lower_triangular_in_place(l11.as_ref(), b21.rb_mut().transpose_mut(), par);
+        solve_lower(l11.as_ref(), false, b21.rb_mut().transpose_mut(), par);
         MatMut::from_column_major_slice_mut(send, pb, la - t0).copy_from(b21.rb().transpose());
         let y2 = MatMut::from_column_major_slice_mut(&mut y[t0..la], la - t0, 1);
-        matmul(y2, Accum::Add, b21.rb(), z1.as_ref(), T::of(-1.0), Par::Seq);
+        gemm(y2, Accum::Add, b21.rb(), z1.as_ref(), T::of(-1.0), Par::Seq);
     }
     all_gather_packed_while(comm, lay, (p1, n, pb), bufs, false, work);
     Ok(l11)
@@ -823,7 +822,7 @@ mod tests {
         let ld = m.ld();
         let mut full = m.clone();
         let a = MatMut::from_column_major_slice_with_stride_mut(&mut full.data, n, n, ld);
-        matmul(a, Accum::Add, left.as_ref(), right.as_ref(), -1.0, Par::Seq);
+        gemm(a, Accum::Add, left.as_ref(), right.as_ref(), -1.0, Par::Seq);
         let mut dst: LocalRows<f32> = LocalRows::zeros(m.layout, m.cols, m.border);
         project_into(&m, &mut dst, (&left, &right), Par::Seq);
         let (mut written, mut left_alone) = (0, 0);

@@ -30,8 +30,7 @@
 //! A pivot that is not positive is reported with the panel's status word, so every rank returns
 //! `Error::NotDefinite` at the same panel and the caller can fall back to LU.
 
-use faer::linalg::matmul::matmul;
-use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
+use crate::linalg::gemm::{gemm, solve_lower};
 use faer::{Accum, Mat, MatMut, MatRef};
 
 use super::cholesky::{cholesky_small, lower_times_part, Border};
@@ -245,7 +244,7 @@ fn project(job: &Job<'_>, grid: &ProcessGrid<'_>, a: &mut LocalBlocks, border: &
             let block =
                 MatMut::from_column_major_slice_with_stride_mut(&mut a.data[r0 + c0 * ld..], r1 - r0, w, ld);
             let l = left.as_ref().subrows(r0, r1 - r0);
-            matmul(block, Accum::Add, l, right.as_ref().subcols(c0, w), -1.0, job.par);
+            gemm(block, Accum::Add, l, right.as_ref().subcols(c0, w), -1.0, job.par);
         }
     }
 }
@@ -336,7 +335,7 @@ fn factor_and_pack(
         // L21 = B21 L11^-T: L11 L21^T = B21^T, on a column-major copy of B21^T
         let l11 = MatRef::from_column_major_slice(&d[1..], pb, pb);
         let mut bt = Mat::<f64>::from_fn(pb, m, |j, i| a.data[t0 + i + (lcb + j) * ld]);
-        solve_lower_triangular_in_place(l11, bt.as_mut(), job.par);
+        solve_lower(l11, false, bt.as_mut(), job.par);
         for j in 0..pb {
             for i in 0..m {
                 a.data[t0 + i + (lcb + j) * ld] = bt[(j, i)];
@@ -425,7 +424,7 @@ impl<'p> Update<'p> {
                     ld,
                 );
                 let lrows = l.subrows(r0 - self.t0, self.la - r0);
-                matmul(block, Accum::Add, lrows, ltm.subcols(c - self.c1, e - c), -1.0, job.par);
+                gemm(block, Accum::Add, lrows, ltm.subcols(c - self.c1, e - c), -1.0, job.par);
             }
             c = e;
         }

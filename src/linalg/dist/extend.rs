@@ -59,7 +59,7 @@
 use std::cell::RefCell;
 use std::collections::HashMap;
 
-use faer::linalg::matmul::matmul;
+use crate::linalg::gemm::gemm;
 use faer::linalg::matmul::triangular::{self, BlockStructure};
 use faer::linalg::triangular_solve::{solve_lower_triangular_in_place, solve_upper_triangular_in_place};
 use faer::{Accum, Mat, MatRef};
@@ -412,7 +412,7 @@ fn forward_substitute(job: &Job<'_>, first: &Factored, x: &mut LocalRows) {
         if u0 < la {
             let below = first.rows.view().submatrix(u0, q0, la - u0, bs);
             let out = x.view_mut().submatrix_mut(u0, 0, la - u0, cols);
-            matmul(out, Accum::Add, below, zb.as_ref(), -1.0, par);
+            gemm(out, Accum::Add, below, zb.as_ref(), -1.0, par);
         }
         q0 = q1;
     }

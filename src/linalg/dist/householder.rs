@@ -32,7 +32,7 @@
 //! look-ahead, on more the sums in rank order may round differently from the all-reduce's.) The
 //! large all-reduce of W is not overlapped: every trailing column takes part in it.
 
-use faer::linalg::matmul::matmul;
+use crate::linalg::gemm::gemm;
 use faer::{Accum, MatMut, MatRef, Par};
 
 use super::backsub::back_substitute;
@@ -156,7 +156,7 @@ impl PanelWy {
         }
         let vref = MatRef::from_column_major_slice(&v, mr, kb);
         let mut vtv = vec![0.0; kb * kb];
-        matmul(
+        gemm(
             MatMut::from_column_major_slice_mut(&mut vtv, kb, kb),
             Accum::Replace,
             vref.transpose(),
@@ -197,7 +197,7 @@ impl<'a> Update<'a> {
         let mut wbuf = vec![0.0; kb * rest];
         {
             let a_trail = rows.view().submatrix(wy.r0, c0, wy.mr, rest);
-            matmul(
+            gemm(
                 MatMut::from_column_major_slice_mut(&mut wbuf, kb, rest),
                 Accum::Replace,
                 wy.v().transpose(),
@@ -220,7 +220,7 @@ impl<'a> Update<'a> {
             comm.reduce_scatter_sum_f64(&wbuf, &mut sums);
             let mine = cols_of(comm.rank()).len();
             let mut part = vec![0.0; kb * mine];
-            matmul(
+            gemm(
                 MatMut::from_column_major_slice_mut(&mut part, kb, mine),
                 Accum::Replace,
                 tt,
@@ -232,7 +232,7 @@ impl<'a> Update<'a> {
             comm.all_gather_f64(&part, &counts, &mut tw);
         } else {
             comm.sum_f64(&mut wbuf);
-            matmul(
+            gemm(
                 MatMut::from_column_major_slice_mut(&mut tw, kb, rest),
                 Accum::Replace,
                 tt,
@@ -254,7 +254,7 @@ impl<'a> Update<'a> {
         let all = MatMut::from_column_major_slice_mut(data, ld, data.len() / ld);
         let a = all.submatrix_mut(r0, c0 - base, mr, c1 - c0);
         let tw = MatRef::from_column_major_slice(&self.tw, kb, self.tw.len() / kb.max(1));
-        matmul(a, Accum::Add, self.wy.v(), tw.subcols(c0 - self.c0, c1 - c0), -1.0, self.par);
+        gemm(a, Accum::Add, self.wy.v(), tw.subcols(c0 - self.c0, c1 - c0), -1.0, self.par);
     }
 }
 
@@ -353,7 +353,7 @@ fn apply_left_half(
     let mut sums = vec![0.0; h * (h + w)];
     {
         let (gram, wsum) = sums.split_at_mut(h * h);
-        matmul(
+        gemm(
             MatMut::from_column_major_slice_mut(gram, h, h),
             Accum::Replace,
             vref.transpose(),
@@ -362,7 +362,7 @@ fn apply_left_half(
             Par::Seq,
         );
         let right = MatRef::from_column_major_slice_with_stride(&data[(lc0 + h) * ld + r0..], mr, w, ld);
-        matmul(
+        gemm(
             MatMut::from_column_major_slice_mut(wsum, h, w),
             Accum::Replace,
             vref.transpose(),
@@ -374,7 +374,7 @@ fn apply_left_half(
     sum_while(comm, &mut sums, work, &mut Vec::new());
     let t = wy_t(taus, MatRef::from_column_major_slice(&sums[..h * h], h, h));
     let mut tw = faer::Mat::<f64>::zeros(h, w);
-    matmul(
+    gemm(
         tw.as_mut(),
         Accum::Replace,
         t.as_ref().transpose(),
@@ -385,7 +385,7 @@ fn apply_left_half(
     if mr > 0 {
         let right =
             MatMut::from_column_major_slice_with_stride_mut(&mut data[(lc0 + h) * ld + r0..], mr, w, ld);
-        matmul(right, Accum::Add, vref, tw.as_ref(), -1.0, Par::Seq);
+        gemm(right, Accum::Add, vref, tw.as_ref(), -1.0, Par::Seq);
     }
 }
 

@@ -21,7 +21,7 @@
 //! columns first, factors it and starts its broadcast (non-blocking) while every rank runs the
 //! rest of step 3 in pieces; the factors are the same.
 
-use faer::linalg::matmul::matmul;
+use crate::linalg::gemm::gemm;
 use faer::{Accum, MatMut, MatRef};
 
 use super::grid::{update_and_next_panel, LocalBlocks, ProcessGrid};
@@ -111,7 +111,7 @@ fn factor_and_pack(grid: &ProcessGrid<'_>, a: &mut LocalBlocks, k: usize) -> Vec
     let v = MatRef::from_column_major_slice(&panel[v_at..], m, kb);
     let mut gram = vec![0.0; kb * kb];
     let gm = MatMut::from_column_major_slice_mut(&mut gram, kb, kb);
-    matmul(gm, Accum::Replace, v.transpose(), v, 1.0, faer::Par::Seq);
+    gemm(gm, Accum::Replace, v.transpose(), v, 1.0, faer::Par::Seq);
     grid.col.sum_f64(&mut gram);
     let t = wy_t(&taus, MatRef::from_column_major_slice(&gram, kb, kb));
     panel[..kb].copy_from_slice(&taus);
@@ -155,14 +155,14 @@ impl<'p> Update<'p> {
         if w > 0 && m > 0 {
             let trail = MatRef::from_column_major_slice_with_stride(&a.data[lr0 + lc1 * ld..], m, w, ld);
             let wm = MatMut::from_column_major_slice_mut(&mut wbuf, kb, w);
-            matmul(wm, Accum::Replace, v.transpose(), trail, 1.0, job.par);
+            gemm(wm, Accum::Replace, v.transpose(), trail, 1.0, job.par);
         }
         grid.col.sum_f64(&mut wbuf);
         let t = MatRef::from_column_major_slice(&panel[t_at..v_at], kb, kb);
         let mut tw = vec![0.0; kb * w];
         if w > 0 {
             let twm = MatMut::from_column_major_slice_mut(&mut tw, kb, w);
-            matmul(
+            gemm(
                 twm,
                 Accum::Replace,
                 t.transpose(),
@@ -189,6 +189,6 @@ impl<'p> Update<'p> {
             c1 - c0,
             ld,
         );
-        matmul(trail, Accum::Add, self.v, tw, -1.0, job.par);
+        gemm(trail, Accum::Add, self.v, tw, -1.0, job.par);
     }
 }

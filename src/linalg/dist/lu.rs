@@ -39,8 +39,7 @@
 //! runs before that pass. The waits of the pivot searches (latency, and ranks arriving at
 //! different times) are then filled with GEMM work instead of idling.
 
-use faer::linalg::matmul::matmul;
-use faer::linalg::triangular_solve::solve_unit_lower_triangular_in_place;
+use crate::linalg::gemm::{gemm, solve_lower};
 use faer::reborrow::Reborrow;
 use faer::{Accum, MatMut, MatRef, Par};
 
@@ -208,10 +207,10 @@ impl<T: Scalar> Trailing<T> {
             let by_rank = rows.share_columns_by_rank(comm, (a, m), (m, c1), bufs);
             place_by_rank(by_rank, &lay, (a, m), mine.len(), 0..mine.len(), &mut u12, mine.start);
             let share = u12.as_mut().subcols_mut(mine.start, mine.len());
-            solve_unit_lower_triangular_in_place(l11.as_ref(), share, Par::Seq);
+            solve_lower(l11.as_ref(), true, share, Par::Seq);
             bufs.all_gather_column_shares(comm, &mut u12);
         } else {
-            solve_unit_lower_triangular_in_place(l11.as_ref(), u12.as_mut(), Par::Seq);
+            solve_lower(l11.as_ref(), true, u12.as_mut(), Par::Seq);
         }
         let (o0, o1) = (lay.first_local_from(a), lay.first_local_from(m));
         for j in 0..rest {
@@ -235,7 +234,7 @@ impl<T: Scalar> Trailing<T> {
         let l21: MatRef<'_, T> = left.rb();
         let a22: MatMut<'_, T> = right.subcols_mut(c0 - self.m, c1 - c0);
         let u12 = self.u12.as_ref().subcols(c0 - self.m, c1 - c0);
-        matmul(a22, Accum::Add, l21, u12, T::of(-1.0), self.par);
+        gemm(a22, Accum::Add, l21, u12, T::of(-1.0), self.par);
     }
 
     /// Leaves the columns from c0 on to do, in `windows` pieces of equal width (at least

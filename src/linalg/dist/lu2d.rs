@@ -27,8 +27,7 @@
 //! all-reduce of nb values), the owner of the diagonal block solves the triangle and broadcasts x_i
 //! to every rank; the solution ends on every rank.
 
-use faer::linalg::matmul::matmul;
-use faer::linalg::triangular_solve::solve_unit_lower_triangular_in_place;
+use crate::linalg::gemm::{gemm, solve_lower};
 use faer::{Accum, MatMut, MatRef};
 
 use super::grid::{update_and_next_panel, LocalBlocks, ProcessGrid};
@@ -146,7 +145,7 @@ fn block_row_of_u(grid: &ProcessGrid<'_>, a: &mut LocalBlocks, k: usize, kb: usi
         let l11 = l.subrows(lk - lr0, kb);
         let mut a12 =
             MatMut::from_column_major_slice_with_stride_mut(&mut a.data[lk + lc1 * ld..], kb, w, ld);
-        solve_unit_lower_triangular_in_place(l11, a12.as_mut(), faer::Par::Seq);
+        solve_lower(l11, true, a12.as_mut(), faer::Par::Seq);
         for c in 0..w {
             u12[c * kb..(c + 1) * kb].copy_from_slice(&a.data[lk + (lc1 + c) * ld..lk + kb + (lc1 + c) * ld]);
         }
@@ -186,7 +185,7 @@ impl Update<'_> {
             c1 - c0,
             ld,
         );
-        matmul(a22, Accum::Add, l21, u, -1.0, job.par);
+        gemm(a22, Accum::Add, l21, u, -1.0, job.par);
     }
 }
 
@@ -237,7 +236,7 @@ fn factor_range(
         let (left, right) = a.data.split_at_mut(lcol(mid) * ld);
         let l11 = MatRef::from_column_major_slice_with_stride(&left[l + lcol(c0) * ld..], h, h, ld);
         let mut a12 = MatMut::from_column_major_slice_with_stride_mut(&mut right[l..], h, w, ld);
-        solve_unit_lower_triangular_in_place(l11, a12.as_mut(), faer::Par::Seq);
+        solve_lower(l11, true, a12.as_mut(), faer::Par::Seq);
         for c in 0..w {
             u[c * h..(c + 1) * h].copy_from_slice(&right[l + c * ld..l + h + c * ld]);
         }
@@ -249,7 +248,7 @@ fn factor_range(
         let l21 = MatRef::from_column_major_slice_with_stride(&left[f + lcol(c0) * ld..], ld - f, h, ld);
         let a22 = MatMut::from_column_major_slice_with_stride_mut(&mut right[f..], ld - f, w, ld);
         let u12 = MatRef::from_column_major_slice(&u, h, w);
-        matmul(a22, Accum::Add, l21, u12, -1.0, faer::Par::Seq);
+        gemm(a22, Accum::Add, l21, u12, -1.0, faer::Par::Seq);
     }
     factor_range(col, a, panel, (mid, c1), tol, pivots)
 }

@@ -24,7 +24,7 @@
 //! and every decision taken from it (norms, stopping rules) is the same everywhere without a
 //! further collective.
 
-use faer::linalg::matmul::matmul;
+use crate::linalg::gemm::gemm;
 use faer::{Accum, MatMut, MatRef, Par};
 
 use super::lu::lu_factor;
@@ -221,7 +221,7 @@ impl<'a> Operator<'a> {
             let m = MatRef::from_column_major_slice(&self.rows.data[..n * ld], ld, n);
             let xv = MatRef::from_column_major_slice(x, n, 1);
             let dst = MatMut::from_column_major_slice_mut(&mut own, ld, 1);
-            matmul(dst, Accum::Add, m, xv, beta, self.par);
+            gemm(dst, Accum::Add, m, xv, beta, self.par);
         }
         all_gather_rows(comm, lay, &own, 0..n, 1)
     }

@@ -5,11 +5,12 @@
 
 use faer::traits::RealField;
 
+use crate::linalg::gemm::Gemm;
 use crate::par::Comm;
 use crate::simd::on_widest_unit;
 
 /// A real type a row-cyclic matrix may hold: f32 or f64.
-pub trait Scalar: RealField + Copy + Send + Sync + std::ops::Neg<Output = Self> {
+pub trait Scalar: RealField + Gemm + Copy + Send + Sync + std::ops::Neg<Output = Self> {
     /// The unit roundoff of the type, as an f64.
     const EPSILON: f64;
     /// The value nearest to `v`.

@@ -1,0 +1,508 @@
+//! The local matrix products of the dense solvers: the machine's optimised BLAS (OpenBLAS, MKL
+//! or BLIS behind `libblas.so.3`) where one is loaded and the product runs on one thread, faer's
+//! product otherwise.
+//!
+//! Almost all the flops of the distributed factorisations are the trailing updates' GEMMs, so
+//! the solvers run at the rate of their local product. On an AVX2 core faer's product reaches
+//! about 78 % of OpenBLAS's DGEMM at the solvers' shapes (28 against 36 GFLOP/s), which caps every
+//! solver below the rate ScaLAPACK draws from the same library. The BLAS is the one the
+//! executable already loads for MUMPS and ScaLAPACK; which implementation answers is told by the
+//! symbols each exports (`openblas_get_config`, `MKL_Get_Version`, `bli_info_get_version_str`):
+//! the reference BLAS, which answers to none of them, is left alone, since it is several times
+//! slower than faer.
+//!
+//! [`Engine`] is chosen once per process (`fit --gemm`, `VOLSPLINE_GEMM`); `auto` takes the BLAS
+//! when it is an optimised one. A product goes to the BLAS only when its operands are
+//! column-major (or transposed column-major) views and it runs on one thread
+//! (`Par::Seq`): with more threads a rank's product is faer's, which threads through rayon, while
+//! a serial BLAS cannot and a threaded one would compete with rayon for the cores. The two engines
+//! give the same products up to rounding; the solvers' tests compare them with serial oracles
+//! within tolerances either way.
+
+use std::ffi::{c_char, c_int, CStr};
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
+use std::sync::OnceLock;
+
+use faer::linalg::matmul::matmul;
+use faer::{Accum, MatMut, MatRef, Par};
+
+use crate::error::{Error, Result};
+
+/// Which library computes the solvers' local products.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Engine {
+    /// The optimised BLAS where one is loaded, faer otherwise.
+    Auto,
+    /// The loaded BLAS, whichever it is (the reference BLAS too).
+    Blas,
+    /// faer's product.
+    Faer,
+}
+
+impl Engine {
+    /// The engine named on the command line.
+    pub fn parse(name: &str) -> Result<Self> {
+        match name {
+            "auto" => Ok(Engine::Auto),
+            "blas" => Ok(Engine::Blas),
+            "faer" => Ok(Engine::Faer),
+            other => {
+                Err(Error::Usage(format!("unknown product engine '{other}' (expected auto, blas or faer)")))
+            }
+        }
+    }
+
+    /// The engine's name as on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Engine::Auto => "auto",
+            Engine::Blas => "blas",
+            Engine::Faer => "faer",
+        }
+    }
+}
+
+// 0: not chosen yet (auto), 1: BLAS, 2: faer
+static CHOSEN: AtomicU8 = AtomicU8::new(0);
+// whether the engine in effect was auto's choice
+static CHOSEN_AUTO: AtomicBool = AtomicBool::new(false);
+
+/// Sets the engine of this process's products; `Auto` resolves to the BLAS when [`blas_vendor`]
+/// names an optimised one. Returns the engine in effect (`Blas` or `Faer`).
+pub fn choose(engine: Engine) -> Engine {
+    CHOSEN_AUTO.store(engine == Engine::Auto, Ordering::Relaxed);
+    let blas = match engine {
+        Engine::Blas => true,
+        Engine::Faer => false,
+        Engine::Auto => blas_vendor().is_some(),
+    };
+    if blas {
+        one_thread();
+    }
+    CHOSEN.store(if blas { 1 } else { 2 }, Ordering::Relaxed);
+    in_effect()
+}
+
+/// Asks a threaded BLAS for one thread per call: its products run where the solvers already run
+/// one thread per rank, and its own threads would compete with the other ranks for the cores.
+fn one_thread() {
+    // SAFETY: the names are the libraries' documented thread-count setters, taking one int
+    unsafe {
+        for name in [c"openblas_set_num_threads", c"MKL_Set_Num_Threads", c"bli_thread_set_num_threads"] {
+            let f = libc::dlsym(libc::RTLD_DEFAULT, name.as_ptr());
+            if !f.is_null() {
+                let set: extern "C" fn(c_int) = std::mem::transmute(f);
+                set(1);
+            }
+        }
+    }
+}
+
+/// The engine of the products of a solve with `threads` threads per rank, in words for the run's
+/// report: the BLAS and its implementation, or faer and why.
+pub fn describe(threads: usize) -> String {
+    match (in_effect(), blas_vendor()) {
+        (Engine::Blas, _) if threads > 1 => format!("faer ({threads} threads per rank)"),
+        (Engine::Blas, Some(v)) => format!("BLAS ({v})"),
+        (Engine::Blas, None) => "BLAS (not a known optimised one)".into(),
+        (_, None) if CHOSEN_AUTO.load(Ordering::Relaxed) => "faer (no optimised BLAS loaded)".into(),
+        _ => "faer".into(),
+    }
+}
+
+/// The engine's name in a run's figures: blas or faer, as the products of a solve with `threads`
+/// threads per rank run.
+pub fn figure(threads: usize) -> &'static str {
+    if in_effect() == Engine::Blas && threads <= 1 {
+        "blas"
+    } else {
+        "faer"
+    }
+}
+
+/// The engine in effect: the one [`choose`] set, or `auto`'s choice when none was set.
+pub fn in_effect() -> Engine {
+    match CHOSEN.load(Ordering::Relaxed) {
+        1 => Engine::Blas,
+        2 => Engine::Faer,
+        _ => choose(from_env()),
+    }
+}
+
+/// The engine `VOLSPLINE_GEMM` names (auto, blas or faer; any other value and none mean auto).
+fn from_env() -> Engine {
+    std::env::var("VOLSPLINE_GEMM").ok().and_then(|v| Engine::parse(&v).ok()).unwrap_or(Engine::Auto)
+}
+
+/// The optimised BLAS the process has loaded, by the version symbol its implementation exports:
+/// "OpenBLAS <config>", "MKL" or "BLIS <version>"; None for any other (the reference BLAS).
+pub fn blas_vendor() -> Option<&'static str> {
+    static VENDOR: OnceLock<Option<String>> = OnceLock::new();
+    VENDOR
+        .get_or_init(|| {
+            // SAFETY: dlsym with RTLD_DEFAULT only looks names up; the functions called are the
+            // libraries' own version queries, which take no arguments and return static strings
+            unsafe {
+                let sym = |name: &CStr| libc::dlsym(libc::RTLD_DEFAULT, name.as_ptr());
+                let f = sym(c"openblas_get_config");
+                if !f.is_null() {
+                    let get: extern "C" fn() -> *const c_char = std::mem::transmute(f);
+                    let config = CStr::from_ptr(get()).to_string_lossy().trim().to_string();
+                    // "OpenBLAS 0.3.21 ... Zen SINGLE_THREADED"
+                    let named =
+                        if config.starts_with("OpenBLAS") { config } else { format!("OpenBLAS {config}") };
+                    return Some(named);
+                }
+                if !sym(c"MKL_Get_Version").is_null() || !sym(c"mkl_get_version").is_null() {
+                    return Some("MKL".to_string());
+                }
+                let f = sym(c"bli_info_get_version_str");
+                if !f.is_null() {
+                    let get: extern "C" fn() -> *const c_char = std::mem::transmute(f);
+                    return Some(format!("BLIS {}", CStr::from_ptr(get()).to_string_lossy()));
+                }
+                None
+            }
+        })
+        .as_deref()
+}
+
+/// A float type the BLAS multiplies: f64 (dgemm) and f32 (sgemm).
+pub trait Gemm: faer::traits::RealField + Copy {
+    /// The Fortran GEMM of the type: C = alpha op(A) op(B) + beta C, column-major.
+    ///
+    /// # Safety
+    /// The pointers and leading dimensions must describe matrices of the given shapes.
+    #[allow(clippy::too_many_arguments)]
+    unsafe fn blas(
+        ta: u8,
+        tb: u8,
+        m: usize,
+        n: usize,
+        k: usize,
+        alpha: Self,
+        a: *const Self,
+        lda: usize,
+        b: *const Self,
+        ldb: usize,
+        beta: Self,
+        c: *mut Self,
+        ldc: usize,
+    );
+    /// The Fortran triangular solve of the type: op(A) X = alpha B (side 'L') or X op(A) =
+    /// alpha B (side 'R'), X overwriting B, column-major.
+    ///
+    /// # Safety
+    /// As for [`Gemm::blas`].
+    #[allow(clippy::too_many_arguments)]
+    unsafe fn blas_trsm(
+        side: u8,
+        uplo: u8,
+        ta: u8,
+        diag: u8,
+        m: usize,
+        n: usize,
+        a: *const Self,
+        lda: usize,
+        b: *mut Self,
+        ldb: usize,
+    );
+    /// 0 and 1 of the type.
+    fn zero_one() -> (Self, Self);
+}
+
+// libblas.so.3: the runtime name (Debian ships no unversioned link without the -dev package)
+#[link(name = "libblas.so.3", kind = "dylib", modifiers = "+verbatim")]
+extern "C" {
+    // the trailing lengths are the hidden lengths of the two character arguments
+    fn dgemm_(
+        ta: *const c_char,
+        tb: *const c_char,
+        m: *const c_int,
+        n: *const c_int,
+        k: *const c_int,
+        alpha: *const f64,
+        a: *const f64,
+        lda: *const c_int,
+        b: *const f64,
+        ldb: *const c_int,
+        beta: *const f64,
+        c: *mut f64,
+        ldc: *const c_int,
+        la: usize,
+        lb: usize,
+    );
+    fn sgemm_(
+        ta: *const c_char,
+        tb: *const c_char,
+        m: *const c_int,
+        n: *const c_int,
+        k: *const c_int,
+        alpha: *const f32,
+        a: *const f32,
+        lda: *const c_int,
+        b: *const f32,
+        ldb: *const c_int,
+        beta: *const f32,
+        c: *mut f32,
+        ldc: *const c_int,
+        la: usize,
+        lb: usize,
+    );
+    fn dtrsm_(
+        side: *const c_char,
+        uplo: *const c_char,
+        ta: *const c_char,
+        diag: *const c_char,
+        m: *const c_int,
+        n: *const c_int,
+        alpha: *const f64,
+        a: *const f64,
+        lda: *const c_int,
+        b: *mut f64,
+        ldb: *const c_int,
+        l1: usize,
+        l2: usize,
+        l3: usize,
+        l4: usize,
+    );
+    fn strsm_(
+        side: *const c_char,
+        uplo: *const c_char,
+        ta: *const c_char,
+        diag: *const c_char,
+        m: *const c_int,
+        n: *const c_int,
+        alpha: *const f32,
+        a: *const f32,
+        lda: *const c_int,
+        b: *mut f32,
+        ldb: *const c_int,
+        l1: usize,
+        l2: usize,
+        l3: usize,
+        l4: usize,
+    );
+}
+
+macro_rules! gemm_impl {
+    ($t:ty, $f:ident, $trsm:ident) => {
+        impl Gemm for $t {
+            unsafe fn blas(
+                ta: u8,
+                tb: u8,
+                m: usize,
+                n: usize,
+                k: usize,
+                alpha: Self,
+                a: *const Self,
+                lda: usize,
+                b: *const Self,
+                ldb: usize,
+                beta: Self,
+                c: *mut Self,
+                ldc: usize,
+            ) {
+                let (ta, tb) = (ta as c_char, tb as c_char);
+                let [m, n, k, lda, ldb, ldc] = [m, n, k, lda, ldb, ldc].map(|v| v as c_int);
+                $f(&ta, &tb, &m, &n, &k, &alpha, a, &lda, b, &ldb, &beta, c, &ldc, 1, 1);
+            }
+            unsafe fn blas_trsm(
+                side: u8,
+                uplo: u8,
+                ta: u8,
+                diag: u8,
+                m: usize,
+                n: usize,
+                a: *const Self,
+                lda: usize,
+                b: *mut Self,
+                ldb: usize,
+            ) {
+                let [side, uplo, ta, diag] = [side, uplo, ta, diag].map(|c| c as c_char);
+                let [m, n, lda, ldb] = [m, n, lda, ldb].map(|v| v as c_int);
+                $trsm(&side, &uplo, &ta, &diag, &m, &n, &1.0, a, &lda, b, &ldb, 1, 1, 1, 1);
+            }
+            fn zero_one() -> (Self, Self) {
+                (0.0, 1.0)
+            }
+        }
+    };
+}
+gemm_impl!(f64, dgemm_, dtrsm_);
+gemm_impl!(f32, sgemm_, strsm_);
+
+/// A view as the BLAS takes it: ('N', pointer, leading dimension) for a column-major view,
+/// ('T', ...) for the transpose of one; None for other strides.
+fn as_blas<T>(m: MatRef<'_, T>) -> Option<(u8, *const T, usize)> {
+    let (rs, cs) = (m.row_stride(), m.col_stride());
+    if rs == 1 && cs >= m.nrows().max(1) as isize {
+        Some((b'N', m.as_ptr(), cs as usize))
+    } else if cs == 1 && rs >= m.ncols().max(1) as isize {
+        Some((b'T', m.as_ptr(), rs as usize))
+    } else if m.ncols() <= 1 && rs == 1 {
+        Some((b'N', m.as_ptr(), m.nrows().max(1)))
+    } else {
+        None
+    }
+}
+
+/// dst = alpha lhs rhs (`Accum::Replace`) or dst += alpha lhs rhs (`Accum::Add`): faer's
+/// `matmul` with the same arguments, computed by the BLAS where [`in_effect`] says so, `par` is
+/// `Par::Seq` and the views' strides allow (see the module documentation).
+pub fn gemm<T: Gemm>(
+    dst: MatMut<'_, T>,
+    accum: Accum,
+    lhs: MatRef<'_, T>,
+    rhs: MatRef<'_, T>,
+    alpha: T,
+    par: Par,
+) {
+    let (m, n, k) = (dst.nrows(), dst.ncols(), lhs.ncols());
+    let fits = |v: usize| v <= c_int::MAX as usize;
+    if to_blas(par, &[m, n, k]) {
+        let out_ok =
+            dst.row_stride() == 1 && dst.col_stride() >= m.max(1) as isize || n == 1 && dst.row_stride() == 1;
+        if let (true, Some((ta, a, lda)), Some((tb, b, ldb))) = (out_ok, as_blas(lhs), as_blas(rhs)) {
+            let ldc =
+                if n == 1 { m.max(dst.col_stride().max(1) as usize) } else { dst.col_stride() as usize };
+            if fits(lda) && fits(ldb) && fits(ldc) {
+                let (zero, one) = T::zero_one();
+                let beta = if accum == Accum::Add { one } else { zero };
+                // SAFETY: the views describe column-major matrices of the shapes passed, checked
+                // above; dst is borrowed mutably and does not alias lhs or rhs (faer's rule too)
+                unsafe { T::blas(ta, tb, m, n, k, alpha, a, lda, b, ldb, beta, dst.as_ptr_mut(), ldc) };
+                return;
+            }
+        }
+    }
+    matmul(dst, accum, lhs, rhs, alpha, par);
+}
+
+/// Whether a product or solve of these sizes and parallelism goes to the BLAS.
+fn to_blas(par: Par, dims: &[usize]) -> bool {
+    par.degree() == 1
+        && dims.iter().all(|&d| d > 0 && d <= c_int::MAX as usize)
+        && in_effect() == Engine::Blas
+}
+
+/// B <- L^-1 B for a lower triangular L (`unit`: with unit diagonal, not read), B of any
+/// orientation: faer's `solve_lower_triangular_in_place` (or its unit variant), computed by the
+/// BLAS where [`gemm`] would be.
+pub fn solve_lower<T: Gemm>(l: MatRef<'_, T>, unit: bool, b: MatMut<'_, T>, par: Par) {
+    let (m, n) = (b.nrows(), b.ncols());
+    if to_blas(par, &[m, n]) {
+        if let Some((b'N', a, lda)) = as_blas(l) {
+            let diag = if unit { b'U' } else { b'N' };
+            let (rs, cs) = (b.row_stride(), b.col_stride());
+            // SAFETY: as in gemm; B is column-major (L X = B) or the transpose of a column-major
+            // matrix (X^T L^T = B^T, solved from the right)
+            unsafe {
+                if rs == 1 && (cs >= m as isize || n == 1) {
+                    let ldb = if n == 1 { m } else { cs as usize };
+                    if lda <= c_int::MAX as usize && ldb <= c_int::MAX as usize {
+                        T::blas_trsm(b'L', b'L', b'N', diag, m, n, a, lda, b.as_ptr_mut(), ldb);
+                        return;
+                    }
+                } else if cs == 1
+                    && rs >= n as isize
+                    && lda <= c_int::MAX as usize
+                    && rs <= c_int::MAX as isize
+                {
+                    T::blas_trsm(b'R', b'L', b'T', diag, n, m, a, lda, b.as_ptr_mut(), rs as usize);
+                    return;
+                }
+            }
+        }
+    }
+    if unit {
+        faer::linalg::triangular_solve::solve_unit_lower_triangular_in_place(l, b, par);
+    } else {
+        faer::linalg::triangular_solve::solve_lower_triangular_in_place(l, b, par);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn filled(r: usize, c: usize, seed: u64) -> faer::Mat<f64> {
+        let mut s = seed;
+        faer::Mat::from_fn(r, c, |_, _| {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        })
+    }
+
+    #[test]
+    fn the_blas_and_faer_products_agree_for_every_operand_form() {
+        // the BLAS path is forced whatever was chosen, so that the test exercises it
+        choose(Engine::Blas);
+        let a = filled(37, 23, 1);
+        let b = filled(23, 19, 2);
+        let bt = filled(19, 23, 3);
+        let c0 = filled(37, 19, 4);
+        for accum in [Accum::Replace, Accum::Add] {
+            let cases: [(MatRef<'_, f64>, MatRef<'_, f64>); 3] =
+                [(a.as_ref(), b.as_ref()), (a.as_ref(), bt.as_ref().transpose()), (a.as_ref(), b.as_ref())];
+            for (i, (l, r)) in cases.into_iter().enumerate() {
+                let mut want = c0.clone();
+                matmul(want.as_mut(), accum, l, r, -0.75, Par::Seq);
+                let mut got = c0.clone();
+                if i == 2 {
+                    // a sub-view: leading dimension larger than the rows
+                    let mut big = filled(50, 30, 5);
+                    big.as_mut().submatrix_mut(3, 4, 37, 19).copy_from(c0.as_ref());
+                    gemm(big.as_mut().submatrix_mut(3, 4, 37, 19), accum, l, r, -0.75, Par::Seq);
+                    got.copy_from(big.as_ref().submatrix(3, 4, 37, 19));
+                } else {
+                    gemm(got.as_mut(), accum, l, r, -0.75, Par::Seq);
+                }
+                let err = (0..37)
+                    .flat_map(|i| (0..19).map(move |j| (i, j)))
+                    .map(|(i, j)| (want[(i, j)] - got[(i, j)]).abs())
+                    .fold(0.0, f64::max);
+                assert!(err < 1e-13, "case {i}: {err:e}");
+            }
+        }
+        // the transposed left operand (V^T A in the Householder)
+        let v = filled(41, 7, 6);
+        let mut want = faer::Mat::<f64>::zeros(7, 23);
+        let a2 = filled(41, 23, 7);
+        matmul(want.as_mut(), Accum::Replace, v.as_ref().transpose(), a2.as_ref(), 1.0, Par::Seq);
+        let mut got = faer::Mat::<f64>::zeros(7, 23);
+        gemm(got.as_mut(), Accum::Replace, v.as_ref().transpose(), a2.as_ref(), 1.0, Par::Seq);
+        assert!((&want - &got).norm_max() < 1e-13);
+
+        // triangular solves, unit and not, right-hand sides column-major and transposed
+        let mut l = filled(29, 29, 8);
+        for i in 0..29 {
+            l[(i, i)] = 2.0 + i as f64 * 0.1;
+        }
+        let b = filled(29, 11, 9);
+        for unit in [false, true] {
+            let mut want = b.clone();
+            if unit {
+                faer::linalg::triangular_solve::solve_unit_lower_triangular_in_place(
+                    l.as_ref(),
+                    want.as_mut(),
+                    Par::Seq,
+                );
+            } else {
+                faer::linalg::triangular_solve::solve_lower_triangular_in_place(
+                    l.as_ref(),
+                    want.as_mut(),
+                    Par::Seq,
+                );
+            }
+            let mut got = b.clone();
+            solve_lower(l.as_ref(), unit, got.as_mut(), Par::Seq);
+            assert!((&want - &got).norm_max() < 1e-12, "unit {unit}");
+            let mut bt = faer::Mat::<f64>::zeros(11, 29);
+            bt.copy_from(b.as_ref().transpose());
+            solve_lower(l.as_ref(), unit, bt.as_mut().transpose_mut(), Par::Seq);
+            assert!((&want - bt.as_ref().transpose()).norm_max() < 1e-12, "unit {unit}, transposed");
+        }
+        choose(Engine::Auto);
+    }
+}
