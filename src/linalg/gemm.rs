@@ -135,7 +135,7 @@ fn from_env() -> Engine {
 }
 
 /// The optimised BLAS the process has loaded, by the version symbol its implementation exports:
-/// "OpenBLAS <config>", "MKL" or "BLIS <version>"; None for any other (the reference BLAS).
+/// `OpenBLAS <config>`, `MKL` or `BLIS <version>`; None for any other (the reference BLAS).
 pub fn blas_vendor() -> Option<&'static str> {
     static VENDOR: OnceLock<Option<String>> = OnceLock::new();
     VENDOR
