@@ -12,21 +12,27 @@
 //! slower than faer.
 //!
 //! [`Engine`] is chosen once per process (`fit --gemm`, `VOLSPLINE_GEMM`); `auto` takes the BLAS
-//! when it is an optimised one. A product goes to the BLAS only when its operands are
-//! column-major (or transposed column-major) views and it runs on one thread
+//! when it is an optimised one whose kernels use the processor's widest vector unit (an OpenBLAS
+//! older than the processor falls back to older kernels, slower than faer's), and only where
+//! every rank of the job takes it. The choice depends on the machine alone, never on timings, so
+//! a run's results do not change with the load. A product goes to the BLAS only when its
+//! operands are column-major (or transposed column-major) views and it runs on one thread
 //! (`Par::Seq`): with more threads a rank's product is faer's, which threads through rayon, while
 //! a serial BLAS cannot and a threaded one would compete with rayon for the cores. The two engines
 //! give the same products up to rounding; the solvers' tests compare them with serial oracles
-//! within tolerances either way.
+//! within tolerances either way. BLAS calls are made one at a time in a process (a serial
+//! OpenBLAS is not safe to call from two threads at once; see `blas_lock`).
 
-use std::ffi::{c_char, c_int, CStr};
+use std::ffi::{c_char, c_int, CStr, CString};
 use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
-use std::sync::OnceLock;
+use std::sync::{Mutex, MutexGuard, OnceLock};
 
 use faer::linalg::matmul::matmul;
+use faer::reborrow::ReborrowMut;
 use faer::{Accum, MatMut, MatRef, Par};
 
 use crate::error::{Error, Result};
+use crate::par::Comm;
 
 /// Which library computes the solvers' local products.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -68,19 +74,69 @@ static CHOSEN: AtomicU8 = AtomicU8::new(0);
 static CHOSEN_AUTO: AtomicBool = AtomicBool::new(false);
 
 /// Sets the engine of this process's products; `Auto` resolves to the BLAS when [`blas_vendor`]
-/// names an optimised one. Returns the engine in effect (`Blas` or `Faer`).
+/// names an optimised one whose kernels fit the processor (`kernels_fit_processor`). Returns
+/// the engine in effect (`Blas` or `Faer`). Local: [`choose_agreed`] makes the ranks of a job
+/// agree.
 pub fn choose(engine: Engine) -> Engine {
     CHOSEN_AUTO.store(engine == Engine::Auto, Ordering::Relaxed);
     let blas = match engine {
         Engine::Blas => true,
         Engine::Faer => false,
-        Engine::Auto => blas_vendor().is_some(),
+        Engine::Auto => blas_vendor().is_some() && kernels_fit_processor(),
     };
+    set(blas);
+    in_effect()
+}
+
+/// [`choose`] on every rank of `comm`, then the BLAS only where every rank chose it: the ranks
+/// compute some products alike (the same panel factors on every rank), and one engine keeps
+/// those the same to the last bit. Collective.
+pub fn choose_agreed(comm: &dyn Comm, engine: Engine) -> Engine {
+    let mut faer = [if choose(engine) == Engine::Faer { 1.0 } else { 0.0 }];
+    comm.max_f64(&mut faer);
+    set(faer[0] == 0.0);
+    in_effect()
+}
+
+fn set(blas: bool) {
     if blas {
         one_thread();
     }
     CHOSEN.store(if blas { 1 } else { 2 }, Ordering::Relaxed);
-    in_effect()
+}
+
+/// Whether the BLAS's kernels use this processor's widest vector unit. OpenBLAS names the
+/// kernels it chose (`openblas_get_corename`): a release older than the processor falls back to
+/// older kernels (generic ones at a fifth of the rate, or AVX2 kernels on an AVX-512 processor
+/// at about 60 % of it), slower than faer's, which use the widest unit the processor has. MKL
+/// and BLIS are taken as they are.
+fn kernels_fit_processor() -> bool {
+    let Some(file) = blas_library().and_then(|f| CString::new(f).ok()) else {
+        return false;
+    };
+    // SAFETY: as in blas_vendor; openblas_get_corename takes no arguments and returns a static
+    // string
+    let core = unsafe {
+        let handle = libc::dlopen(file.as_ptr(), libc::RTLD_LAZY | libc::RTLD_NOLOAD);
+        let f = if handle.is_null() {
+            std::ptr::null_mut()
+        } else {
+            libc::dlsym(handle, c"openblas_get_corename".as_ptr())
+        };
+        if f.is_null() {
+            return true;
+        }
+        let get: extern "C" fn() -> *const c_char = std::mem::transmute(f);
+        CStr::from_ptr(get()).to_string_lossy().to_lowercase()
+    };
+    let avx512 = ["skylakex", "cooperlake", "sapphirerapids"];
+    if std::arch::is_x86_feature_detected!("avx512f") {
+        return avx512.contains(&core.as_str());
+    }
+    if std::arch::is_x86_feature_detected!("avx2") {
+        return avx512.contains(&core.as_str()) || ["haswell", "zen"].contains(&core.as_str());
+    }
+    true
 }
 
 /// Asks a threaded BLAS for one thread per call: its products run where the solvers already run
@@ -103,9 +159,14 @@ fn one_thread() {
 pub fn describe(threads: usize) -> String {
     match (in_effect(), blas_vendor()) {
         (Engine::Blas, _) if threads > 1 => format!("faer ({threads} threads per rank)"),
-        (Engine::Blas, Some(v)) => format!("BLAS ({v})"),
-        (Engine::Blas, None) => "BLAS (not a known optimised one)".into(),
+        (Engine::Blas, Some(v)) => format!("BLAS ({v}; {})", blas_library().unwrap_or("?")),
+        (Engine::Blas, None) => {
+            format!("BLAS (not a known optimised one; {})", blas_library().unwrap_or("?"))
+        }
         (_, None) if CHOSEN_AUTO.load(Ordering::Relaxed) => "faer (no optimised BLAS loaded)".into(),
+        (_, Some(v)) if CHOSEN_AUTO.load(Ordering::Relaxed) => {
+            format!("faer (the BLAS, {v}, has kernels older than this processor here or on another rank)")
+        }
         _ => "faer".into(),
     }
 }
@@ -134,16 +195,45 @@ fn from_env() -> Engine {
     std::env::var("VOLSPLINE_GEMM").ok().and_then(|v| Engine::parse(&v).ok()).unwrap_or(Engine::Auto)
 }
 
-/// The optimised BLAS the process has loaded, by the version symbol its implementation exports:
-/// `OpenBLAS <config>`, `MKL` or `BLIS <version>`; None for any other (the reference BLAS).
+/// The file of the library that answers the BLAS calls (where `dgemm_` resolves), as the
+/// dynamic loader opened it: on Debian `libblas.so.3`, a link through the alternatives system
+/// to the implementation chosen there.
+pub fn blas_library() -> Option<&'static str> {
+    static FILE: OnceLock<Option<String>> = OnceLock::new();
+    FILE.get_or_init(|| {
+        // SAFETY: dlsym and dladdr only look names and addresses up; dli_fname, when set, is a
+        // string the loader keeps for the library's lifetime (the process's)
+        unsafe {
+            let f = libc::dlsym(libc::RTLD_DEFAULT, c"dgemm_".as_ptr());
+            let mut info: libc::Dl_info = std::mem::zeroed();
+            if f.is_null() || libc::dladdr(f, &mut info) == 0 || info.dli_fname.is_null() {
+                return None;
+            }
+            Some(CStr::from_ptr(info.dli_fname).to_string_lossy().into_owned())
+        }
+    })
+    .as_deref()
+}
+
+/// The optimised BLAS that answers the BLAS calls, by the version function its implementation
+/// exports, looked up in [`blas_library`] and the libraries it depends on: `OpenBLAS <config>`,
+/// `MKL` or `BLIS <version>`; None for any other (the reference BLAS). Only that library is
+/// asked: an OpenBLAS loaded beside a reference `libblas.so.3` does not make it fast.
 pub fn blas_vendor() -> Option<&'static str> {
     static VENDOR: OnceLock<Option<String>> = OnceLock::new();
     VENDOR
         .get_or_init(|| {
-            // SAFETY: dlsym with RTLD_DEFAULT only looks names up; the functions called are the
-            // libraries' own version queries, which take no arguments and return static strings
+            let file = CString::new(blas_library()?).ok()?;
+            // SAFETY: RTLD_NOLOAD only returns a handle to a library already loaded (dgemm_'s);
+            // dlsym on it searches that library and its dependencies; the functions called are
+            // the libraries' own version queries, which take no arguments and return static
+            // strings
             unsafe {
-                let sym = |name: &CStr| libc::dlsym(libc::RTLD_DEFAULT, name.as_ptr());
+                let handle = libc::dlopen(file.as_ptr(), libc::RTLD_LAZY | libc::RTLD_NOLOAD);
+                if handle.is_null() {
+                    return None;
+                }
+                let sym = |name: &CStr| libc::dlsym(handle, name.as_ptr());
                 let f = sym(c"openblas_get_config");
                 if !f.is_null() {
                     let get: extern "C" fn() -> *const c_char = std::mem::transmute(f);
@@ -349,9 +439,9 @@ fn as_blas<T>(m: MatRef<'_, T>) -> Option<(u8, *const T, usize)> {
 
 /// dst = alpha lhs rhs (`Accum::Replace`) or dst += alpha lhs rhs (`Accum::Add`): faer's
 /// `matmul` with the same arguments, computed by the BLAS where [`in_effect`] says so, `par` is
-/// `Par::Seq` and the views' strides allow (see the module documentation).
+/// one thread and the views' strides allow (see the module documentation).
 pub fn gemm<T: Gemm>(
-    dst: MatMut<'_, T>,
+    mut dst: MatMut<'_, T>,
     accum: Accum,
     lhs: MatRef<'_, T>,
     rhs: MatRef<'_, T>,
@@ -359,24 +449,52 @@ pub fn gemm<T: Gemm>(
     par: Par,
 ) {
     let (m, n, k) = (dst.nrows(), dst.ncols(), lhs.ncols());
-    let fits = |v: usize| v <= c_int::MAX as usize;
-    if to_blas(par, &[m, n, k]) {
-        let out_ok =
-            dst.row_stride() == 1 && dst.col_stride() >= m.max(1) as isize || n == 1 && dst.row_stride() == 1;
-        if let (true, Some((ta, a, lda)), Some((tb, b, ldb))) = (out_ok, as_blas(lhs), as_blas(rhs)) {
-            let ldc =
-                if n == 1 { m.max(dst.col_stride().max(1) as usize) } else { dst.col_stride() as usize };
-            if fits(lda) && fits(ldb) && fits(ldc) {
-                let (zero, one) = T::zero_one();
-                let beta = if accum == Accum::Add { one } else { zero };
-                // SAFETY: the views describe column-major matrices of the shapes passed, checked
-                // above; dst is borrowed mutably and does not alias lhs or rhs (faer's rule too)
-                unsafe { T::blas(ta, tb, m, n, k, alpha, a, lda, b, ldb, beta, dst.as_ptr_mut(), ldc) };
-                return;
-            }
-        }
+    if to_blas(par, &[m, n, k]) && blas_product(dst.rb_mut(), accum, lhs, rhs, alpha) {
+        return;
     }
     matmul(dst, accum, lhs, rhs, alpha, par);
+}
+
+/// The product of [`gemm`] by the BLAS; false (nothing done) where a view's strides or a size
+/// do not fit its interface.
+fn blas_product<T: Gemm>(
+    dst: MatMut<'_, T>,
+    accum: Accum,
+    lhs: MatRef<'_, T>,
+    rhs: MatRef<'_, T>,
+    alpha: T,
+) -> bool {
+    let (m, n, k) = (dst.nrows(), dst.ncols(), lhs.ncols());
+    let fits = |v: usize| v <= c_int::MAX as usize;
+    if m == 0 || n == 0 || k == 0 || !(fits(m) && fits(n) && fits(k)) {
+        return false;
+    }
+    let out_ok =
+        dst.row_stride() == 1 && dst.col_stride() >= m.max(1) as isize || n == 1 && dst.row_stride() == 1;
+    let (true, Some((ta, a, lda)), Some((tb, b, ldb))) = (out_ok, as_blas(lhs), as_blas(rhs)) else {
+        return false;
+    };
+    let ldc = if n == 1 { m.max(dst.col_stride().max(1) as usize) } else { dst.col_stride() as usize };
+    if !(fits(lda) && fits(ldb) && fits(ldc)) {
+        return false;
+    }
+    let (zero, one) = T::zero_one();
+    let beta = if accum == Accum::Add { one } else { zero };
+    let _one_at_a_time = blas_lock();
+    // SAFETY: the views describe column-major matrices of the shapes passed, checked above; dst
+    // is borrowed mutably and does not alias lhs or rhs (faer's rule too)
+    unsafe { T::blas(ta, tb, m, n, k, alpha, a, lda, b, ldb, beta, dst.as_ptr_mut(), ldc) };
+    true
+}
+
+/// One BLAS call at a time in the process. A single-threaded OpenBLAS (Debian's
+/// `libopenblas0-serial` 0.3.21) shares one work buffer between all calls: two threads calling
+/// it at once can corrupt each other's products (seen as wrong weights, now and then, when the
+/// solvers of `tests/invariants.rs` ran side by side in one process). A rank of the binary calls
+/// from one thread, so the lock is never contended there.
+fn blas_lock() -> MutexGuard<'static, ()> {
+    static LOCK: Mutex<()> = Mutex::new(());
+    LOCK.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
 /// Whether a product or solve of these sizes and parallelism goes to the BLAS.
@@ -395,6 +513,7 @@ pub fn solve_lower<T: Gemm>(l: MatRef<'_, T>, unit: bool, b: MatMut<'_, T>, par:
         if let Some((b'N', a, lda)) = as_blas(l) {
             let diag = if unit { b'U' } else { b'N' };
             let (rs, cs) = (b.row_stride(), b.col_stride());
+            let _one_at_a_time = blas_lock();
             // SAFETY: as in gemm; B is column-major (L X = B) or the transpose of a column-major
             // matrix (X^T L^T = B^T, solved from the right)
             unsafe {
@@ -425,6 +544,22 @@ pub fn solve_lower<T: Gemm>(l: MatRef<'_, T>, unit: bool, b: MatMut<'_, T>, par:
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_vendor_is_that_of_the_library_answering_dgemm() {
+        let file = blas_library().expect("dgemm_ is linked");
+        // Debian's alternatives: the link resolves to the implementation's own folder
+        let real = std::fs::canonicalize(file).unwrap().to_string_lossy().into_owned();
+        let vendor = blas_vendor();
+        if real.contains("openblas") {
+            assert!(vendor.is_some_and(|v| v.starts_with("OpenBLAS ")), "{real}: {vendor:?}");
+        } else if real.ends_with("/blas/libblas.so.3") {
+            // the reference BLAS: auto keeps faer's products
+            assert_eq!(vendor, None, "{real}");
+        } else {
+            assert!(vendor.is_none_or(|v| ["OpenBLAS", "MKL", "BLIS"].iter().any(|n| v.starts_with(n))));
+        }
+    }
 
     fn filled(r: usize, c: usize, seed: u64) -> faer::Mat<f64> {
         let mut s = seed;

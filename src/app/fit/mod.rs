@@ -178,7 +178,7 @@ fn choose(
 /// Runs `volspline fit`. Collective.
 pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
-    crate::linalg::gemm::choose(a.gemm);
+    crate::linalg::gemm::choose_agreed(comm, a.gemm);
     dense::check_layout(a, comm.size())?;
     check_prefix(comm, &a.out, a.grid.timings.as_deref(), Some(&a.input))?;
     let raw = stages.time(Stage::Read, || read_points_everywhere(comm, &a.input))?;
