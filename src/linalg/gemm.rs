@@ -23,7 +23,7 @@
 //! within tolerances either way. BLAS calls are made one at a time in a process (a serial
 //! OpenBLAS is not safe to call from two threads at once; see `blas_lock`).
 
-use std::ffi::{c_char, c_int, CStr, CString};
+use std::ffi::{c_char, c_int, c_void, CStr, CString};
 use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 use std::sync::{Mutex, MutexGuard, OnceLock};
 
@@ -111,42 +111,74 @@ fn set(blas: bool) {
 /// at about 60 % of it), slower than faer's, which use the widest unit the processor has. MKL
 /// and BLIS are taken as they are.
 fn kernels_fit_processor() -> bool {
-    let Some(file) = blas_library().and_then(|f| CString::new(f).ok()) else {
-        return false;
-    };
-    // SAFETY: as in blas_vendor; openblas_get_corename takes no arguments and returns a static
-    // string
-    let core = unsafe {
-        let handle = libc::dlopen(file.as_ptr(), libc::RTLD_LAZY | libc::RTLD_NOLOAD);
-        let f = if handle.is_null() {
-            std::ptr::null_mut()
-        } else {
-            libc::dlsym(handle, c"openblas_get_corename".as_ptr())
+    let corename = blas_symbol(c"openblas_get_corename");
+    if corename.is_null() {
+        return true;
+    }
+    // SAFETY: openblas_get_corename takes no arguments and returns a static string
+    let core = unsafe { static_string(corename) };
+    core_fits(
+        &core,
+        std::arch::is_x86_feature_detected!("avx512f"),
+        std::arch::is_x86_feature_detected!("avx2"),
+    )
+}
+
+/// Whether OpenBLAS kernels named `core` (as `openblas_get_corename` names them) use the widest
+/// vector unit of a processor with or without AVX-512 and AVX2: on an AVX-512 processor only the
+/// AVX-512 kernels do; on an AVX2 one those and the AVX2 kernels (Haswell's, Zen's); a processor
+/// with neither is not second-guessed.
+fn core_fits(core: &str, avx512: bool, avx2: bool) -> bool {
+    let core = core.to_lowercase();
+    let with_avx512 = ["skylakex", "cooperlake", "sapphirerapids"].contains(&core.as_str());
+    let with_avx2 = ["haswell", "zen"].contains(&core.as_str());
+    if avx512 {
+        with_avx512
+    } else if avx2 {
+        with_avx512 || with_avx2
+    } else {
+        true
+    }
+}
+
+/// A symbol of [`blas_library`] or of the libraries it depends on; null where there is none (or
+/// no BLAS library was found). Only that library is searched: an OpenBLAS loaded beside a
+/// reference `libblas.so.3` does not answer the BLAS calls.
+fn blas_symbol(name: &CStr) -> *mut c_void {
+    // the handle, kept as an address (a raw pointer is not Sync); 0: none
+    static HANDLE: OnceLock<usize> = OnceLock::new();
+    let handle = *HANDLE.get_or_init(|| {
+        let Some(file) = blas_library().and_then(|f| CString::new(f).ok()) else {
+            return 0;
         };
-        if f.is_null() {
-            return true;
-        }
-        let get: extern "C" fn() -> *const c_char = std::mem::transmute(f);
-        CStr::from_ptr(get()).to_string_lossy().to_lowercase()
-    };
-    let avx512 = ["skylakex", "cooperlake", "sapphirerapids"];
-    if std::arch::is_x86_feature_detected!("avx512f") {
-        return avx512.contains(&core.as_str());
+        // SAFETY: RTLD_NOLOAD only returns a handle to a library already loaded (dgemm_'s),
+        // which stays loaded for the process's lifetime
+        unsafe { libc::dlopen(file.as_ptr(), libc::RTLD_LAZY | libc::RTLD_NOLOAD) as usize }
+    });
+    if handle == 0 {
+        return std::ptr::null_mut();
     }
-    if std::arch::is_x86_feature_detected!("avx2") {
-        return avx512.contains(&core.as_str()) || ["haswell", "zen"].contains(&core.as_str());
-    }
-    true
+    // SAFETY: dlsym on a valid handle only looks a name up
+    unsafe { libc::dlsym(handle as *mut c_void, name.as_ptr()) }
+}
+
+/// Calls `f`, a function of no arguments returning a static C string, and returns the string.
+///
+/// # Safety
+/// `f` must be such a function (the BLAS libraries' version and kernel queries are).
+unsafe fn static_string(f: *mut c_void) -> String {
+    let get: extern "C" fn() -> *const c_char = std::mem::transmute(f);
+    CStr::from_ptr(get()).to_string_lossy().trim().to_string()
 }
 
 /// Asks a threaded BLAS for one thread per call: its products run where the solvers already run
 /// one thread per rank, and its own threads would compete with the other ranks for the cores.
 fn one_thread() {
-    // SAFETY: the names are the libraries' documented thread-count setters, taking one int
-    unsafe {
-        for name in [c"openblas_set_num_threads", c"MKL_Set_Num_Threads", c"bli_thread_set_num_threads"] {
-            let f = libc::dlsym(libc::RTLD_DEFAULT, name.as_ptr());
-            if !f.is_null() {
+    for name in [c"openblas_set_num_threads", c"MKL_Set_Num_Threads", c"bli_thread_set_num_threads"] {
+        let f = blas_symbol(name);
+        if !f.is_null() {
+            // SAFETY: the names are the libraries' documented thread-count setters, taking one int
+            unsafe {
                 let set: extern "C" fn(c_int) = std::mem::transmute(f);
                 set(1);
             }
@@ -217,210 +249,168 @@ pub fn blas_library() -> Option<&'static str> {
 
 /// The optimised BLAS that answers the BLAS calls, by the version function its implementation
 /// exports, looked up in [`blas_library`] and the libraries it depends on: `OpenBLAS <config>`,
-/// `MKL` or `BLIS <version>`; None for any other (the reference BLAS). Only that library is
-/// asked: an OpenBLAS loaded beside a reference `libblas.so.3` does not make it fast.
+/// `MKL` or `BLIS <version>`; None for any other (the reference BLAS).
 pub fn blas_vendor() -> Option<&'static str> {
     static VENDOR: OnceLock<Option<String>> = OnceLock::new();
     VENDOR
         .get_or_init(|| {
-            let file = CString::new(blas_library()?).ok()?;
-            // SAFETY: RTLD_NOLOAD only returns a handle to a library already loaded (dgemm_'s);
-            // dlsym on it searches that library and its dependencies; the functions called are
-            // the libraries' own version queries, which take no arguments and return static
-            // strings
-            unsafe {
-                let handle = libc::dlopen(file.as_ptr(), libc::RTLD_LAZY | libc::RTLD_NOLOAD);
-                if handle.is_null() {
-                    return None;
-                }
-                let sym = |name: &CStr| libc::dlsym(handle, name.as_ptr());
-                let f = sym(c"openblas_get_config");
-                if !f.is_null() {
-                    let get: extern "C" fn() -> *const c_char = std::mem::transmute(f);
-                    let config = CStr::from_ptr(get()).to_string_lossy().trim().to_string();
-                    // "OpenBLAS 0.3.21 ... Zen SINGLE_THREADED"
-                    let named =
-                        if config.starts_with("OpenBLAS") { config } else { format!("OpenBLAS {config}") };
-                    return Some(named);
-                }
-                if !sym(c"MKL_Get_Version").is_null() || !sym(c"mkl_get_version").is_null() {
-                    return Some("MKL".to_string());
-                }
-                let f = sym(c"bli_info_get_version_str");
-                if !f.is_null() {
-                    let get: extern "C" fn() -> *const c_char = std::mem::transmute(f);
-                    return Some(format!("BLIS {}", CStr::from_ptr(get()).to_string_lossy()));
-                }
-                None
+            let found = |name: &CStr| Some(blas_symbol(name)).filter(|f| !f.is_null());
+            if let Some(f) = found(c"openblas_get_config") {
+                // SAFETY: the libraries' own version queries take no arguments and return
+                // static strings
+                let config = unsafe { static_string(f) };
+                // "OpenBLAS 0.3.21 ... Zen SINGLE_THREADED"
+                return Some(if config.starts_with("OpenBLAS") {
+                    config
+                } else {
+                    format!("OpenBLAS {config}")
+                });
             }
+            if found(c"MKL_Get_Version").is_some() || found(c"mkl_get_version").is_some() {
+                return Some("MKL".to_string());
+            }
+            // SAFETY: as above
+            found(c"bli_info_get_version_str").map(|f| format!("BLIS {}", unsafe { static_string(f) }))
         })
         .as_deref()
 }
 
-/// A float type the BLAS multiplies: f64 (dgemm) and f32 (sgemm).
+/// The Fortran GEMM: C = alpha op(A) op(B) + beta C, column-major; the trailing lengths are
+/// the hidden lengths of the two character arguments.
+type GemmFn<T> = unsafe extern "C" fn(
+    *const c_char,
+    *const c_char,
+    *const c_int,
+    *const c_int,
+    *const c_int,
+    *const T,
+    *const T,
+    *const c_int,
+    *const T,
+    *const c_int,
+    *const T,
+    *mut T,
+    *const c_int,
+    usize,
+    usize,
+);
+
+/// The Fortran triangular solve: op(A) X = alpha B (side 'L') or X op(A) = alpha B (side 'R'),
+/// X overwriting B, column-major; the trailing lengths are those of the four character
+/// arguments.
+type TrsmFn<T> = unsafe extern "C" fn(
+    *const c_char,
+    *const c_char,
+    *const c_char,
+    *const c_char,
+    *const c_int,
+    *const c_int,
+    *const T,
+    *const T,
+    *const c_int,
+    *mut T,
+    *const c_int,
+    usize,
+    usize,
+    usize,
+    usize,
+);
+
+/// A float type the BLAS multiplies: f64 (dgemm, dtrsm) and f32 (sgemm, strsm).
 pub trait Gemm: faer::traits::RealField + Copy {
-    /// The Fortran GEMM of the type: C = alpha op(A) op(B) + beta C, column-major.
-    ///
-    /// # Safety
-    /// The pointers and leading dimensions must describe matrices of the given shapes.
-    #[allow(clippy::too_many_arguments)]
-    unsafe fn blas(
-        ta: u8,
-        tb: u8,
-        m: usize,
-        n: usize,
-        k: usize,
-        alpha: Self,
-        a: *const Self,
-        lda: usize,
-        b: *const Self,
-        ldb: usize,
-        beta: Self,
-        c: *mut Self,
-        ldc: usize,
-    );
-    /// The Fortran triangular solve of the type: op(A) X = alpha B (side 'L') or X op(A) =
-    /// alpha B (side 'R'), X overwriting B, column-major.
-    ///
-    /// # Safety
-    /// As for [`Gemm::blas`].
-    #[allow(clippy::too_many_arguments)]
-    unsafe fn blas_trsm(
-        side: u8,
-        uplo: u8,
-        ta: u8,
-        diag: u8,
-        m: usize,
-        n: usize,
-        a: *const Self,
-        lda: usize,
-        b: *mut Self,
-        ldb: usize,
-    );
+    /// The type's GEMM.
+    const GEMM: GemmFn<Self>;
+    /// The type's triangular solve.
+    const TRSM: TrsmFn<Self>;
     /// 0 and 1 of the type.
-    fn zero_one() -> (Self, Self);
+    const ZERO_ONE: (Self, Self);
 }
 
-// libblas.so.3: the runtime name (Debian ships no unversioned link without the -dev package)
-#[link(name = "libblas.so.3", kind = "dylib", modifiers = "+verbatim")]
-extern "C" {
-    // the trailing lengths are the hidden lengths of the two character arguments
-    fn dgemm_(
-        ta: *const c_char,
-        tb: *const c_char,
-        m: *const c_int,
-        n: *const c_int,
-        k: *const c_int,
-        alpha: *const f64,
-        a: *const f64,
-        lda: *const c_int,
-        b: *const f64,
-        ldb: *const c_int,
-        beta: *const f64,
-        c: *mut f64,
-        ldc: *const c_int,
-        la: usize,
-        lb: usize,
-    );
-    fn sgemm_(
-        ta: *const c_char,
-        tb: *const c_char,
-        m: *const c_int,
-        n: *const c_int,
-        k: *const c_int,
-        alpha: *const f32,
-        a: *const f32,
-        lda: *const c_int,
-        b: *const f32,
-        ldb: *const c_int,
-        beta: *const f32,
-        c: *mut f32,
-        ldc: *const c_int,
-        la: usize,
-        lb: usize,
-    );
-    fn dtrsm_(
-        side: *const c_char,
-        uplo: *const c_char,
-        ta: *const c_char,
-        diag: *const c_char,
-        m: *const c_int,
-        n: *const c_int,
-        alpha: *const f64,
-        a: *const f64,
-        lda: *const c_int,
-        b: *mut f64,
-        ldb: *const c_int,
-        l1: usize,
-        l2: usize,
-        l3: usize,
-        l4: usize,
-    );
-    fn strsm_(
-        side: *const c_char,
-        uplo: *const c_char,
-        ta: *const c_char,
-        diag: *const c_char,
-        m: *const c_int,
-        n: *const c_int,
-        alpha: *const f32,
-        a: *const f32,
-        lda: *const c_int,
-        b: *mut f32,
-        ldb: *const c_int,
-        l1: usize,
-        l2: usize,
-        l3: usize,
-        l4: usize,
-    );
-}
-
-macro_rules! gemm_impl {
-    ($t:ty, $f:ident, $trsm:ident) => {
+/// Declares the BLAS routines of a float type (from `libblas.so.3`, the runtime name: Debian
+/// ships no unversioned link without the -dev package) and makes the type a [`Gemm`].
+macro_rules! blas_routines {
+    ($t:ty, $gemm:ident, $trsm:ident) => {
+        #[link(name = "libblas.so.3", kind = "dylib", modifiers = "+verbatim")]
+        extern "C" {
+            fn $gemm(
+                ta: *const c_char,
+                tb: *const c_char,
+                m: *const c_int,
+                n: *const c_int,
+                k: *const c_int,
+                alpha: *const $t,
+                a: *const $t,
+                lda: *const c_int,
+                b: *const $t,
+                ldb: *const c_int,
+                beta: *const $t,
+                c: *mut $t,
+                ldc: *const c_int,
+                la: usize,
+                lb: usize,
+            );
+            fn $trsm(
+                side: *const c_char,
+                uplo: *const c_char,
+                ta: *const c_char,
+                diag: *const c_char,
+                m: *const c_int,
+                n: *const c_int,
+                alpha: *const $t,
+                a: *const $t,
+                lda: *const c_int,
+                b: *mut $t,
+                ldb: *const c_int,
+                l1: usize,
+                l2: usize,
+                l3: usize,
+                l4: usize,
+            );
+        }
         impl Gemm for $t {
-            unsafe fn blas(
-                ta: u8,
-                tb: u8,
-                m: usize,
-                n: usize,
-                k: usize,
-                alpha: Self,
-                a: *const Self,
-                lda: usize,
-                b: *const Self,
-                ldb: usize,
-                beta: Self,
-                c: *mut Self,
-                ldc: usize,
-            ) {
-                let (ta, tb) = (ta as c_char, tb as c_char);
-                let [m, n, k, lda, ldb, ldc] = [m, n, k, lda, ldb, ldc].map(|v| v as c_int);
-                $f(&ta, &tb, &m, &n, &k, &alpha, a, &lda, b, &ldb, &beta, c, &ldc, 1, 1);
-            }
-            unsafe fn blas_trsm(
-                side: u8,
-                uplo: u8,
-                ta: u8,
-                diag: u8,
-                m: usize,
-                n: usize,
-                a: *const Self,
-                lda: usize,
-                b: *mut Self,
-                ldb: usize,
-            ) {
-                let [side, uplo, ta, diag] = [side, uplo, ta, diag].map(|c| c as c_char);
-                let [m, n, lda, ldb] = [m, n, lda, ldb].map(|v| v as c_int);
-                $trsm(&side, &uplo, &ta, &diag, &m, &n, &1.0, a, &lda, b, &ldb, 1, 1, 1, 1);
-            }
-            fn zero_one() -> (Self, Self) {
-                (0.0, 1.0)
-            }
+            const GEMM: GemmFn<Self> = $gemm;
+            const TRSM: TrsmFn<Self> = $trsm;
+            const ZERO_ONE: (Self, Self) = (0.0, 1.0);
         }
     };
 }
-gemm_impl!(f64, dgemm_, dtrsm_);
-gemm_impl!(f32, sgemm_, strsm_);
+blas_routines!(f64, dgemm_, dtrsm_);
+blas_routines!(f32, sgemm_, strsm_);
+
+/// Calls the type's GEMM with Rust sizes (which the callers have checked fit a C int).
+///
+/// # Safety
+/// The pointers and leading dimensions must describe column-major matrices of the given shapes.
+#[allow(clippy::too_many_arguments)]
+unsafe fn call_gemm<T: Gemm>(
+    (ta, tb): (u8, u8),
+    (m, n, k): (usize, usize, usize),
+    alpha: T,
+    (a, lda): (*const T, usize),
+    (b, ldb): (*const T, usize),
+    beta: T,
+    (c, ldc): (*mut T, usize),
+) {
+    let (ta, tb) = (ta as c_char, tb as c_char);
+    let [m, n, k, lda, ldb, ldc] = [m, n, k, lda, ldb, ldc].map(|v| v as c_int);
+    T::GEMM(&ta, &tb, &m, &n, &k, &alpha, a, &lda, b, &ldb, &beta, c, &ldc, 1, 1);
+}
+
+/// Calls the type's triangular solve (alpha = 1, lower triangle) with Rust sizes.
+///
+/// # Safety
+/// As for [`call_gemm`].
+unsafe fn call_trsm<T: Gemm>(
+    (side, ta, diag): (u8, u8, u8),
+    (m, n): (usize, usize),
+    (a, lda): (*const T, usize),
+    (b, ldb): (*mut T, usize),
+) {
+    let [side, uplo, ta, diag] = [side, b'L', ta, diag].map(|c| c as c_char);
+    let [m, n, lda, ldb] = [m, n, lda, ldb].map(|v| v as c_int);
+    let one = T::ZERO_ONE.1;
+    T::TRSM(&side, &uplo, &ta, &diag, &m, &n, &one, a, &lda, b, &ldb, 1, 1, 1, 1);
+}
 
 /// A view as the BLAS takes it: ('N', pointer, leading dimension) for a column-major view,
 /// ('T', ...) for the transpose of one; None for other strides.
@@ -478,12 +468,12 @@ fn blas_product<T: Gemm>(
     if !(fits(lda) && fits(ldb) && fits(ldc)) {
         return false;
     }
-    let (zero, one) = T::zero_one();
+    let (zero, one) = T::ZERO_ONE;
     let beta = if accum == Accum::Add { one } else { zero };
     let _one_at_a_time = blas_lock();
     // SAFETY: the views describe column-major matrices of the shapes passed, checked above; dst
     // is borrowed mutably and does not alias lhs or rhs (faer's rule too)
-    unsafe { T::blas(ta, tb, m, n, k, alpha, a, lda, b, ldb, beta, dst.as_ptr_mut(), ldc) };
+    unsafe { call_gemm((ta, tb), (m, n, k), alpha, (a, lda), (b, ldb), beta, (dst.as_ptr_mut(), ldc)) };
     true
 }
 
@@ -520,7 +510,7 @@ pub fn solve_lower<T: Gemm>(l: MatRef<'_, T>, unit: bool, b: MatMut<'_, T>, par:
                 if rs == 1 && (cs >= m as isize || n == 1) {
                     let ldb = if n == 1 { m } else { cs as usize };
                     if lda <= c_int::MAX as usize && ldb <= c_int::MAX as usize {
-                        T::blas_trsm(b'L', b'L', b'N', diag, m, n, a, lda, b.as_ptr_mut(), ldb);
+                        call_trsm((b'L', b'N', diag), (m, n), (a, lda), (b.as_ptr_mut(), ldb));
                         return;
                     }
                 } else if cs == 1
@@ -528,7 +518,7 @@ pub fn solve_lower<T: Gemm>(l: MatRef<'_, T>, unit: bool, b: MatMut<'_, T>, par:
                     && lda <= c_int::MAX as usize
                     && rs <= c_int::MAX as isize
                 {
-                    T::blas_trsm(b'R', b'L', b'T', diag, n, m, a, lda, b.as_ptr_mut(), rs as usize);
+                    call_trsm((b'R', b'T', diag), (n, m), (a, lda), (b.as_ptr_mut(), rs as usize));
                     return;
                 }
             }
@@ -544,6 +534,25 @@ pub fn solve_lower<T: Gemm>(l: MatRef<'_, T>, unit: bool, b: MatMut<'_, T>, par:
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn kernels_fit_the_widest_vector_unit() {
+        // an AVX-512 processor: only AVX-512 kernels
+        assert!(core_fits("SkylakeX", true, true));
+        assert!(core_fits("cooperlake", true, true));
+        assert!(!core_fits("Haswell", true, true));
+        assert!(!core_fits("Zen", true, true));
+        // an AVX2 processor: AVX2 and AVX-512 kernels (the latter cannot be chosen there)
+        assert!(core_fits("Haswell", false, true));
+        assert!(core_fits("Zen", false, true));
+        assert!(core_fits("SkylakeX", false, true));
+        // generic or SSE kernels never fit a processor with AVX2
+        assert!(!core_fits("Prescott", false, true));
+        assert!(!core_fits("Sandybridge", false, true));
+        assert!(!core_fits("Prescott", true, true));
+        // a processor with neither is not second-guessed
+        assert!(core_fits("Prescott", false, false));
+    }
 
     #[test]
     fn the_vendor_is_that_of_the_library_answering_dgemm() {
@@ -638,6 +647,24 @@ mod tests {
             solve_lower(l.as_ref(), unit, bt.as_mut().transpose_mut(), Par::Seq);
             assert!((&want - bt.as_ref().transpose()).norm_max() < 1e-12, "unit {unit}, transposed");
         }
+        // single precision (sgemm, strsm)
+        let (a32, b32) = (a.as_ref().map(|&x| x as f32), filled(23, 19, 2).as_ref().map(|&x| x as f32));
+        let mut want = faer::Mat::<f32>::zeros(37, 19);
+        matmul(want.as_mut(), Accum::Replace, a32.as_ref(), b32.as_ref(), 2.0, Par::Seq);
+        let mut got = faer::Mat::<f32>::zeros(37, 19);
+        gemm(got.as_mut(), Accum::Replace, a32.as_ref(), b32.as_ref(), 2.0, Par::Seq);
+        assert!((&want - &got).norm_max() < 1e-5);
+        let l32 = l.as_ref().map(|&x| x as f32);
+        let rhs32 = faer::Mat::<f32>::from_fn(29, 3, |i, j| (i + j) as f32 * 0.1);
+        let mut want = rhs32.clone();
+        faer::linalg::triangular_solve::solve_lower_triangular_in_place(
+            l32.as_ref(),
+            want.as_mut(),
+            Par::Seq,
+        );
+        let mut got = rhs32.clone();
+        solve_lower(l32.as_ref(), false, got.as_mut(), Par::Seq);
+        assert!((&want - &got).norm_max() < 1e-4);
         choose(Engine::Auto);
     }
 }
