@@ -74,6 +74,8 @@ if mode == "table1":
     ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(f"{out}/time_vs_n.png", dpi=110)
+    engines = sorted({r.get("gemm") or "not recorded" for r in rows})
+    lines.append(f"\nLocal products (fit --gemm, as in effect): {', '.join(engines)}.")
     lines.append("\nPaper: Savchenko et al. (1995), Table 1: INMOS T800 transputers, 400 x 400 system, "
                  "Householder. Processor use here is T1 / (P TP) as there; use of the cores is T1 / (min(P, cores) TP), the figure that "
                  "matters when ranks share cores. Plots: speedup.png, time_vs_n.png.")
