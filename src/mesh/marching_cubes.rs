@@ -11,6 +11,7 @@
 //! infinite values at an end) it is placed at the edge midpoint, so the output
 //! never contains NaN coordinates for a finite grid geometry.
 
+use glam::DVec3;
 use rayon::prelude::*;
 
 use super::cases::{tables, Tables, EDGE_CORNERS};
@@ -56,11 +57,6 @@ pub struct MeshPiece {
 /// Marks a vertex index that refers to the upper xy-plane of a cell layer,
 /// whose vertices are owned (numbered) by the next cell layer.
 const TOP: u32 = 1 << 31;
-
-fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
-    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
-}
 
 /// Triangulates one closed loop without adding vertices, choosing the
 /// minimum-total-diagonal-length triangulation among those whose diagonals join
@@ -112,7 +108,7 @@ fn triangulate(
                 }
             }
             if let Some((c, k)) = best {
-                let w = if a == 0 && b == n - 1 { 0.0 } else { dist(pos[a], pos[b]) };
+                let w = if a == 0 && b == n - 1 { 0.0 } else { DVec3::from(pos[a]).distance(pos[b].into()) };
                 cost[a][b] = c + w;
                 split[a][b] = k as u8;
             }

@@ -17,6 +17,8 @@
 
 use std::collections::HashMap;
 
+use glam::DVec3;
+
 use super::TriMesh;
 
 /// The polylines where a mesh meets a plane.
@@ -66,7 +68,7 @@ pub fn cut_by_plane(mesh: &TriMesh, origin: [f64; 3], normal: [f64; 3]) -> Plane
     };
     let length = |(a, b): (u32, u32)| -> f64 {
         let (pa, pb) = (mesh.vertices[a as usize], mesh.vertices[b as usize]);
-        dist(&pa, &pb)
+        DVec3::from(pa).distance(pb.into())
     };
     let mut used = vec![false; segments.len()];
     let mut cut = PlaneCut::default();
@@ -109,10 +111,6 @@ pub fn cut_by_plane(mesh: &TriMesh, origin: [f64; 3], normal: [f64; 3]) -> Plane
     cut
 }
 
-fn dist(p: &[f64; 3], q: &[f64; 3]) -> f64 {
-    ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
-}
-
 /// The polyline through the cuts of `edges`, each point closer to the last kept one than
 /// [`NEAR_CUT`] of the shorter of their edges left out (for a closed one also the last against
 /// the first), counting them in `merged`; a polyline is never thinned below 3 points (2 open).
@@ -124,8 +122,9 @@ fn thin_out(
     merged: &mut usize,
 ) -> Vec<[f64; 3]> {
     let all: Vec<[f64; 3]> = edges.iter().map(|&e| point(e)).collect();
-    let near =
-        |i: usize, j: usize| dist(&all[i], &all[j]) < NEAR_CUT * length(edges[i]).min(length(edges[j]));
+    let near = |i: usize, j: usize| {
+        DVec3::from(all[i]).distance(all[j].into()) < NEAR_CUT * length(edges[i]).min(length(edges[j]))
+    };
     let mut keep: Vec<usize> = Vec::with_capacity(all.len());
     for i in 0..all.len() {
         if keep.last().is_some_and(|&k| near(k, i)) {
@@ -208,7 +207,10 @@ mod tests {
         // one point at each vertex of the ring
         let mut hit = vec![0; 24];
         for p in c {
-            let at = m.vertices[5 * 24..6 * 24].iter().position(|v| dist(v, p) < 1e-7).expect("at a vertex");
+            let at = m.vertices[5 * 24..6 * 24]
+                .iter()
+                .position(|v| DVec3::from(*v).distance((*p).into()) < 1e-7)
+                .expect("at a vertex");
             hit[at] += 1;
         }
         assert!(hit.iter().all(|&h| h == 1), "{hit:?}");

@@ -23,6 +23,7 @@
 //! stays. All points move at once (each from the unmoved cloud); deterministic, so every rank
 //! computes the same.
 
+use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::linalg::dense::lu_solve;
@@ -106,7 +107,7 @@ pub fn scale_ratio(points: &[f64], normals: &[[f64; 3]], knn: &[usize], kmax: us
                 let sheet: Vec<usize> = std::iter::once(i)
                     .chain(near.iter().copied().filter(|&j| dot(normals[j], normals[i]).abs() > SAME_SHEET))
                     .collect();
-                let h = near.last().map(|&j| dist(p, pt(points, j)))?;
+                let h = near.last().map(|&j| DVec3::from(p).distance(pt(points, j).into()))?;
                 let fit = fit_quadric(points, normals, &sheet, None, h)?;
                 Some(h * (fit.rss / (sheet.len() - 6) as f64).sqrt())
             })
@@ -176,7 +177,8 @@ fn fit_quadric(
     let u = unit(cross(z, helper))?;
     let v = cross(z, u);
     let mut quad = Quadric { c, u, v, z, h, coef: [0.0; 6], rss: 0.0, wsum: 0.0 };
-    let weight = |q: [f64; 3]| centre.map_or(1.0, |p| (-(dist(p, q) / h).powi(2)).exp());
+    let weight =
+        |q: [f64; 3]| centre.map_or(1.0, |p| (-(DVec3::from(p).distance(q.into()) / h).powi(2)).exp());
     let (mut m, mut b) = ([[0.0; 6]; 6], [0.0; 6]);
     for &j in sheet {
         let q = pt(points, j);
@@ -212,7 +214,7 @@ fn quadric_at(points: &[f64], normals: &[[f64; 3]], near: &[usize], i: usize) ->
     let near = &near[..near.len().min(NEIGHBOURS)];
     let p = pt(points, i);
     let ni = normals[i];
-    let h = near.last().map(|&j| dist(p, pt(points, j)))?;
+    let h = near.last().map(|&j| DVec3::from(p).distance(pt(points, j).into()))?;
     let sheet: Vec<usize> = std::iter::once(i)
         .chain(near.iter().copied().filter(|&j| dot(normals[j], ni) > SAME_SHEET))
         .collect();
@@ -234,10 +236,6 @@ fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
 
 fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-
-fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
 fn unit(a: [f64; 3]) -> Option<[f64; 3]> {
