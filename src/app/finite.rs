@@ -84,11 +84,26 @@ pub fn check_bounded(model: &Model, kernel_name: &str) -> Option<String> {
     } else {
         format!("f >= 0 in {bad} of {} directions far away", far.len())
     };
+    // the carrier falls off like -|x|^2; a polynomial part of degree 2 or more can follow that
+    // growth and cancel it, one of degree 1 (the kernel r's, Wendland's) cannot, nor can the
+    // weights' far field, so there the cause is the size of the coefficients
+    let degree = model.spline.kernel.order().saturating_sub(1);
+    let why = if degree >= 2 {
+        format!(
+            "kernel {kernel_name}'s polynomial part (degree {degree}) absorbed the carrier's growth; \
+             the kernel r (the default) keeps the carrier's sign"
+        )
+    } else {
+        format!(
+            "kernel {kernel_name}'s polynomial part is of degree {degree}, which cannot follow the \
+             carrier's quadratic fall, so the spline's coefficients are large enough to outgrow it: a \
+             badly conditioned fit (see the residual and the spread of the data's spacing)"
+        )
+    };
     Some(format!(
         "the fitted solid is not bounded: f = {v:.3e} at ({:.4e}, {:.4e}, {:.4e}), far from the data, \
          where the carrier should make it negative; {what}. The surface f = 0 is as fitted, but the \
-         volume's sign is not the solid's: kernel {kernel_name}'s polynomial part absorbed the \
-         carrier's growth; the kernel r (the default) keeps the carrier's sign",
+         volume's sign is not the solid's: {why}",
         p[0], p[1], p[2]
     ))
 }
@@ -174,6 +189,35 @@ mod tests {
             coarse: Vec::new(),
             provenance: Provenance::default(),
         }
+    }
+
+    #[test]
+    fn the_unbounded_warning_names_the_cause_the_kernel_allows() {
+        // kernel r, a ball of radius 1 and a linear part 100 x: positive far along +x
+        let mut m = ball_model();
+        m.provenance.box_lo = [-1.0; 3];
+        m.provenance.box_hi = [1.0; 3];
+        assert_eq!(check_bounded(&m, "r"), None);
+        m.spline.poly[1] = 100.0;
+        let w = check_bounded(&m, "r").expect("positive far along +x");
+        assert!(w.contains("f >= 0 in"), "{w}");
+        assert!(w.contains("degree 1, which cannot follow"), "{w}");
+        assert!(!w.contains("absorbed"), "{w}");
+        // kernel r3 (polynomial part of degree 2) with a quadratic part (f = f_c - U) that
+        // outgrows the ball: positive everywhere far away
+        let mut m = ball_model();
+        m.provenance.box_lo = [-1.0; 3];
+        m.provenance.box_hi = [1.0; 3];
+        m.spline.kernel = Kernel::new(3, 3).unwrap();
+        m.spline.poly = vec![0.0; m.spline.kernel.poly_count()];
+        for (i, e) in m.spline.kernel.monomials().iter().enumerate() {
+            if e.contains(&2) {
+                m.spline.poly[i] = -2.0;
+            }
+        }
+        let w = check_bounded(&m, "r3").expect("the quadratic part outgrows the ball");
+        assert!(w.contains("inside and outside are swapped"), "{w}");
+        assert!(w.contains("kernel r3's polynomial part (degree 2) absorbed"), "{w}");
     }
 
     #[test]

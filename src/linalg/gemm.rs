@@ -487,11 +487,15 @@ fn blas_lock() -> MutexGuard<'static, ()> {
     LOCK.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
+/// Whether the products of a solver running with parallelism `par` go to the BLAS (those whose
+/// views fit its interface).
+pub fn by_blas(par: Par) -> bool {
+    par.degree() == 1 && in_effect() == Engine::Blas
+}
+
 /// Whether a product or solve of these sizes and parallelism goes to the BLAS.
 fn to_blas(par: Par, dims: &[usize]) -> bool {
-    par.degree() == 1
-        && dims.iter().all(|&d| d > 0 && d <= c_int::MAX as usize)
-        && in_effect() == Engine::Blas
+    dims.iter().all(|&d| d > 0 && d <= c_int::MAX as usize) && by_blas(par)
 }
 
 /// B <- L^-1 B for a lower triangular L (`unit`: with unit diagonal, not read), B of any
