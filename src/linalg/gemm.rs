@@ -72,6 +72,8 @@ impl Engine {
 static CHOSEN: AtomicU8 = AtomicU8::new(0);
 // whether the engine in effect was auto's choice
 static CHOSEN_AUTO: AtomicBool = AtomicBool::new(false);
+// whether the ranks agreed on the engine (choose_agreed)
+static AGREED: AtomicBool = AtomicBool::new(false);
 
 /// Sets the engine of this process's products; `Auto` resolves to the BLAS when [`blas_vendor`]
 /// names an optimised one whose kernels fit the processor (`kernels_fit_processor`). Returns
@@ -95,6 +97,7 @@ pub fn choose_agreed(comm: &dyn Comm, engine: Engine) -> Engine {
     let mut faer = [if choose(engine) == Engine::Faer { 1.0 } else { 0.0 }];
     comm.max_f64(&mut faer);
     set(faer[0] == 0.0);
+    AGREED.store(true, Ordering::Relaxed);
     in_effect()
 }
 
@@ -491,6 +494,13 @@ fn blas_lock() -> MutexGuard<'static, ()> {
 /// views fit its interface).
 pub fn by_blas(par: Par) -> bool {
     par.degree() == 1 && in_effect() == Engine::Blas
+}
+
+/// [`by_blas`] where every rank is known to have the same engine ([`choose_agreed`] ran), false
+/// otherwise: what may decide a choice the ranks must share, such as a solver's panel width
+/// (without the agreement a job spread over unlike nodes could pick two widths and deadlock).
+pub fn by_blas_on_every_rank(par: Par) -> bool {
+    AGREED.load(Ordering::Relaxed) && by_blas(par)
 }
 
 /// Whether a product or solve of these sizes and parallelism goes to the BLAS.

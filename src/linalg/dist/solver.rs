@@ -64,12 +64,14 @@ impl<'a> Job<'a> {
     }
 
     /// The panel width of `kind` on `n` rows: the job's, or the solver's default for the engine
-    /// of this job's products ([`SolverKind::default_panel`]).
+    /// of this job's products ([`SolverKind::default_panel`]) where the ranks agreed on it
+    /// ([`gemm::choose_agreed`], as `fit` does), faer's otherwise, so that every rank takes the
+    /// same width.
     pub fn panel_for(&self, kind: SolverKind, n: usize) -> usize {
         if self.panel > 0 {
             self.panel
         } else {
-            kind.default_panel(n, gemm::by_blas(self.par))
+            kind.default_panel(n, gemm::by_blas_on_every_rank(self.par))
         }
     }
 }
@@ -147,8 +149,8 @@ impl SolverKind {
     /// recursively, at 128 (at 8000 4.24-4.42 s against 4.69-4.72 s with 64, 4.28 s with 192 and
     /// 4.56 s with 256; 7 % faster than 64 at 4000, equal at 2000).
     ///
-    /// Those figures are for faer's products. Where the BLAS computes them (`blas`, see
-    /// [`gemm::by_blas`]) LU keeps 192 at every size: its GEMM
+    /// Those figures are for faer's products. Where the BLAS computes them on every rank (`blas`,
+    /// see [`gemm::by_blas_on_every_rank`]) LU keeps 192 at every size: its GEMM
     /// reaches its rate at a shorter inner dimension, so the shorter panels win (2-core AVX2
     /// machine, OpenBLAS, 8000 rows on 2 ranks, interleaved: best of 3 5.67 s against 6.35 s with
     /// 320, all three runs faster; in five more pairs 192 faster in four, median 6.06 against
