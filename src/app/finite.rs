@@ -56,7 +56,7 @@ pub fn check_fit(fitted: &Fitted, prep: &Prepared) -> Result<()> {
 /// inside the ball, where f > 0 is right. Returns a warning naming the first place where f >= 0
 /// and how many of the 14 are not negative, or None for a bounded solid. The same on every rank (every rank holds the whole
 /// model).
-pub fn check_bounded(model: &Model, kernel_name: &str) -> Option<String> {
+pub fn check_bounded(model: &Model) -> Option<String> {
     let (lo, hi) = (model.provenance.box_lo, model.provenance.box_hi);
     let c: Vec<f64> = (0..3).map(|d| 0.5 * (lo[d] + hi[d])).collect();
     let half_diagonal = 0.5 * crate::spline::hygiene::diagonal(&lo, &hi);
@@ -87,7 +87,8 @@ pub fn check_bounded(model: &Model, kernel_name: &str) -> Option<String> {
     // the carrier falls off like -|x|^2; a polynomial part of degree 2 or more can follow that
     // growth and cancel it, one of degree 1 (the kernel r's, Wendland's) cannot, nor can the
     // weights' far field, so there the cause is the size of the coefficients
-    let degree = model.spline.kernel.order().saturating_sub(1);
+    let kernel = &model.spline.kernel;
+    let (kernel_name, degree) = (kernel.name(), kernel.order().saturating_sub(1));
     let why = if degree >= 2 {
         format!(
             "kernel {kernel_name}'s polynomial part (degree {degree}) absorbed the carrier's growth; \
@@ -197,9 +198,9 @@ mod tests {
         let mut m = ball_model();
         m.provenance.box_lo = [-1.0; 3];
         m.provenance.box_hi = [1.0; 3];
-        assert_eq!(check_bounded(&m, "r"), None);
+        assert_eq!(check_bounded(&m), None);
         m.spline.poly[1] = 100.0;
-        let w = check_bounded(&m, "r").expect("positive far along +x");
+        let w = check_bounded(&m).expect("positive far along +x");
         assert!(w.contains("f >= 0 in"), "{w}");
         assert!(w.contains("degree 1, which cannot follow"), "{w}");
         assert!(!w.contains("absorbed"), "{w}");
@@ -215,7 +216,7 @@ mod tests {
                 m.spline.poly[i] = -2.0;
             }
         }
-        let w = check_bounded(&m, "r3").expect("the quadratic part outgrows the ball");
+        let w = check_bounded(&m).expect("the quadratic part outgrows the ball");
         assert!(w.contains("inside and outside are swapped"), "{w}");
         assert!(w.contains("kernel r3's polynomial part (degree 2) absorbed"), "{w}");
     }

@@ -492,12 +492,12 @@ fn blas_lock() -> MutexGuard<'static, ()> {
 
 /// Whether the products of a solver running with parallelism `par` go to the BLAS (those whose
 /// views fit its interface).
-pub fn by_blas(par: Par) -> bool {
+fn by_blas(par: Par) -> bool {
     par.degree() == 1 && in_effect() == Engine::Blas
 }
 
-/// [`by_blas`] where every rank is known to have the same engine ([`choose_agreed`] ran), false
-/// otherwise: what may decide a choice the ranks must share, such as a solver's panel width
+/// Whether the products of a solver running with parallelism `par` go to the BLAS, where every
+/// rank is known to have the same engine ([`choose_agreed`] ran); false otherwise: what may decide a choice the ranks must share, such as a solver's panel width
 /// (without the agreement a job spread over unlike nodes could pick two widths and deadlock).
 pub fn by_blas_on_every_rank(par: Par) -> bool {
     AGREED.load(Ordering::Relaxed) && by_blas(par)

@@ -359,7 +359,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             ..run_provenance(comm, threads, &stages)
         },
     };
-    let unbounded = super::finite::check_bounded(&model, &kernel.name());
+    let unbounded = super::finite::check_bounded(&model);
     if let (Some(w), 0) = (&unbounded, comm.rank()) {
         eprintln!("volspline: warning: {w}");
     }
