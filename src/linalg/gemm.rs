@@ -545,6 +545,32 @@ pub fn solve_lower<T: Gemm>(l: MatRef<'_, T>, unit: bool, b: MatMut<'_, T>, par:
     }
 }
 
+/// B <- B L^-1 for a lower triangular L (`unit`: with unit diagonal, not read): the solve from
+/// the right, X L = B, computed by the BLAS where [`gemm`] would be and B is column-major, by
+/// faer otherwise (as L^T X^T = B^T).
+pub fn solve_lower_right<T: Gemm>(l: MatRef<'_, T>, unit: bool, mut b: MatMut<'_, T>, par: Par) {
+    let (m, n) = (b.nrows(), b.ncols());
+    if to_blas(par, &[m, n]) {
+        let (rs, cs) = (b.row_stride(), b.col_stride());
+        if let (Some((b'N', a, lda)), true) = (as_blas(l), rs == 1 && (cs >= m as isize || n == 1)) {
+            let ldb = if n == 1 { m } else { cs as usize };
+            if lda <= c_int::MAX as usize && ldb <= c_int::MAX as usize {
+                let diag = if unit { b'U' } else { b'N' };
+                let _one_at_a_time = blas_lock();
+                // SAFETY: as in gemm; B is column-major m x n, L is n x n
+                unsafe { call_trsm((b'R', b'N', diag), (m, n), (a, lda), (b.as_ptr_mut(), ldb)) };
+                return;
+            }
+        }
+    }
+    let (lt, bt) = (l.transpose(), b.rb_mut().transpose_mut());
+    if unit {
+        faer::linalg::triangular_solve::solve_unit_upper_triangular_in_place(lt, bt, par);
+    } else {
+        faer::linalg::triangular_solve::solve_upper_triangular_in_place(lt, bt, par);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -660,6 +686,25 @@ mod tests {
             bt.copy_from(b.as_ref().transpose());
             solve_lower(l.as_ref(), unit, bt.as_mut().transpose_mut(), Par::Seq);
             assert!((&want - bt.as_ref().transpose()).norm_max() < 1e-12, "unit {unit}, transposed");
+        }
+        // solves from the right, X L = B: B column-major (the BLAS) and transposed (faer)
+        let b = filled(13, 29, 10);
+        for unit in [false, true] {
+            // the lower triangle that the solve reads, with the unit diagonal where it assumes one
+            let lower = faer::Mat::<f64>::from_fn(29, 29, |i, j| match i.cmp(&j) {
+                std::cmp::Ordering::Less => 0.0,
+                std::cmp::Ordering::Equal if unit => 1.0,
+                _ => l[(i, j)],
+            });
+            let mut got = b.clone();
+            solve_lower_right(l.as_ref(), unit, got.as_mut(), Par::Seq);
+            let mut back = faer::Mat::<f64>::zeros(13, 29);
+            matmul(back.as_mut(), Accum::Replace, got.as_ref(), lower.as_ref(), 1.0, Par::Seq);
+            assert!((&back - &b).norm_max() < 1e-12, "right, unit {unit}");
+            let mut bt = faer::Mat::<f64>::zeros(29, 13);
+            bt.copy_from(b.as_ref().transpose());
+            solve_lower_right(l.as_ref(), unit, bt.as_mut().transpose_mut(), Par::Seq);
+            assert!((&got - bt.as_ref().transpose()).norm_max() < 1e-12, "right, unit {unit}, transposed");
         }
         // single precision (sgemm, strsm)
         let (a32, b32) = (a.as_ref().map(|&x| x as f32), filled(23, 19, 2).as_ref().map(|&x| x as f32));

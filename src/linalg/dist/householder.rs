@@ -35,7 +35,7 @@
 use crate::linalg::gemm::gemm;
 use faer::{Accum, MatMut, MatRef, Par};
 
-use super::backsub::back_substitute;
+use super::backsub::{back_substitute, Rows};
 use super::layout::RowCyclic;
 use super::solver::Job;
 use super::system::{LocalRows, RowIndex, SHARED_FROM_RANKS};
@@ -57,7 +57,7 @@ pub fn householder_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>
     let tol = rows.singular_tol(comm);
     let lc = rows.ld();
     if n == 0 {
-        return back_substitute(comm, rows, nb, tol);
+        return back_substitute(comm, rows, nb, Rows::Triangular, tol);
     }
     let (mut k, mut kb) = (0, nb.min(n));
     let taus = factor_panel(comm, &lay, &mut rows.data, lc, (k, kb), k, None);
@@ -98,7 +98,7 @@ pub fn householder_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>
         progress(end, n);
         (k, kb) = next;
     }
-    back_substitute(comm, rows, nb, tol)
+    back_substitute(comm, rows, nb, Rows::Triangular, tol)
 }
 
 /// The narrowest piece of a trailing update run in one window of an all-reduce of the next

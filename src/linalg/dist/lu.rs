@@ -4,67 +4,80 @@
 //! the largest |a_pj| is swapped into row j, the multipliers l_ij = a_ij / a_jj (|l_ij| <= 1, which
 //! bounds the growth of the entries in practice) are stored in place of the eliminated entries, and
 //! a_ic <- a_ic - l_ij a_jc for i, c > j. The right-hand side is the last column, so it undergoes
-//! the same swaps and updates and ends as L^-1 P b; back substitution U x = L^-1 P b ends the
-//! solve (2/3 n^3 flops, half of Householder's).
+//! the same swaps and updates; back substitution ends the solve (2/3 n^3 flops, half of
+//! Householder's).
 //!
 //! Blocked by panels of nb columns, with M partitioned at the panel as [A11 A12; A21 A22]: the
 //! panel [A11; A21] is factored into L11 U11 and L21 (recursively halved, so that its own updates
-//! are small GEMMs too), its row swaps are applied to the columns right of it, then
+//! are small GEMMs too), and its row swaps are applied to the columns right of it. The textbook
+//! step then solves U12 = L11^-1 A12 and updates A22 -= L21 U12. Here the step is taken in block
+//! form instead:
 //!
 //! ```text
-//!     U12 = L11^-1 A12,       A22 <- A22 - L21 U12.
+//!     W = L21 L11^-1  (= A21 A11^-1),     A22 <- A22 - W A12,
 //! ```
+//!
+//! the same Schur complement (L21 U12 = L21 L11^-1 A12), with W stored in place of L21 and A12
+//! left as it is in the block row. The reason is the distribution: U12 is needed whole by every
+//! rank, so the textbook step solves it on every rank, nb^2 (n - k) multiply-adds per panel that
+//! do not shrink as ranks are added (at n = 8000 and nb = 192 about 6e9 on each rank, 4 % of the
+//! whole factorisation on one rank and a growing share on more). W is computed by each rank for
+//! its own rows only, nb^2 (n - k) / p. The stored factors change meaning accordingly: the
+//! diagonal block of each panel holds L11\U11, the columns right of it in the panel's rows hold
+//! A12 (not U12), the rows below hold W (not L21), and the right-hand side carried in the last
+//! column is not multiplied by L11^-1 in the panel's rows. Back substitution takes that form
+//! (`backsub`: x1 = U11^-1 L11^-1 (c1 - A12 x2)), and so do the mixed-precision solves with the
+//! f32 factors (`mixed`). Inside a panel the halves use the textbook step, so that the diagonal
+//! block is the panel's L11\U11.
 //!
 //! On the ranks: the pivot search of column j is one all-gather of each rank's best candidate,
 //! which carries its row's panel part along, so the pivot row is known everywhere without a
-//! broadcast; a swap is a message between the two owners. Per panel, the block row [A11 A12] is
-//! exchanged (each rank's rows column by column, as they lie, so neither side transposes). On
-//! 2 and 3 ranks it is all-gathered and every rank solves for U12 whole; from 4 ranks on
-//! ([`SHARED_FROM_RANKS`]) L11 is all-gathered, A12 goes to the ranks in shares of its columns
-//! (one all-to-all), each rank solves for its share of U12 and the shares are all-gathered.
-//! Either way every rank then holds U12 and updates its own rows of A22 with one local GEMM,
-//! which carries almost all the flops. The matrix is never gathered.
+//! broadcast; a swap is a message between the two owners. Per panel, the block row [L11 A12] is
+//! all-gathered (each rank's rows column by column, as they lie, so neither side transposes).
+//! Every rank then forms W for its own rows (a triangular solve from the right) and updates its
+//! own rows of A22 with one local GEMM, which carries almost all the flops. The matrix is never
+//! gathered.
 //!
 //! Look-ahead: the panel factorisation is a chain of small collectives (nb all-gathers of pivot
 //! candidates, each waiting for every rank), and on the row-cyclic layout every rank takes part
 //! in every one of them, so no rank can factor the next panel alone while the others update.
 //! What can overlap is a rank's own trailing update with the messages of the pivot searches. At
-//! step k the update A22 -= L21 U12 is split by columns: the columns of panel k+1 are updated
+//! step k the update A22 -= W A12 is split by columns: the columns of panel k+1 are updated
 //! first (a narrow GEMM), panel k+1 is factored at once, and the remaining columns are updated
 //! in pieces, one started while each pivot all-gather of panel k+1 is in flight (a non-blocking
 //! all-gather, tested between pieces), the leftover after the panel. This is exact, not an
 //! approximation: panel k+1's interchanges touch only its own columns (the other columns get
-//! them afterwards, in one pass), and L21 of step k lives in columns left of panel k+1, which
+//! them afterwards, in one pass), and W of step k lives in columns left of panel k+1, which
 //! nothing in panel k+1 writes, so the update of a column of A22 gives the same values whenever it
 //! runs before that pass. The waits of the pivot searches (latency, and ranks arriving at
 //! different times) are then filled with GEMM work instead of idling.
 
-use crate::linalg::gemm::{gemm, solve_lower};
+use crate::linalg::gemm::{gemm, solve_lower, solve_lower_right};
 use faer::reborrow::Reborrow;
 use faer::{Accum, MatMut, MatRef, Par};
 
-use super::backsub::back_substitute;
+use super::backsub::{back_substitute, Rows};
 use super::layout::RowCyclic;
 use super::scalar::Scalar;
 use super::solver::Job;
-use super::system::{column_share, GatherBuffers, LocalRows, SHARED_FROM_RANKS};
+use super::system::{GatherBuffers, LocalRows};
 use crate::error::{Error, Result};
 use crate::par::Comm;
 
 /// Solves the distributed system in `rows` (right-hand side in the last column) and returns the
-/// solution on every rank. Collective. `rows` is overwritten by U (and the multipliers of L, not
-/// row-interchanged) and L^-1 P b. `par` is the parallelism of the local trailing-update GEMMs.
+/// solution on every rank. Collective. `rows` is overwritten by the factors in block form (see
+/// the module documentation). `par` is the parallelism of the local trailing-update GEMMs.
 pub fn lu_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>> {
     let tol = rows.singular_tol(job.comm);
     lu_factor(job, rows)?;
-    back_substitute(job.comm, rows, job.panel.max(1), tol)
+    back_substitute(job.comm, rows, job.panel.max(1), Rows::BlockLu, tol)
 }
 
-/// Factors the distributed matrix in `rows` in its own precision (the right-hand side column is
-/// carried along and ends as L^-1 P b) and returns the row interchanges (j, p), in the order
-/// applied: panel by panel, j ascending. Collective. Column j of L is left where the
-/// interchanges of its own panel put it: the later panels' interchanges reach only the columns
-/// right of their panel. With `job.lookahead`, the trailing update of each panel runs in the
+/// Factors the distributed matrix in `rows` in its own precision, in block form (see the module
+/// documentation; the right-hand side column is carried along as a column of A12 and A22), and
+/// returns the row interchanges (j, p), in the order applied: panel by panel, j ascending.
+/// Collective. Column j of W is left where the interchanges of its own panel put it: the later
+/// panels' interchanges reach only the columns right of their panel. With `job.lookahead`, the trailing update of each panel runs in the
 /// pivot searches of the next one (see the module documentation); the factors are the same up to
 /// rounding (the GEMM pieces are of other widths: 9e-14 relative in the weights of a 3000-point
 /// fit on 2 ranks).
@@ -89,7 +102,7 @@ pub fn lu_factor<T: Scalar>(job: &Job<'_>, rows: &mut LocalRows<T>) -> Result<Ve
         let end = k + kb;
         rows.permute_rows(comm, &swaps, end, cols);
         all_swaps.append(&mut swaps);
-        let mut rest = Trailing::of(comm, rows, (k, end, cols), par, &mut bufs);
+        let mut rest = Trailing::block(comm, rows, (k, end, cols), par, &mut bufs);
         progress(end, n);
         if end == n {
             rest.finish(rows);
@@ -117,12 +130,6 @@ const LEAF: usize = 8;
 /// columns took 10 % longer than one GEMM at N = 4000, pieces of 1024 the same time).
 const MIN_PIECE: usize = 256;
 
-/// From [`SHARED_FROM_RANKS`] ranks on, U12 = L11^-1 A12 with at least this many multiply-adds
-/// (w^2 rest for a block row of height w and `rest` columns right of it) is solved in shares of
-/// its columns, one a rank; smaller ones (the halves inside a panel) are solved whole on every
-/// rank, where the collectives' latency would cost more than the flops they save.
-const SHARED_SOLVE_MIN: usize = 1 << 20;
-
 /// LU of the panel columns a..b (rows a..n), recursively: the left half, its block elimination
 /// on the right half (a GEMM), then the right half. Swaps whole rows. `work` is the pending
 /// trailing update of the previous panel, advanced while the pivot searches are in flight.
@@ -143,19 +150,20 @@ fn factor_panel<T: Scalar>(
     }
     let m = a + (b - a) / 2;
     factor_panel(comm, rows, a, m, panel, tol, swaps, bufs, work)?;
-    Trailing::of(comm, rows, (a, m, b), Par::Seq, bufs).finish(rows);
+    Trailing::inner(comm, rows, (a, m, b), bufs).finish(rows);
     factor_panel(comm, rows, m, b, panel, tol, swaps, bufs, work)
 }
 
-/// The block elimination of the factored columns a..m on the columns m..c1: U12 = L11^-1 A12
-/// (stored) and the update A22 -= L21 U12 of this rank's rows below m, column by column range,
-/// with the columns `next..c1` still to do. `overlap`: the pieces run in the windows of the
+/// The block elimination of the factored columns a..m on the columns m..c1, the update of this
+/// rank's rows below m by the left factor stored in columns a..m (L21 inside a panel, W at its
+/// end) times `right`, column range by column range, with the columns `next..c1` still to do. `overlap`: the pieces run in the windows of the
 /// pivot searches (decided alike on every rank: a blocking and a non-blocking all-gather do not
 /// match, while how many pieces a window takes depends on the timing of each rank).
 struct Trailing<T> {
     a: usize,
     m: usize,
-    u12: faer::Mat<T>,
+    /// The block row right of the factored columns: U12 inside a panel, A12 at its end.
+    right: faer::Mat<T>,
     next: usize,
     c1: usize,
     piece: usize,
@@ -169,7 +177,7 @@ impl<T: Scalar> Trailing<T> {
         Trailing {
             a: 0,
             m: 0,
-            u12: faer::Mat::new(),
+            right: faer::Mat::new(),
             next: 0,
             c1: 0,
             piece: 1,
@@ -178,47 +186,64 @@ impl<T: Scalar> Trailing<T> {
         }
     }
 
-    /// Computes U12 for columns m..c1 from the block row (whole on every rank, or in shares of
-    /// its columns, see [`SHARED_SOLVE_MIN`]) and stores it in the owners' rows; the update of
-    /// A22 is left to do. Collective.
-    fn of(
+    /// The block row [L11 A12] of rows a..m and columns a..c1, gathered whole on every rank: L11
+    /// (unit lower triangular, read below its diagonal) and A12. Collective.
+    fn block_row(
+        comm: &dyn Comm,
+        rows: &LocalRows<T>,
+        (a, m, c1): (usize, usize, usize),
+        bufs: &mut GatherBuffers<T>,
+    ) -> (faer::Mat<T>, faer::Mat<T>) {
+        let lay = rows.layout;
+        let (w, rest) = (m - a, c1 - m);
+        let (mut l11, mut a12) = (faer::Mat::<T>::zeros(w, w), faer::Mat::<T>::zeros(w, rest));
+        let by_rank = rows.gather_columns_by_rank(comm, (a, m), (a, c1), bufs);
+        place_by_rank(by_rank, &lay, (a, m), c1 - a, 0..w, &mut l11, 0);
+        place_by_rank(by_rank, &lay, (a, m), c1 - a, w..c1 - a, &mut a12, 0);
+        (l11, a12)
+    }
+
+    /// Inside a panel: U12 = L11^-1 A12 for the columns m..c1 (the panel's right half), solved
+    /// whole on every rank (a few columns) and stored in the owners' rows, so that the panel's
+    /// diagonal block ends as L11\U11; the update A22 -= L21 U12 is left to do. Collective.
+    fn inner(
+        comm: &dyn Comm,
+        rows: &mut LocalRows<T>,
+        (a, m, c1): (usize, usize, usize),
+        bufs: &mut GatherBuffers<T>,
+    ) -> Self {
+        if c1 == m {
+            return Trailing::none();
+        }
+        let (l11, mut u12) = Self::block_row(comm, rows, (a, m, c1), bufs);
+        solve_lower(l11.as_ref(), true, u12.as_mut(), Par::Seq);
+        let lay = rows.layout;
+        let (o0, o1) = (lay.first_local_from(a), lay.first_local_from(m));
+        for j in 0..c1 - m {
+            for l in o0..o1 {
+                rows.set(l, m + j, u12[(lay.global(l) - a, j)]);
+            }
+        }
+        Trailing { a, m, right: u12, next: m, c1, piece: c1 - m, par: Par::Seq, overlap: false }
+    }
+
+    /// At the end of a panel (columns a..m): the block form. Each rank turns its own rows of L21
+    /// into W = L21 L11^-1 in place and keeps A12 (gathered, not solved); the update A22 -= W A12
+    /// is left to do. Collective.
+    fn block(
         comm: &dyn Comm,
         rows: &mut LocalRows<T>,
         (a, m, c1): (usize, usize, usize),
         par: Par,
         bufs: &mut GatherBuffers<T>,
     ) -> Self {
-        let lay = rows.layout;
-        let (w, rest) = (m - a, c1 - m);
-        if rest == 0 {
-            return Trailing::none();
+        let (l11, a12) = Self::block_row(comm, rows, (a, m, c1), bufs);
+        let (t0, lc) = (rows.layout.first_local_from(m), rows.ld());
+        if t0 < lc {
+            let l21 = rows.view_mut().submatrix_mut(t0, a, lc - t0, m - a);
+            solve_lower_right(l11.as_ref(), true, l21, par);
         }
-        // shared: [L11] is all-gathered, A12 reaches each rank only in its share of the columns
-        // (one all-to-all), each rank solves its share and the shares are all-gathered;
-        // otherwise [L11 A12] is all-gathered and solved whole on every rank
-        let shared = lay.ranks >= SHARED_FROM_RANKS && w * w * rest >= SHARED_SOLVE_MIN;
-        let gathered = if shared { m } else { c1 };
-        let (mut l11, mut u12) = (faer::Mat::<T>::zeros(w, w), faer::Mat::<T>::zeros(w, rest));
-        let by_rank = rows.gather_columns_by_rank(comm, (a, m), (a, gathered), bufs);
-        place_by_rank(by_rank, &lay, (a, m), gathered - a, 0..w, &mut l11, 0);
-        place_by_rank(by_rank, &lay, (a, m), gathered - a, w..gathered - a, &mut u12, 0);
-        if shared {
-            let mine = column_share(rest, lay.ranks, lay.rank);
-            let by_rank = rows.share_columns_by_rank(comm, (a, m), (m, c1), bufs);
-            place_by_rank(by_rank, &lay, (a, m), mine.len(), 0..mine.len(), &mut u12, mine.start);
-            let share = u12.as_mut().subcols_mut(mine.start, mine.len());
-            solve_lower(l11.as_ref(), true, share, Par::Seq);
-            bufs.all_gather_column_shares(comm, &mut u12);
-        } else {
-            solve_lower(l11.as_ref(), true, u12.as_mut(), Par::Seq);
-        }
-        let (o0, o1) = (lay.first_local_from(a), lay.first_local_from(m));
-        for j in 0..rest {
-            for l in o0..o1 {
-                rows.set(l, m + j, u12[(lay.global(l) - a, j)]);
-            }
-        }
-        Trailing { a, m, u12, next: m, c1, piece: rest, par, overlap: false }
+        Trailing { a, m, right: a12, next: m, c1, piece: c1 - m, par, overlap: false }
     }
 
     /// Applies the update to the columns c0..c1 (one local GEMM).
@@ -233,8 +258,8 @@ impl<T: Scalar> Trailing<T> {
         let (left, right) = sub.split_at_col_mut(w);
         let l21: MatRef<'_, T> = left.rb();
         let a22: MatMut<'_, T> = right.subcols_mut(c0 - self.m, c1 - c0);
-        let u12 = self.u12.as_ref().subcols(c0 - self.m, c1 - c0);
-        gemm(a22, Accum::Add, l21, u12, T::of(-1.0), self.par);
+        let right = self.right.as_ref().subcols(c0 - self.m, c1 - c0);
+        gemm(a22, Accum::Add, l21, right, T::of(-1.0), self.par);
     }
 
     /// Leaves the columns from c0 on to do, in `windows` pieces of equal width (at least

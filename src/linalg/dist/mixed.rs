@@ -2,20 +2,24 @@
 //!
 //! The matrix M (order n, f64, row-cyclic) is rounded to f32 and factored by the row-cyclic LU
 //! (`lu`), P M' = L U with M' = fl32(M): the same flops as the f64 factorisation at twice the
-//! GEMM rate and half the bytes on the wire. The factorisation leaves column j of L where the
-//! interchanges of its own panel put it; here the interchanges of the later panels are applied to
-//! it afterwards (one pass per panel over its columns), so that the stored L is the L of
-//! P M' = L U with P the product of all the interchanges.
+//! GEMM rate and half the bytes on the wire. The factorisation leaves its factors in block form:
+//! per panel of rows k0..k1, L11\U11 in the diagonal block, A12 right of it in the same rows, and
+//! W = L21 L11^-1 in its columns below it. It leaves column j of W where the interchanges of its
+//! own panel put it; here the interchanges of the later panels are applied to it afterwards (one
+//! pass per panel over its columns), so that the stored W belongs to P M' with P the product of
+//! all the interchanges.
 //!
-//! A solve with the factors, z = U^-1 L^-1 P r, takes r and returns z replicated on every rank and
+//! A solve with the factors, z = M'^-1 r, takes r and returns z replicated on every rank and
 //! computes in f64 with the f32 entries read and widened on the fly: the factors are only an
 //! approximate inverse, but rounding the right-hand side and the intermediate vectors to f32 would
-//! add a relative error of 6e-8 to every correction on top of that. Both triangular solves go panel
-//! by panel (the panels of the factorisation): for a panel of rows k..k+b the owners' current
-//! entries of y are all-gathered (b values), the diagonal block (gathered once, after the
-//! factorisation) is solved redundantly on every rank, and each rank updates its own rows of y
-//! below the panel (forward, with L21) or above it (backward, with U12) from its own rows of the
-//! factors. Two small all-gathers per panel; n^2 / p multiply-adds per rank.
+//! add a relative error of 6e-8 to every correction on top of that. With y = P r, block
+//! elimination gives, panel by panel from the first, c1 = the panel's current entries of y and
+//! y2 -= W c1 for the rows below; then, from the last panel back, z1 = U11^-1 L11^-1 (c1 - A12
+//! z2). For a panel the owners' current entries are all-gathered (b values), the diagonal block
+//! (gathered once, after the factorisation) is solved redundantly on every rank, and each rank
+//! updates its own entries below the panel (forward, with W) or above it (backward, with A12)
+//! from its own rows of the factors. Two small all-gathers per panel; n^2 / p multiply-adds per
+//! rank.
 //!
 //! The residual of the refinement, r = b - M x, is computed from the f64 rows that each rank
 //! keeps: each rank its own rows (one GEMV; for a symmetric M one pass over the lower triangle of
@@ -42,7 +46,8 @@ pub trait Approximate {
     fn apply(&self, comm: &dyn Comm, r: &[f64]) -> Vec<f64>;
 }
 
-/// The f32 LU factors P M' = L U of a row-cyclic matrix, L row-interchanged.
+/// The f32 LU factors of a row-cyclic matrix in block form (see the module documentation), W
+/// row-interchanged.
 pub struct Factors {
     rows: LocalRows<f32>,
     swaps: Vec<(usize, usize)>,
@@ -64,7 +69,7 @@ impl Factors {
         let nb = job.panel.max(1);
         let swaps = lu_factor(job, &mut rows)?;
         let panels: Vec<usize> = (0..n).step_by(nb).chain([n]).collect();
-        // L row-interchanged: the interchanges of the later panels reach each panel's columns
+        // W row-interchanged: the interchanges of the later panels reach each panel's columns
         for w in panels.windows(2) {
             let later = &swaps[w[1].min(swaps.len())..];
             rows.permute_rows(comm, later, w[0], w[1]);
@@ -78,7 +83,8 @@ impl Factors {
 }
 
 impl Approximate for Factors {
-    /// z = U^-1 L^-1 P r.
+    /// z = M'^-1 r from the block form: P r, then the forward pass with W, then per panel from
+    /// the last L11^-1, U11^-1 and the update of the rows above with A12.
     fn apply(&self, comm: &dyn Comm, r: &[f64]) -> Vec<f64> {
         let lay = self.rows.layout;
         let (n, ld) = (lay.n, self.rows.ld());
@@ -93,28 +99,26 @@ impl Approximate for Factors {
             let (l0, l1) = (lay.first_local_from(g0), lay.first_local_from(g1));
             all_gather_rows(comm, lay, &own[l0..l1], g0..g1, 1)
         };
-        // forward: L y = P r, unit lower triangular
-        for (w, d) in self.panels.windows(2).zip(&self.diag) {
+        // forward, in block form: the rows below each panel take - W c1, with c1 the panel's
+        // current entries, which stay as they are (L11^-1 is applied on the way back)
+        for w in self.panels.windows(2) {
             let (k0, k1) = (w[0], w[1]);
-            let b = k1 - k0;
-            let mut yp = gather(&own, k0, k1);
-            for i in 0..b {
-                let s: f64 = (0..i).map(|j| d[i * b + j] * yp[j]).sum();
-                yp[i] -= s;
-            }
-            for l in lay.first_local_from(k0)..lay.first_local_from(k1) {
-                own[l] = yp[lay.global(l) - k0];
-            }
+            let yp = gather(&own, k0, k1);
             let t0 = lay.first_local_from(k1);
             let col = |c: usize| &data[c * ld + t0..(c + 1) * ld];
             update_widened(&mut own[t0..], (k0, k1), &yp, col);
         }
-        // backward: U z = y
+        // backward: z1 = U11^-1 L11^-1 (c1 - A12 z2), the rows above each panel updated with
+        // its columns of A12 as z becomes known
         let mut z = vec![0.0; n];
         for (w, d) in self.panels.windows(2).zip(&self.diag).rev() {
             let (k0, k1) = (w[0], w[1]);
             let b = k1 - k0;
             let mut zb = gather(&own, k0, k1);
+            for i in 0..b {
+                let s: f64 = (0..i).map(|j| d[i * b + j] * zb[j]).sum();
+                zb[i] -= s;
+            }
             for i in (0..b).rev() {
                 let s: f64 = (i + 1..b).map(|j| d[i * b + j] * zb[j]).sum();
                 zb[i] = (zb[i] - s) / d[i * b + i];

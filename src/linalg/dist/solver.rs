@@ -154,10 +154,14 @@ impl SolverKind {
     /// reaches its rate at a shorter inner dimension, so the shorter panels win (2-core AVX2
     /// machine, OpenBLAS, 8000 rows on 2 ranks, interleaved: best of 3 5.67 s against 6.35 s with
     /// 320, all three runs faster; in five more pairs 192 faster in four, median 6.06 against
-    /// 6.20 s; on one rank equal). Householder and Cholesky measured the same with 192 and their
-    /// own widths, which they keep.
+    /// 6.20 s; on one rank equal). Householder takes 192 with the BLAS: on a 2-core AVX-512
+    /// machine (OpenBLAS's Cooperlake kernels, 8000 rows, three runs each) 8.69-8.85 s against
+    /// 9.01-9.57 s with 128 on 2 ranks and 16.1-16.4 s against 16.5-16.8 s on one; on the AVX2
+    /// machine the two measured the same. Cholesky measured the same with 192 and its own widths,
+    /// which it keeps.
     pub fn default_panel(&self, n: usize, blas: bool) -> usize {
         match self {
+            SolverKind::Householder if blas => 192,
             SolverKind::Householder => 128,
             SolverKind::Lu if n >= LU_WIDE_FROM && !blas => 320,
             SolverKind::Lu => 192,
@@ -426,8 +430,9 @@ mod tests {
 
     #[test]
     fn default_panels_follow_the_size_and_the_engine_of_the_products() {
+        assert_eq!(SolverKind::Householder.default_panel(8000, false), 128);
+        assert_eq!(SolverKind::Householder.default_panel(8000, true), 192);
         for blas in [false, true] {
-            assert_eq!(SolverKind::Householder.default_panel(8000, blas), 128);
             assert_eq!(SolverKind::Lu.default_panel(LU_WIDE_FROM - 1, blas), 192);
             assert_eq!(SolverKind::Cholesky.default_panel(CHOLESKY_WIDE_FROM - 1, blas), 256);
             assert_eq!(SolverKind::Cholesky.default_panel(CHOLESKY_WIDE_FROM, blas), 384);

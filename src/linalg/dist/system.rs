@@ -139,39 +139,6 @@ impl<T: Scalar> LocalRows<T> {
         &bufs.recv
     }
 
-    /// The rows g0..g1 of the columns of this rank's share of c0..c1 ([`column_share`]), from
-    /// every rank by one all-to-all: in rank order, rank r's rows of the range (local order),
-    /// column by column over the share. Collective. Each rank receives its share alone, where
-    /// [`LocalRows::gather_columns_by_rank`] gives every rank every column.
-    pub(crate) fn share_columns_by_rank<'b>(
-        &self,
-        comm: &dyn Comm,
-        (g0, g1): (usize, usize),
-        (c0, c1): (usize, usize),
-        bufs: &'b mut GatherBuffers<T>,
-    ) -> &'b [T] {
-        let lay = self.layout;
-        let ld = self.ld();
-        let (l0, l1) = (lay.first_local_from(g0), lay.first_local_from(g1));
-        let (mine, p, w) = (l1 - l0, lay.ranks, c1 - c0);
-        set_len(&mut bufs.send, mine * w);
-        let mut at = 0;
-        let mut send_counts = Vec::with_capacity(p);
-        for r in 0..p {
-            let share = column_share(w, p, r);
-            send_counts.push(mine * share.len());
-            for c in share {
-                bufs.send[at..at + mine].copy_from_slice(&self.data[l0 + (c0 + c) * ld..l1 + (c0 + c) * ld]);
-                at += mine;
-            }
-        }
-        let own = column_share(w, p, lay.rank).len();
-        let recv_counts: Vec<usize> = (0..p).map(|r| lay.count_in_on(r, g0, g1) * own).collect();
-        set_len(&mut bufs.recv, (g1 - g0) * own);
-        T::all_to_all(comm, &bufs.send, &send_counts, &mut bufs.recv, &recv_counts);
-        &bufs.recv
-    }
-
     /// Exchanges global rows a and b in columns c0..c1 between their owners. Only the two owners
     /// take part; the other ranks return at once.
     pub fn swap_rows(&mut self, comm: &dyn Comm, a: usize, b: usize, c0: usize, c1: usize) {
@@ -371,43 +338,14 @@ impl<T: Scalar> GatherBuffers<T> {
     }
 }
 
-/// From this many ranks on, the row-cyclic LU solves U12 = L11^-1 A12 and the Householder QR
-/// forms T^T W in shares of their columns, one a rank, instead of whole on every rank. Whole,
-/// each costs every rank nb n^2 / 2 multiply-adds over a factorisation whatever the rank count:
-/// at n = 8000 a quarter of a rank's share of the LU's flops on 8 ranks (nb = 320). Shared, it
-/// takes one more collective a panel. On 2 ranks (n = 8000, 2-core AMD EPYC, three runs each,
-/// alternating) sharing was no faster: LU 7.36-7.99 s against 7.31-9.51 s, Householder
-/// 15.8-16.1 s against 14.4-15.4 s, the saving a few per cent of the work and the extra
-/// collective's wait about as long.
+/// From this many ranks on, the row-cyclic Householder QR forms T^T W in shares of its columns,
+/// one a rank, instead of whole on every rank. Whole, it costs every rank nb n^2 / 2
+/// multiply-adds over a factorisation whatever the rank count. Shared, it takes one more
+/// collective a panel. On 2 ranks (n = 8000, 2-core AMD EPYC, three runs each, alternating)
+/// sharing was no faster: Householder 15.8-16.1 s against 14.4-15.4 s, the saving a few per cent
+/// of the work and the extra collective's wait about as long. (The LU has no such product: its
+/// block form leaves each rank only its own rows' share, see `lu`.)
 pub(crate) const SHARED_FROM_RANKS: usize = 4;
-
-/// The columns of a `cols`-column block that rank `r` of `ranks` computes when the ranks share
-/// the block's columns: contiguous ranges of nearly equal width, in rank order.
-pub(crate) fn column_share(cols: usize, ranks: usize, r: usize) -> Range<usize> {
-    cols * r / ranks..cols * (r + 1) / ranks
-}
-
-impl<T: Scalar> GatherBuffers<T> {
-    /// Completes a block whose columns the ranks computed in shares ([`column_share`]): every
-    /// rank holds its own share of `m` on entry and the whole of `m` on return. Collective.
-    pub(crate) fn all_gather_column_shares(&mut self, comm: &dyn Comm, m: &mut faer::Mat<T>) {
-        let (rows, cols, p) = (m.nrows(), m.ncols(), comm.size());
-        if rows == 0 || cols == 0 {
-            return;
-        }
-        let mine = column_share(cols, p, comm.rank());
-        set_len(&mut self.send, mine.len() * rows);
-        for (j, to) in mine.zip(self.send.chunks_exact_mut(rows)) {
-            to.copy_from_slice(m.col_as_slice(j));
-        }
-        let counts: Vec<usize> = (0..p).map(|r| column_share(cols, p, r).len() * rows).collect();
-        set_len(&mut self.recv, cols * rows);
-        T::all_gather(comm, &self.send, &counts, &mut self.recv);
-        for (j, from) in self.recv.chunks_exact(rows).enumerate() {
-            m.col_as_slice_mut(j).copy_from_slice(from);
-        }
-    }
-}
 
 impl<T> Default for GatherBuffers<T> {
     fn default() -> Self {
