@@ -11,13 +11,13 @@
 //!
 //! The trailing columns (the right-hand side among them, so that it receives Q^T b without a pass
 //! of its own) are then updated at once with Q_panel^T = I - V T^T V^T: each rank forms its part
-//! of V^T V and of W = V^T A_trail, an all-reduce sums V^T V and every rank builds the same T.
-//! On 2 and 3 ranks an all-reduce sums W and every rank forms T^T W whole; from 4 ranks on
-//! ([`SHARED_FROM_RANKS`]) a reduce-scatter sums W in blocks of columns, one a rank, each rank
-//! forms its block of T^T W and the blocks are all-gathered (the traffic of the one all-reduce).
-//! Every rank then applies A_trail <- A_trail - V (T^T W) to its own rows with one local GEMM.
-//! That GEMM carries almost all the flops (4/3 n^3 in total, twice LU's). The matrix is never gathered;
-//! back substitution on R finishes the solve.
+//! of V^T V and of W = V^T A_trail, an all-reduce sums V^T V and every rank builds the same T,
+//! and an all-reduce sums W. Every rank then forms Y = V T^T for its own rows of V and applies
+//! A_trail <- A_trail - Y W to its own rows with one local GEMM, which carries almost all the
+//! flops (4/3 n^3 in total, twice LU's). Grouped as V (T^T W) instead, the kb x kb x (n - k)
+//! product T^T W would be formed whole on every rank, as the same work on 1 rank or 1,000; Y
+//! costs a rank kb^2 times its own rows. The matrix is never gathered; back substitution on R
+//! finishes the solve.
 //!
 //! Look-ahead: on the row-cyclic layout every rank holds rows of every panel and takes part in
 //! each of its all-reduces (one per column, then V^T V), so no rank can factor the next panel
@@ -38,7 +38,7 @@ use faer::{Accum, MatMut, MatRef, Par};
 use super::backsub::{back_substitute, Rows};
 use super::layout::RowCyclic;
 use super::solver::Job;
-use super::system::{LocalRows, RowIndex, SHARED_FROM_RANKS};
+use super::system::{LocalRows, RowIndex};
 use crate::error::Result;
 use crate::linalg::reflector::{wy_t, Reflector};
 use crate::par::Comm;
@@ -174,31 +174,32 @@ impl PanelWy {
     }
 }
 
-/// From [`SHARED_FROM_RANKS`] ranks on, T^T W with at least this many multiply-adds (kb^2 per
-/// trailing column) is formed in blocks of its columns, one a rank; smaller ones whole on every
-/// rank, where the collectives' latency would cost more than the flops they save.
-const SHARED_PRODUCT_MIN: usize = 1 << 20;
-
-/// The update of the trailing columns by a panel's Q^T = I - V T^T V^T: V and T^T W, W = V^T
-/// A_trail summed over the ranks, for the columns from the panel's end to `cols`.
+/// The update of the trailing columns by a panel's Q^T = I - V T^T V^T, as A_trail -= Y W with
+/// W = V^T A_trail summed over the ranks and Y = V T^T formed by each rank for its own rows of V:
+/// the same product as V (T^T W), but the kb x kb x rest product T^T W would be formed whole on
+/// every rank (nb n^2 multiply-adds over a factorisation on each rank, whatever the rank count),
+/// while Y costs a rank kb^2 times its own rows.
 struct Update<'a> {
     wy: &'a PanelWy,
     c0: usize,
-    tw: Vec<f64>,
+    /// Y = V T^T, this rank's rows (column-major, mr x kb).
+    y: Vec<f64>,
+    /// W, kb x (cols - c0), summed over the ranks.
+    w: Vec<f64>,
     par: Par,
 }
 
 impl<'a> Update<'a> {
-    /// Computes T^T W from this rank's rows of the trailing columns (all updated by the earlier
-    /// panels). Collective: one all-reduce of W.
+    /// Computes W from this rank's rows of the trailing columns (all updated by the earlier
+    /// panels) and Y. Collective: one all-reduce of W.
     fn of(comm: &dyn Comm, rows: &LocalRows, wy: &'a PanelWy, cols: usize, par: Par) -> Self {
         let (kb, c0) = (wy.kb, wy.k + wy.kb);
         let rest = cols - c0;
-        let mut wbuf = vec![0.0; kb * rest];
+        let mut w = vec![0.0; kb * rest];
         {
             let a_trail = rows.view().submatrix(wy.r0, c0, wy.mr, rest);
             gemm(
-                MatMut::from_column_major_slice_mut(&mut wbuf, kb, rest),
+                MatMut::from_column_major_slice_mut(&mut w, kb, rest),
                 Accum::Replace,
                 wy.v().transpose(),
                 a_trail,
@@ -206,46 +207,21 @@ impl<'a> Update<'a> {
                 par,
             );
         }
-        let mut tw = vec![0.0; kb * rest];
-        let tt = wy.t.as_ref().transpose();
-        let p = comm.size();
-        if p >= SHARED_FROM_RANKS && kb * kb * rest >= SHARED_PRODUCT_MIN {
-            // W summed in blocks of `width` columns (the last ones padded), one a rank; each rank
-            // forms its block of T^T W and the blocks are gathered: the traffic of the one
-            // all-reduce of W, with the product divided among the ranks
-            let width = rest.div_ceil(p);
-            let cols_of = |r: usize| (r * width).min(rest)..((r + 1) * width).min(rest);
-            wbuf.resize(kb * width * p, 0.0);
-            let mut sums = vec![0.0; kb * width];
-            comm.reduce_scatter_sum_f64(&wbuf, &mut sums);
-            let mine = cols_of(comm.rank()).len();
-            let mut part = vec![0.0; kb * mine];
-            gemm(
-                MatMut::from_column_major_slice_mut(&mut part, kb, mine),
-                Accum::Replace,
-                tt,
-                MatRef::from_column_major_slice(&sums[..kb * mine], kb, mine),
-                1.0,
-                par,
-            );
-            let counts: Vec<usize> = (0..p).map(|r| cols_of(r).len() * kb).collect();
-            comm.all_gather_f64(&part, &counts, &mut tw);
-        } else {
-            comm.sum_f64(&mut wbuf);
-            gemm(
-                MatMut::from_column_major_slice_mut(&mut tw, kb, rest),
-                Accum::Replace,
-                tt,
-                MatRef::from_column_major_slice(&wbuf, kb, rest),
-                1.0,
-                par,
-            );
-        }
-        Update { wy, c0, tw, par }
+        comm.sum_f64(&mut w);
+        let mut y = vec![0.0; wy.mr * kb];
+        gemm(
+            MatMut::from_column_major_slice_mut(&mut y, wy.mr, kb),
+            Accum::Replace,
+            wy.v(),
+            wy.t.as_ref().transpose(),
+            1.0,
+            par,
+        );
+        Update { wy, c0, y, w, par }
     }
 
-    /// A_trail -= V (T^T W) on the global columns c0..c1 of this rank's rows in `data`
-    /// (column-major, leading dimension `ld`, from global column `base`): one local GEMM.
+    /// A_trail -= Y W on the global columns c0..c1 of this rank's rows in `data` (column-major,
+    /// leading dimension `ld`, from global column `base`): one local GEMM.
     fn apply(&self, data: &mut [f64], ld: usize, base: usize, c0: usize, c1: usize) {
         let (r0, mr, kb) = (self.wy.r0, self.wy.mr, self.wy.kb);
         if c0 >= c1 || mr == 0 {
@@ -253,8 +229,9 @@ impl<'a> Update<'a> {
         }
         let all = MatMut::from_column_major_slice_mut(data, ld, data.len() / ld);
         let a = all.submatrix_mut(r0, c0 - base, mr, c1 - c0);
-        let tw = MatRef::from_column_major_slice(&self.tw, kb, self.tw.len() / kb.max(1));
-        gemm(a, Accum::Add, self.wy.v(), tw.subcols(c0 - self.c0, c1 - c0), -1.0, self.par);
+        let y = MatRef::from_column_major_slice(&self.y, mr, kb);
+        let w = MatRef::from_column_major_slice(&self.w, kb, self.w.len() / kb.max(1));
+        gemm(a, Accum::Add, y, w.subcols(c0 - self.c0, c1 - c0), -1.0, self.par);
     }
 }
 

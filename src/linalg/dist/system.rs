@@ -338,15 +338,6 @@ impl<T: Scalar> GatherBuffers<T> {
     }
 }
 
-/// From this many ranks on, the row-cyclic Householder QR forms T^T W in shares of its columns,
-/// one a rank, instead of whole on every rank. Whole, it costs every rank nb n^2 / 2
-/// multiply-adds over a factorisation whatever the rank count. Shared, it takes one more
-/// collective a panel. On 2 ranks (n = 8000, 2-core AMD EPYC, three runs each, alternating)
-/// sharing was no faster: Householder 15.8-16.1 s against 14.4-15.4 s, the saving a few per cent
-/// of the work and the extra collective's wait about as long. (The LU has no such product: its
-/// block form leaves each rank only its own rows' share, see `lu`.)
-pub(crate) const SHARED_FROM_RANKS: usize = 4;
-
 impl<T> Default for GatherBuffers<T> {
     fn default() -> Self {
         GatherBuffers { send: Vec::new(), recv: Vec::new(), out: Vec::new() }
