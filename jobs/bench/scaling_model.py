@@ -34,20 +34,23 @@ the collectives (no overlap, as in the code: no look-ahead).
 
 Row-cyclic (volspline, src/linalg/dist):
   Householder  per column one all-reduce of ~nb + 2 values (norm, x^T A, the pivot row); per
-               panel all-reduces of V^T V (nb^2) and of W = V^T A_trail (nb x m_j), T^T W (2 nb^2
-               m_j flops on every rank; from 4 ranks on a reduce-scatter of W, 2 nb^2 m_j / P flops
-               a rank and an all-gather, counted as the all-reduce) and the local update
-               4 (m_j/P) nb m_j.
+               panel all-reduces of V^T V (nb^2) and of W = V^T A_trail (nb x m_j) and the local
+               update 4 (m_j/P) nb m_j; with, in the code now, Y = V T^T for each rank's own rows
+               (2 nb^2 m_j / P flops), and in the revisions of the calibrating studies T^T W (2 nb^2
+               m_j flops on every rank; from 4 ranks on a reduce-scatter of W, 2 nb^2 m_j / P flops a
+               rank and an all-gather, counted as the all-reduce).
   LU           per column one all-gather of every rank's candidate with its row's leaf part
                (P (8 + 2) values: grows with P) and a row swap (point-to-point); per panel the interchange of the
                trailing rows (P - 1 shifts), the all-gather of the nb x m_j block row, and the local GEMM
-               2 (m_j/P) nb m_j; the recursive panel's leaves (8 columns) are BLAS-2. Two forms of the
-               step: the textbook one of the revisions that measured the calibrating studies, U12 =
-               L11^-1 A12 solved on every rank (nb^2 m_j; from 4 ranks on L11 all-gathered, A12 dealt
-               in column shares, counted as an all-gather of 1/P of it, nb^2 m_j / P a rank and the
-               all-gather of U12), used to validate against them; and the block form of the code since
-               (W = L21 L11^-1 for each rank's own rows, nb^2 m_j / P, no U12), used for the
-               predictions.
+               2 (m_j/P) nb m_j; the recursive panel's leaves (8 columns) are BLAS-2. With, in the
+               code now (block form), W = L21 L11^-1 for each rank's own rows (nb^2 m_j / P), and in
+               the revisions of the calibrating studies U12 = L11^-1 A12 solved on every rank (nb^2
+               m_j; from 4 ranks on L11 all-gathered, A12 dealt in column shares, counted as an
+               all-gather of 1/P of it, nb^2 m_j / P a rank and the all-gather of U12).
+  The validation against the studies models their revisions; the predictions model the code now.
+  Both rate a triangular solve as a GEMM of its flops, which flatters the textbook LU's U12 solve:
+  on a 2-core AVX-512 machine the block form made the 1-rank LU at n = 8000 4 % faster with the
+  same flops.
   Cholesky     the projection (6 n^2 k / P flops, one all-gather of n x k); per panel an all-gather
                of the diagonal block, its redundant Cholesky (nb^3 / 3), the local L21 solve, the
                all-gather of all of L21 (nb x m_j: the whole panel, not a block row) and the
@@ -75,8 +78,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 LEAF = 8  # columns of the leaves of volspline's recursive LU panel
-SHARED_MIN = 1 << 20  # U12 (textbook LU) and T^T W (Householder) of at least this many multiply-adds are shared
-SHARED_FROM = 4  # ... from this many ranks on
+SHARED_MIN = 1 << 20  # U12 (LU) and T^T W (Householder) of at least this many multiply-adds were shared
+SHARED_FROM = 4  # ... from this many ranks on (the revisions of the calibrating studies)
 # The default panels of the revisions that measured the calibrating studies below (36fbe80,
 # d92baee, a01d138; the last one's Cholesky took 384 from 6000 rows). Later revisions changed them
 # (Householder 128; LU 192, 320 from 6000 rows with faer's products; Cholesky 384 from 6000 rows):
@@ -213,10 +216,11 @@ def grid2d(p):
     return pr, p // pr
 
 
-def model_time(solver, layout, n, p, mach, eff, col_s, nb=None, grid=None, lu_block=True):
+def model_time(solver, layout, n, p, mach, eff, col_s, nb=None, grid=None, now=True):
     """Predicted solve time (s) of `solver` on an n x n system over p ranks (2D: on `grid`, the
-    squarest one by default). `lu_block`: the row-cyclic LU in block form (the code now), else in
-    the textbook form of the revisions that measured the calibrating studies."""
+    squarest one by default). `now`: the row-cyclic LU and Householder as the code runs them now
+    (products of each rank's own rows), else as the revisions that measured the calibrating
+    studies ran them (U12 and T^T W formed whole, or in shares from 4 ranks)."""
     nb = nb or NB[solver]
     net = mach.net
     share = max(1.0, p / mach.cores)  # ranks beyond the cores share them
@@ -237,9 +241,13 @@ def model_time(solver, layout, n, p, mach, eff, col_s, nb=None, grid=None, lu_bl
         locr = np.ceil(rest / p)
         if solver == "householder":
             flops = 2 * loc * kb**2 / g2 + 4 * loc * kb * cols / rate(loc)
-            # shared: a reduce-scatter of W and an all-gather of T^T W, the traffic of the all-reduce
-            shared = (kb**2 * cols >= SHARED_MIN) & (p >= SHARED_FROM)
-            redundant = 2 * kb**2 * cols / np.where(shared, p, 1) / g3 + kb**3 / 3 / g2
+            if now:
+                # Y = V T^T for this rank's rows
+                redundant = 2 * loc * kb**2 / rate(loc) + kb**3 / 3 / g2
+            else:
+                # shared: a reduce-scatter of W and an all-gather of T^T W, the traffic of the all-reduce
+                shared = (kb**2 * cols >= SHARED_MIN) & (p >= SHARED_FROM)
+                redundant = 2 * kb**2 * cols / np.where(shared, p, 1) / g3 + kb**3 / 3 / g2
             comm = (kb * allreduce(net, 8 * (kb + 2), p) + allreduce(net, 8 * kb**2, p) + allreduce(net, 8 * kb * cols, p))
         elif solver == "lu":
             leaf = loc * kb * LEAF
@@ -248,7 +256,7 @@ def model_time(solver, layout, n, p, mach, eff, col_s, nb=None, grid=None, lu_bl
             comm = (kb * (allgather(net, 8 * p * (LEAF + 2), p) + p2p(net, 8 * kb, p))
                     + inner * allgather(net, 0, p) + allgather(net, 8 * kb**2 * np.log2(np.maximum(kb / LEAF, 1)) / 2, p)
                     + (p - 1) * p2p(net, 0, p) + (2 * 8 * kb * cols / p * net["pingpong"][1] if p > 1 else 0))
-            if lu_block:
+            if now:
                 # W = L21 L11^-1 for this rank's rows; the block row all-gathered whole
                 redundant = loc * kb**2 / rate(loc)
                 comm = comm + allgather(net, 8 * kb * (cols + kb), p)
@@ -322,7 +330,7 @@ def calibrate(best, solver, mach):
 
     def res(v):
         eff, c = math.exp(v[0]), math.exp(v[1])
-        return [math.log(model_time(solver, "row", n, 1, mach, eff, c, lu_block=False)) - math.log(t) for n, t in pts]
+        return [math.log(model_time(solver, "row", n, 1, mach, eff, c, now=False)) - math.log(t) for n, t in pts]
 
     s = least_squares(res, [math.log(0.5), math.log(1e-6)], bounds=([-5, -25], [4, -5]))
     return math.exp(s.x[0]), math.exp(s.x[1]), float(np.sqrt(np.mean(np.square(s.fun))))
@@ -366,7 +374,7 @@ def validate_2d(root, calib, machines):
             p = pr * pc
             tp = model_time(solver, "2d", n, p, mach, eff, c, nb=nb, grid=(pr, pc))
             trow = row_best.get((solver, n, p))
-            prow = model_time(solver, "row", n, p, mach, eff, c, lu_block=False)
+            prow = model_time(solver, "row", n, p, mach, eff, c, now=False)
             errs.append(abs(relerr(tp, t)))
             L.append(f"| {os.path.basename(folder)} | {solver} | {n} | {grid} | {nb} | {t:.3f} | {tp:.3f} | "
                      f"{100 * relerr(tp, t):+.0f} % | {f'{trow:.3f}' if trow else ''} | "
@@ -447,11 +455,11 @@ def main(out):
                 meas = [best[(solver, n, p)] for p in ps]
                 pgrid = sorted(set(ps) | {1, 2, 4, 8, 16})
                 pgrid = [p for p in pgrid if p <= max(ps)]
-                pred = [model_time(solver, "row", n, p, mach, eff, mh, lu_block=False) for p in pgrid]
+                pred = [model_time(solver, "row", n, p, mach, eff, mh, now=False) for p in pgrid]
                 line = ax.loglog(pgrid, pred, "-")
                 ax.loglog(ps, meas, "o", color=line[0].get_color(), label=f"N+k={n}")
                 for p, t in zip(ps, meas):
-                    tp = model_time(solver, "row", n, p, mach, eff, mh, lu_block=False)
+                    tp = model_time(solver, "row", n, p, mach, eff, mh, now=False)
                     over = p > cores
                     val_rows.append([label, solver, n, p, t, tp, relerr(tp, t), "yes" if over else "no"])
                     if p > 1 and not over:
