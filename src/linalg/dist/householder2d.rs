@@ -14,7 +14,8 @@
 //!    diagonal, zeros above).
 //! 3. Every rank forms its part of W = V^T A_trail for its columns right of the panel (the
 //!    right-hand side among them, so that it receives Q^T b on the way), one all-reduce over the
-//!    process column sums it, and A_trail <- A_trail - V (T^T W) is one local GEMM.
+//!    process column sums it, and A_trail <- A_trail - V T^T W is one local GEMM, T^T joined to
+//!    the shorter side of the rank's block first (see `Update`).
 //!
 //! R and Q^T b end where U and L^-1 P b end in the 2D LU, so its back substitution finishes the
 //! solve. With look-ahead the process column of the next panel applies step 3 to that panel's
@@ -123,19 +124,25 @@ fn factor_and_pack(grid: &ProcessGrid<'_>, a: &mut LocalBlocks, k: usize) -> Vec
     panel
 }
 
-/// The block update A_trail <- A_trail - V (T^T W) of one panel, W = V^T A_trail summed over the
+/// The block update A_trail <- A_trail - V T^T W of one panel, W = V^T A_trail summed over the
 /// process column once for all this rank's columns right of the panel; applied by column ranges.
+/// The kb x kb factor T^T joins the shorter side of this rank's block: (V T^T) W where the rank
+/// holds fewer rows than trailing columns (a 2x1 grid: every rank holds every column), V (T^T W)
+/// otherwise, so the product that the ranks of a process row (or column) would each form whole
+/// costs kb^2 times the smaller of the two.
 struct Update<'p> {
     /// This process row's rows k.. of V (m x kb, column-major).
     v: MatRef<'p, f64>,
-    /// T^T W for the local columns lc1.. (kb x columns, column-major).
-    tw: Vec<f64>,
+    /// Y = V T^T (m x kb, column-major) where T^T joins V; none where it joins W.
+    y: Option<Vec<f64>>,
+    /// W, or T^T W where there is no Y, for the local columns lc1.. (kb x columns, column-major).
+    right: Vec<f64>,
     lr0: usize,
     lc1: usize,
 }
 
 impl<'p> Update<'p> {
-    /// Forms T^T W from the packed panel. Collective over the process column.
+    /// Forms W and Y, or T^T W, from the packed panel. Collective over the process column.
     fn new(
         grid: &ProcessGrid<'_>,
         a: &LocalBlocks,
@@ -159,6 +166,14 @@ impl<'p> Update<'p> {
         }
         grid.col.sum_f64(&mut wbuf);
         let t = MatRef::from_column_major_slice(&panel[t_at..v_at], kb, kb);
+        if m < w {
+            let mut y = vec![0.0; m * kb];
+            if m > 0 {
+                let ym = MatMut::from_column_major_slice_mut(&mut y, m, kb);
+                gemm(ym, Accum::Replace, v, t.transpose(), 1.0, job.par);
+            }
+            return Update { v, y: Some(y), right: wbuf, lr0, lc1 };
+        }
         let mut tw = vec![0.0; kb * w];
         if w > 0 {
             let twm = MatMut::from_column_major_slice_mut(&mut tw, kb, w);
@@ -171,7 +186,7 @@ impl<'p> Update<'p> {
                 job.par,
             );
         }
-        Update { v, tw, lr0, lc1 }
+        Update { v, y: None, right: tw, lr0, lc1 }
     }
 
     /// The update of the local columns c0..c1 (one GEMM).
@@ -181,14 +196,18 @@ impl<'p> Update<'p> {
         if c0 >= c1 || m == 0 {
             return;
         }
-        let w = self.tw.len() / kb;
-        let tw = MatRef::from_column_major_slice(&self.tw, kb, w).subcols(c0 - self.lc1, c1 - c0);
+        let w = self.right.len() / kb;
+        let right = MatRef::from_column_major_slice(&self.right, kb, w).subcols(c0 - self.lc1, c1 - c0);
+        let left = match &self.y {
+            Some(y) => MatRef::from_column_major_slice(y, m, kb),
+            None => self.v,
+        };
         let trail = MatMut::from_column_major_slice_with_stride_mut(
             &mut a.data[self.lr0 + c0 * ld..],
             m,
             c1 - c0,
             ld,
         );
-        gemm(trail, Accum::Add, self.v, tw, -1.0, job.par);
+        gemm(trail, Accum::Add, left, right, -1.0, job.par);
     }
 }
