@@ -107,9 +107,9 @@ pub struct FitArgs {
     /// made the N+k = 8000 solves 17-28 % faster than faer's product.
     #[arg(long, default_value = "auto", value_name = "auto|blas|faer", value_parser = with(Engine::parse))]
     pub gemm: Engine,
-    /// Panel (block) width of the distributed solvers (0: automatic, 128 for householder, 192 for
-    /// lu (with faer's products, 320 from 6000 rows), 256 for cholesky below 6000 rows and 384
-    /// from 6000; on a 2D grid the block size, 128).
+    /// Panel (block) width of the distributed solvers (0: automatic, 192 for householder (128
+    /// with faer's products), 192 for lu (with faer's products, 320 from 6000 rows), 256 for
+    /// cholesky below 6000 rows and 384 from 6000; on a 2D grid the block size, 128).
     #[arg(long, allow_negative_numbers = true, default_value_t = 0, value_name = "NB")]
     pub panel: usize,
     /// Look-ahead of the factorisations: on, off, or auto (the default). On the row-cyclic
