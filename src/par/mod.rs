@@ -61,15 +61,9 @@ pub trait Comm {
     /// each rank r (the caller knows both; each rank's `send_counts[r]` must equal rank r's
     /// `recv_counts` entry for it). Redistributes a matrix between layouts.
     fn all_to_all_f64(&self, send: &[f64], send_counts: &[usize], recv: &mut [f64], recv_counts: &[usize]);
-    /// Element-wise sum over ranks of `send` (`size()` blocks of `recv.len()` values), of which
-    /// rank r receives block r in `recv` (MPI_Reduce_scatter_block): half the traffic of
-    /// [`Comm::sum_f64`] where each rank needs only its block.
-    fn reduce_scatter_sum_f64(&self, send: &[f64], recv: &mut [f64]);
     /// [`Comm::all_gather_f64`] of single-precision values (the factors of a mixed-precision
     /// solve travel at half the bytes).
     fn all_gather_f32(&self, send: &[f32], counts: &[usize], recv: &mut [f32]);
-    /// [`Comm::all_to_all_f64`] of single-precision values.
-    fn all_to_all_f32(&self, send: &[f32], send_counts: &[usize], recv: &mut [f32], recv_counts: &[usize]);
     /// [`Comm::shift_f64`] of single-precision values.
     fn shift_f32(&self, dest: usize, source: usize, send: &[f32], recv: &mut [f32]);
     /// [`Comm::all_gather_f64`] that calls `work` while the messages are in flight (a look-ahead

@@ -217,16 +217,6 @@ impl Comm for MpiComm {
     fn all_to_all_f64(&self, send: &[f64], send_counts: &[usize], recv: &mut [f64], recv_counts: &[usize]) {
         self.all_to_all(send, send_counts, recv, recv_counts);
     }
-    fn all_to_all_f32(&self, send: &[f32], send_counts: &[usize], recv: &mut [f32], recv_counts: &[usize]) {
-        self.all_to_all(send, send_counts, recv, recv_counts);
-    }
-    fn reduce_scatter_sum_f64(&self, send: &[f64], recv: &mut [f64]) {
-        if self.size == 1 {
-            recv.copy_from_slice(send);
-            return;
-        }
-        self.comm.reduce_scatter_block_into(send, recv, SystemOperation::sum());
-    }
     fn all_gather_f32(&self, send: &[f32], counts: &[usize], recv: &mut [f32]) {
         self.all_gather(send, counts, recv);
     }

@@ -32,12 +32,6 @@ impl Comm for Solo {
     fn all_to_all_f64(&self, send: &[f64], _: &[usize], recv: &mut [f64], _: &[usize]) {
         recv.copy_from_slice(send);
     }
-    fn reduce_scatter_sum_f64(&self, send: &[f64], recv: &mut [f64]) {
-        recv.copy_from_slice(send);
-    }
-    fn all_to_all_f32(&self, send: &[f32], _: &[usize], recv: &mut [f32], _: &[usize]) {
-        recv.copy_from_slice(send);
-    }
     fn all_gather_f32(&self, send: &[f32], _: &[usize], recv: &mut [f32]) {
         recv.copy_from_slice(send);
     }

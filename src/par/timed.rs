@@ -168,14 +168,6 @@ impl Comm for Timed<'_> {
             self.comm().all_to_all_f64(send, send_counts, recv, recv_counts)
         })
     }
-    fn reduce_scatter_sum_f64(&self, send: &[f64], recv: &mut [f64]) {
-        self.timed(CallKind::Reduce, || self.comm().reduce_scatter_sum_f64(send, recv))
-    }
-    fn all_to_all_f32(&self, send: &[f32], send_counts: &[usize], recv: &mut [f32], recv_counts: &[usize]) {
-        self.timed(gather_kind(recv.len()), || {
-            self.comm().all_to_all_f32(send, send_counts, recv, recv_counts)
-        })
-    }
     fn all_gather_f32(&self, send: &[f32], counts: &[usize], recv: &mut [f32]) {
         self.timed(gather_kind(recv.len()), || self.comm().all_gather_f32(send, counts, recv))
     }

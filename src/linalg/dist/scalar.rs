@@ -21,14 +21,6 @@ pub trait Scalar: RealField + Gemm + Copy + Send + Sync + std::ops::Neg<Output =
     fn magnitude(self) -> Self;
     /// [`Comm::all_gather_f64`] for this type.
     fn all_gather(comm: &dyn Comm, send: &[Self], counts: &[usize], recv: &mut [Self]);
-    /// [`Comm::all_to_all_f64`] for this type.
-    fn all_to_all(
-        comm: &dyn Comm,
-        send: &[Self],
-        send_counts: &[usize],
-        recv: &mut [Self],
-        recv_counts: &[usize],
-    );
     /// [`Comm::shift_f64`] for this type.
     fn shift(comm: &dyn Comm, dest: usize, source: usize, send: &[Self], recv: &mut [Self]);
     /// [`Comm::all_gather_f64_while`] for this type.
@@ -43,7 +35,7 @@ pub trait Scalar: RealField + Gemm + Copy + Send + Sync + std::ops::Neg<Output =
 
 /// The impl for one float type, its collectives the [`Comm`] methods of that type.
 macro_rules! scalar {
-    ($t:ty, $all_gather:ident, $all_to_all:ident, $shift:ident, $all_gather_while:ident) => {
+    ($t:ty, $all_gather:ident, $shift:ident, $all_gather_while:ident) => {
         impl Scalar for $t {
             const EPSILON: f64 = <$t>::EPSILON as f64;
             #[inline]
@@ -61,15 +53,6 @@ macro_rules! scalar {
             fn all_gather(comm: &dyn Comm, send: &[Self], counts: &[usize], recv: &mut [Self]) {
                 comm.$all_gather(send, counts, recv);
             }
-            fn all_to_all(
-                comm: &dyn Comm,
-                send: &[Self],
-                send_counts: &[usize],
-                recv: &mut [Self],
-                recv_counts: &[usize],
-            ) {
-                comm.$all_to_all(send, send_counts, recv, recv_counts);
-            }
             fn shift(comm: &dyn Comm, dest: usize, source: usize, send: &[Self], recv: &mut [Self]) {
                 comm.$shift(dest, source, send, recv);
             }
@@ -86,8 +69,8 @@ macro_rules! scalar {
     };
 }
 
-scalar!(f64, all_gather_f64, all_to_all_f64, shift_f64, all_gather_f64_while);
-scalar!(f32, all_gather_f32, all_to_all_f32, shift_f32, all_gather_f32_while);
+scalar!(f64, all_gather_f64, shift_f64, all_gather_f64_while);
+scalar!(f32, all_gather_f32, shift_f32, all_gather_f32_while);
 
 on_widest_unit! {
     /// The products of W columns with x, the columns widened to f64, reading x once for all of
