@@ -497,8 +497,9 @@ fn by_blas(par: Par) -> bool {
 }
 
 /// Whether the products of a solver running with parallelism `par` go to the BLAS, where every
-/// rank is known to have the same engine ([`choose_agreed`] ran); false otherwise: what may decide a choice the ranks must share, such as a solver's panel width
-/// (without the agreement a job spread over unlike nodes could pick two widths and deadlock).
+/// rank is known to have the same engine ([`choose_agreed`] ran); false otherwise: what may
+/// decide a choice the ranks must share, such as a solver's panel width (without the agreement
+/// a job spread over unlike nodes could pick two widths and deadlock).
 pub fn by_blas_on_every_rank(par: Par) -> bool {
     AGREED.load(Ordering::Relaxed) && by_blas(par)
 }

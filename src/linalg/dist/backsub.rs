@@ -67,10 +67,7 @@ pub fn back_substitute(
         let block = all_gather_rows(comm, lay, &send, b0..b1, bs + 1);
         let mut z: Vec<f64> = (0..bs).map(|i| block[i * (bs + 1) + bs]).collect();
         if form == Rows::BlockLu {
-            for i in 0..bs {
-                let row = &block[i * (bs + 1)..i * (bs + 1) + i];
-                z[i] -= row.iter().zip(&z[..i]).map(|(l, z)| l * z).sum::<f64>();
-            }
+            solve_unit_lower_rows(&block, bs + 1, &mut z);
         }
         for i in (0..bs).rev() {
             let row = &block[i * (bs + 1)..(i + 1) * (bs + 1)];
@@ -97,4 +94,13 @@ pub fn back_substitute(
         b1 = b0;
     }
     Ok(x)
+}
+
+/// z <- L11^-1 z for the unit lower triangle of a block stored row by row, `stride` values a row
+/// (its entries below the diagonal are read): a block form's diagonal solve.
+pub(super) fn solve_unit_lower_rows(block: &[f64], stride: usize, z: &mut [f64]) {
+    for i in 0..z.len() {
+        let row = &block[i * stride..i * stride + i];
+        z[i] -= row.iter().zip(&z[..i]).map(|(l, z)| l * z).sum::<f64>();
+    }
 }

@@ -77,10 +77,10 @@ pub fn lu_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>> {
 /// documentation; the right-hand side column is carried along as a column of A12 and A22), and
 /// returns the row interchanges (j, p), in the order applied: panel by panel, j ascending.
 /// Collective. Column j of W is left where the interchanges of its own panel put it: the later
-/// panels' interchanges reach only the columns right of their panel. With `job.lookahead`, the trailing update of each panel runs in the
-/// pivot searches of the next one (see the module documentation); the factors are the same up to
-/// rounding (the GEMM pieces are of other widths: 9e-14 relative in the weights of a 3000-point
-/// fit on 2 ranks).
+/// panels' interchanges reach only the columns right of their panel. With `job.lookahead`, the
+/// trailing update of each panel runs in the pivot searches of the next one (see the module
+/// documentation); the factors are the same up to rounding (the GEMM pieces are of other widths:
+/// 9e-14 relative in the weights of a 3000-point fit on 2 ranks).
 pub fn lu_factor<T: Scalar>(job: &Job<'_>, rows: &mut LocalRows<T>) -> Result<Vec<(usize, usize)>> {
     let Job { comm, panel, par, progress, lookahead } = *job;
     // on one rank there are no messages to overlap with
@@ -156,9 +156,10 @@ fn factor_panel<T: Scalar>(
 
 /// The block elimination of the factored columns a..m on the columns m..c1, the update of this
 /// rank's rows below m by the left factor stored in columns a..m (L21 inside a panel, W at its
-/// end) times `right`, column range by column range, with the columns `next..c1` still to do. `overlap`: the pieces run in the windows of the
-/// pivot searches (decided alike on every rank: a blocking and a non-blocking all-gather do not
-/// match, while how many pieces a window takes depends on the timing of each rank).
+/// end) times `right`, column range by column range, with the columns `next..c1` still to do.
+/// `overlap`: the pieces run in the windows of the pivot searches (decided alike on every rank: a
+/// blocking and a non-blocking all-gather do not match, while how many pieces a window takes
+/// depends on the timing of each rank).
 struct Trailing<T> {
     a: usize,
     m: usize,

@@ -31,6 +31,7 @@
 use crate::linalg::gemm::gemm;
 use faer::{Accum, MatMut, MatRef, Par};
 
+use super::backsub::solve_unit_lower_rows;
 use super::lu::lu_factor;
 use super::scalar::update_widened;
 use super::solver::Job;
@@ -115,10 +116,7 @@ impl Approximate for Factors {
             let (k0, k1) = (w[0], w[1]);
             let b = k1 - k0;
             let mut zb = gather(&own, k0, k1);
-            for i in 0..b {
-                let s: f64 = (0..i).map(|j| d[i * b + j] * zb[j]).sum();
-                zb[i] -= s;
-            }
+            solve_unit_lower_rows(d, b, &mut zb);
             for i in (0..b).rev() {
                 let s: f64 = (i + 1..b).map(|j| d[i * b + j] * zb[j]).sum();
                 zb[i] = (zb[i] - s) / d[i * b + i];
