@@ -108,7 +108,7 @@ fn child() {
         drop(world);
         std::process::exit(i32::from(failed > 0));
     }
-    let checks: [(&str, Check); 19] = [
+    let checks: [(&str, Check); 20] = [
         ("typed collectives", typed_collectives),
         ("agree: one failing rank", agree_one_failing_rank),
         ("agree: two failing ranks, the lowest wins", agree_lowest_rank_wins),
@@ -128,6 +128,11 @@ fn child() {
         ("parallel VTKHDF write vs serial values", vtkhdf_slabs_read_back),
         ("contour slices vs one process", sections_match_solo),
         ("blob lattice: whole, a window and scattered nodes vs one process", lattice_samples_match_solo),
+        // last: it agrees on the products' engine for the rest of the process
+        (
+            "Householder with the products' engine agreed vs the dense oracle",
+            householder_agreed_matches_the_oracle,
+        ),
     ];
     let failed = mpijob::run_checks(comm, &checks);
     drop(world);
@@ -382,6 +387,50 @@ fn row_cyclic_lookahead_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
         log.check(r.converged, || format!("{what}: refinement {}", r.describe()));
         log.close(&x, &want, 1e-7, || what.clone());
         same_on_every_rank(comm, log, &x, &what);
+    }
+}
+
+/// The row-cyclic and 2D Householder QR once the ranks have agreed on the products' engine (as
+/// `fit` does): with the BLAS on every rank, W = V^T A_trail is formed and summed as W^T, which
+/// the checks above (no agreement) never take. Against the dense QR oracle, with and without
+/// look-ahead, on the row-cyclic layout and on the grids P x 1 and 1 x P. Changes the process's
+/// engine state: run last.
+fn householder_agreed_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
+    use volspline::linalg::gemm::{self, Engine};
+    let engine = gemm::choose_agreed(comm, Engine::Auto);
+    log.check(gemm::by_blas_on_every_rank(faer::Par::Seq) == (engine == Engine::Blas), || {
+        format!("the agreed engine {} and the solvers' choice of form disagree", engine.name())
+    });
+    let k = Kernel::new(3, 2).unwrap();
+    let prep =
+        must(prepare(&common::bunny_subset(5, 2), &k, &Carrier::AutoBall, 1e-6), "prepare the bunny points");
+    let n = system_size(&k, prep.values.len());
+    let want = oracle(&prep, &k, householder_solve);
+    let layout = RowCyclic::new(n, comm.size(), comm.rank());
+    for (panel, lookahead) in [(3, false), (16, true), (64, false), (64, true)] {
+        let job = Job::on(comm).panel(panel).lookahead(lookahead);
+        let mut rows = assemble(&k, &prep.centres, &prep.values, layout);
+        let x = must(SolverKind::Householder.run(&job, &mut rows), "householder");
+        let what = format!("householder ({}) panel {panel} look-ahead {lookahead}", engine.name());
+        log.close(&x, &want, 1e-9, || what.clone());
+        same_on_every_rank(comm, log, &x, &what);
+    }
+    let p = comm.size();
+    for shape in [(p, 1), (1, p)] {
+        let grid = must(dist::ProcessGrid::new(comm, shape), "the process grid");
+        for (nb, lookahead) in [(7, true), (64, false)] {
+            let what = format!(
+                "householder2d ({}) {}x{} block {nb} look-ahead {lookahead}",
+                engine.name(),
+                shape.0,
+                shape.1
+            );
+            let mut a = assemble_blocks(&k, &prep.centres, &prep.values, &grid, nb);
+            let x =
+                must(dist::householder2d_solve(&Job::on(comm).lookahead(lookahead), &grid, &mut a), &what);
+            log.close(&x, &want, 1e-9, || what.clone());
+            same_on_every_rank(comm, log, &x, &what);
+        }
     }
 }
 

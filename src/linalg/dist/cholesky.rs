@@ -80,8 +80,9 @@ use crate::error::{Error, Result};
 use crate::linalg::reflector::{apply, explicit_v, qr_in_place, wy_t};
 use crate::par::Comm;
 
-/// Local rows per GEMM of the trailing update where a column block meets the diagonal: small
-/// enough that the triangle is followed closely, large enough for BLAS-3 speed.
+/// Local rows of the smallest GEMMs of the trailing update where a column block meets the
+/// diagonal ([`triangle_pieces`]): small enough that the triangle is followed closely (a piece
+/// computes the entries above the diagonal of its last row too), large enough for BLAS-3 speed.
 const ROW_CHUNK: usize = 96;
 
 /// Columns of each rank's part of L21^T per block of the trailing update (a block spans this
@@ -642,8 +643,8 @@ struct Piece {
 /// The GEMMs of the update B22 -= L21 L21^T after a panel that ends at column p1, in the lower
 /// triangle of this rank's rows: the columns of the next panel (p1..split) first, then blocks of
 /// [`COL_BLOCK`] x ranks columns up to n. Within a block c0..c1 the rows whose global index lies in the
-/// block take the columns up to their diagonal, [`ROW_CHUNK`] rows at a time; the rows below it
-/// take the whole block, [`ROW_BLOCK`] rows at a time. Every lower-triangle entry of rows and
+/// block take the columns up to their diagonal ([`triangle_pieces`]); the rows below it take the
+/// whole block, [`ROW_BLOCK`] rows at a time. Every lower-triangle entry of rows and
 /// columns p1..n is in exactly one piece.
 fn trailing_pieces(lay: RowCyclic, (p1, split, n): (usize, usize, usize)) -> Vec<Piece> {
     let la = lay.first_local_from(n);
@@ -652,12 +653,10 @@ fn trailing_pieces(lay: RowCyclic, (p1, split, n): (usize, usize, usize)) -> Vec
     while c0 < n {
         let c1 = if c0 == p1 { split } else { (c0 + COL_BLOCK * lay.ranks).min(n) };
         let (r0, r1) = (lay.first_local_from(c0), lay.first_local_from(c1));
-        let mut a = r0;
-        while a < r1 {
-            let b = (a + ROW_CHUNK).min(r1);
-            pieces.push(Piece { rows: (a, b), cols: (c0, c1.min(lay.global(b - 1) + 1)) });
-            a = b;
+        if r0 < r1 {
+            triangle_pieces(lay, (r0, r1), c0, &mut pieces);
         }
+        let mut a = r1;
         while a < la {
             let b = (a + ROW_BLOCK).min(la);
             pieces.push(Piece { rows: (a, b), cols: (c0, c1) });
@@ -738,6 +737,24 @@ fn prepare_panel<T: Scalar>(
     }
     all_gather_packed_while(comm, lay, (p1, n, pb), bufs, false, work);
     Ok(l11)
+}
+
+/// The pieces of the lower triangle of local rows a..b (a < b), all of whose global indices are
+/// at least c0, in the columns from c0 to their diagonal: halved recursively, the lower half's
+/// columns left of its first row a full rectangle, until [`ROW_CHUNK`] rows are left, which take
+/// the columns up to the diagonal of their last row. Most of the triangle's flops so run in
+/// GEMMs of hundreds of rows; chunks of [`ROW_CHUNK`] rows all along the diagonal ran at 70 % of
+/// the rate of large ones, and the triangle holds a share of the update that grows with the
+/// ranks (the blocks of columns span [`COL_BLOCK`] x ranks).
+fn triangle_pieces(lay: RowCyclic, (a, b): (usize, usize), c0: usize, pieces: &mut Vec<Piece>) {
+    if b - a <= ROW_CHUNK {
+        pieces.push(Piece { rows: (a, b), cols: (c0, lay.global(b - 1) + 1) });
+        return;
+    }
+    let mid = a + (b - a) / 2;
+    triangle_pieces(lay, (a, mid), c0, pieces);
+    pieces.push(Piece { rows: (mid, b), cols: (c0, lay.global(mid)) });
+    triangle_pieces(lay, (mid, b), lay.global(mid), pieces);
 }
 
 /// Cholesky of a small symmetric matrix (row-major, lower triangle used) by faer's blocked kernel;

@@ -22,7 +22,7 @@
 //! columns first, factors it and starts its broadcast (non-blocking) while every rank runs the
 //! rest of step 3 in pieces; the factors are the same.
 
-use crate::linalg::gemm::gemm;
+use crate::linalg::gemm::{by_blas_on_every_rank, gemm};
 use faer::{Accum, MatMut, MatRef};
 
 use super::grid::{update_and_next_panel, LocalBlocks, ProcessGrid};
@@ -135,8 +135,13 @@ struct Update<'p> {
     v: MatRef<'p, f64>,
     /// Y = V T^T (m x kb, column-major) where T^T joins V; none where it joins W.
     y: Option<Vec<f64>>,
-    /// W, or T^T W where there is no Y, for the local columns lc1.. (kb x columns, column-major).
+    /// W, or T^T W where there is no Y, for the local columns lc1.. (kb x columns, column-major),
+    /// or its transpose (columns x kb) with `transposed`.
     right: Vec<f64>,
+    /// Whether `right` is stored transposed: where the BLAS computes the products on every
+    /// rank, which forms A_trail^T V faster than V^T A_trail (see the row-cyclic Householder's
+    /// `Update`).
+    transposed: bool,
     lr0: usize,
     lc1: usize,
 }
@@ -159,10 +164,17 @@ impl<'p> Update<'p> {
         let lc1 = cols.first_local_from(k + kb);
         let w = cols.local_count() - lc1;
         let mut wbuf = vec![0.0; kb * w];
+        // the same on every rank of the process column, which sums W as stored
+        let transposed = by_blas_on_every_rank(job.par);
         if w > 0 && m > 0 {
             let trail = MatRef::from_column_major_slice_with_stride(&a.data[lr0 + lc1 * ld..], m, w, ld);
-            let wm = MatMut::from_column_major_slice_mut(&mut wbuf, kb, w);
-            gemm(wm, Accum::Replace, v.transpose(), trail, 1.0, job.par);
+            if transposed {
+                let wm = MatMut::from_column_major_slice_mut(&mut wbuf, w, kb);
+                gemm(wm, Accum::Replace, trail.transpose(), v, 1.0, job.par);
+            } else {
+                let wm = MatMut::from_column_major_slice_mut(&mut wbuf, kb, w);
+                gemm(wm, Accum::Replace, v.transpose(), trail, 1.0, job.par);
+            }
         }
         grid.col.sum_f64(&mut wbuf);
         let t = MatRef::from_column_major_slice(&panel[t_at..v_at], kb, kb);
@@ -172,21 +184,21 @@ impl<'p> Update<'p> {
                 let ym = MatMut::from_column_major_slice_mut(&mut y, m, kb);
                 gemm(ym, Accum::Replace, v, t.transpose(), 1.0, job.par);
             }
-            return Update { v, y: Some(y), right: wbuf, lr0, lc1 };
+            return Update { v, y: Some(y), right: wbuf, transposed, lr0, lc1 };
         }
         let mut tw = vec![0.0; kb * w];
         if w > 0 {
-            let twm = MatMut::from_column_major_slice_mut(&mut tw, kb, w);
-            gemm(
-                twm,
-                Accum::Replace,
-                t.transpose(),
-                MatRef::from_column_major_slice(&wbuf, kb, w),
-                1.0,
-                job.par,
-            );
+            if transposed {
+                // (T^T W)^T = W^T T
+                let twm = MatMut::from_column_major_slice_mut(&mut tw, w, kb);
+                gemm(twm, Accum::Replace, MatRef::from_column_major_slice(&wbuf, w, kb), t, 1.0, job.par);
+            } else {
+                let twm = MatMut::from_column_major_slice_mut(&mut tw, kb, w);
+                let wm = MatRef::from_column_major_slice(&wbuf, kb, w);
+                gemm(twm, Accum::Replace, t.transpose(), wm, 1.0, job.par);
+            }
         }
-        Update { v, y: None, right: tw, lr0, lc1 }
+        Update { v, y: None, right: tw, transposed, lr0, lc1 }
     }
 
     /// The update of the local columns c0..c1 (one GEMM).
@@ -197,7 +209,12 @@ impl<'p> Update<'p> {
             return;
         }
         let w = self.right.len() / kb;
-        let right = MatRef::from_column_major_slice(&self.right, kb, w).subcols(c0 - self.lc1, c1 - c0);
+        let right = if self.transposed {
+            MatRef::from_column_major_slice(&self.right, w, kb).transpose()
+        } else {
+            MatRef::from_column_major_slice(&self.right, kb, w)
+        };
+        let right = right.subcols(c0 - self.lc1, c1 - c0);
         let left = match &self.y {
             Some(y) => MatRef::from_column_major_slice(y, m, kb),
             None => self.v,
