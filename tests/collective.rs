@@ -207,8 +207,21 @@ fn typed_collectives(comm: &dyn Comm, log: &mut Log) {
         timed.all_gather_f32_while(&send32, &counts, &mut recv32, &mut || false);
         let want32: Vec<f32> = want.iter().map(|&v| v as f32).collect();
         log.check(recv32 == want32, || format!("all_gather_f32_while: {recv32:?}, expected {want32:?}"));
+        // the non-blocking sum runs its work to the end, in flight or after
+        let mut ran = 0;
+        let mut work = || {
+            ran += 1;
+            ran < pieces
+        };
+        let mut sum = vec![r as f64 + 0.25, -(r as f64) * 1e10, 1.0];
+        timed.sum_f64_while(&mut sum, &mut work);
+        let want_sums = vec![want_sum, -((p * (p - 1) / 2) as f64) * 1e10, p as f64];
+        log.check(sum == want_sums, || {
+            format!("sum_f64_while ({pieces} pieces): {sum:?}, expected {want_sums:?}")
+        });
+        log.check(ran == pieces.max(1), || format!("sum_f64_while: work ran {ran} times of {pieces}"));
     }
-    log.check(timed.calls() == 6, || format!("Timed counted {} calls, expected 6", timed.calls()));
+    log.check(timed.calls() == 9, || format!("Timed counted {} calls, expected 9", timed.calls()));
     // the ring, both ways
     for step in [1, p - 1] {
         let (dest, source) = ((r + step) % p, (r + p - step) % p);

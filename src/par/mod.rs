@@ -89,6 +89,15 @@ pub trait Comm {
         while work() {}
         self.broadcast_f64(root, buf);
     }
+    /// [`Comm::sum_f64`] that calls `work` while the sums are in flight, as
+    /// [`Comm::broadcast_f64_while`] does (the Householder QR forms its Y = V T^T while W is
+    /// summed): `work` runs until it has nothing more to do, the rest of it after the sum where
+    /// the sum completes first. Every rank must call this one (a blocking and a non-blocking
+    /// reduction do not match). Without non-blocking collectives, `work` runs and the sum follows.
+    fn sum_f64_while(&self, buf: &mut [f64], work: &mut dyn FnMut() -> bool) {
+        while work() {}
+        self.sum_f64(buf);
+    }
     /// [`Comm::all_gather_f64_while`] of single-precision values.
     fn all_gather_f32_while(
         &self,

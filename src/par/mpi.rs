@@ -273,6 +273,17 @@ impl Comm for MpiComm {
     fn broadcast_f64_while(&self, root: usize, buf: &mut [f64], work: &mut dyn FnMut() -> bool) {
         self.broadcast_while(root, buf, work);
     }
+    fn sum_f64_while(&self, buf: &mut [f64], work: &mut dyn FnMut() -> bool) {
+        if self.size == 1 {
+            while work() {}
+            return;
+        }
+        let send = buf.to_vec();
+        let more = mpi::request::scope(|scope| {
+            overlap(self.comm.immediate_all_reduce_into(scope, &send[..], buf, SystemOperation::sum()), work)
+        });
+        while more && work() {}
+    }
     fn split(&self, color: usize, key: usize) -> Box<dyn Comm + '_> {
         let sub = self
             .comm

@@ -197,6 +197,9 @@ impl Comm for Timed<'_> {
     fn broadcast_f64_while(&self, root: usize, buf: &mut [f64], work: &mut dyn FnMut() -> bool) {
         self.overlapped(CallKind::Reduce, |w| self.comm().broadcast_f64_while(root, buf, w), work)
     }
+    fn sum_f64_while(&self, buf: &mut [f64], work: &mut dyn FnMut() -> bool) {
+        self.overlapped(CallKind::Reduce, |w| self.comm().sum_f64_while(buf, w), work)
+    }
     fn split(&self, color: usize, key: usize) -> Box<dyn Comm + '_> {
         let sub = self.timed(CallKind::Reduce, || self.comm().split(color, key));
         Box::new(Timed { inner: Inner::Split(sub), counters: Rc::clone(&self.counters) })

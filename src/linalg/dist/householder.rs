@@ -12,7 +12,8 @@
 //! The trailing columns (the right-hand side among them, so that it receives Q^T b without a pass
 //! of its own) are then updated at once with Q_panel^T = I - V T^T V^T: each rank forms its part
 //! of V^T V and of W = V^T A_trail, an all-reduce sums V^T V and every rank builds the same T,
-//! and an all-reduce sums W. Every rank then forms Y = V T^T for its own rows of V and applies
+//! and an all-reduce sums W, non-blocking: every rank forms Y = V T^T for its own rows of V while
+//! the sum is in flight (tested between pieces of Y), then applies
 //! A_trail <- A_trail - Y W to its own rows with one local GEMM, which carries almost all the
 //! flops (4/3 n^3 in total, twice LU's). Grouped as V (T^T W) instead, the kb x kb x (n - k)
 //! product T^T W would be formed whole on every rank, as the same work on 1 rank or 1,000; Y
@@ -30,9 +31,10 @@
 //! columns. (No piece is a single column, which faer computes as a matrix-vector product whose
 //! sums differ in the last bits; on two ranks the factors are bit-identical with and without
 //! look-ahead, on more the sums in rank order may round differently from the all-reduce's.) The
-//! large all-reduce of W is not overlapped: every trailing column takes part in it.
+//! large all-reduce of W overlaps only Y's product: every trailing column takes part in it.
 
 use crate::linalg::gemm::{by_blas_on_every_rank, gemm};
+use faer::reborrow::ReborrowMut;
 use faer::{Accum, MatMut, MatRef, Par};
 
 use super::backsub::{back_substitute, Rows};
@@ -100,6 +102,10 @@ pub fn householder_solve(job: &Job<'_>, rows: &mut LocalRows) -> Result<Vec<f64>
     }
     back_substitute(comm, rows, nb, Rows::Triangular, tol)
 }
+
+/// Rows of Y = V T^T per piece formed while W is summed (about half a millisecond each at a
+/// panel of 192), so that the sum is tested, and so driven on, often.
+const Y_PIECE: usize = 256;
 
 /// The narrowest piece of a trailing update run in one window of an all-reduce of the next
 /// panel (every piece reads all of V again; as in the LU).
@@ -175,7 +181,8 @@ impl PanelWy {
 }
 
 /// The update of the trailing columns by a panel's Q^T = I - V T^T V^T, as A_trail -= Y W with
-/// W = V^T A_trail summed over the ranks and Y = V T^T formed by each rank for its own rows of V:
+/// W = V^T A_trail summed over the ranks and Y = V T^T formed by each rank for its own rows of V
+/// (while W is summed, [`Comm::sum_f64_while`]):
 /// the same product as V (T^T W), but the kb x kb x rest product T^T W would be formed whole on
 /// every rank (nb n^2 multiply-adds over a factorisation on each rank, whatever the rank count),
 /// while Y costs a rank kb^2 times its own rows.
@@ -217,16 +224,23 @@ impl<'a> Update<'a> {
                 gemm(w, Accum::Replace, wy.v().transpose(), a_trail, 1.0, par);
             }
         }
-        comm.sum_f64(&mut w);
+        // Y by pieces of rows while W is summed, testing the sum between them
         let mut y = vec![0.0; wy.mr * kb];
-        gemm(
-            MatMut::from_column_major_slice_mut(&mut y, wy.mr, kb),
-            Accum::Replace,
-            wy.v(),
-            wy.t.as_ref().transpose(),
-            1.0,
-            par,
-        );
+        {
+            let mut ym = MatMut::from_column_major_slice_mut(&mut y, wy.mr, kb);
+            let (v, tt) = (wy.v(), wy.t.as_ref().transpose());
+            let mut from = 0;
+            let mut work = || {
+                let to = (from + Y_PIECE).min(wy.mr);
+                if from < to {
+                    let rows = ym.rb_mut().subrows_mut(from, to - from);
+                    gemm(rows, Accum::Replace, v.subrows(from, to - from), tt, 1.0, par);
+                }
+                from = to;
+                from < wy.mr
+            };
+            comm.sum_f64_while(&mut w, &mut work);
+        }
         Update { wy, c0, y, w, transposed, par }
     }
 

@@ -176,14 +176,22 @@ impl<'p> Update<'p> {
                 gemm(wm, Accum::Replace, v.transpose(), trail, 1.0, job.par);
             }
         }
-        grid.col.sum_f64(&mut wbuf);
         let t = MatRef::from_column_major_slice(&panel[t_at..v_at], kb, kb);
-        if m < w {
-            let mut y = vec![0.0; m * kb];
-            if m > 0 {
-                let ym = MatMut::from_column_major_slice_mut(&mut y, m, kb);
-                gemm(ym, Accum::Replace, v, t.transpose(), 1.0, job.par);
+        // Y while W is summed, where T^T joins V (the form is this rank's choice, the sum is
+        // the process column's: every rank of it calls the same non-blocking sum)
+        let mut y = Vec::new();
+        let mut work = || {
+            if m < w {
+                y = vec![0.0; m * kb];
+                if m > 0 {
+                    let ym = MatMut::from_column_major_slice_mut(&mut y, m, kb);
+                    gemm(ym, Accum::Replace, v, t.transpose(), 1.0, job.par);
+                }
             }
+            false
+        };
+        grid.col.sum_f64_while(&mut wbuf, &mut work);
+        if m < w {
             return Update { v, y: Some(y), right: wbuf, transposed, lr0, lc1 };
         }
         let mut tw = vec![0.0; kb * w];
