@@ -204,6 +204,11 @@ elif mode == "solve":
                 e = 100 * t1 / (ranks * tp)
                 mark = ("met" if e >= 93 else "MISSED") if n >= 4000 else "latency bound, no target"
                 lines.append(f"- parallel efficiency 1 -> {ranks} ranks, {solver}, n = {n}: {e:.1f} % ({mark})")
+                tco = get("volspline-corun", solver, n, 1)[1]
+                if tco:
+                    lines.append(f"  - {ranks} one-rank solves at once: {tco:.3f} s against {t1:.3f} s alone, a ceiling "
+                                 f"of {100 * t1 / tco:.1f} % on this machine; against it the distribution keeps "
+                                 f"{100 * tco / (ranks * tp):.1f} %")
     for r in rows:
         if r["impl"] == "volspline" and r["peak_rss_bytes"]:
             n, p = int(r["n"]), int(r["ranks"])
