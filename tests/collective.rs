@@ -314,16 +314,25 @@ fn solvers_match_the_oracles(comm: &dyn Comm, log: &mut Log) {
     }
 }
 
-/// The LU with look-ahead (the trailing update in pieces inside the next panel's pivot searches:
-/// about 1000 rows, so that a panel's update takes several pieces) and without, against the
-/// dense LU oracle; both factor in f64 and in f32 (the factorisation of a mixed-precision solve).
-fn lookahead_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
+/// The bunny system of about 1000 rows (every fifth point) with r^3: the kernel, the points, the
+/// size, the dense oracle's solution by `solve` and this rank's row-cyclic layout.
+fn about_1000_rows(
+    comm: &dyn Comm,
+    solve: fn(MatRef<'_, f64>, &[f64]) -> Result<Vec<f64>>,
+) -> (Kernel, Prepared, usize, Vec<f64>, RowCyclic) {
     let k = Kernel::new(3, 2).unwrap();
     let prep =
         must(prepare(&common::bunny_subset(5, 2), &k, &Carrier::AutoBall, 1e-6), "prepare the bunny points");
     let n = system_size(&k, prep.values.len());
-    let want = oracle(&prep, &k, lu_solve);
-    let layout = RowCyclic::new(n, comm.size(), comm.rank());
+    let want = oracle(&prep, &k, solve);
+    (k, prep, n, want, RowCyclic::new(n, comm.size(), comm.rank()))
+}
+
+/// The LU with look-ahead (the trailing update in pieces inside the next panel's pivot searches:
+/// about 1000 rows, so that a panel's update takes several pieces) and without, against the
+/// dense LU oracle; both factor in f64 and in f32 (the factorisation of a mixed-precision solve).
+fn lookahead_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
+    let (k, prep, n, want, layout) = about_1000_rows(comm, lu_solve);
     for lookahead in [true, false] {
         for panel in [7, 16, 64] {
             let job = Job::on(comm).panel(panel).lookahead(lookahead);
@@ -348,12 +357,7 @@ fn lookahead_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
 /// ranks (1e-10 from 4 on, see below). The f32 projected Cholesky of a mixed-precision solve
 /// looks ahead too.
 fn row_cyclic_lookahead_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
-    let k = Kernel::new(3, 2).unwrap();
-    let prep =
-        must(prepare(&common::bunny_subset(5, 2), &k, &Carrier::AutoBall, 1e-6), "prepare the bunny points");
-    let n = system_size(&k, prep.values.len());
-    let want = oracle(&prep, &k, householder_solve);
-    let layout = RowCyclic::new(n, comm.size(), comm.rank());
+    let (k, prep, n, want, layout) = about_1000_rows(comm, householder_solve);
     for kind in [SolverKind::Householder, SolverKind::Cholesky] {
         for panel in [1, 3, 16, 64] {
             let mut factors = Vec::new();
@@ -414,12 +418,7 @@ fn householder_agreed_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
     log.check(gemm::by_blas_on_every_rank(faer::Par::Seq) == (engine == Engine::Blas), || {
         format!("the agreed engine {} and the solvers' choice of form disagree", engine.name())
     });
-    let k = Kernel::new(3, 2).unwrap();
-    let prep =
-        must(prepare(&common::bunny_subset(5, 2), &k, &Carrier::AutoBall, 1e-6), "prepare the bunny points");
-    let n = system_size(&k, prep.values.len());
-    let want = oracle(&prep, &k, householder_solve);
-    let layout = RowCyclic::new(n, comm.size(), comm.rank());
+    let (k, prep, _, want, layout) = about_1000_rows(comm, householder_solve);
     for (panel, lookahead) in [(3, false), (16, true), (64, false), (64, true)] {
         let job = Job::on(comm).panel(panel).lookahead(lookahead);
         let mut rows = assemble(&k, &prep.centres, &prep.values, layout);
