@@ -216,13 +216,7 @@ impl<'a> Update<'a> {
         let transposed = by_blas_on_every_rank(par);
         {
             let a_trail = rows.view().submatrix(wy.r0, c0, wy.mr, rest);
-            if transposed {
-                let wt = MatMut::from_column_major_slice_mut(&mut w, rest, kb);
-                gemm(wt, Accum::Replace, a_trail.transpose(), wy.v(), 1.0, par);
-            } else {
-                let w = MatMut::from_column_major_slice_mut(&mut w, kb, rest);
-                gemm(w, Accum::Replace, wy.v().transpose(), a_trail, 1.0, par);
-            }
+            form_w(&mut w, wy.v(), a_trail, transposed, par);
         }
         // Y by pieces of rows while W is summed, testing the sum between them
         let mut y = vec![0.0; wy.mr * kb];
@@ -254,18 +248,39 @@ impl<'a> Update<'a> {
         let all = MatMut::from_column_major_slice_mut(data, ld, data.len() / ld);
         let a = all.submatrix_mut(r0, c0 - base, mr, c1 - c0);
         let y = MatRef::from_column_major_slice(&self.y, mr, kb);
-        let w = self.w(kb).subcols(c0 - self.c0, c1 - c0);
+        let w = stored_w(&self.w, kb, self.transposed).subcols(c0 - self.c0, c1 - c0);
         gemm(a, Accum::Add, y, w, -1.0, self.par);
     }
+}
 
-    /// W (kb x trailing columns), as stored.
-    fn w(&self, kb: usize) -> MatRef<'_, f64> {
-        let rest = self.w.len() / kb.max(1);
-        if self.transposed {
-            MatRef::from_column_major_slice(&self.w, rest, kb).transpose()
-        } else {
-            MatRef::from_column_major_slice(&self.w, kb, rest)
-        }
+/// W = V^T A_trail (kb x trailing columns, kb the columns of V) into `out`: column-major, or as
+/// W^T (column-major, one row per trailing column) with `transposed` (see [`Update`]'s
+/// `transposed`). The 2D Householder forms its W this way too.
+pub(super) fn form_w(
+    out: &mut [f64],
+    v: MatRef<'_, f64>,
+    a_trail: MatRef<'_, f64>,
+    transposed: bool,
+    par: Par,
+) {
+    let (kb, rest) = (v.ncols(), a_trail.ncols());
+    if transposed {
+        let wt = MatMut::from_column_major_slice_mut(out, rest, kb);
+        gemm(wt, Accum::Replace, a_trail.transpose(), v, 1.0, par);
+    } else {
+        let w = MatMut::from_column_major_slice_mut(out, kb, rest);
+        gemm(w, Accum::Replace, v.transpose(), a_trail, 1.0, par);
+    }
+}
+
+/// The kb-row matrix stored in `buf` as [`form_w`] stores W: itself, or its transpose with
+/// `transposed`.
+pub(super) fn stored_w(buf: &[f64], kb: usize, transposed: bool) -> MatRef<'_, f64> {
+    let cols = buf.len() / kb.max(1);
+    if transposed {
+        MatRef::from_column_major_slice(buf, cols, kb).transpose()
+    } else {
+        MatRef::from_column_major_slice(buf, kb, cols)
     }
 }
 

@@ -26,7 +26,7 @@ use crate::linalg::gemm::{by_blas_on_every_rank, gemm};
 use faer::{Accum, MatMut, MatRef};
 
 use super::grid::{update_and_next_panel, LocalBlocks, ProcessGrid};
-use super::householder::factor_panel;
+use super::householder::{factor_panel, form_w, stored_w};
 use super::lu2d::back_substitute;
 use super::solver::Job;
 use crate::error::Result;
@@ -168,13 +168,7 @@ impl<'p> Update<'p> {
         let transposed = by_blas_on_every_rank(job.par);
         if w > 0 && m > 0 {
             let trail = MatRef::from_column_major_slice_with_stride(&a.data[lr0 + lc1 * ld..], m, w, ld);
-            if transposed {
-                let wm = MatMut::from_column_major_slice_mut(&mut wbuf, w, kb);
-                gemm(wm, Accum::Replace, trail.transpose(), v, 1.0, job.par);
-            } else {
-                let wm = MatMut::from_column_major_slice_mut(&mut wbuf, kb, w);
-                gemm(wm, Accum::Replace, v.transpose(), trail, 1.0, job.par);
-            }
+            form_w(&mut wbuf, v, trail, transposed, job.par);
         }
         let t = MatRef::from_column_major_slice(&panel[t_at..v_at], kb, kb);
         // Y while W is summed, where T^T joins V (the form is this rank's choice, the sum is
@@ -196,13 +190,13 @@ impl<'p> Update<'p> {
         }
         let mut tw = vec![0.0; kb * w];
         if w > 0 {
+            let wm = stored_w(&wbuf, kb, transposed);
             if transposed {
                 // (T^T W)^T = W^T T
                 let twm = MatMut::from_column_major_slice_mut(&mut tw, w, kb);
-                gemm(twm, Accum::Replace, MatRef::from_column_major_slice(&wbuf, w, kb), t, 1.0, job.par);
+                gemm(twm, Accum::Replace, wm.transpose(), t, 1.0, job.par);
             } else {
                 let twm = MatMut::from_column_major_slice_mut(&mut tw, kb, w);
-                let wm = MatRef::from_column_major_slice(&wbuf, kb, w);
                 gemm(twm, Accum::Replace, t.transpose(), wm, 1.0, job.par);
             }
         }
@@ -216,13 +210,7 @@ impl<'p> Update<'p> {
         if c0 >= c1 || m == 0 {
             return;
         }
-        let w = self.right.len() / kb;
-        let right = if self.transposed {
-            MatRef::from_column_major_slice(&self.right, w, kb).transpose()
-        } else {
-            MatRef::from_column_major_slice(&self.right, kb, w)
-        };
-        let right = right.subcols(c0 - self.lc1, c1 - c0);
+        let right = stored_w(&self.right, kb, self.transposed).subcols(c0 - self.lc1, c1 - c0);
         let left = match &self.y {
             Some(y) => MatRef::from_column_major_slice(y, m, kb),
             None => self.v,
