@@ -3,7 +3,8 @@
 //! (the machine's optimised BLAS where `auto` finds one, faer otherwise; its rows are named
 //! `volspline_gemm_<engine>`), on the shapes of `micro_blas.c` (m = 2000 local rows, n = 4000 trailing
 //! columns, inner dimension k = 16..256, the panel width) and on the projected Cholesky's
-//! row-chunked update (96 rows, k = 384). Beside OpenBLAS's DGEMM rate it separates what the
+//! row-chunked update (96 rows, k = 384), and the solve from the right of the Cholesky's panels
+//! (`volspline_trsm_<engine>`, m rows against a k x k triangle). Beside OpenBLAS's DGEMM rate it separates what the
 //! choice of local kernel costs from what the distribution costs. Prints CSV:
 //! kernel,m,n,k,seconds,gflops. Run by `jobs/bench-solve`.
 //!
@@ -49,5 +50,37 @@ fn rates(name: &str, faer_only: bool) {
         }
         std::hint::black_box(&c);
         println!("{name},{m},{n},{k},{best:.6e},{:.3}", 2.0 * (m * n * k) as f64 / best / 1e9);
+    }
+    if !faer_only {
+        solve_rates(&name.replace("gemm", "trsm"));
+    }
+}
+
+/// Prints the rows of volspline's solve from the right as the projected Cholesky calls it for
+/// L21 = B21 L11^-T (`gemm::solve_lower` on the transpose of a column-major m x k block, a k x k
+/// triangle; flops m k^2), in the kernel,m,n,k columns as m, k, k.
+fn solve_rates(name: &str) {
+    for (m, k) in [(4000, 384), (8000, 384), (4000, 192)] {
+        let l = Mat::<f64>::from_fn(k, k, |i, j| match i.cmp(&j) {
+            std::cmp::Ordering::Less => 0.0,
+            std::cmp::Ordering::Equal => 2.0 + (i % 5) as f64 * 0.1,
+            std::cmp::Ordering::Greater => ((i * 7 + j * 3) % 11) as f64 * 0.02 - 0.1,
+        });
+        let b0 = Mat::<f64>::from_fn(m, k, |i, j| ((i * 5 + j * 13) % 17) as f64 * 0.05 - 0.4);
+        let mut b = b0.clone();
+        let (mut best, mut spent) = (f64::INFINITY, 0.0);
+        for _ in 0..5 {
+            b.copy_from(&b0);
+            let t = Instant::now();
+            gemm::solve_lower(l.as_ref(), false, b.as_mut().transpose_mut(), Par::Seq);
+            let dt = t.elapsed().as_secs_f64();
+            best = best.min(dt);
+            spent += dt;
+            if spent > 0.5 {
+                break;
+            }
+        }
+        std::hint::black_box(&b);
+        println!("{name},{m},{k},{k},{best:.6e},{:.3}", (m * k * k) as f64 / best / 1e9);
     }
 }

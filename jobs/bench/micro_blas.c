@@ -4,6 +4,8 @@
  *   getf2  LAPACK's unblocked LU of an m x k panel (partial pivoting, BLAS-2): the panel on the
  *          critical path; flops m k^2 - k^3 / 3.
  *   geqr2  LAPACK's unblocked Householder QR of an m x k panel (BLAS-2); flops 2 m k^2 - 2 k^3 / 3.
+ *   trsm   X L^T = B for a k x k lower triangle L and m x k B (the Cholesky panel's L21); flops m k^2.
+ *   trmm   B <- B L^T, the same shapes: the product a solve by the inverse of L takes.
  * Each case is timed SECONDS-long at most (repeats, best of them), so the whole run is seconds.
  * Usage: micro_blas [SCALE]  (SCALE multiplies m and n, default 1)
  * Prints CSV: kernel,m,n,k,seconds,gflops */
@@ -14,6 +16,10 @@
 extern void dgemm_(const char *, const char *, const int *, const int *, const int *, const double *,
                    const double *, const int *, const double *, const int *, const double *, double *,
                    const int *);
+extern void dtrsm_(const char *, const char *, const char *, const char *, const int *, const int *,
+                   const double *, const double *, const int *, double *, const int *);
+extern void dtrmm_(const char *, const char *, const char *, const char *, const int *, const int *,
+                   const double *, const double *, const int *, double *, const int *);
 extern void dgetf2_(const int *, const int *, double *, const int *, int *, int *);
 extern void dgeqr2_(const int *, const int *, double *, const int *, double *, double *, int *);
 
@@ -77,6 +83,21 @@ int main(int argc, char **argv) {
             printf("geqr2,%d,%d,%d,%.6e,%.3f\n", m, k, k, t, (2.0 * m * k * k - 2.0 * k * k * k / 3) / t / 1e9);
             fflush(stdout);
         }
+    }
+    int tk[] = {48, 64, 192, 384};
+    for (unsigned j = 0; j < sizeof tk / sizeof *tk; j++) {
+        int m = 2 * big, k = tk[j];
+        if ((size_t)m * k > cap) continue;
+        /* a well-conditioned lower triangle in b: the diagonal 2, the rest small */
+        fill(b, (size_t)k * k, 5);
+        for (int q = 0; q < k; q++) {
+            for (int p = 0; p < k; p++) b[p + (size_t)q * k] = p < q ? 0.0 : (p == q ? 2.0 : 0.1 * b[p + (size_t)q * k]);
+        }
+        double t = BEST(fill(a, (size_t)m * k, 7), dtrsm_("R", "L", "T", "N", &m, &k, &one, b, &k, a, &m));
+        printf("trsm,%d,%d,%d,%.6e,%.3f\n", m, k, k, t, (double)m * k * k / t / 1e9);
+        t = BEST(fill(a, (size_t)m * k, 7), dtrmm_("R", "L", "T", "N", &m, &k, &one, b, &k, a, &m));
+        printf("trmm,%d,%d,%d,%.6e,%.3f\n", m, k, k, t, (double)m * k * k / t / 1e9);
+        fflush(stdout);
     }
     return 0;
 }

@@ -186,6 +186,17 @@ elif mode == "solve":
             kernel, rate = ours[0]["kernel"], max(float(r["gflops"]) for r in ours)
             lines.append(f"- volspline's product as the solvers call it ({kernel}, one core, best shape): "
                          f"{rate:.1f} GFLOP/s")
+        solves = [r for r in local_rows if r["kernel"].startswith("volspline_trsm_")]
+        if solves:
+            blas_solves = {}
+            if os.path.exists(micro):
+                with open(micro) as f:
+                    blas_solves = {(r["m"], r["k"]): r["gflops"] for r in csv.DictReader(f) if r["kernel"] == "trsm"}
+            lines.append("- the panels' solve from the right (m rows against a k x k triangle, GFLOP/s): "
+                         + ", ".join(f"{r['m']} x {r['k']}: {float(r['gflops']):.1f}"
+                                     + (f" (OpenBLAS DTRSM {float(blas_solves[(r['m'], r['k'])]):.1f})"
+                                        if (r["m"], r["k"]) in blas_solves else "")
+                                     for r in solves))
         lines.append(f"- shares of the solvers' local kernel ({kernel}; {ranks} ranks: {rate * ranks:.1f} GFLOP/s), "
                      f"what the distribution and the panels lose apart from the kernel:")
         for key, (g, _) in sorted(gf.items()):

@@ -319,12 +319,14 @@ type TrsmFn<T> = unsafe extern "C" fn(
     usize,
 );
 
-/// A float type the BLAS multiplies: f64 (dgemm, dtrsm) and f32 (sgemm, strsm).
+/// A float type the BLAS multiplies: f64 (dgemm, dtrsm, dtrmm) and f32 (sgemm, strsm, strmm).
 pub trait Gemm: faer::traits::RealField + Copy {
     /// The type's GEMM.
     const GEMM: GemmFn<Self>;
     /// The type's triangular solve.
     const TRSM: TrsmFn<Self>;
+    /// The type's triangular product (B <- op(A) B or B op(A), the arguments of the solve).
+    const TRMM: TrsmFn<Self>;
     /// 0 and 1 of the type.
     const ZERO_ONE: (Self, Self);
 }
@@ -332,7 +334,7 @@ pub trait Gemm: faer::traits::RealField + Copy {
 /// Declares the BLAS routines of a float type (from `libblas.so.3`, the runtime name: Debian
 /// ships no unversioned link without the -dev package) and makes the type a [`Gemm`].
 macro_rules! blas_routines {
-    ($t:ty, $gemm:ident, $trsm:ident) => {
+    ($t:ty, $gemm:ident, $trsm:ident, $trmm:ident) => {
         #[link(name = "libblas.so.3", kind = "dylib", modifiers = "+verbatim")]
         extern "C" {
             fn $gemm(
@@ -369,16 +371,34 @@ macro_rules! blas_routines {
                 l3: usize,
                 l4: usize,
             );
+            fn $trmm(
+                side: *const c_char,
+                uplo: *const c_char,
+                ta: *const c_char,
+                diag: *const c_char,
+                m: *const c_int,
+                n: *const c_int,
+                alpha: *const $t,
+                a: *const $t,
+                lda: *const c_int,
+                b: *mut $t,
+                ldb: *const c_int,
+                l1: usize,
+                l2: usize,
+                l3: usize,
+                l4: usize,
+            );
         }
         impl Gemm for $t {
             const GEMM: GemmFn<Self> = $gemm;
             const TRSM: TrsmFn<Self> = $trsm;
+            const TRMM: TrsmFn<Self> = $trmm;
             const ZERO_ONE: (Self, Self) = (0.0, 1.0);
         }
     };
 }
-blas_routines!(f64, dgemm_, dtrsm_);
-blas_routines!(f32, sgemm_, strsm_);
+blas_routines!(f64, dgemm_, dtrsm_, dtrmm_);
+blas_routines!(f32, sgemm_, strsm_, strmm_);
 
 /// Calls the type's GEMM with Rust sizes (which the callers have checked fit a C int).
 ///
@@ -415,17 +435,45 @@ unsafe fn call_trsm<T: Gemm>(
     T::TRSM(&side, &uplo, &ta, &diag, &m, &n, &one, a, &lda, b, &ldb, 1, 1, 1, 1);
 }
 
-/// Columns of L at which [`trsm_right`] stops halving and calls the BLAS's own solve.
+/// Calls the type's triangular product (alpha = 1, lower triangle) with Rust sizes.
+///
+/// # Safety
+/// As for [`call_gemm`].
+unsafe fn call_trmm<T: Gemm>(
+    (side, ta, diag): (u8, u8, u8),
+    (m, n): (usize, usize),
+    (a, lda): (*const T, usize),
+    (b, ldb): (*mut T, usize),
+) {
+    let [side, uplo, ta, diag] = [side, b'L', ta, diag].map(|c| c as c_char);
+    let [m, n, lda, ldb] = [m, n, lda, ldb].map(|v| v as c_int);
+    let one = T::ZERO_ONE.1;
+    T::TRMM(&side, &uplo, &ta, &diag, &m, &n, &one, a, &lda, b, &ldb, 1, 1, 1, 1);
+}
+
+/// Columns of L at which [`trsm_right`] stops halving and solves the leaf.
 const TRSM_LEAF: usize = 64;
+
+/// Rows of B from which [`trsm_right`] solves a leaf by the inverse of its triangle and a
+/// triangular product instead of the BLAS's solve: on tall blocks OpenBLAS's DTRSM runs at
+/// 12-14 GFLOP/s on 48-64 columns, its DTRMM at 26-39 (4000 rows, an AVX-512 core), and the
+/// inverse (n^3 / 3 flops on the leaf) is paid once for all the rows.
+const INVERTED_LEAF_ROWS: usize = 512;
 
 /// X op(L) = B in place, for a lower triangular L (n x n, leading dimension `lda`) and a
 /// column-major B (m x n, leading dimension `ldb`), op(L) = L^T (`ta` = b'T') or L (b'N'): L is
 /// halved, L = [La 0; Lb Lc], and the halves of X are solved one after the other with the
 /// coupling as a GEMM: for L^T, X1 La^T = B1, then X2 Lc^T = B2 - X1 Lb^T; for L, X2 Lc = B2,
-/// then X1 La = B1 - X2 Lb. The same substitution as the BLAS's own solve, in another order of
-/// the sums, with most of its flops in GEMMs: OpenBLAS's DTRSM solves the tall blocks of the
-/// factorisations (thousands of rows against a triangle of 192-384) at 25-29 GFLOP/s on an
-/// AVX-512 core, these halves at 36-39, the GEMM itself runs at 50-54.
+/// then X1 La = B1 - X2 Lb. Most of the flops so run in GEMMs: OpenBLAS's DTRSM solves the tall
+/// blocks of the factorisations (thousands of rows against a triangle of 192-384) at 25-29
+/// GFLOP/s on an AVX-512 core, the GEMM itself runs at 50-54. The leaves of at most
+/// [`TRSM_LEAF`] columns are solved by the BLAS where B is short; from [`INVERTED_LEAF_ROWS`]
+/// rows on they are multiplied by the inverse of their triangle instead (DTRMM), as blocked GPU
+/// solvers do with their diagonal blocks: the inverse of a triangle of at most 64 columns is
+/// computed by a solve against the identity, its error is that of the solve with it, and the
+/// rows of B take the same product. With the BLAS's leaves the halving ran at 29-31 GFLOP/s (4000
+/// and 8000 rows, 384 columns), with inverted leaves at 39-41; the residuals of the 8000-row
+/// solves stayed at 1-4e-14.
 ///
 /// # Safety
 /// As for [`call_gemm`]; B does not overlap L, and the caller holds the BLAS lock.
@@ -436,7 +484,15 @@ unsafe fn trsm_right<T: Gemm>(
     (b, ldb): (*mut T, usize),
 ) {
     if n <= TRSM_LEAF || m == 0 {
-        call_trsm((b'R', ta, diag), (m, n), (a, lda), (b, ldb));
+        if m < INVERTED_LEAF_ROWS {
+            call_trsm((b'R', ta, diag), (m, n), (a, lda), (b, ldb));
+            return;
+        }
+        // X op(L) = B as X = B op(L^-1): the leaf's inverse, then a triangular product
+        let mut inv = vec![T::ZERO_ONE.0; n * n];
+        (0..n).for_each(|i| inv[i * n + i] = T::ZERO_ONE.1);
+        call_trsm((b'L', b'N', diag), (n, n), (a, lda), (inv.as_mut_ptr(), n));
+        call_trmm((b'R', ta, diag), (m, n), (inv.as_ptr(), n), (b, ldb));
         return;
     }
     // a multiple of 16 below n (n > 64)
@@ -757,12 +813,15 @@ mod tests {
             std::cmp::Ordering::Equal => 1.5 + (i % 7) as f64 * 0.1,
             std::cmp::Ordering::Greater => 0.05 * l[(i % 29, j % 29)],
         });
-        let rhs = filled(41, n, 11);
-        for unit in [false, true] {
+        // (41 rows: the leaves solved by the BLAS; more: by their inverses)
+        for (rows, unit) in
+            [(41, false), (41, true), (INVERTED_LEAF_ROWS + 37, false), (INVERTED_LEAF_ROWS + 37, true)]
+        {
+            let rhs = filled(rows, n, 11);
             let lower =
                 faer::Mat::<f64>::from_fn(n, n, |i, j| if i == j && unit { 1.0 } else { big[(i, j)] });
             // X L = B: from L^T X^T = B^T
-            let mut want = faer::Mat::<f64>::zeros(n, 41);
+            let mut want = faer::Mat::<f64>::zeros(n, rows);
             want.copy_from(rhs.as_ref().transpose());
             faer::linalg::triangular_solve::solve_upper_triangular_in_place(
                 lower.as_ref().transpose(),
@@ -772,9 +831,9 @@ mod tests {
             let mut got = rhs.clone();
             solve_lower_right(big.as_ref(), unit, got.as_mut(), Par::Seq);
             let err = (&got - want.as_ref().transpose()).norm_max();
-            assert!(err < 1e-12, "right, {n} wide, unit {unit}: {err:e}");
+            assert!(err < 1e-12, "right, {rows} x {n}, unit {unit}: {err:e}");
             // X L^T = B: L X^T = B^T
-            let mut want = faer::Mat::<f64>::zeros(n, 41);
+            let mut want = faer::Mat::<f64>::zeros(n, rows);
             want.copy_from(rhs.as_ref().transpose());
             faer::linalg::triangular_solve::solve_lower_triangular_in_place(
                 lower.as_ref(),
@@ -784,16 +843,16 @@ mod tests {
             let mut got = rhs.clone();
             solve_lower(big.as_ref(), unit, got.as_mut().transpose_mut(), Par::Seq);
             let err = (&got - want.as_ref().transpose()).norm_max();
-            assert!(err < 1e-12, "transposed, {n} wide, unit {unit}: {err:e}");
+            assert!(err < 1e-12, "transposed, {rows} x {n}, unit {unit}: {err:e}");
             // single precision (strsm, sgemm)
             let (big32, rhs32) = (big.as_ref().map(|&x| x as f32), rhs.as_ref().map(|&x| x as f32));
             let mut got32 = rhs32.clone();
             solve_lower_right(big32.as_ref(), unit, got32.as_mut(), Par::Seq);
-            let mut back = faer::Mat::<f32>::zeros(41, n);
+            let mut back = faer::Mat::<f32>::zeros(rows, n);
             let lower32 = lower.as_ref().map(|&x| x as f32);
             matmul(back.as_mut(), Accum::Replace, got32.as_ref(), lower32.as_ref(), 1.0, Par::Seq);
             let err = (&back - &rhs32).norm_max();
-            assert!(err < 1e-5, "right, f32, {n} wide, unit {unit}: {err:e}");
+            assert!(err < 1e-5, "right, f32, {rows} x {n}, unit {unit}: {err:e}");
         }
         // single precision (sgemm, strsm)
         let (a32, b32) = (a.as_ref().map(|&x| x as f32), filled(23, 19, 2).as_ref().map(|&x| x as f32));

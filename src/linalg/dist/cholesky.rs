@@ -82,8 +82,11 @@ use crate::par::Comm;
 
 /// Local rows of the smallest GEMMs of the trailing update where a column block meets the
 /// diagonal ([`triangle_pieces`]): small enough that the triangle is followed closely (a piece
-/// computes the entries above the diagonal of its last row too), large enough for BLAS-3 speed.
-const ROW_CHUNK: usize = 96;
+/// computes the entries above the diagonal of its last row too, half of its flops wasted),
+/// large enough for BLAS-3 speed. The halving of a 1024-row block stops at 32 rows (64 with a
+/// bound of 96): at N+k = 8000 the leaves took 0.07 s instead of 0.13-0.15 s per rank on two
+/// ranks and one, at 25-30 GFLOP/s either way, and the rest of the update did not slow down.
+const ROW_CHUNK: usize = 48;
 
 /// Columns of each rank's part of L21^T per block of the trailing update (a block spans this
 /// many times the number of ranks columns, every rank's share a GEMM of its own): the part a GEMM
