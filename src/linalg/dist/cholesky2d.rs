@@ -31,6 +31,7 @@
 //! `Error::NotDefinite` at the same panel and the caller can fall back to LU.
 
 use crate::linalg::gemm::{gemm, solve_lower};
+use faer::reborrow::ReborrowMut;
 use faer::{Accum, Mat, MatMut, MatRef};
 
 use super::cholesky::{cholesky_small, lower_times_part, Border};
@@ -332,15 +333,15 @@ fn factor_and_pack(
     grid.col.broadcast_f64(ri, &mut d);
     panel[0] = d[0];
     if d[0] == 0.0 && m > 0 {
-        // L21 = B21 L11^-T: L11 L21^T = B21^T, on a column-major copy of B21^T
+        // L21 = B21 L11^-T: L21 L11^T = B21, solved in place (from the right, on the rows where
+        // they lie), then copied column by column into the panel that travels
         let l11 = MatRef::from_column_major_slice(&d[1..], pb, pb);
-        let mut bt = Mat::<f64>::from_fn(pb, m, |j, i| a.data[t0 + i + (lcb + j) * ld]);
-        solve_lower(l11, false, bt.as_mut(), job.par);
+        let mut b21 =
+            MatMut::from_column_major_slice_with_stride_mut(&mut a.data[t0 + lcb * ld..], m, pb, ld);
+        solve_lower(l11, false, b21.rb_mut().transpose_mut(), job.par);
         for j in 0..pb {
-            for i in 0..m {
-                a.data[t0 + i + (lcb + j) * ld] = bt[(j, i)];
-                panel[1 + i + j * m] = bt[(j, i)];
-            }
+            panel[1 + j * m..1 + (j + 1) * m]
+                .copy_from_slice(&a.data[t0 + (lcb + j) * ld..t0 + (lcb + j) * ld + m]);
         }
     }
     panel
