@@ -470,10 +470,11 @@ const INVERTED_LEAF_ROWS: usize = 512;
 /// [`TRSM_LEAF`] columns are solved by the BLAS where B is short; from [`INVERTED_LEAF_ROWS`]
 /// rows on they are multiplied by the inverse of their triangle instead (DTRMM), as blocked GPU
 /// solvers do with their diagonal blocks: the inverse of a triangle of at most 64 columns is
-/// computed by a solve against the identity, its error is that of the solve with it, and the
-/// rows of B take the same product. With the BLAS's leaves the halving ran at 29-31 GFLOP/s (4000
-/// and 8000 rows, 384 columns), with inverted leaves at 39-41; the residuals of the 8000-row
-/// solves stayed at 1-4e-14.
+/// computed once by a solve against the identity, and every row of B is multiplied by it. Its
+/// rounding errors grow with the condition number of the leaf alone, not of the whole triangle;
+/// on the leaves of the factorisations' diagonal blocks the residuals of the 8000-row solves
+/// stayed at 1-4e-14. With the BLAS's leaves the halving ran at 29-31 GFLOP/s (4000 and 8000
+/// rows, 384 columns), with inverted leaves at 39-41.
 ///
 /// # Safety
 /// As for [`call_gemm`]; B does not overlap L, and the caller holds the BLAS lock.
