@@ -335,6 +335,10 @@ pub trait Gemm: faer::traits::RealField + Copy {
 /// ships no unversioned link without the -dev package) and makes the type a [`Gemm`].
 macro_rules! blas_routines {
     ($t:ty, $gemm:ident, $trsm:ident, $trmm:ident) => {
+        blas_routines!($t, $gemm, $trsm, $trmm; triangular $trsm, $trmm);
+    };
+    // the triangular solve and product share one signature ([`TrsmFn`])
+    ($t:ty, $gemm:ident, $trsm:ident, $trmm:ident; triangular $($tri:ident),+) => {
         #[link(name = "libblas.so.3", kind = "dylib", modifiers = "+verbatim")]
         extern "C" {
             fn $gemm(
@@ -354,40 +358,25 @@ macro_rules! blas_routines {
                 la: usize,
                 lb: usize,
             );
-            fn $trsm(
-                side: *const c_char,
-                uplo: *const c_char,
-                ta: *const c_char,
-                diag: *const c_char,
-                m: *const c_int,
-                n: *const c_int,
-                alpha: *const $t,
-                a: *const $t,
-                lda: *const c_int,
-                b: *mut $t,
-                ldb: *const c_int,
-                l1: usize,
-                l2: usize,
-                l3: usize,
-                l4: usize,
-            );
-            fn $trmm(
-                side: *const c_char,
-                uplo: *const c_char,
-                ta: *const c_char,
-                diag: *const c_char,
-                m: *const c_int,
-                n: *const c_int,
-                alpha: *const $t,
-                a: *const $t,
-                lda: *const c_int,
-                b: *mut $t,
-                ldb: *const c_int,
-                l1: usize,
-                l2: usize,
-                l3: usize,
-                l4: usize,
-            );
+            $(
+                fn $tri(
+                    side: *const c_char,
+                    uplo: *const c_char,
+                    ta: *const c_char,
+                    diag: *const c_char,
+                    m: *const c_int,
+                    n: *const c_int,
+                    alpha: *const $t,
+                    a: *const $t,
+                    lda: *const c_int,
+                    b: *mut $t,
+                    ldb: *const c_int,
+                    l1: usize,
+                    l2: usize,
+                    l3: usize,
+                    l4: usize,
+                );
+            )+
         }
         impl Gemm for $t {
             const GEMM: GemmFn<Self> = $gemm;
@@ -419,36 +408,48 @@ unsafe fn call_gemm<T: Gemm>(
     T::GEMM(&ta, &tb, &m, &n, &k, &alpha, a, &lda, b, &ldb, &beta, c, &ldc, 1, 1);
 }
 
-/// Calls the type's triangular solve (alpha = 1, lower triangle) with Rust sizes.
+/// Calls a triangular routine of the type's BLAS (its solve or its product, [`TrsmFn`]) with
+/// alpha = 1 on a lower triangle, with Rust sizes.
+///
+/// # Safety
+/// As for [`call_gemm`].
+unsafe fn call_triangular<T: Gemm>(
+    routine: TrsmFn<T>,
+    (side, ta, diag): (u8, u8, u8),
+    (m, n): (usize, usize),
+    (a, lda): (*const T, usize),
+    (b, ldb): (*mut T, usize),
+) {
+    let [side, uplo, ta, diag] = [side, b'L', ta, diag].map(|c| c as c_char);
+    let [m, n, lda, ldb] = [m, n, lda, ldb].map(|v| v as c_int);
+    let one = T::ZERO_ONE.1;
+    routine(&side, &uplo, &ta, &diag, &m, &n, &one, a, &lda, b, &ldb, 1, 1, 1, 1);
+}
+
+/// The type's triangular solve ([`call_triangular`]).
 ///
 /// # Safety
 /// As for [`call_gemm`].
 unsafe fn call_trsm<T: Gemm>(
-    (side, ta, diag): (u8, u8, u8),
-    (m, n): (usize, usize),
-    (a, lda): (*const T, usize),
-    (b, ldb): (*mut T, usize),
+    op: (u8, u8, u8),
+    dims: (usize, usize),
+    a: (*const T, usize),
+    b: (*mut T, usize),
 ) {
-    let [side, uplo, ta, diag] = [side, b'L', ta, diag].map(|c| c as c_char);
-    let [m, n, lda, ldb] = [m, n, lda, ldb].map(|v| v as c_int);
-    let one = T::ZERO_ONE.1;
-    T::TRSM(&side, &uplo, &ta, &diag, &m, &n, &one, a, &lda, b, &ldb, 1, 1, 1, 1);
+    call_triangular(T::TRSM, op, dims, a, b);
 }
 
-/// Calls the type's triangular product (alpha = 1, lower triangle) with Rust sizes.
+/// The type's triangular product ([`call_triangular`]).
 ///
 /// # Safety
 /// As for [`call_gemm`].
 unsafe fn call_trmm<T: Gemm>(
-    (side, ta, diag): (u8, u8, u8),
-    (m, n): (usize, usize),
-    (a, lda): (*const T, usize),
-    (b, ldb): (*mut T, usize),
+    op: (u8, u8, u8),
+    dims: (usize, usize),
+    a: (*const T, usize),
+    b: (*mut T, usize),
 ) {
-    let [side, uplo, ta, diag] = [side, b'L', ta, diag].map(|c| c as c_char);
-    let [m, n, lda, ldb] = [m, n, lda, ldb].map(|v| v as c_int);
-    let one = T::ZERO_ONE.1;
-    T::TRMM(&side, &uplo, &ta, &diag, &m, &n, &one, a, &lda, b, &ldb, 1, 1, 1, 1);
+    call_triangular(T::TRMM, op, dims, a, b);
 }
 
 /// Columns of L at which [`trsm_right`] stops halving and solves the leaf.
@@ -485,13 +486,7 @@ unsafe fn trsm_right<T: Gemm>(
     (b, ldb): (*mut T, usize),
 ) {
     if n <= TRSM_LEAF || m == 0 {
-        if m < INVERTED_LEAF_ROWS {
-            call_trsm((b'R', ta, diag), (m, n), (a, lda), (b, ldb));
-            return;
-        }
-        // X op(L) = B as X = B op(L^-1): the leaf's inverse, then a triangular product
-        let inv = leaf_inverse(diag, n, (a, lda));
-        call_trmm((b'R', ta, diag), (m, n), (inv.as_ptr(), n), (b, ldb));
+        solve_leaf((b'R', ta, diag), (m, n), (a, lda), (b, ldb));
         return;
     }
     // a multiple of 16 below n (n > 64)
@@ -512,17 +507,29 @@ unsafe fn trsm_right<T: Gemm>(
     }
 }
 
-/// L^-1 (n x n, column-major, lower; with `diag` b'U' its unit diagonal is neither read nor
-/// needed) for a lower triangular leaf L of [`trsm_right`] or [`trsm_left`]: the solve of
-/// L X = I.
+/// A leaf of [`trsm_right`] (`side` b'R': X op(L) = B, L n x n) or [`trsm_left`] (b'L':
+/// L X = B, L m x m), B m x n: by the BLAS's solve where B has fewer than
+/// [`INVERTED_LEAF_ROWS`] rows (from the right) or columns (from the left), else as the product
+/// with L^-1, the solve of L Y = I (with `diag` b'U' its unit diagonal is neither read nor
+/// needed), by the BLAS's triangular product.
 ///
 /// # Safety
-/// As for [`call_gemm`]; the caller holds the BLAS lock.
-unsafe fn leaf_inverse<T: Gemm>(diag: u8, n: usize, (a, lda): (*const T, usize)) -> Vec<T> {
-    let mut inv = vec![T::ZERO_ONE.0; n * n];
-    (0..n).for_each(|i| inv[i * n + i] = T::ZERO_ONE.1);
-    call_trsm((b'L', b'N', diag), (n, n), (a, lda), (inv.as_mut_ptr(), n));
-    inv
+/// As for [`call_gemm`]; B does not overlap L, and the caller holds the BLAS lock.
+unsafe fn solve_leaf<T: Gemm>(
+    (side, ta, diag): (u8, u8, u8),
+    (m, n): (usize, usize),
+    (a, lda): (*const T, usize),
+    (b, ldb): (*mut T, usize),
+) {
+    let (order, across) = if side == b'R' { (n, m) } else { (m, n) };
+    if across < INVERTED_LEAF_ROWS {
+        call_trsm((side, ta, diag), (m, n), (a, lda), (b, ldb));
+        return;
+    }
+    let mut inv = vec![T::ZERO_ONE.0; order * order];
+    (0..order).for_each(|i| inv[i * order + i] = T::ZERO_ONE.1);
+    call_trsm((b'L', b'N', diag), (order, order), (a, lda), (inv.as_mut_ptr(), order));
+    call_trmm((side, ta, diag), (m, n), (inv.as_ptr(), order), (b, ldb));
 }
 
 /// L X = B in place, for a lower triangular L (m x m, leading dimension `lda`) and a column-major
@@ -543,12 +550,7 @@ unsafe fn trsm_left<T: Gemm>(
     (b, ldb): (*mut T, usize),
 ) {
     if m <= TRSM_LEAF || n == 0 {
-        if n < INVERTED_LEAF_ROWS {
-            call_trsm((b'L', b'N', diag), (m, n), (a, lda), (b, ldb));
-        } else {
-            let inv = leaf_inverse(diag, m, (a, lda));
-            call_trmm((b'L', b'N', diag), (m, n), (inv.as_ptr(), m), (b, ldb));
-        }
+        solve_leaf((b'L', b'N', diag), (m, n), (a, lda), (b, ldb));
         return;
     }
     // a multiple of 16 below m (m > 64)
