@@ -22,26 +22,52 @@ use crate::io::staging::{parent_dir, same_file};
 use crate::linalg::dist::{Precision, KEPT_SHARE};
 use crate::par::{agree, Comm};
 
-/// Memory a dense fit of a system of `system` rows needs on each of `ranks` ranks, in bytes: its
-/// rows of the matrix with the right-hand side, the solvers' gathered panels and scratch (measured
-/// within 15 % of the matrix share), and the program's fixed part (libraries, buffers). In mixed
+/// Memory a dense fit of a system of `system` rows needs on each of `ranks` ranks, in bytes, with
+/// panels `panel` wide: its rows of the matrix ([`dense_matrix_bytes`]), the panels the
+/// factorisations gather ([`panel_bytes`]) and the program's fixed part ([`FIXED_BYTES`]).
+pub fn dense_fit_bytes(system: usize, ranks: usize, precision: Precision, lower: bool, panel: usize) -> f64 {
+    dense_matrix_bytes(system, ranks, precision, lower) + panel_bytes(system, ranks, panel) + FIXED_BYTES
+}
+
+/// A rank's rows of a dense system of `system` rows with the right-hand side, in bytes. In mixed
 /// precision the f64 rows stay for the residuals of the refinement while an f32 copy is
 /// factored: 12 bytes an entry instead of 8. With `lower` (the projected Cholesky, which reads
 /// and writes the lower triangle alone) half the entries are touched, and a page of each column
-/// of each copy for its first rows: at 8000 rows on 2 ranks the peak was 271 MB of an estimate
-/// of 385 MB (362 MB of 494 MB with the whole matrix).
-pub fn dense_fit_bytes(system: usize, ranks: usize, precision: Precision, lower: bool) -> f64 {
+/// of each copy for its first rows.
+pub fn dense_matrix_bytes(system: usize, ranks: usize, precision: Precision, lower: bool) -> f64 {
     let rows = system.div_ceil(ranks.max(1)) as f64;
     let cols = (system + 1) as f64;
     let (bytes, copies) = match precision {
         Precision::F64 => (8.0, 1.0),
         Precision::Mixed => (12.0, 2.0),
     };
-    let matrix = if lower { rows * cols * bytes / 2.0 + cols * PAGE * copies } else { rows * cols * bytes };
-    1.15 * matrix + FIXED_BYTES
+    let whole = rows * cols * bytes;
+    if lower {
+        // where a column is shorter than a page, its neighbours share the pages: all are touched
+        whole.min(whole / 2.0 + cols * PAGE * copies)
+    } else {
+        whole
+    }
 }
 
-/// The fixed part of a rank's memory in the estimates: libraries, MPI's and HDF5's buffers.
+/// The buffers of a dense factorisation with panels `panel` wide on a system of `system` rows,
+/// per rank, in bytes: every rank receives each panel's block across all columns (the LU's block
+/// row, the Cholesky's L21, the Householder's W), the current one and, with look-ahead, the next,
+/// plus its own rows' part of a panel (the reflectors, Y = V T^T, the send buffers). Measured at
+/// 8004 rows, panels 128 and 768 wide, the three solvers on 1, 2 and 3 ranks row-cyclic and on
+/// 1x2 and 2x1 grids: the peak grew by 2.4-4.9 times (panel x rows x 8 bytes) from the narrow
+/// panel to the wide one, falling with the ranks towards about 2.3 for the part every rank holds
+/// whole. So the estimate takes 2.5 panels of every row and 3 of the rank's share: on a large
+/// job this is most of a rank's memory (at 100,000 rows on 1,024 ranks a panel of 384 is 770 MB
+/// a rank beside 78 MB of matrix rows), which the 2D layout's blocks would cut.
+pub fn panel_bytes(system: usize, ranks: usize, panel: usize) -> f64 {
+    let n = system as f64;
+    panel as f64 * 8.0 * (2.5 * n + 3.0 * n / ranks.max(1) as f64)
+}
+
+/// The fixed part of a rank's memory in the estimates: libraries, MPI's and HDF5's buffers. At
+/// 8004 rows on 1-3 ranks over Open MPI's shared memory the peaks less the matrix rows and the
+/// panels' buffers were 15-45 MB; an MPI over a cluster's network keeps buffers per peer.
 pub const FIXED_BYTES: f64 = 200e6;
 
 /// The page size the estimates assume.
@@ -265,20 +291,46 @@ mod tests {
 
     #[test]
     fn estimates_grow_as_the_work_does() {
-        // 8000 rows on 2 ranks: the measured peak was 325 MB of an estimate of 494 MB
-        let e = dense_fit_bytes(8000, 2, Precision::F64, false);
-        assert!((e - (1.15 * 4000.0 * 8001.0 * 8.0 + 200e6)).abs() < 1.0);
-        assert!(dense_fit_bytes(85853, 1, Precision::F64, false) > 5e10);
+        let whole = dense_matrix_bytes(8000, 2, Precision::F64, false);
+        assert_eq!(whole, 4000.0 * 8001.0 * 8.0);
+        let e = dense_fit_bytes(8000, 2, Precision::F64, false, 192);
+        assert!((e - (whole + 192.0 * 8.0 * (2.5 * 8000.0 + 1.5 * 8000.0) + 200e6)).abs() < 1.0);
+        assert!(dense_fit_bytes(85853, 1, Precision::F64, false, 192) > 5e10);
         // the f32 copy of a mixed-precision solve: half the f64 share again
-        let m = dense_fit_bytes(8000, 2, Precision::Mixed, false);
-        assert!((m - 200e6 - 1.5 * (e - 200e6)).abs() < 1.0);
-        // the lower triangle alone: half the entries and a page per column (per copy); above
-        // the 271 MB (f64) and 332 MB (mixed) measured
-        let l = dense_fit_bytes(8000, 2, Precision::F64, true);
-        assert!((l - (1.15 * (4000.0 * 8001.0 * 4.0 + 8001.0 * 4096.0) + 200e6)).abs() < 1.0);
-        assert!(l > 271e6 && l < e);
-        let lm = dense_fit_bytes(8000, 2, Precision::Mixed, true);
-        assert!(lm > 332e6 && lm < m && lm > l);
+        let m = dense_matrix_bytes(8000, 2, Precision::Mixed, false);
+        assert_eq!(m, 1.5 * whole);
+        // the lower triangle alone: half the entries and a page per column (per copy)
+        let l = dense_matrix_bytes(8000, 2, Precision::F64, true);
+        assert_eq!(l, 4000.0 * 8001.0 * 4.0 + 8001.0 * 4096.0);
+        let lm = dense_matrix_bytes(8000, 2, Precision::Mixed, true);
+        assert!(lm < m && lm > l);
+        // columns shorter than a page share their pages: all of them are touched
+        let short = dense_matrix_bytes(100_000, 1024, Precision::F64, true);
+        assert_eq!(short, dense_matrix_bytes(100_000, 1024, Precision::F64, false));
+        // above the peaks measured at 8004 rows, panels 128 and 768 wide (bytes per rank: solver,
+        // ranks, panel, peak)
+        let measured = [
+            ("cholesky", 1, 768, 532.5e6),
+            ("cholesky", 2, 768, 347.4e6),
+            ("cholesky", 3, 768, 287.7e6),
+            ("cholesky", 2, 128, 216.6e6),
+            ("lu", 1, 768, 708.2e6),
+            ("lu", 2, 768, 427.5e6),
+            ("lu", 3, 128, 229.3e6),
+            ("householder", 1, 768, 784.2e6),
+            ("householder", 2, 768, 447.1e6),
+            ("householder", 3, 768, 384.7e6),
+        ];
+        for (solver, ranks, panel, peak) in measured {
+            let estimate = dense_fit_bytes(8004, ranks, Precision::F64, solver == "cholesky", panel);
+            assert!(estimate > peak, "{solver} on {ranks} ranks, panel {panel}: {estimate} <= {peak}");
+            // and close to them without the fixed allowance (the panels are not counted twice)
+            let bare = estimate - FIXED_BYTES;
+            assert!(bare < 1.4 * peak, "{solver} on {ranks} ranks, panel {panel}: {bare} >> {peak}");
+        }
+        // at scale the panels' buffers, which every rank holds whole, outgrow the matrix rows
+        let rows = dense_matrix_bytes(100_000, 1024, Precision::F64, false);
+        assert!(panel_bytes(100_000, 1024, 384) > 9.0 * rows);
         let g = Grid::covering([0.0; 3], [1.0; 3], GridSize::Longest(101)).unwrap();
         assert_eq!(grid_bytes(&g, 1), 2.0 * (101 * 101 * 102) as f64 * 8.0);
         assert!(grid_bytes(&g, 4) < grid_bytes(&g, 1) / 3.0);

@@ -8,7 +8,7 @@ use faer::Par;
 
 use super::{Fitted, Run};
 use crate::app::preflight::{
-    bordered_fit_bytes, check_memory, check_memory_beside, dense_fit_bytes, FIXED_BYTES,
+    bordered_fit_bytes, check_memory, check_memory_beside, dense_fit_bytes, dense_matrix_bytes, FIXED_BYTES,
 };
 use crate::app::progress::Progress;
 use crate::app::stages::{Stage, Stages};
@@ -168,20 +168,25 @@ pub const DENSE_ADVICE: &str = "use --method csrbf (compactly supported, sparse)
 /// Refuses a dense system that does not fit in the ranks' memory: for the projected Cholesky the
 /// lower triangle it assembles (a fallback to LU checks the whole matrix before assembling it).
 /// Collective.
-pub fn check(
-    comm: &dyn Comm,
-    kernel: &Kernel,
-    n: usize,
-    precision: Precision,
-    solver: SolverKind,
-) -> Result<()> {
+pub fn check(comm: &dyn Comm, kernel: &Kernel, n: usize, a: &FitArgs) -> Result<()> {
     let system = n + kernel.poly_count();
+    let lower = lower_for(a.solver, kernel, system);
     check_memory(
         comm,
-        dense_fit_bytes(system, comm.size(), precision, lower_for(solver, kernel, system)),
+        dense_fit_bytes(system, comm.size(), a.precision, lower, estimate_panel(a.panel, a.solver, system)),
         &format!("the dense system of {system} rows ({n} points)"),
         DENSE_ADVICE,
     )
+}
+
+/// The panel width the memory estimates of a fit assume: `panel` where the user gave one (not
+/// 0), else the widest that `solver` takes by default on `system` rows.
+pub(super) fn estimate_panel(panel: usize, solver: SolverKind, system: usize) -> usize {
+    if panel > 0 {
+        panel
+    } else {
+        solver.widest_default_panel(system)
+    }
 }
 
 /// The factor of a first fit kept for later fits that append centres to it, with the centres of
@@ -236,7 +241,7 @@ pub fn refit(
         let k = kernel.poly_count();
         check_memory_beside(
             run.comm,
-            dense_fit_bytes(n + k, run.comm.size(), Precision::F64, true),
+            dense_matrix_bytes(n + k, run.comm.size(), Precision::F64, true) + FIXED_BYTES,
             bordered_fit_bytes(n, m, k, run.comm.size()),
             &format!("bordering the first fit's factor ({n} centres) by {m} more"),
             "use more ranks or nodes, --blob-choice off, or fewer points",
@@ -250,7 +255,7 @@ pub fn refit(
             outcome => return outcome,
         }
     }
-    check(run.comm, &kernel, prep.values.len() + held, run.args.precision, run.args.solver)?;
+    check(run.comm, &kernel, prep.values.len() + held, run.args)?;
     fit(run, kernel, prep, false, stages)
 }
 
@@ -344,7 +349,13 @@ pub fn fit(
         }
         check_memory(
             comm,
-            dense_fit_bytes(rows, comm.size(), Precision::F64, false),
+            dense_fit_bytes(
+                rows,
+                comm.size(),
+                Precision::F64,
+                false,
+                estimate_panel(a.panel, SolverKind::Lu, rows),
+            ),
             &format!("the LU fallback's whole matrix of {rows} rows"),
             DENSE_ADVICE,
         )
@@ -416,8 +427,8 @@ pub fn fit(
 /// much again: the lower triangle). Where they have not, rank 0 says so and later fits factor
 /// their systems anew. Collective.
 fn copy_fits(comm: &dyn Comm, rows: usize) -> bool {
-    let held = dense_fit_bytes(rows, comm.size(), Precision::F64, true);
-    let copy = held - FIXED_BYTES;
+    let copy = dense_matrix_bytes(rows, comm.size(), Precision::F64, true);
+    let held = copy + FIXED_BYTES;
     let room = super::agreed_room(comm, held);
     if copy <= room {
         return true;

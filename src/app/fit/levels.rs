@@ -144,7 +144,7 @@ pub fn fit(
     let mut refit =
         |p: &Prepared, first: Option<&dense::KeptFactor>, st: &mut Stages| dense::refit(run, r, p, first, st);
     let level0 = (|| {
-        dense::check(run.comm, &r, constrained.prep.values.len(), run.args.precision, run.args.solver)?;
+        dense::check(run.comm, &r, constrained.prep.values.len(), run.args)?;
         let first = dense::fit(run, r, &constrained.prep, true, &mut inner)?;
         // level 0 decides the sign away from the data: its spurious blobs are cleared like a
         // single-level fit's

@@ -158,7 +158,9 @@ fn choose(
         (Method::Auto, KernelChoice::Auto) => {
             let r = Kernel::new(3, 2)?;
             let system = n + r.poly_count();
-            let bytes = dense_fit_bytes(system, ranks, a.precision, dense::lower_for(a.solver, &r, system));
+            let lower = dense::lower_for(a.solver, &r, system);
+            let panel = dense::estimate_panel(a.panel, a.solver, system);
+            let bytes = dense_fit_bytes(system, ranks, a.precision, lower, panel);
             let seconds = (system as f64).powi(3) / 3.0 / (DENSE_FLOPS_PER_RANK * ranks as f64);
             if bytes <= room && seconds <= DENSE_SECONDS {
                 let why = format!("auto: the dense system fits and should solve in about {seconds:.0} s");
@@ -317,7 +319,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             );
         }
         if method != Method::Csrbf {
-            dense::check(comm, &kernel, rows, a.precision, a.solver)?;
+            dense::check(comm, &kernel, rows, a)?;
         }
         check_grid(comm, &grid)?;
         // the second fit against spurious blobs has more rows: checked again

@@ -170,6 +170,14 @@ impl SolverKind {
         }
     }
 
+    /// The widest panel or block this solver takes by default on `n` rows, on either layout and
+    /// with either engine of the products: what a memory estimate made before the engine is
+    /// chosen assumes.
+    pub fn widest_default_panel(&self, n: usize) -> usize {
+        let kind = self.resolve(n);
+        kind.default_panel(n, true).max(kind.default_panel(n, false)).max(kind.default_block_2d(n))
+    }
+
     /// Block size of the 2D block-cyclic layout when the user gives none, for the solver this
     /// resolves to on `n` rows; measured at N+k = 8000 on 2 ranks (1x2 and 2x1 grids): LU and the
     /// projected Cholesky gain from 128 over ScaLAPACK's usual 64 (LU 3.99-4.08 s against
