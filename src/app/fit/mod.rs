@@ -645,7 +645,7 @@ mod tests {
         let a = fit_args(&[]);
         let centres: Vec<f64> = (0..300).map(|i| ((i * 37 % 101) as f64 / 50.0) - 1.0).collect();
         let method = |rows: usize, machine: (usize, f64)| choose(&a, rows, machine, &centres).unwrap();
-        // 12,000 rows on one rank: 12004^3 / 3 flops at 60 GFLOP/s, about 10 s, and 1.15 GB
+        // 12,000 rows on one rank: 12004^3 / 3 flops at 60 GFLOP/s, about 10 s
         let (m, k, why) = method(12_000, (1, f64::INFINITY));
         assert_eq!(m, Method::Dense, "{why}");
         assert_eq!(k.name(), "r");
@@ -660,13 +660,15 @@ mod tests {
         assert_eq!(method(18_000, (2, f64::INFINITY)).0, Method::Csrbf);
         assert_eq!(method(17_000, (2, f64::INFINITY)).0, Method::Dense);
         // the memory the ranks agreed on decides too: the projected Cholesky, the solver for
-        // these rows, takes the lower triangle alone (0.96 GB here), LU the whole matrix (1.3 GB)
-        let (m, _, why) = method(12_000, (1, 0.9e9));
+        // these rows, takes the lower triangle alone (with its panels of 384, 1.03 GB here), LU
+        // the whole matrix (1.52 GB with its panels of 320)
+        let (m, _, why) = method(12_000, (1, 1.0e9));
         assert_eq!(m, Method::Csrbf, "{why}");
-        assert!(why.contains("GB per rank"), "{why}");
-        assert_eq!(method(12_000, (1, 1e9)).0, Method::Dense);
+        assert!(why.contains("1.0 GB per rank"), "{why}");
+        assert_eq!(method(12_000, (1, 1.1e9)).0, Method::Dense);
         let lu = fit_args(&["--solver", "lu"]);
-        assert_eq!(choose(&lu, 12_000, (1, 1e9), &centres).unwrap().0, Method::Csrbf);
+        assert_eq!(choose(&lu, 12_000, (1, 1.1e9), &centres).unwrap().0, Method::Csrbf);
+        assert_eq!(choose(&lu, 12_000, (1, 1.6e9), &centres).unwrap().0, Method::Dense);
         // an explicit kernel or method is taken as asked
         let a = fit_args(&["--method", "dense"]);
         assert_eq!(choose(&a, 18_000, (1, 1e6), &centres).unwrap().0, Method::Dense);
