@@ -62,6 +62,13 @@ Row-cyclic (volspline, src/linalg/dist):
   (nb m_j / pc values over pr); LU swaps rows of m_j / pc values one by one; the trailing update is
   (m_j / pr) x nb x (m_j / pc) per rank.
 Both layouts use the same local rates, so the comparison is of the distributions alone.
+
+Memory per rank (the rule of volspline's preflight, `panel_bytes` in src/app/preflight.rs):
+its rows of the matrix (the lower triangle and a page per column for the Cholesky), the panels'
+buffers, 2.5 nb n + 3 nb n / P values (every rank receives each panel's block across all
+columns, the current one and the next; measured on 1-3 ranks), and 200 MB. For the 2D layout the
+same rule with the rank's process row and column in place of all rows: 2.5 nb (n / pr + n / pc)
++ 3 nb n / P (not measured beyond 2 ranks).
 """
 import csv
 import math
@@ -214,6 +221,29 @@ def grid2d(p):
     """The squarest pr x pc = p with pr <= pc."""
     pr = max(d for d in range(1, int(math.isqrt(p)) + 1) if p % d == 0)
     return pr, p // pr
+
+
+MEM_NB = {"householder": 192, "lu": 320, "cholesky": 384}  # volspline's widest default panels
+MEM_NB_2D = 128  # its default 2D block
+MEM_FIXED = 200e6  # the preflight's fixed part a rank
+PAGE = 4096
+
+
+def memory_per_rank(solver, layout, n, p):
+    """Bytes a rank holds at the peak of a dense solve by the preflight's rule (see the module doc),
+    and the part of them that is panel buffers."""
+    pr, pc = grid2d(p) if layout == "2d" else (p, 1)
+    rows, cols = math.ceil(n / pr), math.ceil(n / pc)
+    whole = rows * cols * 8.0
+    if solver == "cholesky":
+        matrix = min(whole, whole / 2 + cols * PAGE)
+    else:
+        matrix = whole
+    if layout == "2d":
+        panels = MEM_NB_2D * 8.0 * (2.5 * (n / pr + n / pc) + 3.0 * n / p)
+    else:
+        panels = MEM_NB[solver] * 8.0 * (2.5 * n + 3.0 * n / p)
+    return matrix + panels + MEM_FIXED, panels
 
 
 def model_time(solver, layout, n, p, mach, eff, col_s, nb=None, grid=None, now=True):
@@ -578,6 +608,30 @@ def main(out):
              "alike, outgrow the messages) and grows with P: row-cyclic pays ceil(log2 P) latencies per column for "
              "Householder's all-reduces and LU's pivot all-gathers (2D: log2 sqrt(P) in one process column) and "
              "receives the n^2/2 values of every block row or panel on every rank (2D: about n^2/sqrt(P)).")
+
+    # ------------------------------------------------ memory per rank
+    L.append("\n## Memory per rank\n")
+    L.append("The preflight's rule (src/app/preflight.rs): the rank's rows of the matrix, the panels' buffers "
+             "(2.5 nb n + 3 nb n / P values: each panel's block across all columns reaches every rank) and 200 MB; "
+             "for 2D the same with the rank's process row and column, 2.5 nb (n/pr + n/pc) + 3 nb n / P (a bound, "
+             "measured only on 2 ranks). Panels: volspline's widest defaults, " +
+             ", ".join(f"{s} {MEM_NB[s]}" for s in SOLVERS) + "; 2D blocks " + str(MEM_NB_2D) + ". "
+             "GB per rank, row-cyclic / 2D, and the share of the row-cyclic figure that is panel buffers.\n")
+    mem_ps = [p for p in PS if p >= 16]
+    L.append("| solver | N+k | " + " | ".join(f"P={p}" for p in mem_ps) + " |")
+    L.append("|---|---:|" + "---|" * len(mem_ps))
+    for solver in SOLVERS:
+        for n in [n for n in NS if n >= 20_000]:
+            cells = []
+            for p in mem_ps:
+                row, panels = memory_per_rank(solver, "row", n, p)
+                two, _ = memory_per_rank(solver, "2d", n, p)
+                cells.append(f"{row / 1e9:.2f} / {two / 1e9:.2f} ({100 * panels / row:.0f} %)")
+            L.append(f"| {solver} | {n} | " + " | ".join(cells) + " |")
+    L.append("\nOn the row-cyclic layout the panels' buffers do not shrink with P, so from about "
+             "P = n / (2.5 nb) on (half that for the Cholesky's lower triangle; at N+k = 10^5 about 210 for the "
+             "Householder's panels of 192, 125 for the LU's 320, 52 for the Cholesky's 384) they hold more than the "
+             "matrix rows: the memory side of the case for 2D at scale.")
 
     # ------------------------------------------------ plots of the predictions
     fig, ax = plt.subplots(1, 3, figsize=(16, 4.6))
