@@ -426,32 +426,6 @@ unsafe fn call_triangular<T: Gemm>(
     routine(&side, &uplo, &ta, &diag, &m, &n, &one, a, &lda, b, &ldb, 1, 1, 1, 1);
 }
 
-/// The type's triangular solve ([`call_triangular`]).
-///
-/// # Safety
-/// As for [`call_gemm`].
-unsafe fn call_trsm<T: Gemm>(
-    op: (u8, u8, u8),
-    dims: (usize, usize),
-    a: (*const T, usize),
-    b: (*mut T, usize),
-) {
-    call_triangular(T::TRSM, op, dims, a, b);
-}
-
-/// The type's triangular product ([`call_triangular`]).
-///
-/// # Safety
-/// As for [`call_gemm`].
-unsafe fn call_trmm<T: Gemm>(
-    op: (u8, u8, u8),
-    dims: (usize, usize),
-    a: (*const T, usize),
-    b: (*mut T, usize),
-) {
-    call_triangular(T::TRMM, op, dims, a, b);
-}
-
 /// Columns of L at which [`trsm_right`] stops halving and solves the leaf.
 const TRSM_LEAF: usize = 64;
 
@@ -523,13 +497,13 @@ unsafe fn solve_leaf<T: Gemm>(
 ) {
     let (order, across) = if side == b'R' { (n, m) } else { (m, n) };
     if across < INVERTED_LEAF_ROWS {
-        call_trsm((side, ta, diag), (m, n), (a, lda), (b, ldb));
+        call_triangular(T::TRSM, (side, ta, diag), (m, n), (a, lda), (b, ldb));
         return;
     }
     let mut inv = vec![T::ZERO_ONE.0; order * order];
     (0..order).for_each(|i| inv[i * order + i] = T::ZERO_ONE.1);
-    call_trsm((b'L', b'N', diag), (order, order), (a, lda), (inv.as_mut_ptr(), order));
-    call_trmm((side, ta, diag), (m, n), (inv.as_ptr(), order), (b, ldb));
+    call_triangular(T::TRSM, (b'L', b'N', diag), (order, order), (a, lda), (inv.as_mut_ptr(), order));
+    call_triangular(T::TRMM, (side, ta, diag), (m, n), (inv.as_ptr(), order), (b, ldb));
 }
 
 /// L X = B in place, for a lower triangular L (m x m, leading dimension `lda`) and a column-major
