@@ -110,6 +110,16 @@ pub fn unsupported_in_window(
     support: &DataSupport,
     window: &[Range<usize>; 3],
 ) -> usize {
+    unsupported_crossings_in_window(lattice, values, support, window).len()
+}
+
+/// The unsupported crossings that [`unsupported_in_window`] counts, in lattice order.
+pub fn unsupported_crossings_in_window(
+    lattice: &Lattice,
+    values: &[f64],
+    support: &DataSupport,
+    window: &[Range<usize>; 3],
+) -> Vec<[f64; 3]> {
     let [nx, ny, _] = lattice.dims;
     let inside = |i: usize| {
         let idx = [i % nx, (i / nx) % ny, i / (nx * ny)];
@@ -126,14 +136,13 @@ pub fn unsupported_in_window(
     let strides = [1, nx, nx * ny];
     lower
         .into_par_iter()
-        .map(|i| {
+        .flat_map_iter(|i| {
             (0..3)
-                .filter(|&a| inside(i) || inside(i + strides[a]))
-                .filter_map(|a| crossing(lattice, values, i, a))
+                .filter(move |&a| inside(i) || inside(i + strides[a]))
+                .filter_map(move |a| crossing(lattice, values, i, a))
                 .filter(|q| !support.supports(q))
-                .count()
         })
-        .sum()
+        .collect()
 }
 
 /// Where the surface crosses the lattice edge from node `i` along axis `a` (the field `values`

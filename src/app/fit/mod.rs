@@ -467,6 +467,13 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             r.figure("rays_turned_patches", k.turned);
             r.figure("rays_turned_points", k.turned_points);
         }
+        if let Some(t) = &s.turns {
+            r.figure("turns_tried", t.tried);
+            r.figure("turns_turned", t.turned);
+            r.figure("turns_by_open_space", t.by_open_space);
+            r.figure("turns_unsupported_before", t.before);
+            r.figure("turns_unsupported_after", t.after);
+        }
     }
     for (k, v) in &fitted.figures {
         r.figure(k, v);
@@ -585,8 +592,16 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
             None => String::new(),
         } + &match &s.turns {
             Some(t) => format!(
-                "; turns: {} of {} patches tried ({} points) turned, unsupported crossings {} -> {}",
-                t.turned, t.tried, t.turned_points, t.before, t.after
+                "; turns: {} of {} patches tried ({} points) turned{}, unsupported crossings {} -> {}",
+                t.turned,
+                t.tried,
+                t.turned_points,
+                match t.by_open_space {
+                    0 => String::new(),
+                    k => format!(" ({k} by open space)"),
+                },
+                t.before,
+                t.after
             ),
             None if s.turns_skipped => "; turns: skipped (no factor kept to try them with)".to_string(),
             None => String::new(),

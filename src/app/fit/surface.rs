@@ -14,8 +14,9 @@ use crate::error::Result;
 use crate::par::{agree, Comm};
 use crate::spline::hygiene::Prepared;
 use crate::surface::blobs::{
-    blob_values, data_cells, lost_solid, points_without_solid, sample, sample_nodes, sample_window,
-    winding_numbers, Blobs, Lattice, Search, CLEARANCE, INSIDE, RESTORE_FROM, SECOND_ROUND_FROM,
+    blob_values, data_cells, lost_solid, point_areas, points_without_solid, sample, sample_nodes,
+    sample_window, winding_numbers, Blobs, Lattice, Search, CLEARANCE, INSIDE, OPEN_SPACE, RESTORE_FROM,
+    SECOND_ROUND_FROM,
 };
 use crate::surface::choice::{self, unsupported_share};
 use crate::surface::denoise::Denoised;
@@ -642,6 +643,8 @@ fn turn_by_surface(
     });
     let mut far = crossings.len();
     let mut check = TurnCheck { tried: candidates.len(), before: far, ..Default::default() };
+    // the data points' shares of the surface, for the winding numbers, where a try asks for them
+    let mut areas: Option<Vec<f64>> = None;
     let nd = data.values.len();
     for candidate in candidates {
         // the count changes within the window alone: where the crossings there now are too few
@@ -667,16 +670,28 @@ fn turn_by_surface(
         let off_values = off_values(&off, &data.points, &data.carrier, &data.norm);
         prep.values[nd..nd + off_values.len()].copy_from_slice(&off_values);
         let tried = refit(&prep, factor, stages)?;
-        let (tried_values, after) = stages.time(Stage::Turns, || {
+        let (tried_values, after, kept) = stages.time(Stage::Turns, || {
             let mut tried_values = values.clone();
             sample_window(run.comm, lattice, &window, (&data.carrier, &tried.spline), &mut tried_values);
             let after = far - now + within(&tried_values);
-            (tried_values, after)
+            // the unsupported crossings in open space within the window, before and after
+            let open = || {
+                let area = areas.get_or_insert_with(|| point_areas(&data.centres, &c.hoods.tree, lattice.h));
+                let count = |values: &[f64], normals: &[[f64; 3]]| {
+                    let at = choice::unsupported_crossings_in_window(lattice, values, &support, &window);
+                    let w = winding_numbers(run.comm, &at, &data.centres, normals, area);
+                    w.iter().filter(|&&w| w < OPEN_SPACE).count()
+                };
+                (count(&values, &c.normals), count(&tried_values, &normals))
+            };
+            let kept = turns::keeps_by(far, after, open);
+            (tried_values, after, kept)
         });
-        if turns::gains(far, after) {
+        if let Some(by_open_space) = kept {
             (c.normals, c.off, c.prep, fit, far, values) = (normals, off, prep, tried, after, tried_values);
             check.turned += 1;
             check.turned_points += candidate.members.len();
+            check.by_open_space += usize::from(by_open_space);
         }
     }
     check.after = far;
