@@ -468,11 +468,14 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             r.figure("rays_turned_points", k.turned_points);
         }
         if let Some(t) = &s.turns {
-            r.figure("turns_tried", t.tried);
-            r.figure("turns_turned", t.turned);
-            r.figure("turns_by_open_space", t.by_open_space);
-            r.figure("turns_unsupported_before", t.before);
-            r.figure("turns_unsupported_after", t.after);
+            let counts = [
+                ("turns_tried", t.tried),
+                ("turns_turned", t.turned),
+                ("turns_by_open_space", t.by_open_space),
+                ("turns_unsupported_before", t.before),
+                ("turns_unsupported_after", t.after),
+            ];
+            counts.into_iter().for_each(|(key, count)| r.figure(key, count));
         }
     }
     for (k, v) in &fitted.figures {
