@@ -223,6 +223,8 @@ def grid2d(p):
     return pr, p // pr
 
 
+# volspline's widest default panels at scale and its 2D block (a unit test in
+# src/linalg/dist/solver.rs checks these two lines against the solvers' defaults)
 MEM_NB = {"householder": 192, "lu": 320, "cholesky": 384}  # volspline's widest default panels
 MEM_NB_2D = 128  # its default 2D block
 MEM_FIXED = 200e6  # the preflight's fixed part a rank

@@ -422,6 +422,29 @@ mod tests {
     use super::*;
 
     #[test]
+    fn the_scaling_models_memory_panels_are_the_solvers_defaults() {
+        // jobs/bench/scaling_model.py repeats the widest default panels of the row-cyclic
+        // solvers at scale and the 2D block for its memory per rank: they must follow these
+        let script = include_str!("../../../jobs/bench/scaling_model.py");
+        let n = 100_000;
+        let widest = |kind: SolverKind| kind.default_panel(n, true).max(kind.default_panel(n, false));
+        let line = script.lines().find(|l| l.starts_with("MEM_NB =")).expect("the MEM_NB line");
+        for (name, kind) in [
+            ("householder", SolverKind::Householder),
+            ("lu", SolverKind::Lu),
+            ("cholesky", SolverKind::Cholesky),
+        ] {
+            let at = line.find(&format!("\"{name}\": ")).unwrap_or_else(|| panic!("no {name} in {line}"));
+            let rest = &line[at + name.len() + 4..];
+            let panel: usize = rest.split([',', '}']).next().unwrap().trim().parse().unwrap();
+            assert_eq!(panel, widest(kind), "{name}: {line}");
+        }
+        let line = script.lines().find(|l| l.starts_with("MEM_NB_2D =")).expect("the MEM_NB_2D line");
+        let block: usize = line.split('#').next().unwrap().split('=').nth(1).unwrap().trim().parse().unwrap();
+        assert_eq!(block, SolverKind::Cholesky.default_block_2d(n), "{line}");
+    }
+
+    #[test]
     fn auto_picks_by_size_and_names_round_trip() {
         assert_eq!(
             SolverKind::parse("auto").unwrap().resolve(AUTO_CHOLESKY_FROM - 1),
