@@ -18,7 +18,7 @@ use volspline::par::Solo;
 use volspline::spline::hygiene::{prepare, Prepared};
 use volspline::spline::{Carrier, Kernel, Model, Spline};
 use volspline::surface::blobs::{
-    blob_values, sample, sample_window, winding_numbers, Blobs, Lattice, Search, CLEARANCE, OPEN_SPACE,
+    blob_values, sample, sample_window, winding_numbers, Blobs, Lattice, Search, CLEARANCE,
 };
 use volspline::surface::choice::{self, unsupported_share};
 use volspline::surface::energy::{flip_by_energy, pairs, patch_energy, ENERGY_LIMIT};
@@ -270,11 +270,9 @@ fn serial_offsurface(
             let after = choice::unsupported_crossings(&lattice, &tried_values, &support).0;
             // the unsupported crossings in open space within the window, before and after
             let open = || {
-                let area = search.areas();
                 let count = |values: &[f64], normals: &[[f64; 3]]| {
-                    let at = choice::unsupported_crossings_in_window(&lattice, values, &support, &window);
-                    let w = winding_numbers(&Solo, &at, &data.centres, normals, area);
-                    w.iter().filter(|&&w| w < OPEN_SPACE).count()
+                    let data = (&data.centres[..], normals, search.areas());
+                    turns::open_space_crossings(&Solo, (&lattice, &window), values, &support, data)
                 };
                 (count(&values, &normals), count(&tried_values, &turned_normals))
             };
@@ -1176,10 +1174,7 @@ fn a_turn_kept_by_open_space_removes_false_solid_beside_the_cow() {
     let pts = read_back(Path::new(OPEN_SPACE_COW));
     let (mesh, _, line) = fit_mesh("cow-open-space-turn", &pts, "64", &[]);
     let (rms, far) = mesh_to_truth(&truth, &mesh);
-    println!(
-        "{line}
-  rms {rms:.5}, far {far:.4}"
-    );
+    println!("{line}\n  rms {rms:.5}, far {far:.4}");
     assert!(line.contains("turned (1 by open space)"), "{line}");
     assert!(rms < 0.0026 && far < 0.0015, "mesh -> cow rms {rms}, far {far}");
 }

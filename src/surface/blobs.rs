@@ -667,7 +667,7 @@ pub fn lost_solid(lattice: &Lattice, first: &[f64], now: &[f64], points: &[f64])
 /// The share of the surface each data point stands for: pi r^2 / k with r the distance to its
 /// k-th nearest data point (k = [`VOTERS`]), the area of the disc of its k nearest neighbours
 /// shared among them.
-pub fn point_areas(points: &[f64], tree: &Octree, h: f64) -> Vec<f64> {
+fn point_areas(points: &[f64], tree: &Octree, h: f64) -> Vec<f64> {
     let n = points.len() / 3;
     let k = VOTERS.min(n).max(1);
     (0..n)

@@ -36,9 +36,9 @@
 //! count fell by 13 of 464 (2.8 %), under [`GAIN`], although the turn is right (mesh -> truth
 //! 0.366 -> 0.318 % of the diagonal, the separate blob beside the tail gone). At the rim of an
 //! open cow's hole, the 5-point patch whose turn cost completeness where a smaller [`GAIN`] kept
-//! it (below; 480 -> 464 in all with the present steps) raised the open-space count, 2 -> 8. So a try is also kept when it lowers the whole count and the
-//! open-space count within its window falls by more than [`GAIN`] of the whole count
-//! ([`keeps`]). The winding numbers are taken for those tries alone (the ones the first rule
+//! it (below; 480 -> 464 in all with the present steps) raised the open-space count, 2 -> 8.
+//! So a try is also kept when it lowers the whole count and the open-space count within its
+//! window ([`open_space_crossings`]) falls by more than [`GAIN`] of the whole count ([`keeps`]). The winding numbers are taken for those tries alone (the ones the first rule
 //! rejects although they lower the whole count), at the unsupported crossings of the window
 //! before and after: a sum over the data points for each, split over the ranks.
 //!
@@ -79,10 +79,13 @@
 
 use std::ops::Range;
 
-use super::blobs::Lattice;
+use super::blobs::{winding_numbers, Lattice, OPEN_SPACE};
+use super::choice::unsupported_crossings_in_window;
 use super::normals::dist2;
 use super::orient::{orientation_edges, tangent_patches};
 use super::rays::PATCH_SHARE;
+use super::support::DataSupport;
+use crate::par::Comm;
 use crate::spline::octree::Octree;
 
 /// Fewest unsupported crossings charged to a patch for it to be tried.
@@ -204,6 +207,21 @@ pub fn keeps_by(before: usize, after: usize, open: impl FnOnce() -> (usize, usiz
     } else {
         None
     }
+}
+
+/// The unsupported crossings of the field `values` on `lattice` (as
+/// [`unsupported_crossings_in_window`] finds them within `window`) that lie in open space: where
+/// the winding number of the data `points` with outward `normals` and surface shares `areas` (see
+/// [`winding_numbers`]) is below [`OPEN_SPACE`]. The second count of [`keeps`]. Collective.
+pub fn open_space_crossings(
+    comm: &dyn Comm,
+    (lattice, window): (&Lattice, &[Range<usize>; 3]),
+    values: &[f64],
+    support: &DataSupport,
+    (points, normals, areas): (&[f64], &[[f64; 3]], &[f64]),
+) -> usize {
+    let at = unsupported_crossings_in_window(lattice, values, support, window);
+    winding_numbers(comm, &at, points, normals, areas).iter().filter(|&&w| w < OPEN_SPACE).count()
 }
 
 /// Whether the unsupported crossings in open space fell from `open.0` to `open.1` by more than

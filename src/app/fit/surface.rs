@@ -14,9 +14,8 @@ use crate::error::Result;
 use crate::par::{agree, Comm};
 use crate::spline::hygiene::Prepared;
 use crate::surface::blobs::{
-    blob_values, data_cells, lost_solid, point_areas, points_without_solid, sample, sample_nodes,
-    sample_window, winding_numbers, Blobs, Lattice, Search, CLEARANCE, INSIDE, OPEN_SPACE, RESTORE_FROM,
-    SECOND_ROUND_FROM,
+    blob_values, data_cells, lost_solid, points_without_solid, sample, sample_nodes, sample_window,
+    winding_numbers, Blobs, Lattice, Search, CLEARANCE, INSIDE, RESTORE_FROM, SECOND_ROUND_FROM,
 };
 use crate::surface::choice::{self, unsupported_share};
 use crate::surface::denoise::Denoised;
@@ -310,6 +309,8 @@ pub fn check_first_fit(
     let factor = first.factor.take();
     let lattice = Lattice::of_fit(&data.box_lo, &data.box_hi, run.args.grid.margin, &data.norm);
     let searched = rays_and_blobs(run, data, c, first, stages, refit, (factor.as_ref(), &lattice))?;
+    // the data points' shares of the surface, for the turns' winding numbers
+    let areas = searched.areas.clone();
     let (mut fit, values) = if run.args.restore_solid {
         restore_solid(run, data, c, searched, stages, refit, (factor.as_ref(), &lattice))?
     } else {
@@ -321,7 +322,8 @@ pub fn check_first_fit(
     // fit: affordable on small systems alone
     let affordable = basis.is_some() || c.prep.values.len() < FRESH_TRIES_BELOW;
     if run.args.orient_turns && affordable {
-        return turn_by_surface(run, data, c, (fit, values), stages, refit, (basis.as_ref(), &lattice));
+        let at = (basis.as_ref(), &lattice, &areas[..]);
+        return turn_by_surface(run, data, c, (fit, values), stages, refit, at);
     }
     c.summary.turns_skipped = run.args.orient_turns;
     Ok(fit)
@@ -621,7 +623,8 @@ fn second_round(
 /// the lattice around the patch is sampled again, and its crossings counted again (a patch whose
 /// window holds too few unsupported crossings for their removal to be a gain is passed over
 /// without a solve). The lattice is the blob search's; `values`, the
-/// fit's values on it where the search sampled them. Collective.
+/// fit's values on it where the search sampled them; `areas`, the data points' shares of the
+/// surface the search took for its winding numbers. Collective.
 fn turn_by_surface(
     run: &Run<'_>,
     data: &Prepared,
@@ -629,7 +632,7 @@ fn turn_by_surface(
     (mut fit, values): (Fitted, Option<Vec<f64>>),
     stages: &mut Stages,
     refit: &mut Refit<'_>,
-    (factor, lattice): (Option<&KeptFactor>, &Lattice),
+    (factor, lattice, areas): (Option<&KeptFactor>, &Lattice, &[f64]),
 ) -> Result<Fitted> {
     let support = DataSupport::new(&data.centres, choice::FACTOR);
     let (mut values, crossings) = stages.time(Stage::Turns, || {
@@ -643,8 +646,6 @@ fn turn_by_surface(
     });
     let mut far = crossings.len();
     let mut check = TurnCheck { tried: candidates.len(), before: far, ..Default::default() };
-    // the data points' shares of the surface, for the winding numbers, where a try asks for them
-    let mut areas: Option<Vec<f64>> = None;
     let nd = data.values.len();
     for candidate in candidates {
         // the count changes within the window alone: where the crossings there now are too few
@@ -676,11 +677,9 @@ fn turn_by_surface(
             let after = far - now + within(&tried_values);
             // the unsupported crossings in open space within the window, before and after
             let open = || {
-                let area = areas.get_or_insert_with(|| point_areas(&data.centres, &c.hoods.tree, lattice.h));
                 let count = |values: &[f64], normals: &[[f64; 3]]| {
-                    let at = choice::unsupported_crossings_in_window(lattice, values, &support, &window);
-                    let w = winding_numbers(run.comm, &at, &data.centres, normals, area);
-                    w.iter().filter(|&&w| w < OPEN_SPACE).count()
+                    let data = (&data.centres[..], normals, areas);
+                    turns::open_space_crossings(run.comm, (lattice, &window), values, &support, data)
                 };
                 (count(&values, &c.normals), count(&tried_values, &normals))
             };
