@@ -166,8 +166,9 @@ pub(super) fn lower_for(solver: SolverKind, kernel: &Kernel, system: usize) -> b
 pub const DENSE_ADVICE: &str = "use --method csrbf (compactly supported, sparse), more ranks or nodes (the rows are split over all ranks) or fewer points";
 
 /// Refuses a dense system that does not fit in the ranks' memory: its rows with the solver's
-/// panel buffers (panels as wide as `estimate_panel` says); for the projected Cholesky the lower triangle it
-/// assembles (a fallback to LU checks the whole matrix before assembling it). Collective.
+/// panel buffers (panels as wide as `estimate_panel` says); for the projected Cholesky the lower
+/// triangle it assembles (a fallback to LU checks the whole matrix before assembling it).
+/// Collective.
 pub fn check(comm: &dyn Comm, kernel: &Kernel, n: usize, a: &FitArgs) -> Result<()> {
     let system = n + kernel.poly_count();
     let lower = lower_for(a.solver, kernel, system);
