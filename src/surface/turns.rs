@@ -38,9 +38,10 @@
 //! open cow's hole, the 5-point patch whose turn cost completeness where a smaller [`GAIN`] kept
 //! it (below; 480 -> 464 in all with the present steps) raised the open-space count, 2 -> 8.
 //! So a try is also kept when it lowers the whole count and the open-space count within its
-//! window ([`open_space_crossings`]) falls by more than [`GAIN`] of the whole count ([`keeps`]). The winding numbers are taken for those tries alone (the ones the first rule
-//! rejects although they lower the whole count), at the unsupported crossings of the window
-//! before and after: a sum over the data points for each, split over the ranks.
+//! window ([`open_space_crossings`]) falls by more than [`GAIN`] of the whole count ([`keeps`]).
+//! The winding numbers are taken for those tries alone (the ones the first rule rejects although
+//! they lower the whole count), at the unsupported crossings of the window before and after: a
+//! sum over the data points for each, split over the ranks.
 //!
 //! # Measured
 //!
