@@ -220,9 +220,12 @@ pub struct FitArgs {
     /// part thinner than the lattice, such as a leg sampled by three points, sinks below zero
     /// under the pins' far reach), constrain the first fit's value at the node of each such
     /// point's lattice cell where it was largest, if the data enclose that node (winding number
-    /// at least 1/2) where there are at least 4 such nodes, and keep that fit when fewer data
-    /// points are left without solid (on, or off). One more fit, bordering the first fit's
-    /// factor, where solid was lost (see src/surface/blobs.rs, "Solid given back").
+    /// at least 1/2) where there are at least 4 such nodes, and, for each such point with no
+    /// data point with solid within 5 % of the box diagonal (a part sampled at its end alone,
+    /// lost whole), at the nodes of the shortest way through the first fit's solid from it to
+    /// the solid kept; keep that fit when fewer data points are left without solid (on, or off).
+    /// One more fit, bordering the first fit's factor, where solid was lost (see
+    /// src/surface/blobs.rs, "Solid given back" and "Along the first fit's solid").
     #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub restore_solid: bool,
     /// Last, where the dense fit kept its factor, try turning the small patches of normals

@@ -459,6 +459,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         if let Some(k) = &s.restored {
             r.figure("restored_lost", k.lost);
             r.figure("restored_points", k.points);
+            r.figure("restored_along", k.along);
             r.figure("restored_kept", k.kept);
         }
         if let Some(k) = &s.rays {
@@ -582,11 +583,14 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
             Some(_) => "; second round: nothing in open space".to_string(),
             None => String::new(),
         } + &match &s.restored {
-            Some(k) if k.points > 0 => format!(
-                "; solid lost at {} data points, given back at {} nodes inside, data points without solid \
-                 {} -> {}: {}",
+            Some(k) if k.points + k.along > 0 => format!(
+                "; solid lost at {} data points, given back at {}, data points without solid {} -> {}: {}",
                 k.lost,
-                k.points,
+                match (k.points, k.along) {
+                    (inside, 0) => format!("{inside} nodes inside"),
+                    (0, along) => format!("{along} nodes along the first fit's solid"),
+                    (inside, along) => format!("{inside} nodes inside and {along} along the first fit's solid"),
+                },
                 k.without_solid.0,
                 k.without_solid.1,
                 if k.kept { "kept" } else { "dropped" },

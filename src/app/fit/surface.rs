@@ -14,8 +14,9 @@ use crate::error::Result;
 use crate::par::{agree, Comm};
 use crate::spline::hygiene::Prepared;
 use crate::surface::blobs::{
-    blob_values, data_cells, lost_solid, points_without_solid, sample, sample_nodes, sample_window,
-    winding_numbers, Blobs, Lattice, Search, CLEARANCE, INSIDE, RESTORE_FROM, SECOND_ROUND_FROM,
+    blob_values, data_cells, lost_solid, paths_to_solid, points_without_solid, sample, sample_nodes,
+    sample_window, winding_numbers, Blobs, Lattice, Search, CLEARANCE, INSIDE, RESTORE_FROM,
+    SECOND_ROUND_FROM,
 };
 use crate::surface::choice::{self, unsupported_share};
 use crate::surface::denoise::Denoised;
@@ -134,9 +135,12 @@ pub struct Restored {
     /// Data points whose solid was lost (no positive lattice node at their cell, where the first
     /// fit had one).
     pub lost: usize,
-    /// Constraint points added: the lost points' nodes inside the data's surface (0: fewer than
-    /// [`RESTORE_FROM`], no fit made).
+    /// The lost points' nodes inside the data's surface given back (0: fewer than
+    /// [`RESTORE_FROM`]).
     pub points: usize,
+    /// Nodes given back along the first fit's solid to the points that lost a whole part
+    /// ([`paths_to_solid`]); no fit is made where this and `points` are both 0.
+    pub along: usize,
     /// Data points without solid near them, before and after (the same where no fit was made).
     pub without_solid: (usize, usize),
     /// Whether its fit was kept: fewer points without solid.
@@ -504,8 +508,15 @@ fn restore_solid(
         let before = points_without_solid(lattice, &values, &data.centres);
         (values, (lost.len(), inside), before)
     });
-    let nodes = if nodes.len() >= RESTORE_FROM { nodes } else { Vec::new() };
-    let mut restored = Restored { lost, points: nodes.len(), without_solid: (before, before), kept: false };
+    let inside = if nodes.len() >= RESTORE_FROM { nodes.len() } else { 0 };
+    let along =
+        if lost > 0 { paths_to_solid(lattice, &first_values, &values, &data.centres) } else { Vec::new() };
+    let mut nodes = if inside > 0 { nodes } else { Vec::new() };
+    nodes.extend(&along);
+    nodes.sort_unstable();
+    nodes.dedup();
+    let mut restored =
+        Restored { lost, points: inside, along: along.len(), without_solid: (before, before), kept: false };
     if nodes.is_empty() {
         c.summary.restored = (lost > 0).then_some(restored);
         return Ok((fit, Some(values)));
