@@ -372,6 +372,20 @@ fn fits_match_the_oracle(
     }
 }
 
+/// [`fits_match_the_oracle`] with the default off-point rates and one clearance (the oracle makes
+/// no clearance choice), by the projected Cholesky.
+fn default_fits_match_the_oracle(dir: &Path, input: &Path, oracle: &Model, off_count: usize) {
+    fits_match_the_oracle(
+        dir,
+        input,
+        oracle,
+        off_count,
+        "cholesky",
+        &DEFAULT_RATES,
+        &["--blob-choice", "off"],
+    );
+}
+
 /// `n` area-uniform samples (seed `seed` of the tests' sampler) of the mesh at `mesh`, written to
 /// `file` in a new temporary folder `name`: the folder and the file.
 fn sampled_input(name: &str, file: &str, mesh: &str, (n, seed): (usize, u64)) -> (PathBuf, PathBuf) {
@@ -642,6 +656,25 @@ fn a_second_round_of_pins_removes_the_web_the_first_pushed_between_the_cows_fron
     assert!(rms < 0.006 && far < 0.03, "mesh -> cow rms {rms}, far {far}");
 }
 
+/// The cow, the points of `tests/data/NAME.xyz` (a sample of the cow from the surface benchmark)
+/// and the cow's bounding-box diagonal.
+fn cow_sample(name: &str) -> (volspline::mesh::TriMesh, Vec<f64>, f64) {
+    let truth = common::load_mesh(Path::new(common::COW));
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(format!("{name}.xyz"));
+    let pts: Vec<f64> =
+        volspline::io::points::read_points(&path).unwrap().points.into_iter().flatten().collect();
+    let all: Vec<f64> = truth.vertices.iter().flatten().copied().collect();
+    let (lo, hi) = volspline::spline::hygiene::bounding_box(&all, 3);
+    (truth, pts, volspline::spline::hygiene::diagonal(&lo, &hi))
+}
+
+/// Truth -> mesh rms over the truth's vertices as a fraction of `diag`: how much of the truth
+/// the mesh leaves out.
+fn truth_to_mesh(truth: &volspline::mesh::TriMesh, mesh: &volspline::mesh::TriMesh, diag: f64) -> f64 {
+    let d = point_mesh_distances(mesh, &truth.vertices);
+    (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt() / diag
+}
+
 #[test]
 fn solid_the_pins_took_from_a_thinly_sampled_leg_is_given_back() {
     // 400 area-uniform samples of the cow (tests/data/cow-400-seed6.xyz, seed 6 of the surface
@@ -650,18 +683,8 @@ fn solid_the_pins_took_from_a_thinly_sampled_leg_is_given_back() {
     // points that lost their solid, inside the data's surface, get the first fit's values back.
     // Measured (grid 64): truth -> mesh rms 2.61 % of the diagonal without, 1.34 % with; mesh ->
     // truth 0.662 % and 0.677 %
-    let truth = common::load_mesh(Path::new(common::COW));
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/cow-400-seed6.xyz");
-    let pts: Vec<f64> =
-        volspline::io::points::read_points(&path).unwrap().points.into_iter().flatten().collect();
-    let all: Vec<f64> = truth.vertices.iter().flatten().copied().collect();
-    let (lo, hi) = volspline::spline::hygiene::bounding_box(&all, 3);
-    let diag = volspline::spline::hygiene::diagonal(&lo, &hi);
-    // truth -> mesh rms: how much of the cow the mesh leaves out
-    let complete = |mesh: &volspline::mesh::TriMesh| {
-        let d = point_mesh_distances(mesh, &truth.vertices);
-        (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt() / diag
-    };
+    let (truth, pts, diag) = cow_sample("cow-400-seed6");
+    let complete = |mesh: &volspline::mesh::TriMesh| truth_to_mesh(&truth, mesh, diag);
     let (off, _, off_line) = fit_mesh("cow-restore-off", &pts, "64", &["--restore-solid", "off"]);
     let (on, _, on_line) = fit_mesh("cow-restore-on", &pts, "64", &[]);
     let (t_off, t_on) = (complete(&off), complete(&on));
@@ -683,15 +706,7 @@ fn solid_given_back_along_the_first_fits_solid_is_the_same_on_one_two_and_three_
         serial_offsurface(&read_back(&input), (RATE, DOUBTFUL_SHARE), false, true);
     let given = oracle.spline.centres.len() / 3 - 400 - off_count - 200;
     assert_eq!(given, 22, "{given} nodes given back");
-    fits_match_the_oracle(
-        &dir,
-        &input,
-        &oracle,
-        off_count,
-        "cholesky",
-        &DEFAULT_RATES,
-        &["--blob-choice", "off"],
-    );
+    default_fits_match_the_oracle(&dir, &input, &oracle, off_count);
 }
 
 #[test]
@@ -704,17 +719,8 @@ fn a_leg_sampled_at_its_hoof_alone_is_given_back_along_the_first_fits_solid() {
     // (grid 64): truth -> mesh rms 2.25 % of the diagonal without, 1.10 % with; mesh -> truth
     // 0.63 % and 0.68 %; the mesh's vertex nearest to a hoof's point at most 14.9 % of the
     // diagonal away without, 1.4 % with
-    let truth = common::load_mesh(Path::new(common::COW));
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/cow-400-seed8.xyz");
-    let pts: Vec<f64> =
-        volspline::io::points::read_points(&path).unwrap().points.into_iter().flatten().collect();
-    let all: Vec<f64> = truth.vertices.iter().flatten().copied().collect();
-    let (lo, hi) = volspline::spline::hygiene::bounding_box(&all, 3);
-    let diag = volspline::spline::hygiene::diagonal(&lo, &hi);
-    let complete = |mesh: &volspline::mesh::TriMesh| {
-        let d = point_mesh_distances(mesh, &truth.vertices);
-        (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt() / diag
-    };
+    let (truth, pts, diag) = cow_sample("cow-400-seed8");
+    let complete = |mesh: &volspline::mesh::TriMesh| truth_to_mesh(&truth, mesh, diag);
     // the hoof: the data points below y = -0.5 on the side x > 0
     let hoof: Vec<[f64; 3]> = pts
         .chunks_exact(3)
@@ -1263,15 +1269,7 @@ fn a_turn_kept_by_open_space_is_the_same_on_one_two_and_three_ranks() {
     // measured: 1 of 3 patches (12 points) turned, by the open-space rule, 261 -> 251 crossings
     assert_eq!((turns.turned, turns.by_open_space), (1, 1), "{turns:?}");
     assert!(!turns::gains(turns.before, turns.after), "{turns:?}");
-    fits_match_the_oracle(
-        &dir,
-        input,
-        &oracle,
-        off_count,
-        "cholesky",
-        &DEFAULT_RATES,
-        &["--blob-choice", "off"],
-    );
+    default_fits_match_the_oracle(&dir, input, &oracle, off_count);
 }
 
 #[test]
