@@ -640,7 +640,13 @@ impl Search {
 /// cell: where the fit whose `values` were sampled on `lattice` has no solid near them (a part
 /// thinner than the lattice, or cut away). Points outside the lattice count with its border cell.
 pub fn points_without_solid(lattice: &Lattice, values: &[f64], points: &[f64]) -> usize {
-    points.par_chunks_exact(3).filter(|p| !cell_corners(lattice, p).iter().any(|&i| values[i] > 0.0)).count()
+    points.par_chunks_exact(3).filter(|p| !has_solid(lattice, values, p)).count()
+}
+
+/// Whether the field `values` sampled on `lattice` is positive at a corner of the cell of the
+/// normalised point `p`: the fit has solid near it.
+fn has_solid(lattice: &Lattice, values: &[f64], p: &[f64]) -> bool {
+    cell_corners(lattice, p).iter().any(|&i| values[i] > 0.0)
 }
 
 /// The corners of the lattice cells of the data `points` (normalised), sorted, each once: the
@@ -674,11 +680,10 @@ pub fn lost_solid(lattice: &Lattice, first: &[f64], now: &[f64], points: &[f64])
     let mut nodes: Vec<usize> = points
         .par_chunks_exact(3)
         .filter_map(|p| {
-            let corners = cell_corners(lattice, p);
-            if corners.iter().any(|&i| now[i] > 0.0) {
+            if has_solid(lattice, now, p) {
                 return None;
             }
-            let best = corners.into_iter().max_by(|&a, &b| first[a].total_cmp(&first[b]))?;
+            let best = cell_corners(lattice, p).into_iter().max_by(|&a, &b| first[a].total_cmp(&first[b]))?;
             (first[best] > 0.0).then_some(best)
         })
         .collect();
@@ -696,11 +701,10 @@ pub fn lost_solid(lattice: &Lattice, first: &[f64], now: &[f64], points: &[f64])
 /// included), where one of at most [`PATH_STEPS`] steps exists; sorted, each once. The values
 /// and so the paths are the same on every rank.
 pub fn paths_to_solid(lattice: &Lattice, first: &[f64], now: &[f64], points: &[f64]) -> Vec<usize> {
-    let has_solid = |values: &[f64], p: &[f64]| cell_corners(lattice, p).iter().any(|&i| values[i] > 0.0);
-    let with_solid: Vec<&[f64]> = points.chunks_exact(3).filter(|p| has_solid(now, p)).collect();
+    let with_solid: Vec<&[f64]> = points.chunks_exact(3).filter(|p| has_solid(lattice, now, p)).collect();
     let isolated: Vec<f64> = points
         .chunks_exact(3)
-        .filter(|p| !has_solid(now, p) && has_solid(first, p))
+        .filter(|p| !has_solid(lattice, now, p) && has_solid(lattice, first, p))
         .filter(|p| with_solid.iter().all(|q| dist2(p, q) > CLEARANCE * CLEARANCE))
         .flatten()
         .copied()

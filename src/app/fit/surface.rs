@@ -508,15 +508,14 @@ fn restore_solid(
         let before = points_without_solid(lattice, &values, &data.centres);
         (values, (lost.len(), inside), before)
     });
-    let inside = if nodes.len() >= RESTORE_FROM { nodes.len() } else { 0 };
+    let inside = if nodes.len() >= RESTORE_FROM { nodes } else { Vec::new() };
     let along =
         if lost > 0 { paths_to_solid(lattice, &first_values, &values, &data.centres) } else { Vec::new() };
-    let mut nodes = if inside > 0 { nodes } else { Vec::new() };
-    nodes.extend(&along);
+    let mut nodes: Vec<usize> = inside.iter().chain(&along).copied().collect();
     nodes.sort_unstable();
     nodes.dedup();
-    let mut restored =
-        Restored { lost, points: inside, along: along.len(), without_solid: (before, before), kept: false };
+    let (points, along) = (inside.len(), along.len());
+    let mut restored = Restored { lost, points, along, without_solid: (before, before), kept: false };
     if nodes.is_empty() {
         c.summary.restored = (lost > 0).then_some(restored);
         return Ok((fit, Some(values)));
