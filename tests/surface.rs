@@ -272,12 +272,9 @@ fn serial_offsurface(
                 sample_window(&Solo, &lattice, &window, (&data.carrier, &tried_spline), &mut tried_values);
             }
             let without = |v: &[f64]| points_without_solid(&lattice, v, &data.centres);
-            println!(
-                "solid given back at {} nodes: kept {}",
-                nodes.len(),
-                without(&tried_values) < without(&values)
-            );
-            if without(&tried_values) < without(&values) {
+            let kept = without(&tried_values) < without(&values);
+            println!("solid given back at {} nodes: kept {kept}", nodes.len());
+            if kept {
                 (system, spline, values) = (tried, tried_spline, tried_values);
             }
         }
