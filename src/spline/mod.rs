@@ -2,7 +2,8 @@
 //! functions and compactly supported Wendland functions ([`kernel`]), carrier solids and
 //! R-functions ([`carrier`]), the bordered interpolation system and the spline it defines
 //! ([`system`]), its sparse form for compactly supported kernels ([`compact`], with the point
-//! octree of [`octree`]), fast evaluation on grid rows ([`evaluator`], [`compact_eval`]), clean-up
+//! octree of [`octree`]), fast evaluation on grid rows ([`evaluator`], [`compact_eval`]; where only
+//! the sign must be exact, [`sign_eval`]), clean-up
 //! of the data points before a fit ([`hygiene`]), analytic derivatives ([`derivatives`]),
 //! evaluation at single points ([`point_eval`]) and the solid f = f_c - U with its record
 //! ([`model`]).
@@ -27,6 +28,7 @@ pub mod kernel;
 pub mod model;
 pub mod octree;
 pub mod point_eval;
+pub mod sign_eval;
 pub mod system;
 
 pub use carrier::Carrier;
@@ -34,6 +36,7 @@ pub use evaluator::Evaluator;
 pub use kernel::{Kernel, Wendland, WendlandKind};
 pub use model::{Field, Model, Provenance};
 pub use octree::Octree;
+pub use sign_eval::SignEvaluator;
 pub use system::{
     fill_block, fill_block_lower, fill_rows, fill_rows_lower, full_system, residual_parts, system_size,
     Normalisation, Spline,
