@@ -18,10 +18,12 @@
 //! the root of the sum of squares (two multiply-adds and a square root, each rounded once) adds
 //! at most 2.1 u r_j: |r^_j - r_j| <= 7 u P + 2.2 u r_j. The weight rounded to single precision
 //! is off by u |w_j|, so the product w^_j r^_j is off by at most |w_j| (7 u P + 3.3 u r_j). Each
-//! lane accumulates its m = n / 16 products by multiply-adds, each rounded once to at most u
-//! times the lane's sum of |products| so far, m u sum_j |w_j| r_j in all. The lanes are then
-//! added in double precision, whose error is below 2^-29 of these. With W = sum_j |w_j| and R
-//! the largest distance from x to the centres' bounding box's far corner (r_j <= R):
+//! lane accumulates the products of a chunk of 512 centres (m = 32 of them, fewer where the
+//! spline has fewer centres) by multiply-adds, each rounded once to at most u times the chunk's
+//! sum of |products| so far, m u sum_j |w_j| r_j in all over the chunks; the chunks' sums are
+//! added in double precision, whose error is below 2^-29 of these as long as there are fewer
+//! than some 10^7 chunks. With W = sum_j |w_j| and R the largest distance from x to a corner of
+//! the centres' bounding box (r_j <= R):
 //!
 //! ```text
 //!     |U^(x) - U(x)| <= u W ((m + 3.3) R + 7 P)  <  2 u W ((m + 4) R + 8 P) = B(x).
@@ -32,8 +34,8 @@
 //! A node whose single-precision value lies within B(x) of zero is evaluated again by
 //! [`Evaluator`]: its value is then the double-precision one, bit for bit, and every other node
 //! has that value's sign. On 400 bunny samples with their off points (735 centres, W = 27,000)
-//! B is about 0.3 against values of the carrier's size (up to 150 there, changing by 7 a
-//! lattice step at the surface): 1.4 % of the nodes are evaluated twice.
+//! B is about 0.2 against values of the carrier's size (up to 150 there, changing by 7 a
+//! lattice step at the surface); the chunks keep B from growing with the number of centres.
 //!
 //! The sums run over the centres in one fixed order whatever the blocking, the thread or the
 //! rank, with the same multiply-adds on every vector unit (see [`crate::simd`]), so values are
@@ -48,7 +50,11 @@ use crate::spline::Spline;
 const LANES32: usize = 2 * LANES;
 /// Centres per block: 4 arrays x 1024 x 4 bytes = 16 KiB, in L1 with room to spare.
 const BLOCK32: usize = 1024;
-const _: () = assert!(BLOCK32.is_multiple_of(LANES32));
+/// Centres whose products a lane accumulates in single precision before its sum is added to the
+/// lane's double-precision sum: 32 per lane, which bounds the accumulation error whatever the
+/// number of centres.
+const CHUNK32: usize = 512;
+const _: () = assert!(BLOCK32.is_multiple_of(CHUNK32) && CHUNK32.is_multiple_of(LANES32));
 /// Unit roundoff of single precision.
 const U32: f64 = 1.0 / (1u64 << 24) as f64;
 
@@ -65,7 +71,7 @@ struct Single {
     c: [Vec<f32>; 4],
     /// W: the sum of |w_j|.
     abs_weights: f64,
-    /// m: the products each lane accumulates.
+    /// m: the products each lane accumulates in single precision, at most [`CHUNK32`] / 16.
     terms: usize,
     /// The centres' bounding box (normalised).
     lo: [f64; 3],
@@ -92,7 +98,7 @@ impl<'a> SignEvaluator<'a> {
                 c[3][i] = spline.weights[i] as f32;
             }
             let abs_weights = spline.weights.iter().map(|w| w.abs()).sum();
-            Single { c, abs_weights, terms: padded / LANES32, lo, hi, reach }
+            Single { c, abs_weights, terms: padded.min(CHUNK32) / LANES32, lo, hi, reach }
         });
         SignEvaluator { exact, spline, single }
     }
@@ -123,15 +129,14 @@ impl<'a> SignEvaluator<'a> {
         let zn = (z - norm.centre[2]) / norm.scale;
         let xn: Vec<f64> = xs.iter().map(|x| (x - norm.centre[0]) / norm.scale).collect();
         let x32: Vec<f32> = xn.iter().map(|&x| x as f32).collect();
-        let mut acc = vec![[0.0f32; LANES32]; xs.len()];
+        let mut acc = vec![[0.0f64; LANES32]; xs.len()];
         let [cx, cy, cz, w] = &single.c;
         radial_sums32(&x32, [yn as f32, zn as f32], [cx, cy, cz, w], &mut acc);
         let k = sp.poly.len();
         let mut pv = [0.0; 10];
         let mut redo = Vec::new();
         for (i, ((o, a), &x)) in out.iter_mut().zip(&acc).zip(&xn).enumerate() {
-            let wide: [f64; LANES32] = a.map(f64::from);
-            let lanes = |h: usize| -> [f64; LANES] { std::array::from_fn(|l| wide[h * LANES + l]) };
+            let lanes = |h: usize| -> [f64; LANES] { std::array::from_fn(|l| a[h * LANES + l]) };
             let s = reduce_lanes(&lanes(0)) + reduce_lanes(&lanes(1));
             sp.kernel.poly_eval(&[x, yn, zn], &mut pv[..k]);
             let u = s + pv[..k].iter().zip(&sp.poly).map(|(p, c)| p * c).sum::<f64>();
@@ -166,9 +171,10 @@ impl Single {
 
 on_widest_unit! {
     /// The single-precision radial sums sum_j w_j |x - c_j| at the points `(xs[i], yz[0], yz[1])`
-    /// into the lanes `acc[i]` (centre j into lane j mod 16, in the order of j), compiled for the
+    /// into the lanes `acc[i]` (centre j into lane j mod 16, in the order of j; each
+    /// [`CHUNK32`] centres summed in single precision, those sums in double), compiled for the
     /// widest vector unit the CPU has (the same portable code, so every path gives the same bits).
-    fn radial_sums32[][](xs: &[f32], yz: [f32; 2], c: [&[f32]; 4], acc: &mut [[f32; LANES32]]) = radial_sums32_portable;
+    fn radial_sums32[][](xs: &[f32], yz: [f32; 2], c: [&[f32]; 4], acc: &mut [[f64; LANES32]]) = radial_sums32_portable;
 }
 
 #[inline(always)]
@@ -176,24 +182,32 @@ fn radial_sums32_portable(
     xs: &[f32],
     [y, z]: [f32; 2],
     [cx, cy, cz, w]: [&[f32]; 4],
-    acc: &mut [[f32; LANES32]],
+    acc: &mut [[f64; LANES32]],
 ) {
     let n = w.len();
     let mut b0 = 0;
     while b0 < n {
         let b1 = (b0 + BLOCK32).min(n);
-        let (bx, by, bz, bw) = (&cx[b0..b1], &cy[b0..b1], &cz[b0..b1], &w[b0..b1]);
         for (&x, a) in xs.iter().zip(acc.iter_mut()) {
-            let mut s = *a;
-            let groups = bx.chunks_exact(LANES32).zip(by.chunks_exact(LANES32));
-            for (((px, py), pz), pw) in groups.zip(bz.chunks_exact(LANES32)).zip(bw.chunks_exact(LANES32)) {
-                for l in 0..LANES32 {
-                    let (dx, dy, dz) = (x - px[l], y - py[l], z - pz[l]);
-                    let r2 = dz.mul_add(dz, dy.mul_add(dy, dx * dx));
-                    s[l] = pw[l].mul_add(r2.sqrt(), s[l]);
+            let mut c0 = b0;
+            while c0 < b1 {
+                let c1 = (c0 + CHUNK32).min(b1);
+                let (px, py, pz, pw) = (&cx[c0..c1], &cy[c0..c1], &cz[c0..c1], &w[c0..c1]);
+                let mut s = [0.0f32; LANES32];
+                let groups = px.chunks_exact(LANES32).zip(py.chunks_exact(LANES32));
+                for (((gx, gy), gz), gw) in groups.zip(pz.chunks_exact(LANES32)).zip(pw.chunks_exact(LANES32))
+                {
+                    for l in 0..LANES32 {
+                        let (dx, dy, dz) = (x - gx[l], y - gy[l], z - gz[l]);
+                        let r2 = dz.mul_add(dz, dy.mul_add(dy, dx * dx));
+                        s[l] = gw[l].mul_add(r2.sqrt(), s[l]);
+                    }
                 }
+                for l in 0..LANES32 {
+                    a[l] += f64::from(s[l]);
+                }
+                c0 = c1;
             }
-            *a = s;
         }
         b0 = b1;
     }
@@ -231,10 +245,12 @@ mod tests {
 
     #[test]
     fn values_are_within_the_bound_and_signs_are_double_precisions() {
-        for n in [1, 15, 16, 17, 735, 1024, 1025, 3000] {
+        for n in [1, 15, 16, 17, 511, 512, 513, 735, 1024, 1025, 3000, 20000] {
             let sp = spline(2, n, 100.0);
             let (ev, sign) = (Evaluator::new(&sp), SignEvaluator::new(&sp));
             let single = sign.single.as_ref().unwrap();
+            // the chunks bound the products a lane sums in single precision
+            assert_eq!(single.terms, n.div_ceil(LANES32).min(CHUNK32 / LANES32), "n={n}");
             let xs: Vec<f64> = (0..61).map(|i| -1.4 + i as f64 * 0.05).collect();
             for (y, z) in [(0.4, -0.7), (0.0, 0.0), (1.3, 0.2)] {
                 let mut exact = vec![0.0; xs.len()];
