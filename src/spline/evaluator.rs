@@ -264,12 +264,14 @@ pub(crate) fn soft_sqrt(r2: f64) -> f64 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::spline::kernel::Kernel;
     use crate::spline::Normalisation;
 
-    fn spline(order: usize, n: usize) -> Spline {
+    /// A 3D spline of order `order` with `n` random centres in the unit box, random weights and
+    /// polynomial (also the single-precision evaluator's test spline).
+    pub(crate) fn spline(order: usize, n: usize) -> Spline {
         let mut s = 99u64;
         let mut rnd = || {
             s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);

@@ -216,31 +216,15 @@ fn radial_sums32_portable(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::spline::kernel::Kernel;
-    use crate::spline::Normalisation;
 
     /// A spline of `n` random centres in the unit box with weights that sum to zero, of size
     /// `scale` (the oscillating weights of an interpolant, whose sum of |w| is far above the
     /// values).
     fn spline(order: usize, n: usize, scale: f64) -> Spline {
-        let mut s = 5u64;
-        let mut rnd = || {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
-        let kernel = Kernel::new(3, order).unwrap();
-        let centres: Vec<f64> = (0..3 * n).map(|_| rnd()).collect();
-        let mut weights: Vec<f64> = (0..n).map(|_| scale * rnd()).collect();
-        let mean = weights.iter().sum::<f64>() / n as f64;
-        weights.iter_mut().for_each(|w| *w -= mean);
-        let poly: Vec<f64> = (0..kernel.poly_count()).map(|_| rnd()).collect();
-        Spline {
-            kernel,
-            centres,
-            weights,
-            poly,
-            norm: Normalisation { centre: [0.1, -0.2, 0.3], scale: 2.0 },
-        }
+        let mut sp = crate::spline::evaluator::tests::spline(order, n);
+        let mean = sp.weights.iter().sum::<f64>() / n as f64;
+        sp.weights.iter_mut().for_each(|w| *w = scale * (*w - mean));
+        sp
     }
 
     #[test]
@@ -293,9 +277,11 @@ mod tests {
         let mut out = vec![0.0; xs.len()];
         assert_eq!(sign.signed_row(&xs, 0.4, -0.7, |_| 1e6, &mut out), 0);
         let worst = out.iter().zip(&exact).map(|(o, e)| (o - (1e6 - e)).abs()).fold(0.0, f64::max);
+        // the bounds along the row (normalised: centre (0.1, -0.2, 0.3), scale 2)
         let single = sign.single.as_ref().unwrap();
-        let bound = single.bound([0.0, 0.55, -0.5]);
-        assert!(worst > 0.0 && worst < bound && bound < 2000.0 * worst, "error {worst}, bound {bound}");
+        let bound =
+            xs.iter().map(|x| single.bound([(x - 0.1) / 2.0, 0.3, -0.5])).fold(f64::INFINITY, f64::min);
+        assert!(worst > 0.0 && worst < bound && bound < 2000.0 * worst, "error {worst}, least bound {bound}");
     }
 
     #[test]
