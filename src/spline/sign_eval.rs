@@ -29,7 +29,11 @@
 //!     |U^(x) - U(x)| <= u W ((m + 3.3) R + 7 P)  <  2 u W ((m + 4) R + 8 P) = B(x).
 //! ```
 //!
-//! The factor 2 covers the double-precision sum's own error (about 2^-29 of the single one's)
+//! The weights are divided by a power of two that brings the largest into [1/2, 1) before they
+//! are rounded (exactly, so the bound is unchanged, and the sum is multiplied back): single
+//! precision's range (1e-38 to 3e38) would otherwise lose the weights of data in very small or
+//! very large units; a weight that still falls below its normal range is off by at most 2^-149
+//! times the scale, far below the bound. The factor 2 covers the double-precision sum's own error (about 2^-29 of the single one's)
 //! and the polynomial and carrier, which are evaluated in double precision alike on both paths.
 //! A node whose single-precision value lies within B(x) of zero is evaluated again by
 //! [`Evaluator`]: its value is then the double-precision one, bit for bit, and every other node
@@ -69,6 +73,8 @@ pub struct SignEvaluator<'a> {
 /// zero weights) and the constants of the bound.
 struct Single {
     c: [Vec<f32>; 4],
+    /// The power of two the weights in `c` were divided by.
+    scale: f64,
     /// W: the sum of |w_j|.
     abs_weights: f64,
     /// m: the products each lane accumulates in single precision, at most [`CHUNK32`] / 16.
@@ -83,7 +89,12 @@ struct Single {
 impl<'a> SignEvaluator<'a> {
     pub fn new(spline: &'a Spline) -> Self {
         let exact = Evaluator::new(spline);
-        let single = (Form::of(spline) == Some(Form::R1) && !spline.weights.is_empty()).then(|| {
+        let largest = spline.weights.iter().fold(0.0f64, |m, w| m.max(w.abs()));
+        let usable = Form::of(spline) == Some(Form::R1) && largest > 0.0 && largest.is_finite();
+        let single = usable.then(|| {
+            // the weights scaled by a power of two into [1/2, 1) at most, whatever the data's
+            // units: single precision holds magnitudes from 1e-38 to 3e38 alone
+            let scale = 2f64.powi(largest.log2().floor() as i32 + 1);
             let n = spline.len();
             let padded = n.div_ceil(LANES32) * LANES32;
             let mut c = [0; 4].map(|_| vec![0.0f32; padded]);
@@ -95,10 +106,10 @@ impl<'a> SignEvaluator<'a> {
                     hi[d] = hi[d].max(p[d]);
                     reach = reach.max(p[d].abs());
                 }
-                c[3][i] = spline.weights[i] as f32;
+                c[3][i] = (spline.weights[i] / scale) as f32;
             }
             let abs_weights = spline.weights.iter().map(|w| w.abs()).sum();
-            Single { c, abs_weights, terms: padded.min(CHUNK32) / LANES32, lo, hi, reach }
+            Single { c, scale, abs_weights, terms: padded.min(CHUNK32) / LANES32, lo, hi, reach }
         });
         SignEvaluator { exact, spline, single }
     }
@@ -137,7 +148,7 @@ impl<'a> SignEvaluator<'a> {
         let mut redo = Vec::new();
         for (i, ((o, a), &x)) in out.iter_mut().zip(&acc).zip(&xn).enumerate() {
             let lanes = |h: usize| -> [f64; LANES] { std::array::from_fn(|l| a[h * LANES + l]) };
-            let s = reduce_lanes(&lanes(0)) + reduce_lanes(&lanes(1));
+            let s = (reduce_lanes(&lanes(0)) + reduce_lanes(&lanes(1))) * single.scale;
             sp.kernel.poly_eval(&[x, yn, zn], &mut pv[..k]);
             let u = s + pv[..k].iter().zip(&sp.poly).map(|(p, c)| p * c).sum::<f64>();
             *o = c(&[xs[i], y, z]) - u;
@@ -232,7 +243,11 @@ mod tests {
         for n in [1, 15, 16, 17, 511, 512, 513, 735, 1024, 1025, 3000, 20000] {
             let sp = spline(2, n, 100.0);
             let (ev, sign) = (Evaluator::new(&sp), SignEvaluator::new(&sp));
-            let single = sign.single.as_ref().unwrap();
+            // one centre has the weight 0 (the weights sum to zero): double precision alone
+            let Some(single) = sign.single.as_ref() else {
+                assert_eq!(n, 1);
+                continue;
+            };
             // the chunks bound the products a lane sums in single precision
             assert_eq!(single.terms, n.div_ceil(LANES32).min(CHUNK32 / LANES32), "n={n}");
             let xs: Vec<f64> = (0..61).map(|i| -1.4 + i as f64 * 0.05).collect();
@@ -251,8 +266,7 @@ mod tests {
                 };
                 let mut out = vec![0.0; xs.len()];
                 let again = sign.signed_row(&xs, y, z, c, &mut out);
-                // (one centre has the weight 0: its single-precision sum is exact)
-                assert!(n == 1 || again >= xs.len().div_ceil(2), "n={n}: {again} evaluated again");
+                assert!(again >= xs.len().div_ceil(2), "n={n}: {again} evaluated again");
                 for (i, (&o, &x)) in out.iter().zip(&xs).enumerate() {
                     let want = c(&[x, y, z]) - exact[i];
                     let xn = [(x - 0.1) / 2.0, (y + 0.2) / 2.0, (z - 0.3) / 2.0];
@@ -282,6 +296,28 @@ mod tests {
         let bound =
             xs.iter().map(|x| single.bound([(x - 0.1) / 2.0, 0.3, -0.5])).fold(f64::INFINITY, f64::min);
         assert!(worst > 0.0 && worst < bound && bound < 2000.0 * worst, "error {worst}, least bound {bound}");
+    }
+
+    #[test]
+    fn weights_in_very_small_or_large_units_keep_their_values() {
+        // beyond single precision's range: without the scaling they would round to 0 or inf
+        for units in [1e-200, 1e200] {
+            let mut sp = spline(2, 735, 100.0);
+            sp.weights.iter_mut().for_each(|w| *w *= units);
+            sp.poly.iter_mut().for_each(|p| *p *= units);
+            let (ev, sign) = (Evaluator::new(&sp), SignEvaluator::new(&sp));
+            let single = sign.single.as_ref().unwrap();
+            let xs: Vec<f64> = (0..61).map(|i| -1.4 + i as f64 * 0.05).collect();
+            let mut exact = vec![0.0; xs.len()];
+            ev.eval_row(&xs, 0.4, -0.7, &mut exact);
+            let mut out = vec![0.0; xs.len()];
+            let again = sign.signed_row(&xs, 0.4, -0.7, |_| 0.0, &mut out);
+            assert!(again < xs.len() / 4, "{units}: {again} evaluated again");
+            for (i, (o, e)) in out.iter().zip(&exact).enumerate() {
+                let b = single.bound([(xs[i] - 0.1) / 2.0, 0.3, -0.5]);
+                assert!((o + e).abs() <= b && (*o > 0.0) == (-e > 0.0), "{units} i={i}: {o} vs {}", -e);
+            }
+        }
     }
 
     #[test]
