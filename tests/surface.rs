@@ -798,6 +798,39 @@ fn with_hole_centre(mesh: &volspline::mesh::TriMesh, n: usize, seed: u64) -> (Ve
 const HOLE_BUNNY: (usize, u64) = (1000, 5);
 
 #[test]
+fn the_lattice_sampled_in_single_precision_has_the_signs_of_double_precision_on_the_bunny() {
+    // the blob search reads the first fit on its lattice from single-precision radial sums
+    // (volspline::spline::sign_eval): on 400 bunny samples every node must have the sign the
+    // double-precision spline gives it, and its value to a few digits; were the bound too small
+    // near zero, or the weights' scaling wrong, nodes would change sign
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bunny-400.xyz");
+    let f = first_fit(&read_back(&path), UNIFORM_RATE);
+    let sampled = sample(&Solo, &f.lattice, &f.data.carrier, &f.first);
+    let ev = volspline::spline::Evaluator::new(&f.first);
+    let (norm, nx) = (&f.data.norm, f.lattice.dims[0]);
+    // about the module's bound 2 u W ((m + 4) R + 8 P): m = 32 products per lane, R and P about
+    // 3.5 and 1.2 on this lattice (normalised coordinates)
+    let w: f64 = f.first.weights.iter().map(|w| w.abs()).sum();
+    let bound = 2.0 * w * (36.0 * 3.5 + 8.0 * 1.2) / (1u64 << 24) as f64;
+    let (mut exact, mut near_zero, mut worst) = (vec![0.0; nx], 0, 0.0f64);
+    for (row, got) in sampled.chunks_exact(nx).enumerate() {
+        let q: Vec<[f64; 3]> = (0..nx).map(|x| norm.undo(&f.lattice.node(row * nx + x))).collect();
+        let xs: Vec<f64> = q.iter().map(|p| p[0]).collect();
+        ev.eval_row(&xs, q[0][1], q[0][2], &mut exact);
+        for ((g, e), p) in got.iter().zip(&exact).zip(&q) {
+            let want = f.data.carrier.eval(p) - e;
+            assert_eq!(*g > 0.0, want > 0.0, "row {row}: {g} against {want}");
+            assert!((g - want).abs() <= bound, "row {row}: {g} against {want}, bound {bound}");
+            worst = worst.max((g - want).abs());
+            near_zero += usize::from(g.to_bits() == want.to_bits() && want.abs() < 1.0);
+        }
+    }
+    // the nodes near zero were summed again in double precision: the same bits
+    println!("W {w:.4e}, bound {bound:.3e}, largest error {worst:.3e}, {near_zero} nodes near zero exact");
+    assert!(near_zero > 0, "no node near zero summed again");
+}
+
+#[test]
 fn the_winding_number_spares_the_nodes_under_a_hole_in_the_bunny() {
     // 1000 bunny samples less a ball of 15 % of the diagonal: the hole's rim points vote three
     // nodes inside the bunny outside (they lie above the rim's tangent planes); the winding
