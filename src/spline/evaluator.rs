@@ -108,11 +108,8 @@ impl<'a> Evaluator<'a> {
             let zn = (z - norm.centre[2]) / norm.scale;
             let xn: Vec<f64> = xs.iter().map(|x| (x - norm.centre[0]) / norm.scale).collect();
             c.radial_row(sp, &xn, yn, zn, &mut out[..xs.len()]);
-            let k = sp.poly.len();
-            let mut pv = [0.0; 10];
             for (o, &x) in out.iter_mut().zip(&xn) {
-                sp.kernel.poly_eval(&[x, yn, zn], &mut pv[..k]);
-                *o += pv[..k].iter().zip(&sp.poly).map(|(p, c)| p * c).sum::<f64>();
+                *o += poly_value(sp, [x, yn, zn]);
             }
             return;
         }
@@ -129,14 +126,20 @@ impl<'a> Evaluator<'a> {
         let mut acc = vec![[0.0f64; LANES]; xs.len()];
         let row = Row { form, xn: &xn, y: yn, z: zn, cx: &self.cx, cy: &self.cy, cz: &self.cz, w: &self.w };
         radial_sums(&row, &mut acc);
-        let k = sp.poly.len();
-        let mut pv = [0.0; 10];
         for ((o, a), &x) in out.iter_mut().zip(&acc).zip(&xn) {
-            let s = reduce_lanes(a);
-            sp.kernel.poly_eval(&[x, yn, zn], &mut pv[..k]);
-            *o = s + pv[..k].iter().zip(&sp.poly).map(|(p, c)| p * c).sum::<f64>();
+            *o = reduce_lanes(a) + poly_value(sp, [x, yn, zn]);
         }
     }
+}
+
+/// The polynomial part of `sp` at the normalised point `x`, summed in one fixed order (the
+/// evaluators' rows and [`crate::spline::sign_eval`] add it alike).
+#[inline]
+pub(crate) fn poly_value(sp: &Spline, x: [f64; 3]) -> f64 {
+    let k = sp.poly.len();
+    let mut pv = [0.0; 10];
+    sp.kernel.poly_eval(&x, &mut pv[..k]);
+    pv[..k].iter().zip(&sp.poly).map(|(p, c)| p * c).sum::<f64>()
 }
 
 /// One row of evaluation points against all centres: the row's normalised x values at (y, z),

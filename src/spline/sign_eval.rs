@@ -47,7 +47,7 @@
 //! compactly supported ones, 2D and 1D) are evaluated in double precision throughout.
 
 use crate::simd::on_widest_unit;
-use crate::spline::evaluator::{reduce_lanes, Evaluator, Form, LANES};
+use crate::spline::evaluator::{poly_value, reduce_lanes, Evaluator, Form, LANES};
 use crate::spline::Spline;
 
 /// Lanes of the single-precision radial sums: one 512-bit register.
@@ -143,14 +143,11 @@ impl<'a> SignEvaluator<'a> {
         let mut acc = vec![[0.0f64; LANES32]; xs.len()];
         let [cx, cy, cz, w] = &single.c;
         radial_sums32(&x32, [yn as f32, zn as f32], [cx, cy, cz, w], &mut acc);
-        let k = sp.poly.len();
-        let mut pv = [0.0; 10];
         let mut redo = Vec::new();
         for (i, ((o, a), &x)) in out.iter_mut().zip(&acc).zip(&xn).enumerate() {
             let lanes = |h: usize| -> [f64; LANES] { std::array::from_fn(|l| a[h * LANES + l]) };
             let s = (reduce_lanes(&lanes(0)) + reduce_lanes(&lanes(1))) * single.scale;
-            sp.kernel.poly_eval(&[x, yn, zn], &mut pv[..k]);
-            let u = s + pv[..k].iter().zip(&sp.poly).map(|(p, c)| p * c).sum::<f64>();
+            let u = s + poly_value(sp, [x, yn, zn]);
             *o = c(&[xs[i], y, z]) - u;
             if o.abs() <= single.bound([x, yn, zn]) {
                 redo.push(i);
