@@ -214,6 +214,24 @@ impl Octree {
         self.near_box(x, x, r, out);
     }
 
+    /// Whether some point p has |p - x| <= r: the answer of `within(x, r, ..)` being non-empty,
+    /// by the same comparisons, but without collecting the points and stopping at the first.
+    pub fn any_within(&self, x: [f64; 3], r: f64) -> bool {
+        !self.nodes.is_empty() && r >= 0.0 && self.any_near(0, x, r * r)
+    }
+
+    fn any_near(&self, id: usize, x: [f64; 3], r2: f64) -> bool {
+        let n = &self.nodes[id];
+        match classify(n, x, x, r2) {
+            Class::Outside => false,
+            Class::Inside => n.end > n.start,
+            Class::Partial if n.children == 0 => {
+                self.pts[n.start..n.end].iter().any(|p| dist2_to_box(p, x, x) <= r2)
+            }
+            Class::Partial => (n.first_child..n.first_child + n.children).any(|c| self.any_near(c, x, r2)),
+        }
+    }
+
     /// Replaces `out` with the input indices of all points within distance r of the box lo..hi
     /// (lo <= hi on each axis; a point inside the box is at distance 0), in the tree's order.
     pub fn near_box(&self, lo: [f64; 3], hi: [f64; 3], r: f64, out: &mut Vec<usize>) {
@@ -435,6 +453,14 @@ pub(crate) mod tests {
                 got.sort_unstable();
                 let want = brute(points, c, c, *r);
                 assert_eq!(got, want, "K = {capacity}, r = {r}, at {c:?}");
+                assert_eq!(tree.any_within(c, *r), !want.is_empty(), "K = {capacity}, r = {r}, at {c:?}");
+                // just beyond the nearest point, and just short of it
+                let nearest =
+                    (0..n).map(|i| dist2_to_box(&tree.point(i), c, c)).fold(f64::INFINITY, f64::min).sqrt();
+                assert!(
+                    tree.any_within(c, nearest * (1.0 + 1e-12)) && !tree.any_within(c, 0.999 * nearest)
+                        || nearest == 0.0
+                );
                 // the sphere through a point at exactly distance r still holds it
                 if let Some(&far) = want.last() {
                     let p = tree.point(far);

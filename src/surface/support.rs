@@ -29,11 +29,6 @@ pub struct DataSupport {
     pub radius: f64,
 }
 
-thread_local! {
-    /// Scratch space of [`DataSupport::supports`], one per thread.
-    static FOUND: std::cell::RefCell<Vec<usize>> = const { std::cell::RefCell::new(Vec::new()) };
-}
-
 impl DataSupport {
     /// The support of `points` (3 values per point, at least 2 distinct) at `factor` times their
     /// median spacing.
@@ -78,10 +73,7 @@ impl DataSupport {
 
     /// Whether some data point lies within the radius of `x`.
     pub fn supports(&self, x: &[f64; 3]) -> bool {
-        FOUND.with_borrow_mut(|found| {
-            self.tree.within(*x, self.radius, found);
-            !found.is_empty()
-        })
+        self.tree.any_within(*x, self.radius)
     }
 }
 
