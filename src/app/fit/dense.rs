@@ -363,12 +363,16 @@ pub fn fit(
     };
     let solved = match dense_layout {
         Layout::RowCyclic | Layout::Auto => {
+            // the stage ends when every rank has assembled its rows: the solve starts together,
+            // and a rank's late arrival is not timed as the others' wait in the solve
             let rows = stages.time(Stage::Assemble, || {
-                if lower {
+                let rows = if lower {
                     assemble_lower(&kernel, centres, values, layout)
                 } else {
                     assemble(&kernel, centres, values, layout)
-                }
+                };
+                comm.barrier();
+                rows
             });
             let reassemble = || fallback_fits().map(|()| assemble(&kernel, centres, values, layout));
             stages.time(Stage::Solve, || {
@@ -387,11 +391,13 @@ pub fn fit(
                 a.solver.default_block_2d(values.len() + kernel.poly_count())
             };
             let blocks = stages.time(Stage::Assemble, || {
-                if lower {
+                let blocks = if lower {
                     assemble_blocks_lower(&kernel, centres, values, &grid, nb)
                 } else {
                     assemble_blocks(&kernel, centres, values, &grid, nb)
-                }
+                };
+                comm.barrier();
+                blocks
             });
             let reassemble =
                 || fallback_fits().map(|()| assemble_blocks(&kernel, centres, values, &grid, nb));
