@@ -259,6 +259,53 @@ impl Octree {
         }
     }
 
+    /// The `k` points nearest to x, as (squared distance, input index) in increasing order of
+    /// both (ties by the index; all points where there are fewer than k), into `out`. The
+    /// squared distance sums the squares of the coordinate differences in the order x, y, z. A
+    /// depth-first search that visits the children nearest first and passes over a node whose
+    /// box lies farther than the k-th point found: a box's distance is never more than that of
+    /// a point in it, in floating point too (rounding is monotone), so nothing is passed over
+    /// that could enter the list.
+    pub fn nearest_k(&self, x: [f64; 3], k: usize, out: &mut Vec<(f64, usize)>) {
+        out.clear();
+        if k > 0 && !self.nodes.is_empty() {
+            self.nearest_in(0, x, k, out);
+        }
+    }
+
+    fn nearest_in(&self, id: usize, x: [f64; 3], k: usize, out: &mut Vec<(f64, usize)>) {
+        let n = &self.nodes[id];
+        let before = |a: &(f64, usize), b: &(f64, usize)| a.0 < b.0 || (a.0 == b.0 && a.1 < b.1);
+        if n.children == 0 {
+            for t in n.start..n.end {
+                let p = &self.pts[t];
+                let d2 = (x[0] - p[0]).powi(2) + (x[1] - p[1]).powi(2) + (x[2] - p[2]).powi(2);
+                let c = (d2, self.index[t]);
+                if out.len() == k {
+                    if !before(&c, &out[k - 1]) {
+                        continue;
+                    }
+                    out.pop();
+                }
+                let at = out.partition_point(|e| before(e, &c));
+                out.insert(at, c);
+            }
+            return;
+        }
+        let mut kids = [(0.0, 0usize); 8];
+        let m = n.children;
+        for (slot, c) in kids.iter_mut().zip(n.first_child..n.first_child + m) {
+            *slot = (dist2_to_node(&self.nodes[c], x), c);
+        }
+        kids[..m].sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        for &(d2, c) in &kids[..m] {
+            if out.len() == k && d2 > out[k - 1].0 {
+                break;
+            }
+            self.nearest_in(c, x, k, out);
+        }
+    }
+
     /// The distance from x to its k-th nearest point (k >= 1, counting a point at x itself; the
     /// farthest point's distance when there are fewer than k). Found by r-sphere searches with
     /// a radius that starts at `guess` (> 0) and doubles until k points are inside.
@@ -313,6 +360,12 @@ impl Octree {
 
 /// Squared distance from p to the box lo..hi, summed over x, y, z in that order.
 #[inline]
+/// The squared distance from x to the box of node `n` (0 inside it).
+fn dist2_to_node(n: &Node, x: [f64; 3]) -> f64 {
+    let g = |d: usize| (n.lo[d] - x[d]).max(x[d] - n.hi[d]).max(0.0);
+    g(0).powi(2) + g(1).powi(2) + g(2).powi(2)
+}
+
 pub(crate) fn dist2_to_box(p: &[f64; 3], lo: [f64; 3], hi: [f64; 3]) -> f64 {
     let g = |d: usize| (lo[d] - p[d]).max(p[d] - hi[d]).max(0.0);
     let (gx, gy, gz) = (g(0), g(1), g(2));
@@ -454,6 +507,19 @@ pub(crate) mod tests {
                 let want = brute(points, c, c, *r);
                 assert_eq!(got, want, "K = {capacity}, r = {r}, at {c:?}");
                 assert_eq!(tree.any_within(c, *r), !want.is_empty(), "K = {capacity}, r = {r}, at {c:?}");
+                // the k nearest by (squared distance, index), against sorting all points
+                let mut all: Vec<(f64, usize)> = (0..n)
+                    .map(|i| {
+                        let p = &points[3 * i..3 * i + 3];
+                        ((c[0] - p[0]).powi(2) + (c[1] - p[1]).powi(2) + (c[2] - p[2]).powi(2), i)
+                    })
+                    .collect();
+                all.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                let mut near = Vec::new();
+                for k in [1, 10, 33] {
+                    tree.nearest_k(c, k, &mut near);
+                    assert_eq!(near, all[..k.min(n)], "K = {capacity}, k = {k}, at {c:?}");
+                }
                 // just beyond the nearest point, and just short of it
                 let nearest =
                     (0..n).map(|i| dist2_to_box(&tree.point(i), c, c)).fold(f64::INFINITY, f64::min).sqrt();
@@ -474,6 +540,31 @@ pub(crate) mod tests {
             tree.near_box(lo, hi, *r, &mut got);
             got.sort_unstable();
             assert_eq!(got, brute(points, lo, hi, *r), "K = {capacity}, r = {r}, segment");
+        }
+    }
+
+    #[test]
+    fn nearest_points_break_ties_by_index_on_a_grid() {
+        // a 10 x 10 x 10 grid: a cell centre has 8 corners at one distance, a node 6 neighbours
+        let pts: Vec<f64> = (0..1000)
+            .flat_map(|i| [0.1 * (i % 10) as f64, 0.1 * ((i / 10) % 10) as f64, 0.1 * (i / 100) as f64])
+            .collect();
+        for capacity in [1, 4, 32] {
+            let tree = Octree::new(&pts, capacity);
+            let mut near = Vec::new();
+            for x in [[0.45, 0.45, 0.45], [0.4, 0.4, 0.4], [0.05, 0.95, 0.55], [2.0, -1.0, 0.3]] {
+                let mut all: Vec<(f64, usize)> = (0..1000)
+                    .map(|i| {
+                        let p = &pts[3 * i..3 * i + 3];
+                        ((x[0] - p[0]).powi(2) + (x[1] - p[1]).powi(2) + (x[2] - p[2]).powi(2), i)
+                    })
+                    .collect();
+                all.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                for k in [1, 3, 7, 8, 10, 27, 1000, 1200] {
+                    tree.nearest_k(x, k, &mut near);
+                    assert_eq!(near, all[..k.min(1000)], "K = {capacity}, k = {k}, at {x:?}");
+                }
+            }
         }
     }
 

@@ -494,41 +494,24 @@ impl Search {
         let h = lattice.h;
         let k = VOTERS.min(n);
         let positive: Vec<bool> = values.iter().map(|&v| v > 0.0).collect();
-        // distance to the nearest data point and the outside vote of every positive node, a row
-        // of the lattice at a time: the k-th nearest distance grows by at most h from one node
-        // to the next, so that bound is the radius of a single search. The rows are dealt
+        // distance to the nearest data point and the outside vote of every positive node (its
+        // k nearest data points by distance, ties by index). The rows of the lattice are dealt
         // round-robin over the ranks and the three figures summed, as `sample` does
         let mut judged = vec![None; lattice.len()];
         let nx = lattice.dims[0];
         let (rank, size) = (comm.rank(), comm.size());
         judged.par_chunks_mut(nx).enumerate().filter(|(row, _)| row % size == rank).for_each(|(row, out)| {
-            let (mut found, mut near) = (Vec::new(), Vec::<(f64, usize)>::new());
-            let mut bound = f64::INFINITY;
+            let mut near = Vec::<(f64, usize)>::new();
             for (x, o) in out.iter_mut().enumerate() {
                 let i = row * nx + x;
                 if let Some(j) = known.and_then(|s| s.judged[i]).filter(|_| positive[i]) {
-                    // judged before; the next node's search starts from scratch
+                    // judged before
                     *o = Some(j);
-                    bound = f64::INFINITY;
                     continue;
                 }
                 if positive[i] && k > 0 {
                     let q = lattice.node(i);
-                    let mut r = bound;
-                    tree.within(q, r, &mut found);
-                    if found.len() < k {
-                        r = tree.kth_distance(q, k, h);
-                        tree.within(q, r, &mut found);
-                    }
-                    near.clear();
-                    near.extend(found.iter().map(|&j| (dist2(&q, &points[3 * j..]), j)));
-                    let by_distance =
-                        |a: &(f64, usize), b: &(f64, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
-                    if near.len() > k {
-                        near.select_nth_unstable_by(k - 1, by_distance);
-                        near.truncate(k);
-                    }
-                    near.sort_by(by_distance);
+                    tree.nearest_k(q, k, &mut near);
                     let (d2, nearest) = near[0];
                     let outside = near
                         .iter()
@@ -537,9 +520,7 @@ impl Search {
                         })
                         .count();
                     *o = Some((d2.sqrt(), nearest, outside as f64 / k as f64));
-                    bound = near[k - 1].0.sqrt();
                 }
-                bound += h;
             }
         });
         // the positive nodes' figures alone travel (every rank knows which nodes are positive)
