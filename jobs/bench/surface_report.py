@@ -68,6 +68,12 @@ def targets(name, variant, points, by_method, method="default", time_key="fit_s"
     return checks
 
 
+def meets(name, by_method, method="default", time_key="fit_s"):
+    """Whether `method` meets every target of `targets` on the set `name`."""
+    r = next(iter(by_method.values()))
+    return all(ok for _, ok, _ in targets(name, r["variant"], int(r["points"]), by_method, method, time_key))
+
+
 def time_ratios(sets, method, time_key):
     """`method`'s fit time over the carrier method's, by `time_key`, on the sets where both ran."""
     out = []
@@ -159,9 +165,7 @@ def main(out):
         # the same with the fit times less the preview picture (render_s), for both methods
         solid = time_ratios(sets, method, "solid_s")
         if solid:
-            met_solid = sum(all(ok for _, ok, _ in targets(n, next(iter(by.values()))["variant"],
-                                                          int(next(iter(by.values()))["points"]), by, method,
-                                                          "solid_s")) for n, by in sets.items())
+            met_solid = sum(meets(n, by, method, "solid_s") for n, by in sets.items())
             lines.append(f"Fit times without the preview picture (solid_s, both methods): {method} over carrier "
                          f"{min(solid):.2f}-{max(solid):.2f}x, median {statistics.median(solid):.2f}x, within 3x "
                          f"on {sum(r <= 3.0 for r in solid)} of {len(solid)} sets; every target met so on "

@@ -15,7 +15,7 @@ import sys
 from collections import OrderedDict
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from surface_report import PEERS, num, recorded, targets, time_ratios  # noqa: E402
+from surface_report import PEERS, meets, num, recorded, time_ratios  # noqa: E402
 
 
 def load(folder):
@@ -37,11 +37,7 @@ def main(out):
         for s in samplings:
             if not any(m in by for by in data[s].values()):
                 continue
-            met[m, s] = OrderedDict()
-            for name, by in data[s].items():
-                r = next(iter(by.values()))
-                checks = targets(name, r["variant"], int(r["points"]), by, m)
-                met[m, s][name] = all(ok for _, ok, _ in checks)
+            met[m, s] = OrderedDict((name, meets(name, by, m)) for name, by in data[s].items())
     lines = ["# bench-surface-robust: the surface benchmark on several samplings of the same meshes\n"]
     lines += recorded(out, ("command.txt", "machine.txt"))
     lines += ["Sets meeting every target (both distances at or below the better peer, at most 2 % far vertices "
@@ -71,9 +67,7 @@ def main(out):
             ratios = time_ratios(data[s], m, "solid_s")
             if not ratios:
                 continue
-            met_solid = sum(all(ok for _, ok, _ in targets(n, next(iter(by.values()))["variant"],
-                                                          int(next(iter(by.values()))["points"]), by, m, "solid_s"))
-                            for n, by in data[s].items())
+            met_solid = sum(meets(n, by, m, "solid_s") for n, by in data[s].items())
             solid_lines.append(f"| {m} | {s} | {met_solid}/{len(data[s])} | {min(ratios):.2f}-{max(ratios):.2f}x "
                                f"(median {statistics.median(ratios):.2f}x) | {sum(r <= 3.0 for r in ratios)}/{len(ratios)} |")
     if solid_lines:
