@@ -285,7 +285,7 @@ fn serial_offsurface(
         // centres are solved for the new values, the lattice is sampled again around the patch
         let mut far = choice::unsupported_crossings(&lattice, &values, &support).0;
         let knn = (&hoods.knn[..], hoods.kmax);
-        let candidates = turns::candidates(&data.centres, &normals, knn, &hoods.tree, &far, lattice.h);
+        let candidates = turns::candidates(&data.centres, &normals, knn, &hoods.tree, &far);
         (check.tried, check.before) = (candidates.len(), far.len());
         for candidate in candidates {
             let (mut turned_normals, mut turned_off) = (normals.clone(), off.clone());

@@ -278,9 +278,7 @@ impl Octree {
         let before = |a: &(f64, usize), b: &(f64, usize)| a.0 < b.0 || (a.0 == b.0 && a.1 < b.1);
         if n.children == 0 {
             for t in n.start..n.end {
-                let p = &self.pts[t];
-                let d2 = (x[0] - p[0]).powi(2) + (x[1] - p[1]).powi(2) + (x[2] - p[2]).powi(2);
-                let c = (d2, self.index[t]);
+                let c = (dist2_to_box(&self.pts[t], x, x), self.index[t]);
                 if out.len() == k {
                     if !before(&c, &out[k - 1]) {
                         continue;
@@ -295,7 +293,7 @@ impl Octree {
         let mut kids = [(0.0, 0usize); 8];
         let m = n.children;
         for (slot, c) in kids.iter_mut().zip(n.first_child..n.first_child + m) {
-            *slot = (dist2_to_node(&self.nodes[c], x), c);
+            *slot = (dist2_to_box(&x, self.nodes[c].lo, self.nodes[c].hi), c);
         }
         kids[..m].sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         for &(d2, c) in &kids[..m] {
@@ -360,12 +358,6 @@ impl Octree {
 
 /// Squared distance from p to the box lo..hi, summed over x, y, z in that order.
 #[inline]
-/// The squared distance from x to the box of node `n` (0 inside it).
-fn dist2_to_node(n: &Node, x: [f64; 3]) -> f64 {
-    let g = |d: usize| (n.lo[d] - x[d]).max(x[d] - n.hi[d]).max(0.0);
-    g(0).powi(2) + g(1).powi(2) + g(2).powi(2)
-}
-
 pub(crate) fn dist2_to_box(p: &[f64; 3], lo: [f64; 3], hi: [f64; 3]) -> f64 {
     let g = |d: usize| (lo[d] - p[d]).max(p[d] - hi[d]).max(0.0);
     let (gx, gy, gz) = (g(0), g(1), g(2));

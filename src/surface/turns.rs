@@ -82,7 +82,6 @@ use std::ops::Range;
 
 use super::blobs::{winding_numbers, Lattice, OPEN_SPACE};
 use super::choice::unsupported_crossings_in_window;
-use super::normals::dist2;
 use super::orient::{orientation_edges, tangent_patches};
 use super::rays::PATCH_SHARE;
 use super::support::DataSupport;
@@ -134,14 +133,13 @@ impl Candidate {
 /// The candidate patches of `points` (normalised, `tree` over them) with oriented `normals` and
 /// `kmax` nearest neighbours each in `knn`, given the unsupported surface crossings `far` of a
 /// fit: each small patch charged with at least [`MIN_HITS`] crossings, the most charged first, at
-/// most [`TRIES`]. `h` is the lattice spacing (a first guess of the distance to the nearest point).
+/// most [`TRIES`].
 pub fn candidates(
     points: &[f64],
     normals: &[[f64; 3]],
     (knn, kmax): (&[usize], usize),
     tree: &Octree,
     far: &[[f64; 3]],
-    h: f64,
 ) -> Vec<Candidate> {
     let n = normals.len();
     let edges = orientation_edges(knn, kmax);
@@ -150,14 +148,11 @@ pub fn candidates(
     patch.iter().for_each(|&p| size[p] += 1);
     let mut hits = vec![0usize; count];
     let mut charged = vec![usize::MAX; far.len()];
-    let mut found = Vec::new();
+    let mut near = Vec::new();
     for (c, q) in far.iter().enumerate() {
-        let r = tree.kth_distance(*q, 1, h);
-        tree.within(*q, r * (1.0 + 1e-9) + 1e-15, &mut found);
-        let by_distance = |a: &&usize, b: &&usize| {
-            dist2(q, &points[3 * **a..]).total_cmp(&dist2(q, &points[3 * **b..])).then(a.cmp(b))
-        };
-        if let Some(&j) = found.iter().min_by(by_distance) {
+        // the nearest data point, the lower index of two at one distance
+        tree.nearest_k(*q, 1, &mut near);
+        if let Some(&(_, j)) = near.first() {
             hits[patch[j]] += 1;
             charged[c] = patch[j];
         }
@@ -234,6 +229,7 @@ pub fn clears_open_space(before: usize, open: (usize, usize)) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::surface::normals::dist2;
 
     #[test]
     fn a_turn_is_kept_only_when_it_removes_a_twentieth_of_the_unsupported_surface() {
@@ -291,7 +287,7 @@ mod tests {
             .collect();
         let far: Vec<[f64; 3]> = (0..12).map(|k| [0.05 + 0.07 * k as f64, 0.45, 1.3]).collect();
         // a patch of 100 points is more than 5 % of 200: none is small enough
-        assert!(candidates(&points, &normals, (&knn, kmax), &tree, &far, 0.1).is_empty());
+        assert!(candidates(&points, &normals, (&knn, kmax), &tree, &far).is_empty());
         // with 2000 further points far away, both are small; only the upper one is charged
         let mut more = points.clone();
         let mut more_normals = normals.clone();
@@ -310,7 +306,7 @@ mod tests {
                 }
             })
             .collect();
-        let got = candidates(&more, &more_normals, (&knn_more, kmax), &tree, &far, 0.1);
+        let got = candidates(&more, &more_normals, (&knn_more, kmax), &tree, &far);
         assert_eq!(got.len(), 1, "{got:?}");
         assert_eq!(got[0].members, (100..200).collect::<Vec<_>>());
         // the box holds the upper sheet and the crossings above it

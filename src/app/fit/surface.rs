@@ -652,7 +652,7 @@ fn turn_by_surface(
     });
     let candidates = stages.time(Stage::Turns, || {
         let knn = (&c.hoods.knn[..], c.hoods.kmax);
-        turns::candidates(&data.centres, &c.normals, knn, &c.hoods.tree, &crossings, lattice.h)
+        turns::candidates(&data.centres, &c.normals, knn, &c.hoods.tree, &crossings)
     });
     let mut far = crossings.len();
     let mut check = TurnCheck { tried: candidates.len(), before: far, ..Default::default() };
