@@ -9,7 +9,6 @@ target of jobs/bench/surface_report.py with the whole fit's time and without the
 (`solid_s`, where recorded), the time ratios to the carrier method both ways, and the medians of
 truth -> mesh / mesh -> truth / % of vertices beyond 2 % for the three methods; then the time
 ratios by point count and the sets over 3x without the picture by variant."""
-import csv
 import os
 import statistics
 import sys
@@ -17,15 +16,9 @@ from collections import OrderedDict, defaultdict
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from surface_report import meets, num, time_ratios  # noqa: E402
+from surface_robust import load  # noqa: E402
 
 FIGURES = ("t2m_rms_pct", "m2t_rms_pct", "far2_pct")
-
-
-def load(folder):
-    sets = OrderedDict()
-    for r in csv.DictReader(open(os.path.join(folder, "raw.csv"))):
-        sets.setdefault(r["set"], OrderedDict())[r["method"]] = r
-    return sets
 
 
 def span(values):
