@@ -149,11 +149,7 @@ pub fn default_support(centres: &[f64], target: usize) -> f64 {
     let tree = Octree::new(centres, crate::spline::octree::DEFAULT_LEAF_CAPACITY);
     let k = target.clamp(1, n.saturating_sub(1).max(1));
     let stride = n.div_ceil(SUPPORT_SAMPLE).max(1);
-    // a first guess for the searches: the radius of a disc holding k of n points spread over a
-    // surface of area about 4 in the unit ball; the searches double it as needed
-    let guess = 2.0 * ((k + 1) as f64 / n.max(1) as f64).sqrt();
-    let mut d: Vec<f64> =
-        (0..n).step_by(stride).map(|i| tree.kth_distance(tree.point(i), k + 1, guess)).collect();
+    let mut d: Vec<f64> = (0..n).step_by(stride).map(|i| tree.kth_distance(tree.point(i), k + 1)).collect();
     if d.is_empty() {
         return 2.0;
     }
@@ -165,7 +161,7 @@ pub fn default_support(centres: &[f64], target: usize) -> f64 {
     let median = d[mid];
     // the largest distance from a point to its nearest other point, over all points
     let loneliest =
-        (0..n).into_par_iter().map(|i| tree.kth_distance(tree.point(i), 2, median)).reduce(|| 0.0, f64::max);
+        (0..n).into_par_iter().map(|i| tree.kth_distance(tree.point(i), 2)).reduce(|| 0.0, f64::max);
     median.max((1.0 + 1e-6) * loneliest.min(MAX_SUPPORT_GROWTH * median))
 }
 

@@ -63,12 +63,8 @@ pub fn isolated_points(points: &[f64]) -> Vec<usize> {
         return Vec::new();
     }
     let tree = Octree::new(points, DEFAULT_LEAF_CAPACITY);
-    let (lo, hi) = bounding_box(points, 3);
-    // the radius holding k + 1 points where they sample a surface spanning the box (smaller
-    // where they fill it: the search then widens a few times)
-    let guess = diagonal(&lo, &hi) * ((k + 1) as f64 / n as f64).sqrt();
-    let kth =
-        |i: usize| tree.kth_distance([points[3 * i], points[3 * i + 1], points[3 * i + 2]], k + 1, guess);
+    let (lo, _) = bounding_box(points, 3);
+    let kth = |i: usize| tree.kth_distance([points[3 * i], points[3 * i + 1], points[3 * i + 2]], k + 1);
     let stride = n.div_ceil(ISOLATION_SAMPLES);
     let mut sampled: Vec<f64> = (0..n).into_par_iter().step_by(stride).map(kth).collect();
     let mid = sampled.len() / 2;

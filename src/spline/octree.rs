@@ -305,25 +305,12 @@ impl Octree {
     }
 
     /// The distance from x to its k-th nearest point (k >= 1, counting a point at x itself; the
-    /// farthest point's distance when there are fewer than k). Found by r-sphere searches with
-    /// a radius that starts at `guess` (> 0) and doubles until k points are inside.
-    pub fn kth_distance(&self, x: [f64; 3], k: usize, guess: f64) -> f64 {
-        if self.is_empty() {
-            return f64::INFINITY;
-        }
-        let k = k.clamp(1, self.len());
-        let mut r = if guess > 0.0 && guess.is_finite() { guess } else { 1.0 };
-        let mut found = Vec::new();
-        loop {
-            self.within(x, r, &mut found);
-            if found.len() >= k {
-                break;
-            }
-            r *= 2.0;
-        }
-        let mut d2: Vec<f64> = found.iter().map(|&i| dist2_to_box(&self.pts[self.at[i]], x, x)).collect();
-        d2.select_nth_unstable_by(k - 1, f64::total_cmp);
-        d2[k - 1].sqrt()
+    /// farthest point's distance when there are fewer than k; infinite for an empty tree): the
+    /// last of [`Octree::nearest_k`].
+    pub fn kth_distance(&self, x: [f64; 3], k: usize) -> f64 {
+        let mut near = Vec::new();
+        self.nearest_k(x, k.max(1), &mut near);
+        near.last().map_or(f64::INFINITY, |&(d2, _)| d2.sqrt())
     }
 
     /// The renumbering of Algorithm III for neighbourhoods of radius r (see the module doc):
@@ -626,8 +613,8 @@ pub(crate) mod tests {
             let mut d: Vec<f64> =
                 pts.chunks_exact(3).map(|p| dist2_to_box(&[p[0], p[1], p[2]], x, x)).collect();
             d.sort_by(f64::total_cmp);
-            for (k, guess) in [(1, 0.1), (10, 1e-4), (30, 0.5)] {
-                assert_eq!(tree.kth_distance(x, k, guess), d[k - 1].sqrt());
+            for k in [1, 10, 30] {
+                assert_eq!(tree.kth_distance(x, k), d[k - 1].sqrt());
             }
         }
     }

@@ -551,7 +551,7 @@ impl Search {
         let asked: Vec<usize> = (0..lattice.len())
             .filter(|&i| thin[i] || judged[i].is_some_and(|(_, _, outside)| outside >= AGREE))
             .collect();
-        let area = known.map_or_else(|| point_areas(points, tree, h), |s| s.area.clone());
+        let area = known.map_or_else(|| point_areas(points, tree), |s| s.area.clone());
         // NaN where no rule asks (as `take` reads it), the known values where they were asked before
         let mut winding = vec![f64::NAN; lattice.len()];
         if let Some(s) = known {
@@ -737,13 +737,13 @@ fn path_to_solid(lattice: &Lattice, first: &[f64], now: &[f64], start: usize) ->
 /// The share of the surface each data point stands for: pi r^2 / k with r the distance to its
 /// k-th nearest data point (k = [`VOTERS`]), the area of the disc of its k nearest neighbours
 /// shared among them.
-fn point_areas(points: &[f64], tree: &Octree, h: f64) -> Vec<f64> {
+fn point_areas(points: &[f64], tree: &Octree) -> Vec<f64> {
     let n = points.len() / 3;
     let k = VOTERS.min(n).max(1);
     (0..n)
         .into_par_iter()
         .map(|j| {
-            let r = tree.kth_distance([points[3 * j], points[3 * j + 1], points[3 * j + 2]], k + 1, h);
+            let r = tree.kth_distance([points[3 * j], points[3 * j + 1], points[3 * j + 2]], k + 1);
             std::f64::consts::PI * r * r / k as f64
         })
         .collect()
@@ -896,7 +896,7 @@ mod tests {
             normals.push(p);
         }
         let tree = Octree::new(&pts, 10);
-        let area = point_areas(&pts, &tree, 0.1);
+        let area = point_areas(&pts, &tree);
         // the shares add up to the sphere's area
         let total: f64 = area.iter().sum();
         assert!((total / (4.0 * std::f64::consts::PI) - 1.0).abs() < 0.05, "area {total}");

@@ -38,7 +38,7 @@ pub fn nearest(tree: &Octree, points: &[f64], k: usize) -> Vec<usize> {
         let p = [points[3 * i], points[3 * i + 1], points[3 * i + 2]];
         // the k-th distance, squared again, may round below the point's own squared distance:
         // widen the search until it holds k other points
-        let mut r = tree.kth_distance(p, k + 1, 1e-3) * (1.0 + 1e-9);
+        let mut r = tree.kth_distance(p, k + 1) * (1.0 + 1e-9);
         loop {
             tree.within(p, r, found);
             if found.iter().filter(|&&j| j != i).count() >= k || !r.is_finite() {

@@ -14,7 +14,6 @@
 
 use rayon::prelude::*;
 
-use crate::spline::hygiene::{bounding_box, diagonal};
 use crate::spline::octree::{Octree, DEFAULT_LEAF_CAPACITY};
 use crate::spline::Model;
 
@@ -35,14 +34,9 @@ impl DataSupport {
     pub fn new(points: &[f64], factor: f64) -> Self {
         let tree = Octree::new(points, DEFAULT_LEAF_CAPACITY);
         let n = points.len() / 3;
-        // the first search radius: the spacing of n points spread over a square of the box's
-        // diagonal, so that few searches are repeated and none takes every point
-        let (lo, hi) = bounding_box(points, 3);
-        let diag = diagonal(&lo, &hi);
-        let guess = diag / (n.max(1) as f64).sqrt();
         let mut nearest: Vec<f64> = (0..n)
             .into_par_iter()
-            .map(|i| tree.kth_distance([points[3 * i], points[3 * i + 1], points[3 * i + 2]], 2, guess))
+            .map(|i| tree.kth_distance([points[3 * i], points[3 * i + 1], points[3 * i + 2]], 2))
             .filter(|d| *d > 0.0 && d.is_finite())
             .collect();
         let spacing = if nearest.is_empty() {
