@@ -472,6 +472,18 @@ pub(crate) mod tests {
             .collect()
     }
 
+    /// Every point as (squared distance to x, index), in increasing order of both: the oracle of
+    /// [`Octree::nearest_k`].
+    fn by_distance(points: &[f64], x: [f64; 3]) -> Vec<(f64, usize)> {
+        let mut all: Vec<(f64, usize)> = points
+            .chunks_exact(3)
+            .enumerate()
+            .map(|(i, p)| ((x[0] - p[0]).powi(2) + (x[1] - p[1]).powi(2) + (x[2] - p[2]).powi(2), i))
+            .collect();
+        all.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        all
+    }
+
     fn check_searches(points: &[f64], capacity: usize, radii: &[f64]) {
         let tree = Octree::new(points, capacity);
         let n = points.len() / 3;
@@ -487,13 +499,7 @@ pub(crate) mod tests {
                 assert_eq!(got, want, "K = {capacity}, r = {r}, at {c:?}");
                 assert_eq!(tree.any_within(c, *r), !want.is_empty(), "K = {capacity}, r = {r}, at {c:?}");
                 // the k nearest by (squared distance, index), against sorting all points
-                let mut all: Vec<(f64, usize)> = (0..n)
-                    .map(|i| {
-                        let p = &points[3 * i..3 * i + 3];
-                        ((c[0] - p[0]).powi(2) + (c[1] - p[1]).powi(2) + (c[2] - p[2]).powi(2), i)
-                    })
-                    .collect();
-                all.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                let all = by_distance(points, c);
                 let mut near = Vec::new();
                 for k in [1, 10, 33] {
                     tree.nearest_k(c, k, &mut near);
@@ -532,13 +538,7 @@ pub(crate) mod tests {
             let tree = Octree::new(&pts, capacity);
             let mut near = Vec::new();
             for x in [[0.45, 0.45, 0.45], [0.4, 0.4, 0.4], [0.05, 0.95, 0.55], [2.0, -1.0, 0.3]] {
-                let mut all: Vec<(f64, usize)> = (0..1000)
-                    .map(|i| {
-                        let p = &pts[3 * i..3 * i + 3];
-                        ((x[0] - p[0]).powi(2) + (x[1] - p[1]).powi(2) + (x[2] - p[2]).powi(2), i)
-                    })
-                    .collect();
-                all.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                let all = by_distance(&pts, x);
                 for k in [1, 3, 7, 8, 10, 27, 1000, 1200] {
                     tree.nearest_k(x, k, &mut near);
                     assert_eq!(near, all[..k.min(1000)], "K = {capacity}, k = {k}, at {x:?}");
