@@ -271,26 +271,71 @@ impl Lattice {
 
     /// The connected regions (six-neighbour connectivity) of the nodes where `member` is true:
     /// a label 0..count for each of them (usize::MAX for the others) and the count, numbered in
-    /// the order of their first node.
+    /// the order of their first node. The runs of members along x are joined where they overlap
+    /// a run of the row below them in y or in z (a union-find over the runs), so the work goes
+    /// with the runs, not with six neighbours per node.
     fn regions(&self, member: &[bool]) -> (Vec<usize>, usize) {
-        let mut label = vec![usize::MAX; self.len()];
-        let (mut stack, mut adj, mut count) = (Vec::new(), Vec::new(), 0);
-        for start in 0..self.len() {
-            if !member[start] || label[start] != usize::MAX {
-                continue;
+        let [nx, ny, nz] = self.dims;
+        // the runs [start, end) of each row (x indices), in the order of their first node
+        let mut runs: Vec<(usize, usize)> = Vec::new();
+        let mut first_run = Vec::with_capacity(ny * nz + 1);
+        for row in 0..ny * nz {
+            first_run.push(runs.len());
+            let line = &member[row * nx..(row + 1) * nx];
+            let mut x = 0;
+            while x < nx {
+                if !line[x] {
+                    x += 1;
+                    continue;
+                }
+                let start = x;
+                while x < nx && line[x] {
+                    x += 1;
+                }
+                runs.push((start, x));
             }
-            label[start] = count;
-            stack.push(start);
-            while let Some(i) = stack.pop() {
-                self.neighbours(i, &mut adj);
-                for &j in &adj {
-                    if member[j] && label[j] == usize::MAX {
-                        label[j] = count;
-                        stack.push(j);
+        }
+        first_run.push(runs.len());
+        let mut parent: Vec<usize> = (0..runs.len()).collect();
+        fn root(parent: &mut [usize], mut r: usize) -> usize {
+            while parent[r] != r {
+                parent[r] = parent[parent[r]];
+                r = parent[r];
+            }
+            r
+        }
+        for row in 0..ny * nz {
+            let (y, z) = (row % ny, row / ny);
+            let below = [(y > 0).then(|| row - 1), (z > 0).then(|| row - ny)];
+            for other in below.into_iter().flatten() {
+                let (mut a, mut b) = (first_run[row], first_run[other]);
+                while a < first_run[row + 1] && b < first_run[other + 1] {
+                    let ((s, e), (t, f)) = (runs[a], runs[b]);
+                    if s < f && t < e {
+                        let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
+                        parent[ra.max(rb)] = ra.min(rb);
+                    }
+                    if e < f {
+                        a += 1;
+                    } else {
+                        b += 1;
                     }
                 }
             }
-            count += 1;
+        }
+        let mut label = vec![usize::MAX; self.len()];
+        let mut of_root = vec![usize::MAX; runs.len()];
+        let mut count = 0;
+        for row in 0..ny * nz {
+            for r in first_run[row]..first_run[row + 1] {
+                let top = root(&mut parent, r);
+                if of_root[top] == usize::MAX {
+                    of_root[top] = count;
+                    count += 1;
+                }
+                let (s, e) = runs[r];
+                label[row * nx + s..row * nx + e].fill(of_root[top]);
+            }
         }
         (label, count)
     }
@@ -321,21 +366,26 @@ impl Lattice {
     }
 }
 
-/// f = f_c - U at every node of `lattice`, the rows of nodes dealt round-robin over the ranks
-/// and summed: every rank gets the same values, bit for bit, whatever the number of ranks (each
-/// value is computed by one rank and the others add zeros). The radial sums are those of
-/// [`SignEvaluator`]: every node has the sign double precision gives it, and its value to a few
-/// digits (bit for bit where it is near zero). Collective.
+/// f = f_c - U at every node of `lattice`, the rows of nodes split into one block of
+/// consecutive rows per rank and gathered: every rank gets the same values, bit for bit,
+/// whatever the number of ranks (each value is computed by one rank, by the same sum). The
+/// radial sums are those of [`SignEvaluator`]: every node has the sign double precision gives
+/// it, and its value to a few digits (bit for bit where it is near zero). Collective.
 pub fn sample(comm: &dyn Comm, lattice: &Lattice, carrier: &Carrier, spline: &Spline) -> Vec<f64> {
     let nx = lattice.dims[0];
+    let rows = lattice.len() / nx.max(1);
     let ev = SignEvaluator::new(spline);
     let across: Vec<usize> = (0..nx).collect();
-    let mut values = vec![0.0; lattice.len()];
     let (rank, size) = (comm.rank(), comm.size());
-    values.par_chunks_mut(nx).enumerate().filter(|(row, _)| row % size == rank).for_each(|(row, out)| {
+    let block = |r: usize| r * rows / size..(r + 1) * rows / size;
+    let mine = block(rank);
+    let mut part = vec![0.0; mine.len() * nx];
+    part.par_chunks_mut(nx).zip(mine).for_each(|(out, row)| {
         sample_row(lattice, (carrier, spline, &ev), row, &across, out);
     });
-    comm.sum_f64(&mut values);
+    let counts: Vec<usize> = (0..size).map(|r| block(r).len() * nx).collect();
+    let mut values = vec![0.0; lattice.len()];
+    comm.all_gather_f64(&part, &counts, &mut values);
     values
 }
 
@@ -790,11 +840,16 @@ fn winding_number(q: [f64; 3], points: &[f64], normals: &[[f64; 3]], area: &[f64
 /// nodes at most 2 [`THIN`] - 1 nodes across along some lattice axis, with one region of
 /// non-positive nodes on both sides and both faces farther than [`UNSUPPORTED`] from every data
 /// point. Rule 3 takes those where the data's winding number is below [`OPEN_SPACE`].
+///
+/// Along an axis the nodes of one run of positive nodes share the two faces (halfway between
+/// the run's ends and the non-positive nodes beyond them), so each run short enough is judged
+/// once, and its nodes within [`THIN`] steps of both faces are taken.
 fn thin_unsupported(lattice: &Lattice, values: &[f64], tree: &Octree, points: &[f64]) -> Vec<bool> {
     let positive: Vec<bool> = values.iter().map(|&v| v > 0.0).collect();
     let (w, u) = (THIN, UNSUPPORTED);
+    let mut thin = vec![false; lattice.len()];
     if points.is_empty() {
-        return vec![false; lattice.len()];
+        return thin;
     }
     let [nx, ny, nz] = lattice.dims;
     let strides = [1, nx, nx * ny];
@@ -804,43 +859,56 @@ fn thin_unsupported(lattice: &Lattice, values: &[f64], tree: &Octree, points: &[
     // hole) and stays
     let negative: Vec<bool> = positive.iter().map(|&p| !p).collect();
     let (label, _) = lattice.regions(&negative);
-    (0..lattice.len())
-        .into_par_iter()
-        .map_init(Vec::new, |found, i| {
-            if !positive[i] {
-                return false;
-            }
-            let idx = [i % nx, (i / nx) % ny, i / (nx * ny)];
-            let q = lattice.node(i);
-            let unsupported = |c: [f64; 3], found: &mut Vec<usize>| {
-                tree.within(c, u, found);
-                !found.iter().any(|&j| dist2(&c, &points[3 * j..]) <= u * u)
-            };
-            (0..3).any(|a| {
-                // the first non-positive node each way along axis a, within w steps
-                let face = |sign: i64| {
-                    (1..=w as i64).find_map(|k| {
-                        let t = idx[a] as i64 + sign * k;
-                        if t < 0 || t >= extent[a] as i64 {
-                            return None;
-                        }
-                        let j = (i as i64 + sign * k * strides[a] as i64) as usize;
-                        (!positive[j]).then_some((k, j))
-                    })
-                };
-                let (Some((up, ju)), Some((down, jd))) = (face(1), face(-1)) else { return false };
-                if label[ju] != label[jd] {
-                    return false;
+    let unsupported = |c: [f64; 3], found: &mut Vec<usize>| {
+        tree.within(c, u, found);
+        !found.iter().any(|&j| dist2(&c, &points[3 * j..]) <= u * u)
+    };
+    let mut found = Vec::new();
+    for a in 0..3 {
+        let (b, c) = ((a + 1) % 3, (a + 2) % 3);
+        for (ib, ic) in (0..extent[c]).flat_map(|ic| (0..extent[b]).map(move |ib| (ib, ic))) {
+            let line = ib * strides[b] + ic * strides[c];
+            let at = |t: usize| line + t * strides[a];
+            let mut t = 0;
+            while t < extent[a] {
+                if !positive[at(t)] {
+                    t += 1;
+                    continue;
                 }
-                let at = |k: f64| {
-                    let mut c = q;
-                    c[a] += k * lattice.h;
-                    c
+                // the run t0..t1 of positive nodes, non-positive nodes at t0 - 1 and t1
+                let t0 = t;
+                while t < extent[a] && positive[at(t)] {
+                    t += 1;
+                }
+                let t1 = t;
+                if t0 == 0 || t1 == extent[a] || t1 - t0 > 2 * w - 1 {
+                    continue;
+                }
+                let (jd, ju) = (at(t0 - 1), at(t1));
+                if label[jd] != label[ju] {
+                    continue;
+                }
+                let face = |k: f64| {
+                    let mut q = lattice.node(at(t0));
+                    q[a] = lattice.lo[a] + k * lattice.h;
+                    q
                 };
-                unsupported(at(up as f64 - 0.5), found) && unsupported(at(-(down as f64) + 0.5), found)
-            })
-        })
-        .collect()
+                if !unsupported(face(t1 as f64 - 0.5), &mut found)
+                    || !unsupported(face(t0 as f64 - 0.5), &mut found)
+                {
+                    continue;
+                }
+                // the node at s is s + 1 - t0 steps above the lower face's node and t1 - s below
+                // the upper one
+                for s in t0..t1 {
+                    if s + 1 - t0 <= w && t1 - s <= w {
+                        thin[at(s)] = true;
+                    }
+                }
+            }
+        }
+    }
+    thin
 }
 
 /// The spline's values r = f_c(q) - t at the blob points, t = -g d in the caller's units (see the
@@ -1146,6 +1214,117 @@ mod tests {
                 "{q:?} inside a ball (the cap over the hole)"
             );
             assert!(q[0].abs() < 0.15 && q[1].abs() < 0.05 && q[2].abs() < 0.2, "{q:?} off the web");
+        }
+    }
+
+    /// Pseudo-random membership of a lattice's nodes, about `share` of them members.
+    fn speckle(lattice: &Lattice, share: f64, seed: u64) -> Vec<bool> {
+        let mut x = seed;
+        (0..lattice.len())
+            .map(|_| {
+                x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                ((x >> 11) as f64 / (1u64 << 53) as f64) < share
+            })
+            .collect()
+    }
+
+    #[test]
+    fn regions_are_those_a_search_of_the_six_neighbours_finds() {
+        // the oracle: a depth-first search from each unlabelled member in node order
+        let oracle = |lattice: &Lattice, member: &[bool]| {
+            let mut label = vec![usize::MAX; lattice.len()];
+            let (mut stack, mut adj, mut count) = (Vec::new(), Vec::new(), 0);
+            for start in 0..lattice.len() {
+                if !member[start] || label[start] != usize::MAX {
+                    continue;
+                }
+                label[start] = count;
+                stack.push(start);
+                while let Some(i) = stack.pop() {
+                    lattice.neighbours(i, &mut adj);
+                    for &j in &adj {
+                        if member[j] && label[j] == usize::MAX {
+                            label[j] = count;
+                            stack.push(j);
+                        }
+                    }
+                }
+                count += 1;
+            }
+            (label, count)
+        };
+        // near the percolation threshold (about 0.31 on this lattice) regions are many and wind
+        for (dims, share, seed) in
+            [([9, 7, 5], 0.3, 1), ([16, 3, 11], 0.45, 2), ([1, 12, 12], 0.5, 3), ([20, 20, 20], 0.31, 4)]
+        {
+            let lattice = Lattice { lo: [0.0; 3], h: 1.0, dims };
+            let member = speckle(&lattice, share, seed);
+            let (label, count) = lattice.regions(&member);
+            let (want, want_count) = oracle(&lattice, &member);
+            assert_eq!(count, want_count, "{dims:?}");
+            assert_eq!(label, want, "{dims:?}");
+            assert!(count > 5, "{dims:?}: {count} regions");
+        }
+    }
+
+    #[test]
+    fn thin_sheets_are_those_a_walk_from_every_node_finds() {
+        // the oracle: from every positive node, the nearest non-positive node each way along
+        // each axis, as rule 3 states it
+        let oracle = |lattice: &Lattice, values: &[f64], tree: &Octree, points: &[f64]| {
+            let positive: Vec<bool> = values.iter().map(|&v| v > 0.0).collect();
+            let negative: Vec<bool> = positive.iter().map(|&p| !p).collect();
+            let (label, _) = lattice.regions(&negative);
+            let [nx, ny, nz] = lattice.dims;
+            let (strides, extent) = ([1, nx, nx * ny], [nx, ny, nz]);
+            let unsupported = |c: [f64; 3]| {
+                let mut found = Vec::new();
+                tree.within(c, UNSUPPORTED, &mut found);
+                !found.iter().any(|&j| dist2(&c, &points[3 * j..]) <= UNSUPPORTED * UNSUPPORTED)
+            };
+            (0..lattice.len())
+                .map(|i| {
+                    let idx = [i % nx, (i / nx) % ny, i / (nx * ny)];
+                    positive[i]
+                        && (0..3).any(|a| {
+                            let face = |sign: i64| {
+                                (1..=THIN as i64).find_map(|k| {
+                                    let t = idx[a] as i64 + sign * k;
+                                    if t < 0 || t >= extent[a] as i64 {
+                                        return None;
+                                    }
+                                    let j = (i as i64 + sign * k * strides[a] as i64) as usize;
+                                    (!positive[j]).then_some((k, j))
+                                })
+                            };
+                            let (Some((up, ju)), Some((down, jd))) = (face(1), face(-1)) else {
+                                return false;
+                            };
+                            let at = |k: f64| {
+                                let mut c = lattice.node(i);
+                                c[a] += k * lattice.h;
+                                c
+                            };
+                            label[ju] == label[jd]
+                                && unsupported(at(up as f64 - 0.5))
+                                && unsupported(at(-(down as f64) + 0.5))
+                        })
+                })
+                .collect::<Vec<bool>>()
+        };
+        // data on one face of the lattice's box: nodes near it are supported, others not
+        let lattice = Lattice::new([-1.0; 3], [1.0; 3], 24);
+        let points: Vec<f64> = (0..100)
+            .flat_map(|i| [-1.0 + 0.2 * (i % 10) as f64, -1.0 + 0.2 * (i / 10) as f64, -1.0])
+            .collect();
+        let tree = Octree::new(&points, 8);
+        for (share, seed) in [(0.5, 5), (0.6, 6), (0.7, 7)] {
+            let values: Vec<f64> =
+                speckle(&lattice, share, seed).iter().map(|&p| if p { 1.0 } else { -1.0 }).collect();
+            let thin = thin_unsupported(&lattice, &values, &tree, &points);
+            assert_eq!(thin, oracle(&lattice, &values, &tree, &points), "share {share}");
+            let taken = thin.iter().filter(|&&t| t).count();
+            assert!(taken > 100 && taken < lattice.len() / 2, "share {share}: {taken} nodes");
         }
     }
 

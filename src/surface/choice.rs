@@ -84,21 +84,35 @@ pub fn unsupported_crossings(
     values: &[f64],
     support: &DataSupport,
 ) -> (Vec<[f64; 3]>, usize) {
-    let per_node: Vec<(usize, Vec<[f64; 3]>)> = (0..lattice.len())
+    let [nx, ny, nz] = lattice.dims;
+    let strides = [1, nx, nx * ny];
+    // a row of the lattice at a time (x fastest), the edges of each node in axis order; the
+    // sign test alone on the edges the surface does not cross
+    let per_row: Vec<(usize, Vec<[f64; 3]>)> = (0..ny * nz)
         .into_par_iter()
-        .map(|i| {
+        .map(|row| {
             let (mut all, mut far) = (0usize, Vec::new());
-            for q in (0..3).filter_map(|a| crossing(lattice, values, i, a)) {
-                all += 1;
-                if !support.supports(&q) {
-                    far.push(q);
+            let has = [true, row % ny + 1 < ny, row / ny + 1 < nz];
+            for x in 0..nx {
+                let i = row * nx + x;
+                let inside = values[i] > 0.0;
+                for a in 0..3 {
+                    let beyond = if a == 0 { x + 1 < nx } else { has[a] };
+                    if !beyond || (values[i + strides[a]] > 0.0) == inside {
+                        continue;
+                    }
+                    let q = crossing(lattice, values, i, a).expect("the edge changes sign");
+                    all += 1;
+                    if !support.supports(&q) {
+                        far.push(q);
+                    }
                 }
             }
             (all, far)
         })
         .collect();
-    let crossings = per_node.iter().map(|(all, _)| all).sum();
-    (per_node.into_iter().flat_map(|(_, far)| far).collect(), crossings)
+    let crossings = per_row.iter().map(|(all, _)| all).sum();
+    (per_row.into_iter().flat_map(|(_, far)| far).collect(), crossings)
 }
 
 /// The number of the unsupported crossings of [`unsupported_crossings`] on the lattice edges with
