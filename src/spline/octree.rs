@@ -269,16 +269,34 @@ impl Octree {
     pub fn nearest_k(&self, x: [f64; 3], k: usize, out: &mut Vec<(f64, usize)>) {
         out.clear();
         if k > 0 && !self.nodes.is_empty() {
-            self.nearest_in(0, x, k, out);
+            self.nearest_in(0, x, k, f64::INFINITY, out);
         }
     }
 
-    fn nearest_in(&self, id: usize, x: [f64; 3], k: usize, out: &mut Vec<(f64, usize)>) {
+    /// [`Octree::nearest_k`] where the k-th nearest point is likely within distance `bound` of
+    /// x (the k-th distance of a point nearby plus the distance between them, say): boxes and
+    /// points farther than it are passed over from the start. The answer is that of
+    /// `nearest_k` whatever `bound` is: where fewer than k points lie within it, the search is
+    /// made again without it, and where k do, the k nearest are among them.
+    pub fn nearest_k_within(&self, x: [f64; 3], k: usize, bound: f64, out: &mut Vec<(f64, usize)>) {
+        out.clear();
+        if k > 0 && !self.nodes.is_empty() {
+            self.nearest_in(0, x, k, bound * bound, out);
+            if out.len() < k.min(self.len()) {
+                self.nearest_k(x, k, out);
+            }
+        }
+    }
+
+    fn nearest_in(&self, id: usize, x: [f64; 3], k: usize, bound2: f64, out: &mut Vec<(f64, usize)>) {
         let n = &self.nodes[id];
         let before = |a: &(f64, usize), b: &(f64, usize)| a.0 < b.0 || (a.0 == b.0 && a.1 < b.1);
         if n.children == 0 {
             for t in n.start..n.end {
                 let c = (dist2_to_box(&self.pts[t], x, x), self.index[t]);
+                if c.0 > bound2 {
+                    continue;
+                }
                 if out.len() == k {
                     if !before(&c, &out[k - 1]) {
                         continue;
@@ -297,10 +315,10 @@ impl Octree {
         }
         kids[..m].sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         for &(d2, c) in &kids[..m] {
-            if out.len() == k && d2 > out[k - 1].0 {
+            if d2 > bound2 || (out.len() == k && d2 > out[k - 1].0) {
                 break;
             }
-            self.nearest_in(c, x, k, out);
+            self.nearest_in(c, x, k, bound2, out);
         }
     }
 
@@ -504,6 +522,12 @@ pub(crate) mod tests {
                 for k in [1, 10, 33] {
                     tree.nearest_k(c, k, &mut near);
                     assert_eq!(near, all[..k.min(n)], "K = {capacity}, k = {k}, at {c:?}");
+                    // with a bound on the k-th distance too short, exact, or loose
+                    let kth = all[k.min(n) - 1].0.sqrt();
+                    for bound in [0.0, 0.5 * kth, kth, 1.1 * kth, 3.0 * kth] {
+                        tree.nearest_k_within(c, k, bound, &mut near);
+                        assert_eq!(near, all[..k.min(n)], "K = {capacity}, k = {k}, bound {bound}, at {c:?}");
+                    }
                 }
                 // just beyond the nearest point, and just short of it
                 let nearest =

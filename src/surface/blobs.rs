@@ -547,21 +547,33 @@ impl Search {
         // distance to the nearest data point and the outside vote of every positive node (its
         // k nearest data points by distance, ties by index). The rows of the lattice are dealt
         // round-robin over the ranks and the three figures summed, as `sample` does
-        let mut judged = vec![None; lattice.len()];
         let nx = lattice.dims[0];
         let (rank, size) = (comm.rank(), comm.size());
-        judged.par_chunks_mut(nx).enumerate().filter(|(row, _)| row % size == rank).for_each(|(row, out)| {
-            let mut near = Vec::<(f64, usize)>::new();
-            for (x, o) in out.iter_mut().enumerate() {
-                let i = row * nx + x;
-                if let Some(j) = known.and_then(|s| s.judged[i]).filter(|_| positive[i]) {
-                    // judged before
-                    *o = Some(j);
-                    continue;
-                }
-                if positive[i] && k > 0 {
+        // the positive nodes judged before keep their figures (every rank has them)
+        let mut judged: Vec<Option<(f64, usize, f64)>> =
+            (0..lattice.len()).map(|i| known.and_then(|s| s.judged[i]).filter(|_| positive[i])).collect();
+        let fresh: Vec<usize> =
+            (0..lattice.len()).filter(|&i| positive[i] && k > 0 && judged[i].is_none()).collect();
+        // the rows of the lattice dealt round-robin over the ranks (the positive nodes, which
+        // cost the time, crowd in the middle rows), each rank's figures gathered in rank order
+        let owner = |i: usize| (i / nx) % size;
+        let mine: Vec<usize> = fresh.iter().copied().filter(|&i| owner(i) == rank).collect();
+        // along a row the k-th distance grows by at most the step from the node before, which
+        // bounds each search after the first (the answer is the unbounded one's)
+        let rows: Vec<&[usize]> = mine.chunk_by(|a, b| a / nx == b / nx).collect();
+        let figures: Vec<[f64; 3]> = rows
+            .par_iter()
+            .flat_map_iter(|row| {
+                let (mut near, mut last) = (Vec::<(f64, usize)>::new(), None::<(usize, f64)>);
+                row.iter().map(move |&i| {
                     let q = lattice.node(i);
-                    tree.nearest_k(q, k, &mut near);
+                    match last {
+                        Some((j, kth)) => {
+                            tree.nearest_k_within(q, k, kth + (i - j) as f64 * h * (1.0 + 1e-9), &mut near)
+                        }
+                        None => tree.nearest_k(q, k, &mut near),
+                    }
+                    last = near.last().map(|&(d2, _)| (i, d2.sqrt()));
                     let (d2, nearest) = near[0];
                     let outside = near
                         .iter()
@@ -569,19 +581,20 @@ impl Search {
                             (0..3).map(|d| (q[d] - points[3 * j + d]) * normals[j][d]).sum::<f64>() > 0.0
                         })
                         .count();
-                    *o = Some((d2.sqrt(), nearest, outside as f64 / k as f64));
-                }
-            }
-        });
-        // the positive nodes' figures alone travel (every rank knows which nodes are positive)
-        let judge: Vec<usize> = (0..lattice.len()).filter(|&i| positive[i] && k > 0).collect();
-        let mut figures: Vec<f64> = judge
-            .iter()
-            .flat_map(|&i| judged[i].map_or([0.0; 3], |(d, nearest, outside)| [d, nearest as f64, outside]))
+                    [d2.sqrt(), nearest as f64, outside as f64 / k as f64]
+                })
+            })
             .collect();
-        comm.sum_f64(&mut figures);
-        for (&i, f) in judge.iter().zip(figures.chunks_exact(3)) {
-            judged[i] = Some((f[0], f[1] as usize, f[2]));
+        let mut counts = vec![0; size];
+        fresh.iter().for_each(|&i| counts[owner(i)] += 3);
+        let mut all = vec![0.0; 3 * fresh.len()];
+        comm.all_gather_f64(figures.as_flattened(), &counts, &mut all);
+        let mut from = all.chunks_exact(3);
+        for r in 0..size {
+            for &i in fresh.iter().filter(|&&i| owner(i) == r) {
+                let f = from.next().expect("three figures per node judged");
+                judged[i] = Some((f[0], f[1] as usize, f[2]));
+            }
         }
         // regions of positive nodes; a region is supported when one of its nodes is within a
         // cell diagonal of the data
