@@ -134,27 +134,37 @@ pub fn unsupported_crossings_in_window(
     support: &DataSupport,
     window: &[Range<usize>; 3],
 ) -> Vec<[f64; 3]> {
-    let [nx, ny, _] = lattice.dims;
-    let inside = |i: usize| {
-        let idx = [i % nx, (i / nx) % ny, i / (nx * ny)];
-        window.iter().zip(idx).all(|(r, x)| r.contains(&x))
-    };
-    // an edge belongs to its lower end, which lies in the window or one node below it
-    let [wx, wy, wz] = window.clone().map(|r| r.start.saturating_sub(1)..r.end);
-    let mut lower = Vec::with_capacity(wx.len() * wy.len() * wz.len());
-    for z in wz {
-        for y in wy.clone() {
-            lower.extend(wx.clone().map(|x| x + nx * (y + ny * z)));
-        }
-    }
+    let [nx, ny, nz] = lattice.dims;
     let strides = [1, nx, nx * ny];
-    lower
-        .into_par_iter()
-        .flat_map_iter(|i| {
-            (0..3)
-                .filter(move |&a| inside(i) || inside(i + strides[a]))
-                .filter_map(move |a| crossing(lattice, values, i, a))
-                .filter(|q| !support.supports(q))
+    let [wx, wy, wz] = window.clone();
+    // an edge belongs to its lower end, which lies in the window or one node below it; a row
+    // of lower ends at a time, x fastest, the edges of each node in axis order
+    let below = |r: &Range<usize>| r.start.saturating_sub(1)..r.end;
+    let rows: Vec<(usize, usize)> = below(&wz).flat_map(|z| below(&wy).map(move |y| (y, z))).collect();
+    rows.into_par_iter()
+        .flat_map_iter(|(y, z)| {
+            let mut far = Vec::new();
+            for x in below(&wx) {
+                let i = x + nx * (y + ny * z);
+                let here = wx.contains(&x) && wy.contains(&y) && wz.contains(&z);
+                // whether the edge's upper end exists, and whether it lies in the window
+                let upper = [
+                    (x + 1 < nx, wx.contains(&(x + 1)) && wy.contains(&y) && wz.contains(&z)),
+                    (y + 1 < ny, wx.contains(&x) && wy.contains(&(y + 1)) && wz.contains(&z)),
+                    (z + 1 < nz, wx.contains(&x) && wy.contains(&y) && wz.contains(&(z + 1))),
+                ];
+                let inside = values[i] > 0.0;
+                for (a, &(exists, within)) in upper.iter().enumerate() {
+                    if !exists || !(here || within) || (values[i + strides[a]] > 0.0) == inside {
+                        continue;
+                    }
+                    let q = crossing(lattice, values, i, a).expect("the edge changes sign");
+                    if !support.supports(&q) {
+                        far.push(q);
+                    }
+                }
+            }
+            far
         })
         .collect()
 }
