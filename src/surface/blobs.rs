@@ -545,8 +545,7 @@ impl Search {
         let k = VOTERS.min(n);
         let positive: Vec<bool> = values.iter().map(|&v| v > 0.0).collect();
         // distance to the nearest data point and the outside vote of every positive node (its
-        // k nearest data points by distance, ties by index). The rows of the lattice are dealt
-        // round-robin over the ranks and the three figures summed, as `sample` does
+        // k nearest data points by distance, ties by index)
         let nx = lattice.dims[0];
         let (rank, size) = (comm.rank(), comm.size());
         // the positive nodes judged before keep their figures (every rank has them)
@@ -589,12 +588,13 @@ impl Search {
         fresh.iter().for_each(|&i| counts[owner(i)] += 3);
         let mut all = vec![0.0; 3 * fresh.len()];
         comm.all_gather_f64(figures.as_flattened(), &counts, &mut all);
-        let mut from = all.chunks_exact(3);
-        for r in 0..size {
-            for &i in fresh.iter().filter(|&&i| owner(i) == r) {
-                let f = from.next().expect("three figures per node judged");
-                judged[i] = Some((f[0], f[1] as usize, f[2]));
-            }
+        // rank r's figures start after those of the ranks before it, in the order of its nodes
+        let mut next: Vec<usize> =
+            counts.iter().scan(0, |sum, &c| Some(std::mem::replace(sum, *sum + c))).collect();
+        for &i in &fresh {
+            let f = &all[next[owner(i)]..next[owner(i)] + 3];
+            next[owner(i)] += 3;
+            judged[i] = Some((f[0], f[1] as usize, f[2]));
         }
         // regions of positive nodes; a region is supported when one of its nodes is within a
         // cell diagonal of the data

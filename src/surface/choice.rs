@@ -84,35 +84,7 @@ pub fn unsupported_crossings(
     values: &[f64],
     support: &DataSupport,
 ) -> (Vec<[f64; 3]>, usize) {
-    let [nx, ny, nz] = lattice.dims;
-    let strides = [1, nx, nx * ny];
-    // a row of the lattice at a time (x fastest), the edges of each node in axis order; the
-    // sign test alone on the edges the surface does not cross
-    let per_row: Vec<(usize, Vec<[f64; 3]>)> = (0..ny * nz)
-        .into_par_iter()
-        .map(|row| {
-            let (mut all, mut far) = (0usize, Vec::new());
-            let has = [true, row % ny + 1 < ny, row / ny + 1 < nz];
-            for x in 0..nx {
-                let i = row * nx + x;
-                let inside = values[i] > 0.0;
-                for a in 0..3 {
-                    let beyond = if a == 0 { x + 1 < nx } else { has[a] };
-                    if !beyond || (values[i + strides[a]] > 0.0) == inside {
-                        continue;
-                    }
-                    let q = crossing(lattice, values, i, a).expect("the edge changes sign");
-                    all += 1;
-                    if !support.supports(&q) {
-                        far.push(q);
-                    }
-                }
-            }
-            (all, far)
-        })
-        .collect();
-    let crossings = per_row.iter().map(|(all, _)| all).sum();
-    (per_row.into_iter().flat_map(|(_, far)| far).collect(), crossings)
+    crossings_in(lattice, values, support, &lattice.dims.map(|n| 0..n))
 }
 
 /// The number of the unsupported crossings of [`unsupported_crossings`] on the lattice edges with
@@ -134,6 +106,18 @@ pub fn unsupported_crossings_in_window(
     support: &DataSupport,
     window: &[Range<usize>; 3],
 ) -> Vec<[f64; 3]> {
+    crossings_in(lattice, values, support, window).0
+}
+
+/// The unsupported crossings on the lattice edges with an end among the nodes within the index
+/// ranges `window`, in lattice order (the edges of a node in axis order), with the number of all
+/// crossings on those edges.
+fn crossings_in(
+    lattice: &Lattice,
+    values: &[f64],
+    support: &DataSupport,
+    window: &[Range<usize>; 3],
+) -> (Vec<[f64; 3]>, usize) {
     let [nx, ny, nz] = lattice.dims;
     let strides = [1, nx, nx * ny];
     let [wx, wy, wz] = window.clone();
@@ -141,9 +125,10 @@ pub fn unsupported_crossings_in_window(
     // of lower ends at a time, x fastest, the edges of each node in axis order
     let below = |r: &Range<usize>| r.start.saturating_sub(1)..r.end;
     let rows: Vec<(usize, usize)> = below(&wz).flat_map(|z| below(&wy).map(move |y| (y, z))).collect();
-    rows.into_par_iter()
-        .flat_map_iter(|(y, z)| {
-            let mut far = Vec::new();
+    let per_row: Vec<(usize, Vec<[f64; 3]>)> = rows
+        .into_par_iter()
+        .map(|(y, z)| {
+            let (mut all, mut far) = (0usize, Vec::new());
             for x in below(&wx) {
                 let i = x + nx * (y + ny * z);
                 let here = wx.contains(&x) && wy.contains(&y) && wz.contains(&z);
@@ -159,14 +144,17 @@ pub fn unsupported_crossings_in_window(
                         continue;
                     }
                     let q = crossing(lattice, values, i, a).expect("the edge changes sign");
+                    all += 1;
                     if !support.supports(&q) {
                         far.push(q);
                     }
                 }
             }
-            far
+            (all, far)
         })
-        .collect()
+        .collect();
+    let crossings = per_row.iter().map(|(all, _)| all).sum();
+    (per_row.into_iter().flat_map(|(_, far)| far).collect(), crossings)
 }
 
 /// Where the surface crosses the lattice edge from node `i` along axis `a` (the field `values`
