@@ -5,8 +5,8 @@
 //! the projected Cholesky's factor bordered by appended centres (on the row-cyclic layout, and
 //! from a 2D factor moved there),
 //! the mixed-precision solve and its fallback to f64,
-//! the parallel VTKHDF writer, the per-slice fits of `contours`, and the blob search's lattice
-//! samples.
+//! the parallel VTKHDF writer, the per-slice fits of `contours`, the blob search's lattice
+//! samples, and the surface step's neighbourhoods, misfit medians and orientation.
 //!
 //! A target without the libtest harness (see `common::mpijob`): the checks run as jobs under
 //! `mpirun -n 2` and `mpirun -n 3 --oversubscribe`, each within a time limit.
@@ -35,6 +35,8 @@ use volspline::par::{self, Comm, Solo};
 use volspline::spline::hygiene::{prepare, Prepared};
 use volspline::spline::{full_system, system_size, Carrier, Kernel, Spline};
 use volspline::surface::blobs::{data_cells, sample, sample_nodes, sample_window, Lattice};
+use volspline::surface::denoise::{scale_ratio, scale_ratio_on};
+use volspline::surface::{neighbourhoods, neighbourhoods_on, orient};
 
 use common::mpijob::{self, must, same_on_every_rank, Case, Check, Expect, Log};
 
@@ -108,7 +110,7 @@ fn child() {
         drop(world);
         std::process::exit(i32::from(failed > 0));
     }
-    let checks: [(&str, Check); 20] = [
+    let checks: [(&str, Check); 21] = [
         ("typed collectives", typed_collectives),
         ("agree: one failing rank", agree_one_failing_rank),
         ("agree: two failing ranks, the lowest wins", agree_lowest_rank_wins),
@@ -128,6 +130,7 @@ fn child() {
         ("parallel VTKHDF write vs serial values", vtkhdf_slabs_read_back),
         ("contour slices vs one process", sections_match_solo),
         ("blob lattice: whole, a window and scattered nodes vs one process", lattice_samples_match_solo),
+        ("surface neighbourhoods, misfit medians and orientation vs one process", surface_steps_match_solo),
         // last: it agrees on the products' engine for the rest of the process
         (
             "Householder with the products' engine agreed vs the dense oracle",
@@ -1010,4 +1013,31 @@ fn lattice_samples_match_solo(comm: &dyn Comm, log: &mut Log) {
         log.check(!asked || nodes[i] == serial[i], || format!("node {i}: {} vs {}", nodes[i], serial[i]));
         log.check(asked || nodes[i].is_nan(), || format!("node {i} not asked for was written"));
     }
+}
+
+/// The surface step's per-point work dealt over the ranks (nearest neighbours, PCA normals, the
+/// quadrics' misfit medians) and its orientation with the dense dipole sums shared: every rank
+/// holds one process's lists and values, bit for bit, on 1263 bunny points (about a quarter
+/// of the scan, so the blocks end mid-way through the octree's cells).
+fn surface_steps_match_solo(comm: &dyn Comm, log: &mut Log) {
+    let pts = common::bunny_subset(4, 1);
+    let serial = must(neighbourhoods(&pts), "neighbourhoods on one process");
+    let shared = must(neighbourhoods_on(comm, &pts), "neighbourhoods dealt over the ranks");
+    log.check(shared.kmax == serial.kmax && shared.knn == serial.knn, || "the neighbour lists differ".into());
+    let bits = |v: &[[f64; 3]]| v.iter().flat_map(|x| x.map(f64::to_bits)).collect::<Vec<u64>>();
+    log.check(bits(&shared.normals) == bits(&serial.normals), || "the normals differ".into());
+    let one = scale_ratio(&pts, &serial.normals, &serial.knn, serial.kmax);
+    let all = scale_ratio_on(comm, &pts, &serial.normals, &serial.knn, serial.kmax);
+    log.check(one.0.is_finite() && one.1.is_finite(), || format!("no misfits: {one:?}"));
+    log.check([one.0, one.1, one.2].map(f64::to_bits) == [all.0, all.1, all.2].map(f64::to_bits), || {
+        format!("misfit medians {all:?} against one process's {one:?}")
+    });
+    let o1 =
+        must(orient(&Solo, &pts, &serial.normals, &serial.knn, serial.kmax, false), "orient on one process");
+    let on =
+        must(orient(comm, &pts, &shared.normals, &shared.knn, shared.kmax, false), "orient over the ranks");
+    log.check(o1.dense_dipole && o1.patches > 1, || format!("no dipole correction: {} patches", o1.patches));
+    log.check(bits(&on.normals) == bits(&o1.normals) && on.flipped == o1.flipped, || {
+        format!("oriented normals differ ({} and {} patches flipped)", on.flipped, o1.flipped)
+    });
 }

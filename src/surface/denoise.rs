@@ -27,6 +27,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::linalg::dense::lu_solve;
+use crate::par::Comm;
 
 /// Neighbours besides the point itself that a quadric is fitted to.
 pub const NEIGHBOURS: usize = 19;
@@ -98,29 +99,79 @@ pub fn project(points: &[f64], normals: &[[f64; 3]], knn: &[usize], kmax: usize)
 /// sheet when |n_j . n_i| > 0.5). Returns the two medians and their ratio.
 pub fn scale_ratio(points: &[f64], normals: &[[f64; 3]], knn: &[usize], kmax: usize) -> (f64, f64, f64) {
     let n = points.len() / 3;
-    let median = |count: usize| {
-        let mut m: Vec<f64> = (0..n)
-            .into_par_iter()
-            .filter_map(|i| {
-                let near = &knn[i * kmax..i * kmax + count.min(kmax)];
-                let p = pt(points, i);
-                let sheet: Vec<usize> = std::iter::once(i)
-                    .chain(near.iter().copied().filter(|&j| dot(normals[j], normals[i]).abs() > SAME_SHEET))
-                    .collect();
-                let h = near.last().map(|&j| DVec3::from(p).distance(pt(points, j).into()))?;
-                let fit = fit_quadric(points, normals, &sheet, None, h)?;
-                Some(h * (fit.rss / (sheet.len() - 6) as f64).sqrt())
-            })
-            .collect();
-        m.sort_by(f64::total_cmp);
-        if m.is_empty() {
-            f64::NAN
-        } else {
-            m[m.len() / 2]
-        }
+    let misfits = |count: usize| -> Vec<f64> {
+        (0..n).into_par_iter().filter_map(|i| misfit(points, normals, (knn, kmax), i, count)).collect()
     };
-    let (small, large) = (median(SMALL), median(NEIGHBOURS));
+    let (small, large) = (median(misfits(SMALL)), median(misfits(NEIGHBOURS)));
     (small, large, large / small)
+}
+
+/// [`scale_ratio`] with the points dealt over the ranks of `comm` in contiguous blocks, each rank
+/// fitting the quadrics of its own and all-gathering the misfits: the medians are those of one
+/// process, bit for bit (a median does not depend on the order of its values). Collective.
+pub fn scale_ratio_on(
+    comm: &dyn Comm,
+    points: &[f64],
+    normals: &[[f64; 3]],
+    knn: &[usize],
+    kmax: usize,
+) -> (f64, f64, f64) {
+    let n = points.len() / 3;
+    if comm.size() == 1 {
+        return scale_ratio(points, normals, knn, kmax);
+    }
+    let (rank, size) = (comm.rank(), comm.size());
+    let block = |r: usize| r * n / size..(r + 1) * n / size;
+    // per point: whether each neighbourhood gave a misfit (1 or 0), and the misfit
+    let send: Vec<f64> = block(rank)
+        .into_par_iter()
+        .flat_map_iter(|i| {
+            [SMALL, NEIGHBOURS].into_iter().flat_map(move |count| {
+                match misfit(points, normals, (knn, kmax), i, count) {
+                    Some(m) => [1.0, m],
+                    None => [0.0, 0.0],
+                }
+            })
+        })
+        .collect();
+    let counts: Vec<usize> = (0..size).map(|r| block(r).len() * 4).collect();
+    let mut all = vec![0.0; n * 4];
+    comm.all_gather_f64(&send, &counts, &mut all);
+    let of =
+        |at: usize| -> Vec<f64> { all.chunks_exact(4).filter(|c| c[at] == 1.0).map(|c| c[at + 1]).collect() };
+    let (small, large) = (median(of(0)), median(of(2)));
+    (small, large, large / small)
+}
+
+/// The misfit of the quadric through point `i` and its same-sheet neighbours among its `count`
+/// nearest: the neighbourhood's radius times the root mean square residual per degree of freedom
+/// (None where too few neighbours lie on the sheet for a quadric).
+fn misfit(
+    points: &[f64],
+    normals: &[[f64; 3]],
+    (knn, kmax): (&[usize], usize),
+    i: usize,
+    count: usize,
+) -> Option<f64> {
+    let near = &knn[i * kmax..i * kmax + count.min(kmax)];
+    let p = pt(points, i);
+    let sheet: Vec<usize> = std::iter::once(i)
+        .chain(near.iter().copied().filter(|&j| dot(normals[j], normals[i]).abs() > SAME_SHEET))
+        .collect();
+    let h = near.last().map(|&j| DVec3::from(p).distance(pt(points, j).into()))?;
+    let fit = fit_quadric(points, normals, &sheet, None, h)?;
+    Some(h * (fit.rss / (sheet.len() - 6) as f64).sqrt())
+}
+
+/// The median of `values` (the upper one of an even count; NaN for none), in the order of
+/// `f64::total_cmp`.
+fn median(mut values: Vec<f64>) -> f64 {
+    values.sort_by(f64::total_cmp);
+    if values.is_empty() {
+        f64::NAN
+    } else {
+        values[values.len() / 2]
+    }
 }
 
 /// A quadric height over a frame: the frame's origin, axes and scale, its 6 coefficients, and

@@ -24,8 +24,11 @@
 //! - [`support`]: where the data support the reconstructed surface, for trimming it.
 //!
 //! Everything works in the normalised coordinates of the spline's centres (the data's box
-//! centred, its half-diagonal 1) and is identical on every rank, except the dense dipole sums,
-//! which the ranks share.
+//! centred, its half-diagonal 1) and is identical on every rank. The work per point (nearest
+//! neighbours, PCA normals, the denoising test's quadrics: [`neighbourhoods_on`],
+//! [`denoise::scale_ratio_on`]) is dealt over the ranks in blocks and all-gathered, and the dense
+//! dipole sums of the orientation are shared by rows: each value is the one a single process
+//! computes, bit for bit (the dipole sums up to the order of their last addition over the ranks).
 
 pub mod blobs;
 pub mod choice;
@@ -73,6 +76,38 @@ pub fn neighbourhoods(points: &[f64]) -> Result<Neighbourhoods> {
     let kmax = *normals::NEIGHBOURHOODS.iter().max().unwrap_or(&20);
     let knn = normals::nearest(&tree, points, kmax);
     let (normals, _) = normals::pca_normals(points, &knn, kmax);
+    Ok(Neighbourhoods { tree, knn, kmax, normals })
+}
+
+/// [`neighbourhoods`] with the points dealt over the ranks of `comm` in contiguous blocks: each
+/// rank finds the neighbours and the normal of its own points and all-gathers them, so every
+/// rank holds the lists and normals one process finds, bit for bit (each point's depend on the
+/// point and the octree alone). Collective; too few points are refused on every rank alike,
+/// before any message.
+pub fn neighbourhoods_on(comm: &dyn Comm, points: &[f64]) -> Result<Neighbourhoods> {
+    let n = points.len() / 3;
+    if n < MIN_POINTS || comm.size() == 1 {
+        return neighbourhoods(points);
+    }
+    let tree = Octree::new(points, 10);
+    let kmax = *normals::NEIGHBOURHOODS.iter().max().unwrap_or(&20);
+    let (rank, size) = (comm.rank(), comm.size());
+    let block = |r: usize| r * n / size..(r + 1) * n / size;
+    let mine = block(rank);
+    let knn = normals::nearest_of(&tree, points, kmax, mine.clone());
+    let (unit, _) = normals::pca_normals_of(points, &knn, kmax, mine.clone());
+    // one message: a point's kmax neighbours (indices, exact in a double) and its normal
+    let width = kmax + 3;
+    let send: Vec<f64> = knn
+        .chunks_exact(kmax)
+        .zip(&unit)
+        .flat_map(|(row, v)| row.iter().map(|&j| j as f64).chain(v.iter().copied()))
+        .collect();
+    let counts: Vec<usize> = (0..size).map(|r| block(r).len() * width).collect();
+    let mut all = vec![0.0; n * width];
+    comm.all_gather_f64(&send, &counts, &mut all);
+    let knn = all.chunks_exact(width).flat_map(|c| c[..kmax].iter().map(|&j| j as usize)).collect();
+    let normals = all.chunks_exact(width).map(|c| [c[kmax], c[kmax + 1], c[kmax + 2]]).collect();
     Ok(Neighbourhoods { tree, knn, kmax, normals })
 }
 

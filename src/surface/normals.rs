@@ -18,6 +18,8 @@
 //! gives the search radius, the search returns a superset, sorted by distance (ties by index, so
 //! the result is deterministic).
 
+use std::ops::Range;
+
 use rayon::prelude::*;
 
 use crate::spline::octree::Octree;
@@ -28,13 +30,18 @@ pub const NEIGHBOURHOODS: [usize; 4] = [8, 10, 15, 20];
 /// The `k` nearest other points of every point (stored `k` per point, nearest first), for points
 /// stored 3 values per point; fewer than `k + 1` points give every other point.
 pub fn nearest(tree: &Octree, points: &[f64], k: usize) -> Vec<usize> {
+    nearest_of(tree, points, k, 0..points.len() / 3)
+}
+
+/// [`nearest`] for the points `range` alone: their rows, in order.
+pub fn nearest_of(tree: &Octree, points: &[f64], k: usize, range: Range<usize>) -> Vec<usize> {
     let n = points.len() / 3;
     let k = k.min(n.saturating_sub(1));
-    let mut out = vec![0usize; n * k];
+    let mut out = vec![0usize; range.len() * k];
     if k == 0 {
         return out;
     }
-    out.par_chunks_mut(k).enumerate().for_each_init(Vec::new, |found, (i, row)| {
+    out.par_chunks_mut(k).zip(range).for_each_init(Vec::new, |found, (row, i)| {
         let p = [points[3 * i], points[3 * i + 1], points[3 * i + 2]];
         // the k-th distance, squared again, may round below the point's own squared distance:
         // widen the search until it holds k other points
@@ -137,11 +144,21 @@ fn pca(points: &[f64], i: usize, near: &[usize]) -> ([f64; 3], f64) {
 /// `NEIGHBOURHOODS`-largest nearest-neighbour lists (`knn`, `kmax` per point, nearest first):
 /// each point takes the most planar of its neighbourhoods.
 pub fn pca_normals(points: &[f64], knn: &[usize], kmax: usize) -> (Vec<[f64; 3]>, Vec<f64>) {
-    let n = points.len() / 3;
-    (0..n)
+    pca_normals_of(points, knn, kmax, 0..points.len() / 3)
+}
+
+/// [`pca_normals`] of the points `range` alone, `knn` holding their rows only.
+pub fn pca_normals_of(
+    points: &[f64],
+    knn: &[usize],
+    kmax: usize,
+    range: Range<usize>,
+) -> (Vec<[f64; 3]>, Vec<f64>) {
+    let first = range.start;
+    range
         .into_par_iter()
         .map(|i| {
-            let row = &knn[i * kmax..(i + 1) * kmax];
+            let row = &knn[(i - first) * kmax..(i - first + 1) * kmax];
             let mut best = ([0.0, 0.0, 1.0], f64::INFINITY);
             for k in NEIGHBOURHOODS {
                 let (normal, planarity) = pca(points, i, &row[..k.min(kmax)]);

@@ -275,7 +275,9 @@ fn flux(
         .sum()
 }
 
-/// The dipole interaction A_i A_j (3 (o_i.d)(o_j.d) - o_i.o_j) / r^3 of two oriented points.
+/// The dipole interaction A_i A_j (3 (o_i.d)(o_j.d) - o_i.o_j) / r^3 of two oriented points, one
+/// pair at a time ([`dipole_row`] computes a point's row of them alike).
+#[cfg(test)]
 fn dipole(pi: &[f64], pj: &[f64], oi: &[f64; 3], oj: &[f64; 3], ai: f64, aj: f64) -> f64 {
     let d = [pj[0] - pi[0], pj[1] - pi[1], pj[2] - pi[2]];
     let r2 = dot(&d, &d);
@@ -288,6 +290,10 @@ fn dipole(pi: &[f64], pj: &[f64], oi: &[f64; 3], oj: &[f64; 3], ai: f64, aj: f64
 
 /// The patch sums B ((m + 1) x (m + 1), row-major; index m is the fixed group) of the dense dipole
 /// field, each rank summing its row-cyclic rows. Collective.
+///
+/// A row's interactions are computed for all its partners at once by [`dipole_row`] (vectorised,
+/// each with the bits of the pair computed alone) and then added to their patches' sums in the
+/// order of the partners, so the sums are those of one pair at a time.
 fn dense_patch_sums(
     comm: &dyn Comm,
     points: &[f64],
@@ -299,19 +305,25 @@ fn dense_patch_sums(
     use rayon::prelude::*;
     let n = o.len();
     let width = m + 1;
+    let field = Field::new(points, o, area);
     let mine: Vec<usize> = (comm.rank()..n).step_by(comm.size()).collect();
     let mut b = vec![0.0; width * width];
     for block in mine.chunks(256) {
         let rows: Vec<Vec<f64>> = block
             .par_iter()
-            .map(|&i| {
-                let mut row = vec![0.0; width];
-                for j in (0..n).filter(|&j| j != i) {
-                    row[patch[j]] +=
-                        dipole(&points[3 * i..], &points[3 * j..], &o[i], &o[j], area[i], area[j]);
-                }
-                row
-            })
+            .map_init(
+                || vec![0.0; n],
+                |v, &i| {
+                    dipole_row(&field, i, v);
+                    let mut row = vec![0.0; width];
+                    for (j, (&p, &x)) in patch.iter().zip(v.iter()).enumerate() {
+                        if j != i {
+                            row[p] += x;
+                        }
+                    }
+                    row
+                },
+            )
             .collect();
         for (&i, row) in block.iter().zip(rows) {
             let at = patch[i] * width;
@@ -322,6 +334,54 @@ fn dense_patch_sums(
     }
     comm.sum_f64(&mut b);
     b
+}
+
+/// Oriented points with their areas, coordinate by coordinate, for [`dipole_row`].
+struct Field {
+    p: [Vec<f64>; 3],
+    o: [Vec<f64>; 3],
+    area: Vec<f64>,
+}
+
+impl Field {
+    fn new(points: &[f64], o: &[[f64; 3]], area: &[f64]) -> Field {
+        Field {
+            p: std::array::from_fn(|d| points.chunks_exact(3).map(|q| q[d]).collect()),
+            o: std::array::from_fn(|d| o.iter().map(|v| v[d]).collect()),
+            area: area.to_vec(),
+        }
+    }
+}
+
+crate::simd::on_widest_unit! {
+    /// `v[j]` = A_i A_j (3 (o_i.d)(o_j.d) - o_i.o_j) / r^3, the dipole interaction of point i
+    /// with every point j (d = p_j - p_i, r = |d|; 0 for j = i and for coincident points),
+    /// compiled for the widest vector unit the CPU has.
+    fn dipole_row[][](field: &Field, i: usize, v: &mut [f64]) = dipole_row_portable;
+}
+
+/// [`dipole_row`] on the crate's own target: one partner per lane, each with the operations of
+/// the pair computed alone in their order (Rust fuses no multiply and add of its own accord), so
+/// every lane rounds as the scalar expression does, on every vector unit.
+#[inline(always)]
+fn dipole_row_portable(field: &Field, i: usize, v: &mut [f64]) {
+    let [px, py, pz] = &field.p;
+    let [ox, oy, oz] = &field.o;
+    let (xi, yi, zi) = (px[i], py[i], pz[i]);
+    let (oix, oiy, oiz, ai) = (ox[i], oy[i], oz[i], field.area[i]);
+    let n = v.len();
+    let (px, py, pz, ox, oy, oz, a) =
+        (&px[..n], &py[..n], &pz[..n], &ox[..n], &oy[..n], &oz[..n], &field.area[..n]);
+    for j in 0..n {
+        let (d0, d1, d2) = (px[j] - xi, py[j] - yi, pz[j] - zi);
+        let r2 = d0 * d0 + d1 * d1 + d2 * d2;
+        let r = r2.sqrt();
+        let doi = oix * d0 + oiy * d1 + oiz * d2;
+        let doj = ox[j] * d0 + oy[j] * d1 + oz[j] * d2;
+        let oo = oix * ox[j] + oiy * oy[j] + oiz * oz[j];
+        let x = ai * a[j] * (3.0 * doi * doj / r2 - oo) / (r2 * r);
+        v[j] = if r2 > 0.0 { x } else { 0.0 };
+    }
 }
 
 /// Flips patches greedily while sum t_P t_Q B_PQ decreases; returns the patch signs (the fixed
@@ -579,6 +639,29 @@ mod tests {
         let (n, fraction, o) = agreement("bunny10k.obj", 2, 0, false);
         assert_eq!((o.dense_dipole, o.patches, o.flipped), (false, 0, 0));
         assert!(fraction > 0.99, "only {fraction} of {n} normals agree with the truth");
+    }
+
+    #[test]
+    fn a_row_of_dipole_interactions_has_the_bits_of_each_pair() {
+        // 37 points (not a whole number of vector lanes), two of them coincident
+        let (mut pts, normals) = mesh_samples("cow.obj", 79);
+        pts.truncate(3 * 37);
+        pts.copy_within(0..3, 3 * 20);
+        let o: Vec<[f64; 3]> = normals[..37].to_vec();
+        let area: Vec<f64> = (0..37).map(|i| 0.5 + 0.01 * i as f64).collect();
+        let field = Field::new(&pts, &o, &area);
+        let mut v = vec![f64::NAN; 37];
+        for i in [0, 1, 20, 36] {
+            dipole_row(&field, i, &mut v);
+            for j in 0..37 {
+                let want = dipole(&pts[3 * i..], &pts[3 * j..], &o[i], &o[j], area[i], area[j]);
+                assert_eq!(v[j].to_bits(), want.to_bits(), "i={i} j={j}: {} against {want}", v[j]);
+            }
+            assert_eq!(v[i], 0.0);
+        }
+        // the coincident pair interacts with nothing
+        dipole_row(&field, 0, &mut v);
+        assert_eq!(v[20], 0.0);
     }
 
     #[test]

@@ -235,8 +235,9 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let (auto, mut hoods) = match a.denoise.0 {
         None if off && two_level.is_none() => {
             let (ratio, hoods) = stages.time(Stage::Normals, || -> Result<_> {
-                let hoods = agree(comm, crate::surface::neighbourhoods(&prep.centres))?;
-                let r = crate::surface::denoise::scale_ratio(
+                let hoods = agree(comm, crate::surface::neighbourhoods_on(comm, &prep.centres))?;
+                let r = crate::surface::denoise::scale_ratio_on(
+                    comm,
                     &prep.centres,
                     &hoods.normals,
                     &hoods.knn,

@@ -25,7 +25,7 @@ use crate::surface::rays::{self, RayCheck};
 use crate::surface::support::DataSupport;
 use crate::surface::turns::{self, TurnCheck};
 use crate::surface::{
-    self, neighbourhoods, off_points_by_trust, off_values, Doubt, Neighbourhoods, OffPoints,
+    self, neighbourhoods_on, off_points_by_trust, off_values, Doubt, Neighbourhoods, OffPoints,
 };
 
 /// Fewest points for which `--surface auto` adds off-surface constraints.
@@ -189,7 +189,7 @@ pub fn denoise(
     let comm: &dyn Comm = run.comm;
     let hoods = match hoods {
         Some(h) => h,
-        None => stages.time(Stage::Normals, || agree(comm, neighbourhoods(&prep.centres)))?,
+        None => stages.time(Stage::Normals, || agree(comm, neighbourhoods_on(comm, &prep.centres)))?,
     };
     let o = stages
         .time(Stage::Orient, || surface::oriented_with(comm, &prep.centres, &hoods, run.args.orient_side))?;
@@ -212,7 +212,7 @@ pub fn constrain(
     let comm: &dyn Comm = run.comm;
     let hoods = match hoods {
         Some(h) => h,
-        None => stages.time(Stage::Normals, || agree(comm, neighbourhoods(&prep.centres)))?,
+        None => stages.time(Stage::Normals, || agree(comm, neighbourhoods_on(comm, &prep.centres)))?,
     };
     let (orientation, off) = stages.time(Stage::Orient, || -> Result<_> {
         let o = surface::oriented_with(comm, &prep.centres, &hoods, run.args.orient_side)?;
