@@ -25,6 +25,8 @@ pub use solo::Solo;
 pub use timed::{CallKind, Timed};
 pub use wire::{Reader, Wire};
 
+use std::ops::Range;
+
 use crate::error::{Error, Result};
 
 /// The handle a parallel file library needs to open a file on all ranks (MPI-IO).
@@ -168,6 +170,22 @@ pub fn agree<T>(comm: &dyn Comm, local: Result<T>) -> Result<T> {
 pub fn on_root(comm: &dyn Comm, f: impl FnOnce() -> Result<()>) -> Result<()> {
     let local = if comm.rank() == 0 { f() } else { Ok(()) };
     agree(comm, local)
+}
+
+/// The items of `0..n` that rank `rank` of `comm` takes when they are dealt over the ranks in
+/// contiguous blocks, in order (the blocks' sizes differ by one at most).
+pub fn block(comm: &dyn Comm, n: usize, rank: usize) -> Range<usize> {
+    let size = comm.size();
+    rank * n / size..(rank + 1) * n / size
+}
+
+/// Every rank's `width` values per item of its [`block`] of `n` items (`mine`, this rank's),
+/// all-gathered in the order of the items: `n * width` values on every rank. Collective.
+pub fn all_gather_blocks(comm: &dyn Comm, n: usize, width: usize, mine: &[f64]) -> Vec<f64> {
+    let counts: Vec<usize> = (0..comm.size()).map(|r| block(comm, n, r).len() * width).collect();
+    let mut all = vec![0.0; n * width];
+    comm.all_gather_f64(mine, &counts, &mut all);
+    all
 }
 
 /// Largest value of `x` over ranks. Collective.

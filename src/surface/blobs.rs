@@ -153,7 +153,7 @@ use rayon::prelude::*;
 use super::normals::dist2;
 use super::offsurface::carrier_slope;
 use crate::grid::padded_box;
-use crate::par::Comm;
+use crate::par::{self, Comm};
 use crate::spline::carrier::Carrier;
 use crate::spline::octree::Octree;
 use crate::spline::{Normalisation, SignEvaluator, Spline};
@@ -376,17 +376,12 @@ pub fn sample(comm: &dyn Comm, lattice: &Lattice, carrier: &Carrier, spline: &Sp
     let rows = lattice.len() / nx.max(1);
     let ev = SignEvaluator::new(spline);
     let across: Vec<usize> = (0..nx).collect();
-    let (rank, size) = (comm.rank(), comm.size());
-    let block = |r: usize| r * rows / size..(r + 1) * rows / size;
-    let mine = block(rank);
+    let mine = par::block(comm, rows, comm.rank());
     let mut part = vec![0.0; mine.len() * nx];
     part.par_chunks_mut(nx).zip(mine).for_each(|(out, row)| {
         sample_row(lattice, (carrier, spline, &ev), row, &across, out);
     });
-    let counts: Vec<usize> = (0..size).map(|r| block(r).len() * nx).collect();
-    let mut values = vec![0.0; lattice.len()];
-    comm.all_gather_f64(&part, &counts, &mut values);
-    values
+    par::all_gather_blocks(comm, rows, nx, &part)
 }
 
 /// [`sample`] on the nodes of `lattice` within the index ranges `window` alone, written into

@@ -27,7 +27,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::linalg::dense::lu_solve;
-use crate::par::Comm;
+use crate::par::{self, Comm};
 
 /// Neighbours besides the point itself that a quadric is fitted to.
 pub const NEIGHBOURS: usize = 19;
@@ -120,10 +120,8 @@ pub fn scale_ratio_on(
     if comm.size() == 1 {
         return scale_ratio(points, normals, knn, kmax);
     }
-    let (rank, size) = (comm.rank(), comm.size());
-    let block = |r: usize| r * n / size..(r + 1) * n / size;
     // per point: whether each neighbourhood gave a misfit (1 or 0), and the misfit
-    let send: Vec<f64> = block(rank)
+    let send: Vec<f64> = par::block(comm, n, comm.rank())
         .into_par_iter()
         .flat_map_iter(|i| {
             [SMALL, NEIGHBOURS].into_iter().flat_map(move |count| {
@@ -134,9 +132,7 @@ pub fn scale_ratio_on(
             })
         })
         .collect();
-    let counts: Vec<usize> = (0..size).map(|r| block(r).len() * 4).collect();
-    let mut all = vec![0.0; n * 4];
-    comm.all_gather_f64(&send, &counts, &mut all);
+    let all = par::all_gather_blocks(comm, n, 4, &send);
     let of =
         |at: usize| -> Vec<f64> { all.chunks_exact(4).filter(|c| c[at] == 1.0).map(|c| c[at + 1]).collect() };
     let (small, large) = (median(of(0)), median(of(2)));

@@ -48,7 +48,7 @@ pub use offsurface::{
 pub use orient::{orient, Orientation};
 
 use crate::error::{Error, Result};
-use crate::par::Comm;
+use crate::par::{self, Comm};
 use crate::spline::octree::Octree;
 
 /// Fewest points for which normals are estimated (the largest neighbourhood and the point).
@@ -91,11 +91,9 @@ pub fn neighbourhoods_on(comm: &dyn Comm, points: &[f64]) -> Result<Neighbourhoo
     }
     let tree = Octree::new(points, 10);
     let kmax = *normals::NEIGHBOURHOODS.iter().max().unwrap_or(&20);
-    let (rank, size) = (comm.rank(), comm.size());
-    let block = |r: usize| r * n / size..(r + 1) * n / size;
-    let mine = block(rank);
+    let mine = par::block(comm, n, comm.rank());
     let knn = normals::nearest_of(&tree, points, kmax, mine.clone());
-    let (unit, _) = normals::pca_normals_of(points, &knn, kmax, mine.clone());
+    let (unit, _) = normals::pca_normals_of(points, &knn, kmax, mine);
     // one message: a point's kmax neighbours (indices, exact in a double) and its normal
     let width = kmax + 3;
     let send: Vec<f64> = knn
@@ -103,9 +101,7 @@ pub fn neighbourhoods_on(comm: &dyn Comm, points: &[f64]) -> Result<Neighbourhoo
         .zip(&unit)
         .flat_map(|(row, v)| row.iter().map(|&j| j as f64).chain(v.iter().copied()))
         .collect();
-    let counts: Vec<usize> = (0..size).map(|r| block(r).len() * width).collect();
-    let mut all = vec![0.0; n * width];
-    comm.all_gather_f64(&send, &counts, &mut all);
+    let all = par::all_gather_blocks(comm, n, width, &send);
     let knn = all.chunks_exact(width).flat_map(|c| c[..kmax].iter().map(|&j| j as usize)).collect();
     let normals = all.chunks_exact(width).map(|c| [c[kmax], c[kmax + 1], c[kmax + 2]]).collect();
     Ok(Neighbourhoods { tree, knn, kmax, normals })
