@@ -20,7 +20,9 @@
 //!
 //! Rules: at least two slices; every slice has at least one contour and every contour at least
 //! three points; a point line must follow a `contour` line; the slices are ordered along their
-//! normals (each plane in front of the previous one); the first slice cannot be `omega`.
+//! normals (each plane in front of the previous one, by more than a millionth of the diagonal of
+//! all contour points: closer slices are one slice given twice); the first slice cannot be
+//! `omega`.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -187,7 +189,49 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<Section>> {
             "only one slice: at least two are needed",
         ));
     }
+    check_apart(path, &sections)?;
     Ok(sections)
+}
+
+/// Slices closer than this fraction of the diagonal of all contour points are refused as the
+/// same slice given twice.
+pub const MIN_GAP: f64 = 1e-6;
+
+/// Refuses a slice that lies within [`MIN_GAP`] of the contours' diagonal in front of the
+/// previous one: a section repeated (a file concatenated with itself, a slice exported twice
+/// with rounding). Parallel slices are interpolated between as if the gap were real, so a gap
+/// of rounding size changes the cubic interpolation everywhere (its weights are fitted through
+/// both copies) while saying nothing; the gap is measured as where the slices are ordered, at
+/// the origins along the mean normal.
+fn check_apart(path: &Path, sections: &[Section]) -> Result<()> {
+    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    for s in sections {
+        for p in s.contours.iter().flatten() {
+            let x = s.world(*p);
+            lo = lo.min(x);
+            hi = hi.max(x);
+        }
+    }
+    let diagonal = (hi - lo).length();
+    for pair in sections.windows(2) {
+        let (prev, s) = (&pair[0], &pair[1]);
+        let gap = 0.5 * (prev.frame.z_axis + s.frame.z_axis).dot(s.origin - prev.origin);
+        if gap < MIN_GAP * diagonal {
+            return Err(Error::input(
+                path,
+                format!("line {}", s.line),
+                format!(
+                    "this slice lies only {gap:.3e} in front of the previous one (line {}), {:.1e} of the \
+                     contours' diagonal {diagonal:.3e}: the same slice given twice? Slices closer than {MIN_GAP:e} \
+                     of the diagonal are refused, since the interpolation between them would rest on rounding; \
+                     remove one of them",
+                    prev.line,
+                    gap / diagonal
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Checks the slice that ends before `line`.
@@ -290,7 +334,15 @@ mod tests {
             ("slice z 0\nslice z 1\n", "line 2", "no contour"),
             ("# nothing\n", "", "no slices"),
             ("slice z inf\n", "line 1", "finite"),
+            (
+                "slice z 0\ncontour\n0 0\n1 0\n1 1\nslice z 1e-7\ncontour\n0 0\n1 0\n1 1\n",
+                "line 6",
+                "given twice",
+            ),
         ];
+        // a millionth of the diagonal is the limit: 1e-5 of it apart still parses
+        let near = "slice z 0\ncontour\n0 0\n1 0\n1 1\nslice z 1.5e-5\ncontour\n0 0\n1 0\n1 1\n";
+        assert_eq!(parse(p, near).unwrap().len(), 2);
         for (text, at, why) in cases {
             match parse(p, text) {
                 Err(Error::Input { location, reason, .. }) => {

@@ -170,7 +170,7 @@ pub fn check_unisolvent(kernel: &Kernel, points: &[f64]) -> Result<()> {
             "{n} distinct points are too few: kernel {} in {dim}D needs at least {k} points \
              not on a common {}",
             kernel.name(),
-            degenerate_set(kernel)
+            degenerate_set(kernel, 0)
         )));
     }
     let mut vals = vec![0.0; k];
@@ -183,11 +183,14 @@ pub fn check_unisolvent(kernel: &Kernel, points: &[f64]) -> Result<()> {
     }
     let diag = qr_r_diagonal(p.as_ref());
     let biggest = diag.iter().fold(0.0f64, |a, b| a.max(*b));
-    if diag.iter().any(|&d| d <= 1e-10 * biggest) {
+    // a column of P lies in the span of the ones before it exactly when its diagonal of R
+    // vanishes, so the vanishing diagonals count the rank P lacks, whatever columns they are
+    let lacking = diag.iter().filter(|&&d| d <= 1e-10 * biggest).count();
+    if lacking > 0 {
         return Err(Error::Numerical(format!(
             "the {n} points all lie on one {}, so the polynomial part of degree {} is not \
              determined (the points are not unisolvent); kernel {} needs points that span {dim}D",
-            degenerate_set(kernel),
+            degenerate_set(kernel, lacking),
             kernel.order() - 1,
             kernel.name(),
         )));
@@ -195,14 +198,20 @@ pub fn check_unisolvent(kernel: &Kernel, points: &[f64]) -> Result<()> {
     Ok(())
 }
 
-fn degenerate_set(kernel: &Kernel) -> &'static str {
-    match (kernel.dim(), kernel.order()) {
-        (3, 2) => "plane",
-        (2, 2) => "line",
-        (1, 2) => "point",
-        (3, _) => "quadric surface",
-        (2, _) => "conic",
-        _ => "low-degree algebraic set",
+/// The kind of set the points lie on when the polynomial block lacks `lacking` of its rank (0
+/// for the generic set that too few points lie on). For the linear part (1, x, ...) the rank is
+/// one more than the dimension of the points' affine span.
+fn degenerate_set(kernel: &Kernel, lacking: usize) -> &'static str {
+    let linear = kernel.order() == 2;
+    match (kernel.dim().saturating_sub(lacking.max(1)), linear) {
+        (2, true) => "plane",
+        (1, true) => "line",
+        (0, true) => "point",
+        _ => match (kernel.dim(), kernel.order()) {
+            (3, _) => "quadric surface",
+            (2, _) => "conic",
+            _ => "low-degree algebraic set",
+        },
     }
 }
 
@@ -366,6 +375,15 @@ mod tests {
         let line = Kernel::new(2, 2).unwrap();
         let collinear: Vec<f64> = (0..10).flat_map(|i| [i as f64, 2.0 * i as f64 + 1.0]).collect();
         assert!(check_unisolvent(&line, &collinear).unwrap_err().to_string().contains("line"));
+        // in 3D, points on a line (whichever axes it follows) are named as on one line
+        for dir in [[1.0, 2.0, 3.0], [0.0, 1.0, 0.0], [0.0, 0.0, 2.0]] {
+            let on_line: Vec<f64> = (0..15).flat_map(|i| dir.map(|d| 0.2 + d * i as f64 * 0.05)).collect();
+            let err = check_unisolvent(&k, &on_line).unwrap_err().to_string();
+            assert!(err.contains("on one line") && !err.contains("plane"), "{dir:?}: {err}");
+        }
+        let mut twice = plane;
+        twice.truncate(3);
+        assert!(check_unisolvent(&k, &twice).unwrap_err().to_string().contains("plane"));
     }
 
     #[test]
