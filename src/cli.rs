@@ -12,7 +12,7 @@ use crate::contour::{Interp, Orient, SectionCarrier};
 use crate::error::{Error, Result};
 use crate::frep::raycast::{Axis, Colouring};
 use crate::frep::Syntax;
-use crate::grid::{parse_bounds, GridSize};
+use crate::grid::{parse_bounds, GridSize, Margin};
 use crate::linalg::dist::{Layout, Precision, SolverKind};
 use crate::linalg::gemm::Engine;
 use crate::spline::{Carrier, Kernel};
@@ -390,9 +390,13 @@ pub struct GridArgs {
     /// Grid nodes: N along the longest side of the box with cubic cells, or NX,NY,NZ.
     #[arg(long, allow_hyphen_values = true, default_value = "64", value_name = "N|NX,NY,NZ", value_parser = with(GridSize::parse))]
     pub grid: GridSize,
-    /// Margin added on every side of the data's bounding box, as a fraction of its longest side.
-    #[arg(long, allow_hyphen_values = true, default_value = "0.05", value_name = "F", value_parser = margin)]
-    pub margin: f64,
+    /// Margin added on every side of the data's bounding box, as a fraction of its longest side;
+    /// auto: 0.05, and where the solid reaches a face of the grid, the grid grows there by whole
+    /// cells at the same spacing (5 % of its longest side, twice that the next step, ...) and is
+    /// evaluated again, so the surface comes out closed (fit, contours and eval of a model; at
+    /// most 6 steps and 8 times the nodes).
+    #[arg(long, allow_hyphen_values = true, default_value = "auto", value_name = "auto|F", value_parser = with(Margin::parse))]
+    pub margin: Margin,
     /// Threads per rank (0: the cores of this node divided by the ranks on it).
     #[arg(long, allow_negative_numbers = true, default_value = "0", value_name = "T", value_parser = threads)]
     pub threads: usize,
@@ -793,10 +797,6 @@ fn memory_size(s: &str) -> Parsed<f64> {
     }
 }
 
-fn margin(s: &str) -> Parsed<f64> {
-    number_in(s, 0.0..=10.0, "[0, 10]")
-}
-
 fn merge_tol(s: &str) -> Parsed<f64> {
     number_in(s, 0.0..0.1, "[0, 0.1)")
 }
@@ -821,6 +821,7 @@ mod tests {
         assert_eq!(a.method, Method::Auto);
         assert_eq!(a.leaf, 10);
         assert_eq!(a.grid.grid, GridSize::Longest(64));
+        assert_eq!(a.grid.margin, Margin { fraction: 0.05, grow: true });
         assert_eq!(a.merge_tol, 1e-6);
         assert!(a.drop_isolated);
         assert_eq!((a.surface, a.off_points, a.doubtful_share), (Surface::Auto, 0.5, 0.4));
@@ -829,6 +830,9 @@ mod tests {
             parse(&["fit", "a.xyz", "--out", "o", "--surface", "carrier", "--off-points", "2"]).unwrap();
         let Command::Fit(a) = cli.command else { panic!("fit") };
         assert_eq!((a.surface, a.off_points), (Surface::Carrier, 2.0));
+        let cli = parse(&["fit", "a.xyz", "--out", "o", "--margin", "0.2"]).unwrap();
+        let Command::Fit(a) = cli.command else { panic!("fit") };
+        assert_eq!(a.grid.margin, Margin { fraction: 0.2, grow: false });
     }
 
     #[test]
@@ -852,6 +856,7 @@ mod tests {
             &["fit", "a.xyz", "--out", "o", "--lookahead", "yes"][..],
             &["fit", "a.xyz", "--out", "o", "--carrier", "cube"],
             &["fit", "a.xyz", "--out", "o", "--margin", "-1"],
+            &["fit", "a.xyz", "--out", "o", "--margin", "wide"],
             &["fit", "a.xyz", "--out", "o", "--merge-tol", "0.5"],
             &["fit", "a.xyz", "--out", "o", "--grid", "1"],
             &["eval", "m.h5", "--out", "o", "--bounds", "0,0,0,1,1"],

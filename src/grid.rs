@@ -107,6 +107,69 @@ impl Grid {
     }
 }
 
+/// `--margin`: the padding of the data's box on every side, as a fraction of its longest side,
+/// and whether the grid may grow where the solid reaches its faces (`auto`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Margin {
+    pub fraction: f64,
+    pub grow: bool,
+}
+
+impl Margin {
+    /// The padding `auto` starts from.
+    pub const AUTO_START: f64 = 0.05;
+
+    /// `auto` or a fraction in [0, 10].
+    pub fn parse(s: &str) -> Result<Margin> {
+        if s.trim().eq_ignore_ascii_case("auto") {
+            return Ok(Margin { fraction: Margin::AUTO_START, grow: true });
+        }
+        match s.trim().parse::<f64>() {
+            Ok(v) if (0.0..=10.0).contains(&v) => Ok(Margin { fraction: v, grow: false }),
+            Ok(v) => Err(Error::Usage(format!("margin {v}: expected auto or a number in [0, 10]"))),
+            Err(_) => Err(Error::Usage(format!("margin '{s}': expected auto or a number in [0, 10]"))),
+        }
+    }
+}
+
+/// Cells added at a face of the grid at the first step of growth, as a fraction of the cells
+/// along the grid's longest side (at least one cell); each further step adds twice the cells of
+/// the step before.
+pub const GROW_STEP: f64 = 0.05;
+
+/// Most steps of growth, and most nodes after them as a multiple of the grid's first count: a
+/// solid that still reaches the faces then is left cut open (with a warning), since it is
+/// unbounded or reaches far from its data.
+pub const GROW_STEPS: usize = 6;
+pub const GROW_NODES: usize = 8;
+
+/// The six faces of a grid, in the order of [`Grid::grown`]: -x, +x, -y, +y, -z, +z.
+pub const FACE_NAMES: [&str; 6] = ["-x", "+x", "-y", "+y", "-z", "+z"];
+
+impl Grid {
+    /// This grid with `cells` more cells beyond each face in `faces` (-x, +x, -y, +y, -z, +z), at
+    /// the same spacing: the nodes it had keep their positions (to the rounding of origin + i h).
+    pub fn grown(&self, faces: [bool; 6], cells: usize) -> Grid {
+        let mut g = *self;
+        for d in 0..3 {
+            if faces[2 * d] {
+                g.origin[d] -= cells as f64 * g.spacing[d];
+                g.dims[d] += cells;
+            }
+            if faces[2 * d + 1] {
+                g.dims[d] += cells;
+            }
+        }
+        g
+    }
+
+    /// The cells of one step of growth of this grid ([`GROW_STEP`] of its longest side).
+    pub fn grow_cells(&self) -> usize {
+        let longest = self.dims.iter().max().copied().unwrap_or(2).saturating_sub(1);
+        ((GROW_STEP * longest as f64).ceil() as usize).max(1)
+    }
+}
+
 /// Box lo..hi of points grown by `margin` times its longest side on every side.
 pub fn padded_box(lo: &[f64], hi: &[f64], margin: f64) -> ([f64; 3], [f64; 3]) {
     let longest = (0..3).map(|d| hi[d] - lo[d]).fold(0.0, f64::max);

@@ -177,7 +177,7 @@ fn negative_numbers_get_the_range_message() {
     write_xyz(&input, &scaled_bunny(1.0));
     let out_prefix = dir.join("out");
     for (opt, value, needle) in [
-        ("--margin", "-1", "expected a number in [0, 10]"),
+        ("--margin", "-1", "expected auto or a number in [0, 10]"),
         ("--grid", "-1,2,3", "is not a node count"),
         ("--merge-tol", "-1e-6", "-1e-6"),
         ("--threads", "-1", "-1"),
@@ -1218,5 +1218,109 @@ fn more_threads_than_the_rank_s_cpus_are_named() {
         ) && t.contains("mpirun --bind-to none");
         assert_eq!(warned, threads == "2", "{t}");
         assert!(t.contains(&format!("threads per rank = {threads}")), "{t}");
+    }
+}
+
+/// Each undirected edge of `mesh` and the number of its triangles.
+fn edge_uses(mesh: &volspline::mesh::TriMesh) -> std::collections::HashMap<(u32, u32), usize> {
+    let mut uses = std::collections::HashMap::new();
+    for t in &mesh.triangles {
+        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+            *uses.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+        }
+    }
+    uses
+}
+
+/// The value of `key` in a `--timings` file.
+fn figure(csv: &str, key: &str) -> String {
+    let prefix = format!("{key},");
+    csv.lines()
+        .find_map(|l| l.strip_prefix(&prefix))
+        .unwrap_or_else(|| panic!("no {key} in {csv}"))
+        .to_string()
+}
+
+/// The plain carrier method on 400 points of the cow grows a sheet through the +x face of the
+/// data's box plus 5 %, where the mesh was cut open. `--margin auto` (the default) grows the grid
+/// beyond that face at the same spacing until the solid lies inside it: the mesh is closed
+/// (every edge in two triangles), the nodes the first grid had keep their values (to rounding of
+/// their positions), and 1, 2 and 3 ranks grow the same grid and write the same volume (to the
+/// rounding of their solves); `eval` of the model grows the same grid. A fixed `--margin 0.05`
+/// keeps the box and the holes, with the warning.
+#[test]
+fn the_grid_grows_until_the_solid_of_a_carrier_fit_of_the_cow_is_closed() {
+    use common::load_mesh;
+    use volspline::io::vtkhdf::read_image;
+    let dir = temp_dir("hardening-grow");
+    let cow = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/cow-400.xyz");
+    let fit = |name: &str, ranks: usize, margin: &str| {
+        let prefix = dir.join(name);
+        let timings = dir.join(format!("{name}.csv"));
+        let args =
+            ["fit", cow, "--out", s(&prefix), "--surface", "carrier", "--margin", margin, "--grid", "48"];
+        let out = run(ranks, &[&args[..], &["--no-preview", "--timings", s(&timings)]].concat());
+        assert!(out.status.success(), "{}", text(&out));
+        let (grid, f) = read_image(&dir.join(format!("{name}.hdf")), "f").unwrap();
+        let mesh = load_mesh(&dir.join(format!("{name}.ply")));
+        (text(&out), std::fs::read_to_string(&timings).unwrap(), grid, f, mesh)
+    };
+    let (t, csv, fixed_grid, fixed, mesh) = fit("fixed", 2, "0.05");
+    assert!(t.contains("warning") && t.contains("the solid reaches the grid's faces"), "{t}");
+    assert!(figure(&csv, "face_nodes_inside").parse::<u64>().unwrap() > 20, "{csv}");
+    assert_eq!(figure(&csv, "grid_grown_steps"), "0");
+    let open_edges = edge_uses(&mesh).values().filter(|&&u| u == 1).count();
+    assert!(open_edges > 20, "the fixed box should cut the sheet open: {open_edges} open edges");
+
+    let mut first: Option<(volspline::grid::Grid, Vec<f64>)> = None;
+    for ranks in [1, 2, 3] {
+        let (t, csv, grid, f, mesh) = fit(&format!("auto-{ranks}"), ranks, "auto");
+        assert!(!t.contains("warning"), "{t}");
+        assert!(t.contains("growing the grid"), "{t}");
+        assert_eq!(figure(&csv, "face_nodes_inside"), "0", "{csv}");
+        let steps: usize = figure(&csv, "grid_grown_steps").parse().unwrap();
+        assert!((1..=3).contains(&steps), "{csv}");
+        assert!(edge_uses(&mesh).values().all(|&u| u == 2), "the mesh of the grown grid has holes");
+        // more nodes, the same spacing, and the first grid's nodes at their places with their bits
+        assert_eq!(grid.spacing, fixed_grid.spacing);
+        assert!(grid.node_count() > fixed_grid.node_count());
+        let shift: Vec<usize> = (0..3)
+            .map(|d| ((fixed_grid.origin[d] - grid.origin[d]) / grid.spacing[d]).round() as usize)
+            .collect();
+        let [nx, ny, nz] = fixed_grid.dims;
+        let [gx, gy, _] = grid.dims;
+        let mut same = Vec::with_capacity(fixed.len());
+        for k in 0..nz {
+            for j in 0..ny {
+                for i in 0..nx {
+                    same.push(f[((k + shift[2]) * gy + j + shift[1]) * gx + i + shift[0]]);
+                }
+            }
+        }
+        // (the node positions agree to rounding: origin - c h + (i + c) h against origin + i h)
+        assert!(
+            common::rel_diff(&same, &fixed) < 1e-12,
+            "{ranks} ranks: {}",
+            common::rel_diff(&same, &fixed)
+        );
+        if ranks == 2 {
+            // eval of the model grows the grid as the fit did: the same grid, the same values
+            let model = dir.join("auto-2.model.h5");
+            let again = dir.join("again");
+            let args = ["eval", s(&model), "--out", s(&again), "--grid", "48"];
+            let t = common::run_ok(2, &args);
+            assert!(t.contains("grid grown"), "{t}");
+            let (g, v) = read_image(&dir.join("again.hdf"), "f").unwrap();
+            assert_eq!(g, grid);
+            assert!(v.iter().zip(&f).all(|(a, b)| a.to_bits() == b.to_bits()));
+        }
+        match &first {
+            None => first = Some((grid, f)),
+            Some((g1, f1)) => {
+                assert_eq!(&grid, g1, "{ranks} ranks grew another grid than 1");
+                // (the solves of 1, 2 and 3 ranks sum in other orders: the weights agree to rounding)
+                assert!(common::rel_diff(&f, f1) < 1e-10, "{ranks} ranks: {}", common::rel_diff(&f, f1));
+            }
+        }
     }
 }

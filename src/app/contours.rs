@@ -20,7 +20,7 @@ use crate::contour::{fit_section, ContourModel, SectionCarrier, SectionFit, Sect
 use crate::error::{Error, Result};
 use crate::frep::raycast::Colouring;
 use crate::frep::Implicit;
-use crate::grid::{padded_box, Grid};
+use crate::grid::{padded_box, Grid, GridSize};
 use crate::io::{self, contour_model_file};
 use crate::par::{agree, on_root, Comm};
 use crate::spline::hygiene::bounding_box;
@@ -174,7 +174,7 @@ pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         .flat_map(|s| s.contours.iter().flatten().flat_map(move |p| s.world(*p).to_array()))
         .collect();
     let (lo, hi) = bounding_box(&world, 3);
-    let (plo, phi) = padded_box(&lo, &hi, a.grid.margin);
+    let (plo, phi) = padded_box(&lo, &hi, a.grid.margin.fraction);
     let grid = Grid::covering(plo, phi, a.grid.grid)?;
     check_grid(comm, &grid)?;
     check_slice_systems(comm, &sections, &a.kernel)?;
@@ -223,7 +223,8 @@ pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         })
     })?;
     let curvature = a.grid.curvature.then_some(&model as &dyn Implicit);
-    let volume = write_volume(comm, &model, curvature, &grid, &a.out, &mut stages)?;
+    let grow = a.grid.margin.grow && matches!(a.grid.grid, GridSize::Longest(_));
+    let volume = write_volume(comm, &model, curvature, &grid, grow, &a.out, &mut stages)?;
     let preview = output_path(&a.out, ".png");
     if !a.no_preview {
         write_picture(comm, &model, &preview_view(), Colouring::Shading, &preview, &mut stages)?;

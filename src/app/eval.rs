@@ -2,7 +2,7 @@
 //! and carriers ([`crate::frep::expr`]), evaluated on a new grid, without solving again. Every rank
 //! reads the small model files itself and all agree on the outcome.
 
-use super::finite::check_grid_field;
+use super::finite::{check_bounded, check_grid_field};
 use super::preflight::check_prefix;
 use super::report::Report;
 use super::stages::{Stage, Stages};
@@ -14,7 +14,7 @@ use super::volume::{
 use crate::cli::EvalArgs;
 use crate::error::{Error, Result};
 use crate::frep::{Expr, Implicit, ModelSolid};
-use crate::grid::{padded_box, Grid};
+use crate::grid::{padded_box, Grid, GridSize};
 use crate::io::contour_model_file::{self, read_contour_model};
 use crate::io::h5::format_of;
 use crate::io::model_file::read_model;
@@ -48,11 +48,11 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let per_node;
     let volume = if is_contour {
         let model = stages.time(Stage::Read, || agree(comm, read_contour_model(path)))?;
-        let grid = model_grid(a.grid.grid, a.bounds, a.grid.margin, &model.provenance)?;
+        let grid = model_grid(a.grid.grid, a.bounds, a.grid.margin.fraction, &model.provenance)?;
         check_grid(comm, &grid)?;
         check_grid_field(comm, &model, &grid)?;
         let curvature = a.grid.curvature.then_some(&model as &dyn Implicit);
-        let volume = write_volume(comm, &model, curvature, &grid, &a.out, &mut stages)?;
+        let volume = write_volume(comm, &model, curvature, &grid, grows(a), &a.out, &mut stages)?;
         r.line(format!(
             "contour model: {} slices, N = {} centres, interp {}, orient {}",
             model.sections.len(),
@@ -66,14 +66,16 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         volume
     } else {
         let model = stages.time(Stage::Read, || agree(comm, read_model(path)))?;
-        let grid = model_grid(a.grid.grid, a.bounds, a.grid.margin, &model.provenance)?;
+        let grid = model_grid(a.grid.grid, a.bounds, a.grid.margin.fraction, &model.provenance)?;
         check_grid(comm, &grid)?;
         check_grid_field(comm, &model, &grid)?;
+        // grown as the fit grew its grid: not where the model is unbounded
+        let grow = grows(a) && check_bounded(&model).is_none();
         let support = a.trim.map(|f| data_support(&model, path, f)).transpose()?;
         let solid = a.grid.curvature.then(|| ModelSolid::new(model.clone()));
         let curvature = solid.as_ref().map(|s| s as &dyn Implicit);
         let volume =
-            write_volume_with(comm, &model, curvature, &grid, &a.out, support.as_ref(), &mut stages)?;
+            write_volume_with(comm, &model, curvature, &grid, grow, &a.out, support.as_ref(), &mut stages)?;
         let n = model.centre_count();
         let levels = if model.coarse.is_empty() {
             String::new()
@@ -89,7 +91,7 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         ));
         r.figure("points", n);
         per_node = volume.evals_per_node;
-        r.figure("kernel_evals", grid.node_count() as f64 * per_node as f64);
+        r.figure("kernel_evals", volume.nodes_evaluated as f64 * per_node as f64);
         volume
     };
     finish(a, comm, threads, r, stages, volume, per_node)
@@ -107,7 +109,7 @@ fn expression(
     let expr = stages.time(Stage::Read, || agree(comm, Expr::load(&a.model)))?;
     let (lo, hi) = match (a.bounds, expr.domain()) {
         (Some(b), _) => b,
-        (None, Some((lo, hi))) => padded_box(&lo, &hi, a.grid.margin),
+        (None, Some((lo, hi))) => padded_box(&lo, &hi, a.grid.margin.fraction),
         (None, None) => {
             return Err(Error::Usage(format!(
                 "the expression '{}' has no model or carrier to take a box from: give --bounds",
@@ -119,11 +121,19 @@ fn expression(
     check_grid(comm, &grid)?;
     check_grid_field(comm, &expr, &grid)?;
     let curvature = a.grid.curvature.then_some(&expr as &dyn Implicit);
-    let volume = write_volume(comm, &expr, curvature, &grid, &a.out, &mut stages)?;
+    // an expression's box is the caller's to choose (a difference or intersection may be meant
+    // to be cut by it, a half-space is unbounded): it does not grow
+    let volume = write_volume(comm, &expr, curvature, &grid, false, &a.out, &mut stages)?;
     r.line(format!("expression {}: {} kernel evaluations per node", a.model, volume.evals_per_node));
     let per_node = volume.evals_per_node;
     r.figure("kernel_evals", grid.node_count() as f64 * per_node as f64);
     finish(a, comm, threads, r, stages, volume, per_node)
+}
+
+/// Whether the grid of a model may grow where the solid reaches it: `--margin auto`, no
+/// `--bounds` and the nodes along the longest side given (the fit's rule).
+fn grows(a: &EvalArgs) -> bool {
+    a.grid.margin.grow && a.bounds.is_none() && matches!(a.grid.grid, GridSize::Longest(_))
 }
 
 /// The support of the data points `model` records (the first `data_points` centres of its finest
@@ -151,7 +161,7 @@ fn finish(
     r.figure("ranks", comm.size());
     r.figure("threads", threads);
     volume.report(&mut r);
-    let nodes = volume.grid.node_count();
+    let nodes = volume.nodes_evaluated;
     r.finish(
         comm,
         &stages,

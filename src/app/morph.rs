@@ -63,7 +63,7 @@ pub fn run(a: &MorphArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let (lo, hi) = match (a.bounds, ea.domain(), eb.domain()) {
         (Some(b), ..) => b,
         (None, da, db) => match [da, db].into_iter().flatten().reduce(hull) {
-            Some((lo, hi)) => padded_box(&lo, &hi, a.grid.margin),
+            Some((lo, hi)) => padded_box(&lo, &hi, a.grid.margin.fraction),
             None => {
                 return Err(Error::Usage(
                     "neither solid has a model or carrier to take a box from: give --bounds".into(),
@@ -109,7 +109,8 @@ pub fn run(a: &MorphArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             }
         }
         let prefix = frame_prefix(&a.out, i);
-        let v = write_volume(comm, &frame, None, &grid, &prefix, &mut stages)?;
+        // every frame on the same grid, as a time series wants it: no growth
+        let v = write_volume(comm, &frame, None, &grid, false, &prefix, &mut stages)?;
         per_node = per_node.max(v.evals_per_node);
         triangles.push(v.triangles);
         let name = v.hdf_path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();

@@ -14,7 +14,7 @@ use super::stages::{Stage, Stages};
 use crate::error::{Error, Result};
 use crate::frep::curvature::{curvature, Curvature};
 use crate::frep::Implicit;
-use crate::grid::{padded_box, Grid, GridSize};
+use crate::grid::{padded_box, Grid, GridSize, FACE_NAMES, GROW_NODES, GROW_STEPS};
 use crate::io::{self, vtkhdf};
 use crate::mesh::trim::{area, keep_triangles_indexed};
 use crate::mesh::{self, MeshPiece, SlabGrid, TriMesh};
@@ -25,7 +25,12 @@ use crate::surface::support::DataSupport;
 /// What writing the volume and the mesh produced.
 #[derive(Debug, Clone)]
 pub struct VolumeSummary {
+    /// The grid written: the one asked for, or grown beyond the faces the solid reached.
     pub grid: Grid,
+    /// Steps of growth of the grid (`--margin auto`).
+    pub grown_steps: usize,
+    /// Grid nodes evaluated in all, the grids before growth included (for the throughput).
+    pub nodes_evaluated: usize,
     pub triangles: usize,
     pub vertices: usize,
     pub hdf_path: PathBuf,
@@ -54,8 +59,15 @@ impl VolumeSummary {
             g.spacing[1],
             g.spacing[2]
         ));
+        if self.grown_steps > 0 {
+            report.line(format!(
+                "grid grown {} step(s) beyond the faces the solid reached (--margin auto), {} nodes evaluated in all",
+                self.grown_steps, self.nodes_evaluated
+            ));
+        }
         report.line(format!("surface f = 0: {} triangles, {} vertices", self.triangles, self.vertices));
         report.figure("grid_nodes", g.node_count());
+        report.figure("grid_grown_steps", self.grown_steps);
         report.figure("triangles", self.triangles);
         report.figure("face_nodes_inside", self.face_nodes_inside);
         report.output(&self.hdf_path);
@@ -166,29 +178,92 @@ pub struct Trimmed {
 
 /// Evaluates `field` on `grid` in z-slabs, writes `PREFIX.hdf` in parallel and `PREFIX.ply` from
 /// rank 0, both under this run's temporary names (see [`io::staging`]), with the curvatures of
-/// `curvature` (the same solid as `field`) when given. Collective.
+/// `curvature` (the same solid as `field`) when given. With `grow`, a grid whose faces the solid
+/// reaches grows there first, by whole cells at the same spacing, and is evaluated again
+/// (`--margin auto`: at most [`GROW_STEPS`] steps and [`GROW_NODES`] times the nodes). Collective.
 pub fn write_volume(
     comm: &dyn Comm,
     field: &dyn Field,
     curvature: Option<&dyn Implicit>,
     grid: &Grid,
+    grow: bool,
     prefix: &Path,
     stages: &mut Stages,
 ) -> Result<VolumeSummary> {
-    write_volume_with(comm, field, curvature, grid, prefix, None, stages)
+    write_volume_with(comm, field, curvature, grid, grow, prefix, None, stages)
 }
 
-/// [`write_volume`], and with `trim` the surface without the triangles no data supports too,
-/// `PREFIX.trimmed.ply`. Collective.
-pub fn write_volume_with(
+/// The values of this rank's slab of a grid (its layers from `k0`, and the next rank's first
+/// layer after them where there is one) and the nodes on each of the grid's six faces with
+/// f >= 0, summed over the ranks. Collective.
+struct Evaluated {
+    grid: Grid,
+    values: Vec<f64>,
+    k0: usize,
+    layers: usize,
+    /// -x, +x, -y, +y, -z, +z.
+    on_faces: [u64; 6],
+    faces: u64,
+    inside: u64,
+}
+
+/// `field` on `grid`, and with `grow`, while the solid reaches some faces of the grid, on the grid
+/// grown beyond those faces by [`Grid::grow_cells`] of the first grid, twice as many each step
+/// (at the same spacing, so the nodes already there keep their places), evaluated again: at
+/// most [`GROW_STEPS`] steps and [`GROW_NODES`] times the first grid's nodes, and only while
+/// the grown grid fits in the ranks' memory. Returns the last evaluation, the steps taken and
+/// the nodes evaluated in all. The decision is made on sums over the ranks, so every rank
+/// takes the same steps. Collective.
+fn evaluate_growing(
     comm: &dyn Comm,
     field: &dyn Field,
-    curvature: Option<&dyn Implicit>,
     grid: &Grid,
-    prefix: &Path,
-    trim: Option<&DataSupport>,
+    grow: bool,
+    evals_per_node: usize,
     stages: &mut Stages,
-) -> Result<VolumeSummary> {
+) -> Result<(Evaluated, usize, usize)> {
+    let (mut current, mut steps, mut nodes) = (*grid, 0, 0);
+    loop {
+        let e = evaluate(comm, field, &current, evals_per_node, stages)?;
+        nodes += current.node_count();
+        let touched = e.on_faces.map(|c| c > 0);
+        // twice the cells of the step before: a solid far beyond the box is reached in a few
+        let cells = grid.grow_cells() << steps;
+        let next = current.grown(touched, cells);
+        let room = steps < GROW_STEPS && next.node_count() <= GROW_NODES * grid.node_count();
+        // a grid inside the solid everywhere has nothing to grow towards; a grown grid that
+        // would not fit in the ranks' memory is not tried (the same answer on every rank)
+        if !grow
+            || !touched.contains(&true)
+            || !room
+            || e.inside == e.grid.node_count() as u64
+            || check_grid(comm, &next).is_err()
+        {
+            return Ok((e, steps, nodes));
+        }
+        if comm.rank() == 0 {
+            let sides: Vec<&str> = (0..6).filter(|&f| touched[f]).map(|f| FACE_NAMES[f]).collect();
+            eprintln!(
+                "volspline: the solid reaches the grid's {} face(s) ({} nodes): growing the grid by {cells} \
+                 cells there (--margin auto)",
+                sides.join(", "),
+                e.on_faces.iter().sum::<u64>()
+            );
+        }
+        current = next;
+        steps += 1;
+    }
+}
+
+/// `field` on this rank's slab of `grid`, with the ghost layer and the face counts of
+/// [`Evaluated`]. Collective.
+fn evaluate(
+    comm: &dyn Comm,
+    field: &dyn Field,
+    grid: &Grid,
+    evals_per_node: usize,
+    stages: &mut Stages,
+) -> Result<Evaluated> {
     let slabs = grid.slabs(comm.size());
     let (k0, layers) = (slabs.start(comm.rank()), slabs.count(comm.rank()));
     let [nx, ny, nz] = grid.dims;
@@ -196,8 +271,6 @@ pub fn write_volume_with(
     // the next rank's first
     let ghost = usize::from(layers > 0 && k0 + layers < nz);
     let layer = nx * ny;
-    // measured once (a compact model samples its neighbour counts through an octree)
-    let evals_per_node = field.kernel_evals_per_node();
     if comm.rank() == 0 {
         eprintln!(
             "volspline: grid {}x{}x{} = {} nodes, {} kernel evaluations per node",
@@ -236,14 +309,47 @@ pub fn write_volume_with(
     });
     // a non-finite value would make an unusable volume and mesh: refuse it with the cause
     super::finite::check_slab(comm, &values[..layer * layers])?;
+    let mut counts = inside_on_each_face(&values[..layer * layers], grid.dims, k0).to_vec();
+    counts.push(values[..layer * layers].iter().filter(|&&f| f >= 0.0).count() as u64);
+    comm.sum_u64(&mut counts);
+    let on_faces = [counts[0], counts[1], counts[2], counts[3], counts[4], counts[5]];
+    Ok(Evaluated {
+        grid: *grid,
+        values,
+        k0,
+        layers,
+        on_faces,
+        faces: face_node_count(grid.dims),
+        inside: counts[6],
+    })
+}
+
+/// [`write_volume`], and with `trim` the surface without the triangles no data supports too,
+/// `PREFIX.trimmed.ply`. Collective.
+#[allow(clippy::too_many_arguments)]
+pub fn write_volume_with(
+    comm: &dyn Comm,
+    field: &dyn Field,
+    curvature: Option<&dyn Implicit>,
+    grid: &Grid,
+    grow: bool,
+    prefix: &Path,
+    trim: Option<&DataSupport>,
+    stages: &mut Stages,
+) -> Result<VolumeSummary> {
+    // measured once (a compact model samples its neighbour counts through an octree)
+    let evals_per_node = field.kernel_evals_per_node();
+    let (e, grown_steps, nodes_evaluated) =
+        evaluate_growing(comm, field, grid, grow, evals_per_node, stages)?;
+    let Evaluated { grid, values, k0, layers, on_faces, faces, inside } = e;
+    let grid = &grid;
+    let [nx, ny, nz] = grid.dims;
+    let on_faces: u64 = on_faces.iter().sum();
     let ply_path = output_path(prefix, ".ply");
-    let [on_faces, faces] = inside_on_faces(&values[..layer * layers], grid.dims, k0);
-    let mut inside = [values[..layer * layers].iter().filter(|&&f| f >= 0.0).count() as u64, on_faces, faces];
-    comm.sum_u64(&mut inside);
-    let [inside, on_faces, faces] = inside;
     if comm.rank() == 0 {
         let nodes = grid.node_count() as u64;
-        let why = nothing_to_mesh(inside, nodes).or_else(|| cut_open(on_faces, faces));
+        let why =
+            nothing_to_mesh(inside, nodes).or_else(|| cut_open(on_faces, faces, grow.then_some(grown_steps)));
         if let Some(w) = why {
             eprintln!("volspline: warning: {}: {w}", ply_path.display());
         }
@@ -321,6 +427,8 @@ pub fn write_volume_with(
     });
     Ok(VolumeSummary {
         grid: *grid,
+        grown_steps,
+        nodes_evaluated,
         triangles: counts[0] as usize,
         vertices: counts[1] as usize,
         hdf_path,
@@ -349,35 +457,53 @@ fn nothing_to_mesh(inside: u64, nodes: u64) -> Option<String> {
     }
 }
 
-/// Of this rank's nodes of a grid of `dims` nodes, its layers from `k0` in `values`, those on the
-/// grid's six faces with f >= 0, and all those on the faces.
-fn inside_on_faces(values: &[f64], dims: [usize; 3], k0: usize) -> [u64; 2] {
+/// Of this rank's nodes of a grid of `dims` nodes, its layers from `k0` in `values`, those with
+/// f >= 0 on each of the grid's six faces (-x, +x, -y, +y, -z, +z; a node on an edge counts
+/// for each face it lies on).
+fn inside_on_each_face(values: &[f64], dims: [usize; 3], k0: usize) -> [u64; 6] {
     let [nx, ny, nz] = dims;
     let layer = nx * ny;
-    let (mut inside, mut faces) = (0, 0);
+    let mut inside = [0u64; 6];
     for (t, slab) in values.chunks_exact(layer.max(1)).enumerate() {
         let k = k0 + t;
-        let whole = k == 0 || k + 1 == nz;
         for (q, &f) in slab.iter().enumerate() {
+            if f < 0.0 {
+                continue;
+            }
             let (i, j) = (q % nx, q / nx);
-            if whole || i == 0 || i + 1 == nx || j == 0 || j + 1 == ny {
-                faces += 1;
-                inside += u64::from(f >= 0.0);
+            let on = [i == 0, i + 1 == nx, j == 0, j + 1 == ny, k == 0, k + 1 == nz];
+            for (c, o) in inside.iter_mut().zip(on) {
+                *c += u64::from(o);
             }
         }
     }
-    [inside, faces]
+    inside
 }
 
-/// Why the surface is open, when the solid reaches the grid's faces: `on_faces` of the `faces`
-/// nodes on them at f >= 0. Marching cubes closes no surface at the grid's faces, so the mesh
-/// then has holes there, and the volume shows a solid cut off by the box.
-fn cut_open(on_faces: u64, faces: u64) -> Option<String> {
+/// The nodes on the faces of a grid of `dims` nodes (each once).
+fn face_node_count(dims: [usize; 3]) -> u64 {
+    let all: u64 = dims.iter().map(|&n| n as u64).product();
+    let interior: u64 = dims.iter().map(|&n| n.saturating_sub(2) as u64).product();
+    all - interior
+}
+
+/// Why the surface is open, when the solid reaches the grid's faces: `on_faces` nodes on them
+/// at f >= 0 (counted once per face a node lies on) of the `faces` nodes on them; `grown`: the
+/// steps of growth `--margin auto` took (None when the margin was fixed or the box given).
+/// Marching cubes closes no surface at the grid's faces, so the mesh then has holes there, and
+/// the volume shows a solid cut off by the box.
+fn cut_open(on_faces: u64, faces: u64, grown: Option<usize>) -> Option<String> {
     (on_faces > 0).then(|| {
+        let advice = match grown {
+            Some(steps) => format!(
+                "the grid grew {steps} step(s) (--margin auto) and stopped at its limit: the solid reaches \
+                 far from the data or is unbounded; --bounds or a fixed --margin sets the box"
+            ),
+            None => "a larger --margin (or --bounds) takes in the whole solid".to_string(),
+        };
         format!(
-            "the solid reaches the grid's faces (f >= 0 at {on_faces} of the {faces} nodes on them), so the \
-             surface is cut open there and the mesh has holes; a larger --margin (or --bounds) takes in \
-             the whole solid"
+            "the solid reaches the grid's faces (f >= 0 at {on_faces} places on the {faces} nodes on them), \
+             so the surface is cut open there and the mesh has holes; {advice}"
         )
     })
 }
@@ -441,12 +567,34 @@ mod tests {
         let mut values = vec![-1.0; 60];
         values[12 + 4 + 1] = 1.0; // (1, 1, 1): interior
         values[2 * 12 + 4] = 0.0; // (0, 1, 2): on the face i = 0
-        let low = inside_on_faces(&values[..24], dims, 0);
-        let high = inside_on_faces(&values[24..], dims, 2);
-        assert_eq!(low, [0, 12 + 10]);
-        assert_eq!(high, [1, 10 + 10 + 12]);
-        assert_eq!(low[1] + high[1], 60 - 2 * 3);
-        assert!(cut_open(0, 54).is_none());
-        assert!(cut_open(1, 54).is_some_and(|w| w.contains("f >= 0 at 1 of the 54 nodes")));
+        let low = inside_on_each_face(&values[..24], dims, 0);
+        let high = inside_on_each_face(&values[24..], dims, 2);
+        assert_eq!(low, [0; 6]);
+        assert_eq!(high, [1, 0, 0, 0, 0, 0]);
+        assert_eq!(face_node_count(dims), 60 - 2 * 3);
+        // a node on an edge and a corner count for each of their faces
+        values[0] = 2.0; // (0, 0, 0): -x, -y, -z
+        values[59] = 2.0; // (3, 2, 4): +x, +y, +z
+        values[4 * 12 + 5] = 2.0; // (1, 1, 4): +z
+        let low = inside_on_each_face(&values[..24], dims, 0);
+        let high = inside_on_each_face(&values[24..], dims, 2);
+        assert_eq!(low, [1, 0, 1, 0, 1, 0]);
+        assert_eq!(high, [1, 1, 0, 1, 0, 2]);
+        assert!(cut_open(0, 54, None).is_none());
+        assert!(cut_open(1, 54, None).is_some_and(|w| w.contains("f >= 0 at 1 places on the 54 nodes")));
+        assert!(cut_open(3, 54, Some(6)).is_some_and(|w| w.contains("grew 6 step(s)")));
+    }
+
+    #[test]
+    fn a_grown_grid_keeps_its_nodes_and_adds_cells_beyond_the_faces_asked() {
+        let g = Grid { dims: [41, 21, 11], origin: [1.0, -2.0, 0.5], spacing: [0.25, 0.25, 0.25] };
+        assert_eq!(g.grow_cells(), 2);
+        let h = g.grown([true, false, false, true, true, true], 3);
+        assert_eq!(h.dims, [44, 24, 17]);
+        assert_eq!(h.origin, [0.25, -2.0, -0.25]);
+        assert_eq!(h.spacing, g.spacing);
+        // node (i, j, k) of g is node (i + 3, j, k + 3) of h, at the same place
+        assert_eq!(h.node(3 + 40, 20, 3 + 10), g.node(40, 20, 10));
+        assert_eq!(g.grown([false; 6], 3), g);
     }
 }

@@ -22,7 +22,7 @@ use crate::cli::{FitArgs, KernelChoice, Method};
 use crate::error::{Error, Result};
 use crate::frep::raycast::Colouring;
 use crate::frep::{Implicit, ModelSolid};
-use crate::grid::{padded_box, Grid};
+use crate::grid::{padded_box, Grid, GridSize};
 use crate::io::{self, model_file, points};
 use crate::linalg::dist::Layout;
 use crate::par::{agree, on_root, Comm};
@@ -212,7 +212,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let off = surface::with_off_surface(a.surface, n);
     let layout = a.layout.resolve(comm.size(), n + base.poly_count(), a.precision);
     let run = Run { args: a, comm, threads, layout };
-    let (plo, phi) = padded_box(&prep.box_lo, &prep.box_hi, a.grid.margin);
+    let (plo, phi) = padded_box(&prep.box_lo, &prep.box_hi, a.grid.margin.fraction);
     let grid = Grid::covering(plo, phi, a.grid.grid)?;
     // the compactly supported method with off-surface constraints fits two levels: a dense
     // off-surface fit of a subsample, and the Wendland spline through all points on top of it
@@ -375,7 +375,11 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let curvature = solid.as_ref().filter(|_| a.grid.curvature).map(|s| s as &dyn Implicit);
     let support =
         a.trim.map(|f| DataSupport::of_model(&model, f).expect("a fitted model records its data points"));
-    let volume = write_volume_with(comm, &model, curvature, &grid, &a.out, support.as_ref(), &mut stages)?;
+    // the grid grows where the solid reaches it (--margin auto), unless it is unbounded or the
+    // node counts were given
+    let grow = a.grid.margin.grow && unbounded.is_none() && matches!(a.grid.grid, GridSize::Longest(_));
+    let volume =
+        write_volume_with(comm, &model, curvature, &grid, grow, &a.out, support.as_ref(), &mut stages)?;
     let preview = output_path(&a.out, ".png");
     if let Some(s) = solid.as_ref().filter(|_| !a.no_preview) {
         write_picture(comm, s, &preview_view(), Colouring::Shading, &preview, &mut stages)?;
@@ -488,13 +492,13 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     r.figure("residual", format!("{:e}", fitted.residual));
     r.figure("rms_at_points", format!("{rms:e}"));
     r.figure("max_at_points", format!("{max_abs:e}"));
-    r.figure("kernel_evals", grid.node_count() as f64 * volume.evals_per_node as f64);
+    r.figure("kernel_evals", volume.nodes_evaluated as f64 * volume.evals_per_node as f64);
     r.output(&model_path);
     volume.report(&mut r);
     if !a.no_preview {
         r.output(&preview);
     }
-    let nodes = grid.node_count();
+    let nodes = volume.nodes_evaluated;
     let per_node = volume.evals_per_node;
     r.finish(
         comm,

@@ -311,7 +311,7 @@ pub fn check_first_fit(
     refit: &mut Refit<'_>,
 ) -> Result<Fitted> {
     let factor = first.factor.take();
-    let lattice = Lattice::of_fit(&data.box_lo, &data.box_hi, run.args.grid.margin, &data.norm);
+    let lattice = Lattice::of_fit(&data.box_lo, &data.box_hi, run.args.grid.margin.fraction, &data.norm);
     let searched = rays_and_blobs(run, data, c, first, stages, refit, (factor.as_ref(), &lattice))?;
     // the data points' shares of the surface, for the turns' winding numbers
     let areas = searched.areas.clone();
