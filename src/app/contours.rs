@@ -12,7 +12,7 @@ use super::preflight::check_prefix;
 use super::render::{preview_view, write_picture};
 use super::report::{run_provenance, Report};
 use super::stages::{Stage, Stages};
-use super::volume::{check_grid, output_path, write_volume};
+use super::volume::{check_grid, output_path, write_volume, Volume};
 use crate::cli::ContoursArgs;
 use crate::contour::crossing;
 use crate::contour::format::{self, Section};
@@ -224,7 +224,8 @@ pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     })?;
     let curvature = a.grid.curvature.then_some(&model as &dyn Implicit);
     let grow = a.grid.margin.grow && matches!(a.grid.grid, GridSize::Longest(_));
-    let volume = write_volume(comm, &model, curvature, &grid, grow, &a.out, &mut stages)?;
+    let volume =
+        write_volume(comm, Volume::new(&model, grid, &a.out).curvature(curvature).grow(grow), &mut stages)?;
     let preview = output_path(&a.out, ".png");
     if !a.no_preview {
         write_picture(comm, &model, &preview_view(), Colouring::Shading, &preview, &mut stages)?;

@@ -8,9 +8,7 @@ use super::report::Report;
 use super::stages::{Stage, Stages};
 use std::path::Path;
 
-use super::volume::{
-    check_grid, model_grid, throughput_line, write_volume, write_volume_with, VolumeSummary,
-};
+use super::volume::{check_grid, model_grid, throughput_line, write_volume, Volume, VolumeSummary};
 use crate::cli::EvalArgs;
 use crate::error::{Error, Result};
 use crate::frep::{Expr, Implicit, ModelSolid};
@@ -52,7 +50,8 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         check_grid(comm, &grid)?;
         check_grid_field(comm, &model, &grid)?;
         let curvature = a.grid.curvature.then_some(&model as &dyn Implicit);
-        let volume = write_volume(comm, &model, curvature, &grid, grows(a), &a.out, &mut stages)?;
+        let job = Volume::new(&model, grid, &a.out).curvature(curvature).grow(grows(a));
+        let volume = write_volume(comm, job, &mut stages)?;
         r.line(format!(
             "contour model: {} slices, N = {} centres, interp {}, orient {}",
             model.sections.len(),
@@ -74,8 +73,8 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         let support = a.trim.map(|f| data_support(&model, path, f)).transpose()?;
         let solid = a.grid.curvature.then(|| ModelSolid::new(model.clone()));
         let curvature = solid.as_ref().map(|s| s as &dyn Implicit);
-        let volume =
-            write_volume_with(comm, &model, curvature, &grid, grow, &a.out, support.as_ref(), &mut stages)?;
+        let job = Volume::new(&model, grid, &a.out).curvature(curvature).grow(grow).trim(support.as_ref());
+        let volume = write_volume(comm, job, &mut stages)?;
         let n = model.centre_count();
         let levels = if model.coarse.is_empty() {
             String::new()
@@ -123,7 +122,7 @@ fn expression(
     let curvature = a.grid.curvature.then_some(&expr as &dyn Implicit);
     // an expression's box is the caller's to choose (a difference or intersection may be meant
     // to be cut by it, a half-space is unbounded): it does not grow
-    let volume = write_volume(comm, &expr, curvature, &grid, false, &a.out, &mut stages)?;
+    let volume = write_volume(comm, Volume::new(&expr, grid, &a.out).curvature(curvature), &mut stages)?;
     r.line(format!("expression {}: {} kernel evaluations per node", a.model, volume.evals_per_node));
     let per_node = volume.evals_per_node;
     r.figure("kernel_evals", grid.node_count() as f64 * per_node as f64);

@@ -18,7 +18,7 @@ use super::finite::check_grid_field;
 use super::preflight::check_prefixes;
 use super::report::Report;
 use super::stages::{Stage, Stages};
-use super::volume::{check_grid, output_path, throughput_line, write_volume};
+use super::volume::{check_grid, output_path, throughput_line, write_volume, Volume};
 use crate::cli::MorphArgs;
 use crate::error::{Error, Result};
 use crate::frep::expr::{hull, Expr};
@@ -110,7 +110,7 @@ pub fn run(a: &MorphArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         }
         let prefix = frame_prefix(&a.out, i);
         // every frame on the same grid, as a time series wants it: no growth
-        let v = write_volume(comm, &frame, None, &grid, false, &prefix, &mut stages)?;
+        let v = write_volume(comm, Volume::new(&frame, grid, &prefix), &mut stages)?;
         per_node = per_node.max(v.evals_per_node);
         triangles.push(v.triangles);
         let name = v.hdf_path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();

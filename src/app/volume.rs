@@ -176,21 +176,37 @@ pub struct Trimmed {
     pub path: PathBuf,
 }
 
-/// Evaluates `field` on `grid` in z-slabs, writes `PREFIX.hdf` in parallel and `PREFIX.ply` from
-/// rank 0, both under this run's temporary names (see [`io::staging`]), with the curvatures of
-/// `curvature` (the same solid as `field`) when given. With `grow`, a grid whose faces the solid
-/// reaches grows there first, by whole cells at the same spacing, and is evaluated again
-/// (`--margin auto`: at most [`GROW_STEPS`] steps and [`GROW_NODES`] times the nodes). Collective.
-pub fn write_volume(
-    comm: &dyn Comm,
-    field: &dyn Field,
-    curvature: Option<&dyn Implicit>,
-    grid: &Grid,
-    grow: bool,
-    prefix: &Path,
-    stages: &mut Stages,
-) -> Result<VolumeSummary> {
-    write_volume_with(comm, field, curvature, grid, grow, prefix, None, stages)
+/// What [`write_volume`] writes: `field` on `grid` as `prefix`.hdf and `prefix`.ply, with the
+/// curvatures of `curvature` (the same solid as `field`) when given, the grid grown where the
+/// solid reaches it when `grow` (`--margin auto`: by whole cells at the same spacing, at most
+/// [`GROW_STEPS`] steps and [`GROW_NODES`] times the nodes), and with `trim` the surface without
+/// the triangles no data supports too, `prefix`.trimmed.ply.
+pub struct Volume<'a> {
+    pub field: &'a dyn Field,
+    pub curvature: Option<&'a dyn Implicit>,
+    pub grid: Grid,
+    pub grow: bool,
+    pub prefix: &'a Path,
+    pub trim: Option<&'a DataSupport>,
+}
+
+impl<'a> Volume<'a> {
+    /// `field` on `grid` as `prefix`: no curvature, a fixed grid, no trimmed surface.
+    pub fn new(field: &'a dyn Field, grid: Grid, prefix: &'a Path) -> Self {
+        Volume { field, curvature: None, grid, grow: false, prefix, trim: None }
+    }
+
+    pub fn curvature(self, curvature: Option<&'a dyn Implicit>) -> Self {
+        Volume { curvature, ..self }
+    }
+
+    pub fn grow(self, grow: bool) -> Self {
+        Volume { grow, ..self }
+    }
+
+    pub fn trim(self, trim: Option<&'a DataSupport>) -> Self {
+        Volume { trim, ..self }
+    }
 }
 
 /// The values of this rank's slab of a grid (its layers from `k0`, and the next rank's first
@@ -324,19 +340,12 @@ fn evaluate(
     })
 }
 
-/// [`write_volume`], and with `trim` the surface without the triangles no data supports too,
-/// `PREFIX.trimmed.ply`. Collective.
-#[allow(clippy::too_many_arguments)]
-pub fn write_volume_with(
-    comm: &dyn Comm,
-    field: &dyn Field,
-    curvature: Option<&dyn Implicit>,
-    grid: &Grid,
-    grow: bool,
-    prefix: &Path,
-    trim: Option<&DataSupport>,
-    stages: &mut Stages,
-) -> Result<VolumeSummary> {
+/// Evaluates the field of `v` on its grid in z-slabs (growing the grid first where asked),
+/// writes `PREFIX.hdf` in parallel and `PREFIX.ply` (and `PREFIX.trimmed.ply`) from rank 0, all
+/// under this run's temporary names (see [`io::staging`]). Collective.
+pub fn write_volume(comm: &dyn Comm, v: Volume<'_>, stages: &mut Stages) -> Result<VolumeSummary> {
+    let Volume { field, curvature, grid, grow, prefix, trim } = v;
+    let grid = &grid;
     // measured once (a compact model samples its neighbour counts through an octree)
     let evals_per_node = field.kernel_evals_per_node();
     let (e, grown_steps, nodes_evaluated) =

@@ -17,7 +17,7 @@ use super::preflight::{available_beside, check_prefix, dense_fit_bytes};
 use super::render::{preview_view, write_picture};
 use super::report::{run_provenance, Report};
 use super::stages::{Stage, Stages};
-use super::volume::{check_grid, output_path, throughput_line, write_volume_with};
+use super::volume::{check_grid, output_path, throughput_line, write_volume, Volume};
 use crate::cli::{FitArgs, KernelChoice, Method};
 use crate::error::{Error, Result};
 use crate::frep::raycast::Colouring;
@@ -378,8 +378,8 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     // the grid grows where the solid reaches it (--margin auto), unless it is unbounded or the
     // node counts were given
     let grow = a.grid.margin.grow && unbounded.is_none() && matches!(a.grid.grid, GridSize::Longest(_));
-    let volume =
-        write_volume_with(comm, &model, curvature, &grid, grow, &a.out, support.as_ref(), &mut stages)?;
+    let job = Volume::new(&model, grid, &a.out).curvature(curvature).grow(grow).trim(support.as_ref());
+    let volume = write_volume(comm, job, &mut stages)?;
     let preview = output_path(&a.out, ".png");
     if let Some(s) = solid.as_ref().filter(|_| !a.no_preview) {
         write_picture(comm, s, &preview_view(), Colouring::Shading, &preview, &mut stages)?;
