@@ -11,7 +11,8 @@
 //! - linear against cubic interpolation between slices on a sphere;
 //! - a bent and twisted block from 50 non-parallel sections, by slerp and by log/exp frames, and
 //!   the same block given by angular velocities;
-//! - the real binary under `mpirun -n 1, 2, 3`, and malformed files.
+//! - the real binary under `mpirun -n 1, 2, 3`, and malformed files;
+//! - the grid grown (`--margin auto`) where sparse sections bulge past their box.
 //!
 //! The bounds are the measured figures with a small allowance; README.md reports them.
 
@@ -879,5 +880,28 @@ fn a_densely_traced_slice_s_singular_system_says_how_to_mend_it() {
         let args = ["contours", s(&dense), "--out", s(&out), "--grid", "20", "--merge-tol", tol];
         let said = common::run_ok(ranks, &args);
         assert!(said.contains("largest relative residual"), "{said}");
+    }
+}
+
+/// Two slices of a triangle of three points each: the sections' splines through so few points
+/// bulge past the contours' box plus 5 % on three sides, where the mesh was cut open. With
+/// `--margin auto` (the default) `contours` grows the grid there until the solid lies inside and
+/// the surface is a closed manifold; a fixed `--margin 0.05` keeps the box, the holes and the
+/// warning.
+#[test]
+fn contours_bulging_past_their_box_get_a_grown_grid_and_a_closed_surface() {
+    let dir = common::temp_dir("contours-grow");
+    let tri = vec![[0.0, 0.0], [1.0, 0.0], [0.5, 0.9]];
+    let input = dir.join("tri.txt");
+    write_sections(&input, &[z_slice(0.0, vec![tri.clone()]), z_slice(1.0, vec![tri])]);
+    for (margin, closed) in [("auto", true), ("0.05", false)] {
+        let prefix = dir.join(format!("tri-{margin}"));
+        let args = ["contours", s(&input), "--out", s(&prefix), "--margin", margin, "--no-preview"];
+        let text = common::run_ok(2, &args);
+        let mesh = common::load_mesh(&PathBuf::from(format!("{}.ply", s(&prefix))));
+        assert!(mesh.triangles.len() > 1000, "{text}");
+        assert_eq!(is_closed_manifold_edges(&mesh), closed, "--margin {margin}:\n{text}");
+        assert_eq!(text.contains("growing the grid"), closed, "{text}");
+        assert_eq!(text.contains("the solid reaches the grid's faces"), !closed, "{text}");
     }
 }
