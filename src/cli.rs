@@ -422,6 +422,15 @@ pub struct GridArgs {
     pub curvature: bool,
 }
 
+impl GridArgs {
+    /// Whether the grid may grow where the solid reaches its faces: `--margin auto` with the
+    /// nodes along the longest side given (node counts NX,NY,NZ fix the grid). Callers add
+    /// their own conditions (no `--bounds`, a bounded solid).
+    pub fn may_grow(&self) -> bool {
+        self.margin.grow && matches!(self.grid, GridSize::Longest(_))
+    }
+}
+
 #[derive(Debug, Args)]
 pub struct RenderArgs {
     /// The solid: a model written by `volspline fit` or `volspline contours` (PREFIX.model.h5).

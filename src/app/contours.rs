@@ -20,7 +20,7 @@ use crate::contour::{fit_section, ContourModel, SectionCarrier, SectionFit, Sect
 use crate::error::{Error, Result};
 use crate::frep::raycast::Colouring;
 use crate::frep::Implicit;
-use crate::grid::{padded_box, Grid, GridSize};
+use crate::grid::{padded_box, Grid};
 use crate::io::{self, contour_model_file};
 use crate::par::{agree, on_root, Comm};
 use crate::spline::hygiene::bounding_box;
@@ -223,9 +223,8 @@ pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         })
     })?;
     let curvature = a.grid.curvature.then_some(&model as &dyn Implicit);
-    let grow = a.grid.margin.grow && matches!(a.grid.grid, GridSize::Longest(_));
-    let volume =
-        write_volume(comm, Volume::new(&model, grid, &a.out).curvature(curvature).grow(grow), &mut stages)?;
+    let job = Volume::new(&model, grid, &a.out).curvature(curvature).grow(a.grid.may_grow());
+    let volume = write_volume(comm, job, &mut stages)?;
     let preview = output_path(&a.out, ".png");
     if !a.no_preview {
         write_picture(comm, &model, &preview_view(), Colouring::Shading, &preview, &mut stages)?;

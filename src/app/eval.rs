@@ -12,7 +12,7 @@ use super::volume::{check_grid, model_grid, throughput_line, write_volume, Volum
 use crate::cli::EvalArgs;
 use crate::error::{Error, Result};
 use crate::frep::{Expr, Implicit, ModelSolid};
-use crate::grid::{padded_box, Grid, GridSize};
+use crate::grid::{padded_box, Grid};
 use crate::io::contour_model_file::{self, read_contour_model};
 use crate::io::h5::format_of;
 use crate::io::model_file::read_model;
@@ -125,14 +125,14 @@ fn expression(
     let volume = write_volume(comm, Volume::new(&expr, grid, &a.out).curvature(curvature), &mut stages)?;
     r.line(format!("expression {}: {} kernel evaluations per node", a.model, volume.evals_per_node));
     let per_node = volume.evals_per_node;
-    r.figure("kernel_evals", grid.node_count() as f64 * per_node as f64);
+    r.figure("kernel_evals", volume.nodes_evaluated as f64 * per_node as f64);
     finish(a, comm, threads, r, stages, volume, per_node)
 }
 
-/// Whether the grid of a model may grow where the solid reaches it: `--margin auto`, no
-/// `--bounds` and the nodes along the longest side given (the fit's rule).
+/// Whether the grid of a model may grow where the solid reaches it: as in the fit, and not in a
+/// box given by `--bounds`.
 fn grows(a: &EvalArgs) -> bool {
-    a.grid.margin.grow && a.bounds.is_none() && matches!(a.grid.grid, GridSize::Longest(_))
+    a.grid.may_grow() && a.bounds.is_none()
 }
 
 /// The support of the data points `model` records (the first `data_points` centres of its finest

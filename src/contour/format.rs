@@ -56,6 +56,12 @@ impl Section {
         self.contours.iter().map(Vec::len).sum()
     }
 
+    /// How far a slice with `frame` and `origin` lies in front of this one: the step between the
+    /// origins along the mean of the two normals (the slices' order, and their spacing).
+    pub fn gap_to(&self, frame: &DMat3, origin: DVec3) -> f64 {
+        0.5 * (self.frame.z_axis + frame.z_axis).dot(origin - self.origin)
+    }
+
     /// Signed distance of x from this plane (positive in front, along the normal).
     #[inline]
     pub fn signed_distance(&self, x: DVec3) -> f64 {
@@ -131,8 +137,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<Section>> {
                     }
                 };
                 if let Some(prev) = sections.last() {
-                    let gap = 0.5 * (prev.frame.z_axis + frame.z_axis).dot(origin - prev.origin);
-                    if !(gap > 0.0) {
+                    if !(prev.gap_to(&frame, origin) > 0.0) {
                         return Err(err(
                             line,
                             format!(
@@ -215,7 +220,7 @@ fn check_apart(path: &Path, sections: &[Section]) -> Result<()> {
     let diagonal = (hi - lo).length();
     for pair in sections.windows(2) {
         let (prev, s) = (&pair[0], &pair[1]);
-        let gap = 0.5 * (prev.frame.z_axis + s.frame.z_axis).dot(s.origin - prev.origin);
+        let gap = prev.gap_to(&s.frame, s.origin);
         if gap < MIN_GAP * diagonal {
             return Err(Error::input(
                 path,

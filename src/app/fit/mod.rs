@@ -22,7 +22,7 @@ use crate::cli::{FitArgs, KernelChoice, Method};
 use crate::error::{Error, Result};
 use crate::frep::raycast::Colouring;
 use crate::frep::{Implicit, ModelSolid};
-use crate::grid::{padded_box, Grid, GridSize};
+use crate::grid::{padded_box, Grid};
 use crate::io::{self, model_file, points};
 use crate::linalg::dist::Layout;
 use crate::par::{agree, on_root, Comm};
@@ -377,7 +377,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         a.trim.map(|f| DataSupport::of_model(&model, f).expect("a fitted model records its data points"));
     // the grid grows where the solid reaches it (--margin auto), unless it is unbounded or the
     // node counts were given
-    let grow = a.grid.margin.grow && unbounded.is_none() && matches!(a.grid.grid, GridSize::Longest(_));
+    let grow = a.grid.may_grow() && unbounded.is_none();
     let job = Volume::new(&model, grid, &a.out).curvature(curvature).grow(grow).trim(support.as_ref());
     let volume = write_volume(comm, job, &mut stages)?;
     let preview = output_path(&a.out, ".png");
