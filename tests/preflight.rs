@@ -388,3 +388,71 @@ fn slices_solved_side_by_side_are_counted_together() {
         );
     }
 }
+
+#[test]
+fn second_fits_without_room_for_every_blob_point_thin_them_and_finish() {
+    // the cow with a hole: the first fit (1231 centres, 1235 rows) keeps its factor, and its
+    // second fits border it with 303 blob points (224 of the wide or narrow clearance, 79 of a
+    // second round). With a limit that takes the first fit but leaves room for about 200 appended
+    // centres, the blob points are thinned to the room, the round is left out, a warning says
+    // so, and the fit finishes: no refusal after the first solve
+    use volspline::app::preflight::{bordered_fit_bytes, dense_matrix_bytes, FIXED_BYTES};
+    use volspline::linalg::dist::Precision;
+    let dir = common::temp_dir("preflight-pins");
+    let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/cow-1000-open.xyz");
+    for ranks in [1, 2, 3] {
+        let held = dense_matrix_bytes(1235, ranks, Precision::F64, true) + FIXED_BYTES;
+        let limit = held + bordered_fit_bytes(1231, 200, 4, ranks);
+        // (narrow panels: with the default ones their buffers outweigh such a bordering on 2 and
+        // 3 ranks, and a limit that takes the first fit takes all the blob points)
+        assert!(dense_bytes_with(1235, ranks, 32) < limit - 1e6, "the first fit fits on {ranks} ranks");
+        assert!(held + bordered_fit_bytes(1231, 303, 4, ranks) > limit + 1e6);
+        let limit = megabytes(limit);
+        // the room as the option's value gives it (rounded to 0.1 MB): the largest count whose
+        // bordering fits beside the factor
+        let beside = limit.trim_end_matches("MB").parse::<f64>().unwrap() * 1e6 - held;
+        let room = (0..303).take_while(|&m| bordered_fit_bytes(1231, m, 4, ranks) <= beside).last().unwrap();
+        assert!((190..210).contains(&room), "room {room}");
+        let p = dir.join(format!("o{ranks}"));
+        let csv = dir.join(format!("t{ranks}.csv"));
+        let args = [
+            "fit",
+            input.to_str().unwrap(),
+            "--out",
+            p.to_str().unwrap(),
+            "--grid",
+            "40",
+            "--no-preview",
+            "--method",
+            "dense",
+            "--panel",
+            "32",
+            "--memory-per-rank",
+            &limit,
+            "--timings",
+            csv.to_str().unwrap(),
+        ];
+        let text = common::run_ok(ranks, &args);
+        let what = format!("{ranks} ranks, --memory-per-rank {limit}");
+        assert!(text.contains("method dense (as asked)"), "{what}: {text}");
+        assert!(
+            text.contains(&format!(
+                "warning: the ranks' memory leaves room for {room} centres appended to the first fit"
+            )),
+            "{what}: {text}"
+        );
+        assert!(
+            text.contains(&format!("memory: room for {room} appended centres in the second fits")),
+            "{what}: {text}"
+        );
+        assert!(text.contains("or a larger --memory-per-rank"), "{what}: {text}");
+        assert!(text.contains(&format!("bordered by {room} appended centres")), "{what}: {text}");
+        assert!(!text.contains("second round:"), "{what}: {text}");
+        let figures = std::fs::read_to_string(&csv).unwrap();
+        let pins = figures.lines().find_map(|l| l.strip_prefix("blob_points,")).unwrap();
+        assert_eq!(pins, room.to_string(), "{what}");
+        let model = read_model(&p.with_extension("model.h5")).unwrap();
+        assert_eq!(model.spline.weights.len(), 1231 + room, "{what}");
+        assert!(p.with_extension("ply").exists(), "{what}");
+    }
+}

@@ -101,6 +101,11 @@ pub fn limit_memory(bytes: f64) {
     let _ = LIMIT.set(bytes);
 }
 
+/// The user's limit on each rank's memory (`--memory-per-rank`), if one was set.
+pub fn user_limit() -> Option<f64> {
+    LIMIT.get().copied()
+}
+
 /// Bytes this rank can take on top of the `held` bytes it holds now, and where the figure comes
 /// from, when the system or the user says: the system's figure now, or the user's limit less
 /// `held`, the smaller.

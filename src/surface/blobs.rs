@@ -476,6 +476,22 @@ pub struct Blobs {
     pub spared: Vec<f64>,
 }
 
+impl Blobs {
+    /// These blob points thinned evenly to at most `most`, as the cap thins the spurious nodes
+    /// (the same on every rank).
+    pub fn thinned(mut self, most: usize) -> Blobs {
+        let len = self.source.len();
+        if len <= most {
+            return self;
+        }
+        let keep: Vec<usize> = (0..most).map(|k| k * len / most).collect();
+        self.centres = keep.iter().flat_map(|&k| self.centres[3 * k..3 * k + 3].to_vec()).collect();
+        self.distance = keep.iter().map(|&k| self.distance[k]).collect();
+        self.source = keep.iter().map(|&k| self.source[k]).collect();
+        self
+    }
+}
+
 /// What the rules ask of every positive node of a sampled fit, whatever the clearance of rule 2:
 /// [`Search::blobs`] then takes the spurious nodes (see the module doc) for a clearance, the
 /// default [`CLEARANCE`].
@@ -938,6 +954,27 @@ pub fn blob_values(blobs: &Blobs, raw: &[f64], carrier: &Carrier, norm: &Normali
 mod tests {
     use super::*;
     use crate::par::Solo;
+
+    #[test]
+    fn thinned_blobs_keep_an_even_share_of_their_points_in_order() {
+        let blobs = Blobs {
+            centres: (0..30).map(|v| v as f64).collect(),
+            distance: (0..10).map(|v| 0.5 * v as f64).collect(),
+            source: (100..110).collect(),
+            regions: 1,
+            found: 40,
+            spared: vec![1.0, 2.0, 3.0],
+        };
+        assert_eq!(blobs.clone().thinned(10), blobs);
+        assert_eq!(blobs.clone().thinned(20), blobs);
+        let four = blobs.clone().thinned(4);
+        // every 2.5th point: 0, 2, 5, 7
+        assert_eq!(four.source, [100, 102, 105, 107]);
+        assert_eq!(four.distance, [0.0, 1.0, 2.5, 3.5]);
+        assert_eq!(four.centres, [0.0, 1.0, 2.0, 6.0, 7.0, 8.0, 15.0, 16.0, 17.0, 21.0, 22.0, 23.0]);
+        assert_eq!((four.found, four.regions, four.spared.len()), (40, 1, 3));
+        assert!(blobs.thinned(0).source.is_empty());
+    }
 
     /// Points of the unit sphere (a Fibonacci spiral) and their outward normals.
     fn sphere(n: usize) -> (Vec<f64>, Vec<[f64; 3]>) {

@@ -260,6 +260,54 @@ pub fn refit(
     fit(run, kernel, prep, false, stages)
 }
 
+/// The most centres (up to `most`) that [`refit`] can append to the system of `rows` centres a
+/// first fit solved (`first`: its kept factor, where it kept one) without a memory refusal: with
+/// a kept factor, the bordering's blocks beside the factor's rows; without, a fresh dense fit of
+/// all centres. Both needs grow with the centres appended, so the count is found by bisection.
+/// The ranks agree on the room. Collective.
+pub fn appendable(
+    run: &Run<'_>,
+    kernel: Kernel,
+    rows: usize,
+    first: Option<&KeptFactor>,
+    most: usize,
+) -> usize {
+    let (k, ranks, a) = (kernel.poly_count(), run.comm.size(), run.args);
+    let (held, need): (f64, Box<dyn Fn(usize) -> f64>) = match first {
+        Some(f) => {
+            let n = f.factor.centres();
+            let held = dense_matrix_bytes(n + k, ranks, Precision::F64, true) + FIXED_BYTES;
+            (held, Box::new(move |m| bordered_fit_bytes(n, m, k, ranks)))
+        }
+        None => (
+            0.0,
+            Box::new(move |m| {
+                let system = rows + m + k;
+                let lower = lower_for(a.solver, &kernel, system);
+                dense_fit_bytes(system, ranks, a.precision, lower, estimate_panel(a.panel, a.solver, system))
+            }),
+        ),
+    };
+    let room = super::agreed_room(run.comm, held);
+    if need(most) <= room {
+        return most;
+    }
+    if need(0) > room {
+        return 0;
+    }
+    // need(lo) fits, need(hi) does not
+    let (mut lo, mut hi) = (0, most);
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if need(mid) <= room {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    lo
+}
+
 /// A fit from `first`'s factor, reported as the dense fit is: with its bordered factor where
 /// `prep` has those centres (only values changed), else by bordering the first factor with the
 /// centres `prep` appends, the new bordered factor kept in the result.

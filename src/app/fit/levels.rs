@@ -146,9 +146,11 @@ pub fn fit(
     let level0 = (|| {
         dense::check(run.comm, &r, constrained.prep.values.len(), run.args)?;
         let first = dense::fit(run, r, &constrained.prep, true, &mut inner)?;
+        let rows = constrained.prep.values.len();
+        let room = dense::appendable(run, r, rows, first.factor.as_ref(), rows);
         // level 0 decides the sign away from the data: its spurious blobs are cleared like a
         // single-level fit's
-        check_first_fit(run, &sub, &mut constrained, first, &mut inner, &mut refit)
+        check_first_fit(run, &sub, &mut constrained, first, &mut inner, &mut refit, room)
     })()
     .map_err(|e| in_level0(e, keep.len()))?;
     crate::app::finite::check_fit(&level0, &constrained.prep)?;

@@ -335,7 +335,14 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             Method::Csrbf => compact::fit(&run, kernel, fit_prep, &mut stages)?,
         };
         if let Some(c) = constrained.as_mut() {
-            fitted = surface::check_first_fit(&run, &prep, c, fitted, &mut stages, &mut fit_with)?;
+            // the second fits append at most as many centres as the ranks have room for
+            let room = match method {
+                Method::Dense | Method::Auto => {
+                    dense::appendable(&run, kernel, rows, fitted.factor.as_ref(), rows)
+                }
+                Method::Csrbf => usize::MAX,
+            };
+            fitted = surface::check_first_fit(&run, &prep, c, fitted, &mut stages, &mut fit_with, room)?;
         }
         let fit_prep = constrained.as_ref().map_or(&prep, |c| &c.prep);
         let summary = constrained.as_ref().map(|c| c.summary.clone());
@@ -600,7 +607,16 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
                 k.without_solid.1,
                 if k.kept { "kept" } else { "dropped" },
             ),
+            Some(k) if k.no_room => {
+                format!("; solid lost at {} data points, not given back (no memory for its fit)", k.lost)
+            }
             Some(k) => format!("; solid lost at {} data points, too few of their nodes inside to give back", k.lost),
+            None => String::new(),
+        } + &match &s.memory_limit {
+            Some(l) => format!(
+                "; memory: room for {} appended centres in the second fits, {} wanted",
+                l.room, l.wanted
+            ),
             None => String::new(),
         } + &match &s.turns {
             Some(t) => format!(

@@ -78,6 +78,27 @@ pub struct SurfaceSummary {
     /// Whether the turns were asked for but skipped: the system was too large to refit afresh
     /// for each try and kept no factor.
     pub turns_skipped: bool,
+    /// Where the ranks' memory allowed the second fits fewer appended centres than the steps
+    /// wanted (None: never).
+    pub memory_limit: Option<MemoryLimit>,
+}
+
+/// The ranks' memory limiting the centres the second fits append (see [`check_first_fit`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MemoryLimit {
+    /// The most centres a second fit could append.
+    pub room: usize,
+    /// The most a step wanted to append (blob points, a second round's on top of them, or the
+    /// nodes of the solid given back).
+    pub wanted: usize,
+}
+
+impl MemoryLimit {
+    /// Records that a step wanted to append `wanted` centres where there was room for `room`.
+    fn record(limit: &mut Option<MemoryLimit>, room: usize, wanted: usize) {
+        let wanted = limit.map_or(wanted, |l| l.wanted.max(wanted));
+        *limit = Some(MemoryLimit { room, wanted });
+    }
 }
 
 impl SurfaceSummary {
@@ -145,6 +166,9 @@ pub struct Restored {
     pub without_solid: (usize, usize),
     /// Whether its fit was kept: fewer points without solid.
     pub kept: bool,
+    /// Whether the nodes were not given back since their fit would append more centres than
+    /// the ranks' memory allows.
+    pub no_room: bool,
 }
 
 /// The constrained points of a fit and what the blob search needs of the surface step.
@@ -250,6 +274,7 @@ pub fn constrain(
         restored: None,
         turns: None,
         turns_skipped: false,
+        memory_limit: None,
     };
     Ok(Constrained { prep: with_off_points(prep, &off), summary, hoods, normals: orientation.normals, off })
 }
@@ -301,22 +326,54 @@ pub type Refit<'a> = dyn FnMut(&Prepared, Option<&KeptFactor>, &mut Stages) -> R
 /// with the kept fit's bordered factor, or by a fresh fit where the system is too small for the
 /// projected Cholesky that keeps one (see [`crate::surface::turns`]).
 /// `data` is the data alone; the lattice covers its box grown by the grid's margin. The rays,
-/// the search (with the choice) and the turns have stages of their own. Collective.
+/// the search (with the choice) and the turns have stages of their own.
+///
+/// `room`: the most centres a second fit may append to the first fit's within the ranks' memory
+/// (`usize::MAX`: no limit; see [`super::dense::appendable`]). Where the blob points (with a
+/// second round's on top of them) are more, they are thinned evenly to that many, and where the
+/// solid given back would append more, it is not given back; the summary and a warning say so,
+/// and the fit goes on instead of failing after the first solve. Collective.
 pub fn check_first_fit(
+    run: &Run<'_>,
+    data: &Prepared,
+    c: &mut Constrained,
+    first: Fitted,
+    stages: &mut Stages,
+    refit: &mut Refit<'_>,
+    room: usize,
+) -> Result<Fitted> {
+    let fit = search_and_turn(run, data, c, first, stages, refit, room)?;
+    if let (Some(l), 0) = (c.summary.memory_limit, run.comm.rank()) {
+        eprintln!(
+            "volspline: warning: the ranks' memory leaves room for {} centres appended to the first fit, \
+             {} wanted: the constraint points against spurious blobs were thinned or the solid lost to \
+             them was not given back, so spurious sheets may remain; use more ranks or nodes{}",
+            l.room,
+            l.wanted,
+            if crate::app::preflight::user_limit().is_some() { " or a larger --memory-per-rank" } else { "" }
+        );
+    }
+    Ok(fit)
+}
+
+/// [`check_first_fit`] without its warning.
+fn search_and_turn(
     run: &Run<'_>,
     data: &Prepared,
     c: &mut Constrained,
     mut first: Fitted,
     stages: &mut Stages,
     refit: &mut Refit<'_>,
+    room: usize,
 ) -> Result<Fitted> {
     let factor = first.factor.take();
     let lattice = Lattice::of_fit(&data.box_lo, &data.box_hi, run.args.grid.margin.fraction, &data.norm);
-    let searched = rays_and_blobs(run, data, c, first, stages, refit, (factor.as_ref(), &lattice))?;
+    let at = (factor.as_ref(), &lattice, room);
+    let searched = rays_and_blobs(run, data, c, first, stages, refit, at)?;
     // the data points' shares of the surface, for the turns' winding numbers
     let areas = searched.areas.clone();
     let (mut fit, values) = if run.args.restore_solid {
-        restore_solid(run, data, c, searched, stages, refit, (factor.as_ref(), &lattice))?
+        restore_solid(run, data, c, searched, stages, refit, at)?
     } else {
         (searched.fit, searched.values)
     };
@@ -333,9 +390,20 @@ pub fn check_first_fit(
     Ok(fit)
 }
 
+/// `blobs` thinned to the `room` the second fits have for appended centres, the limit recorded
+/// in `summary` where it thins them.
+fn within_room(blobs: Blobs, room: usize, summary: &mut SurfaceSummary) -> Blobs {
+    if blobs.source.len() <= room {
+        return blobs;
+    }
+    MemoryLimit::record(&mut summary.memory_limit, room, blobs.source.len());
+    blobs.thinned(room)
+}
+
 /// The ray test and the blob search with the clearance choice of [`check_first_fit`] (`factor`:
-/// the first fit's, where it was kept): the fit kept, with its values on the lattice where they
-/// were sampled, and what [`restore_solid`] compares it with. Collective.
+/// the first fit's, where it was kept; `room`: the centres a second fit may append): the fit
+/// kept, with its values on the lattice where they were sampled, and what [`restore_solid`]
+/// compares it with. Collective.
 fn rays_and_blobs(
     run: &Run<'_>,
     data: &Prepared,
@@ -343,7 +411,7 @@ fn rays_and_blobs(
     first: Fitted,
     stages: &mut Stages,
     refit: &mut Refit<'_>,
-    (factor, lattice): (Option<&KeptFactor>, &Lattice),
+    (factor, lattice, room): (Option<&KeptFactor>, &Lattice, usize),
 ) -> Result<Searched> {
     let turned = stages.time(Stage::Rays, || {
         if !run.args.orient_rays {
@@ -379,12 +447,11 @@ fn rays_and_blobs(
         let values = sample(run.comm, lattice, &data.carrier, &first.spline);
         let search = Search::new(run.comm, lattice, &values, &data.centres, &c.normals, &c.hoods.tree);
         let wide = search.blobs(lattice, CLEARANCE);
-        let narrow = support
-            .as_ref()
-            .map(|s| search.blobs(lattice, choice::NARROW * s.spacing))
-            .filter(|b| b.centres != wide.centres);
+        let narrow = support.as_ref().map(|s| search.blobs(lattice, choice::NARROW * s.spacing));
         (values, wide, narrow, search)
     });
+    let wide = within_room(wide, room, &mut c.summary);
+    let narrow = narrow.map(|b| within_room(b, room, &mut c.summary)).filter(|b| b.centres != wide.centres);
     let areas = search.areas();
     // what the solid given back afterwards compares with
     let first_values = values.clone();
@@ -415,7 +482,7 @@ fn rays_and_blobs(
         });
         let kept = Round { fit, values, share, clearance: CLEARANCE };
         let (fit, values) =
-            second_round(run, data, c, kept, (lattice, &search, &support), factor, stages, refit)?;
+            second_round(run, data, c, kept, (lattice, &search, &support), (factor, room), stages, refit)?;
         return Ok(done(fit, Some(values)));
     };
     // two candidates: each is the first fit or a second one, with its points and the lattice
@@ -462,7 +529,8 @@ fn rays_and_blobs(
         return Ok(done(fit, Some(values)));
     }
     let kept = Round { fit, values, share, clearance };
-    let (fit, values) = second_round(run, data, c, kept, (lattice, &search, support), factor, stages, refit)?;
+    let (fit, values) =
+        second_round(run, data, c, kept, (lattice, &search, support), (factor, room), stages, refit)?;
     Ok(done(fit, Some(values)))
 }
 
@@ -482,8 +550,9 @@ struct Searched {
 /// fit's values as targets, and the fit with them
 /// (bordering the first fit's factor, as the search's fits do) is kept when fewer data points are
 /// left without solid. Only the lattice around each node is sampled again for that count; the
-/// values elsewhere stay the kept fit's. Returns the fit kept with its values on the lattice (`c`
-/// is updated where the new fit is kept). Collective.
+/// values elsewhere stay the kept fit's. Where the nodes with the blob points are more centres
+/// than a second fit may append (`room`), nothing is given back. Returns the fit kept with its
+/// values on the lattice (`c` is updated where the new fit is kept). Collective.
 fn restore_solid(
     run: &Run<'_>,
     data: &Prepared,
@@ -491,7 +560,7 @@ fn restore_solid(
     searched: Searched,
     stages: &mut Stages,
     refit: &mut Refit<'_>,
-    (factor, lattice): (Option<&KeptFactor>, &Lattice),
+    (factor, lattice, room): (Option<&KeptFactor>, &Lattice, usize),
 ) -> Result<(Fitted, Option<Vec<f64>>)> {
     let Searched { fit, values, first_values, areas } = searched;
     // the first fit itself: nothing was pinned
@@ -514,8 +583,22 @@ fn restore_solid(
     let mut nodes: Vec<usize> = inside.iter().chain(&along).copied().collect();
     nodes.sort_unstable();
     nodes.dedup();
+    let wanted = c.summary.blob_points + nodes.len();
+    if !nodes.is_empty() && wanted > room {
+        MemoryLimit::record(&mut c.summary.memory_limit, room, wanted);
+        c.summary.restored = Some(Restored {
+            lost,
+            points: 0,
+            along: 0,
+            without_solid: (before, before),
+            kept: false,
+            no_room: true,
+        });
+        return Ok((fit, Some(values)));
+    }
     let (points, along) = (inside.len(), along.len());
-    let mut restored = Restored { lost, points, along, without_solid: (before, before), kept: false };
+    let mut restored =
+        Restored { lost, points, along, without_solid: (before, before), kept: false, no_room: false };
     if nodes.is_empty() {
         c.summary.restored = (lost > 0).then_some(restored);
         return Ok((fit, Some(values)));
@@ -573,7 +656,7 @@ fn second_round(
     c: &mut Constrained,
     kept: Round,
     (lattice, first, support): (&Lattice, &Search, &DataSupport),
-    factor: Option<&KeptFactor>,
+    (factor, room): (Option<&KeptFactor>, usize),
     stages: &mut Stages,
     refit: &mut Refit<'_>,
 ) -> Result<(Fitted, Vec<f64>)> {
@@ -583,6 +666,17 @@ fn second_round(
         let more = search.open_blobs(lattice, kept.clearance);
         (more, points_without_solid(lattice, &kept.values, &data.centres))
     });
+    // the round's points go on top of the blob points kept; without room for any, no round
+    let held = c.summary.blob_points;
+    let more = if held + more.source.len() > room {
+        MemoryLimit::record(&mut c.summary.memory_limit, room, held + more.source.len());
+        if room <= held {
+            return Ok((kept.fit, kept.values));
+        }
+        more.thinned(room - held)
+    } else {
+        more
+    };
     let mut round = SecondRound {
         points: more.source.len(),
         share: (kept.share, Some(kept.share)),
