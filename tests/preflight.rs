@@ -449,8 +449,14 @@ fn second_fits_without_room_for_every_blob_point_thin_them_and_finish() {
         assert!(text.contains(&format!("bordered by {room} appended centres")), "{what}: {text}");
         assert!(!text.contains("second round:"), "{what}: {text}");
         let figures = std::fs::read_to_string(&csv).unwrap();
-        let pins = figures.lines().find_map(|l| l.strip_prefix("blob_points,")).unwrap();
-        assert_eq!(pins, room.to_string(), "{what}");
+        let figure =
+            |k: &str| figures.lines().find_map(|l| l.strip_prefix(&format!("{k},"))).unwrap().to_string();
+        assert_eq!(figure("blob_points"), room.to_string(), "{what}");
+        assert_eq!(figure("second_fit_room"), room.to_string(), "{what}");
+        // at least the clearances' 224 (the second round's, on the thinned fit, on top of the
+        // points kept)
+        let wanted: usize = figure("second_fit_wanted").parse().unwrap();
+        assert!(wanted >= 224, "{what}: {wanted}");
         let model = read_model(&p.with_extension("model.h5")).unwrap();
         assert_eq!(model.spline.weights.len(), 1231 + room, "{what}");
         assert!(p.with_extension("ply").exists(), "{what}");

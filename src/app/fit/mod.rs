@@ -456,6 +456,10 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         r.figure("blob_points", s.blob_points);
         r.figure("blob_regions", s.blob_regions);
         r.figure("blob_spared", s.blob_spared);
+        if let Some(l) = &s.memory_limit {
+            r.figure("second_fit_room", l.room);
+            r.figure("second_fit_wanted", l.wanted);
+        }
         r.figure("fits", s.fits());
         if let Some(ch) = &s.choice {
             r.figure("choice_wide_points", ch.wide_points);
