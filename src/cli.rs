@@ -242,7 +242,9 @@ pub struct FitArgs {
     /// auto or offsurface): a dense off-surface fit of this many points chosen evenly over space,
     /// the carrier of the Wendland spline through all points. At 12,000-16,000 points 4000 gave
     /// a lower truth -> mesh distance than 2000 on 12 of 12 sets and a lower mesh -> truth on 11
-    /// (README.md, "Two levels for the compactly supported method"), for about 1 s more.
+    /// (README.md, "Two levels for the compactly supported method"), for about 1 s more. Where
+    /// the dense fit of that many does not fit the ranks' memory, level 0 takes the most points
+    /// whose fit does (at least 50), and the run says so.
     #[arg(long, default_value = "4000", value_name = "N", value_parser = coarse_points)]
     pub coarse_points: usize,
     #[command(flatten)]

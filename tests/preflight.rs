@@ -462,3 +462,52 @@ fn second_fits_without_room_for_every_blob_point_thin_them_and_finish() {
         assert!(p.with_extension("ply").exists(), "{what}");
     }
 }
+
+#[test]
+fn level_0_takes_as_many_points_as_its_dense_fit_has_room_for() {
+    // the cow with a hole, 896 points: where the dense off-surface fit of all of them (at most
+    // 896 + 448 + 4 rows) does not fit, `auto` takes the two levels, and level 0, which would be
+    // that same dense fit, takes the most points whose fit does (evenly over space), says so,
+    // and the fit finishes instead of refusing level 0
+    let dir = common::temp_dir("preflight-level0");
+    let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/cow-1000-open.xyz");
+    let rows = |m: usize| m + m.div_ceil(2) + 4;
+    for ranks in [1, 2] {
+        let limit = megabytes(dense_bytes(rows(700), ranks));
+        let room = limit.trim_end_matches("MB").parse::<f64>().unwrap() * 1e6;
+        assert!(dense_bytes(rows(896), ranks) > room + 1e6);
+        let m = (0..=896).take_while(|&m| dense_bytes(rows(m), ranks) <= room).last().unwrap();
+        assert!((690..=700).contains(&m), "{m}");
+        let p = dir.join(format!("o{ranks}"));
+        let csv = dir.join(format!("t{ranks}.csv"));
+        let args = [
+            "fit",
+            input.to_str().unwrap(),
+            "--out",
+            p.to_str().unwrap(),
+            "--grid",
+            "32",
+            "--no-preview",
+            "--memory-per-rank",
+            &limit,
+            "--timings",
+            csv.to_str().unwrap(),
+        ];
+        let text = common::run_ok(ranks, &args);
+        let what = format!("{ranks} ranks, --memory-per-rank {limit}");
+        assert!(text.contains("method csrbf (auto: the dense system would need"), "{what}: {text}");
+        assert!(
+            text.contains(&format!(
+                "dense r on up to {m} of them (the most whose dense off-surface fit fits the ranks' memory; \
+                 --coarse-points 4000)"
+            )),
+            "{what}: {text}"
+        );
+        assert!(text.contains(&format!("on {m} of the points chosen evenly over space")), "{what}: {text}");
+        let figures = std::fs::read_to_string(&csv).unwrap();
+        assert!(figures.lines().any(|l| l == format!("coarse_points,{m}")), "{what}: {figures}");
+        let model = read_model(&p.with_extension("model.h5")).unwrap();
+        assert_eq!(model.coarse.len(), 1, "{what}");
+        assert!(p.with_extension("ply").exists(), "{what}");
+    }
+}

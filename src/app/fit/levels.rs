@@ -27,7 +27,9 @@ use std::time::Instant;
 
 use super::surface::{check_first_fit, constrain, SurfaceSummary};
 use super::{dense, Fitted, Run};
+use crate::app::preflight::dense_fit_bytes;
 use crate::app::stages::{Stage, Stages};
+use crate::cli::FitArgs;
 use crate::error::{Error, Result};
 use crate::par::Comm;
 use crate::spline::compact::DEFAULT_NEIGHBOURS;
@@ -120,6 +122,41 @@ fn in_level0(e: Error, points: usize) -> Error {
         e => e,
     }
 }
+
+/// The points level 0 takes of `n` on `ranks` ranks with `room` bytes per rank: `--coarse-points`
+/// (at most `n`), or where the dense off-surface fit of that many would not fit the room, the most
+/// whose fit does, counting every point's off points (`--off-points`, the most they can add) and
+/// the solver's panels as the dense check does; the second fits' blob points take what room is
+/// left ([`dense::appendable`]). Below [`MIN_LEVEL0`] points the asked count is kept, and the
+/// level's own check refuses it with the figures.
+pub fn level0_points(args: &FitArgs, n: usize, (ranks, room): (usize, f64)) -> Result<usize> {
+    let wanted = args.coarse_points.min(n);
+    let r = Kernel::new(3, 2)?;
+    let need = |m: usize| {
+        let system = m + (args.off_points * m as f64).ceil() as usize + r.poly_count();
+        let lower = dense::lower_for(args.solver, &r, system);
+        let panel = dense::estimate_panel(args.panel, args.solver, system);
+        dense_fit_bytes(system, ranks, args.precision, lower, panel)
+    };
+    if need(wanted) <= room || need(MIN_LEVEL0) > room {
+        return Ok(wanted);
+    }
+    // need(lo) fits, need(hi) does not
+    let (mut lo, mut hi) = (MIN_LEVEL0, wanted);
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if need(mid) <= room {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    Ok(lo)
+}
+
+/// The fewest points [`level0_points`] gives level 0 to fit the memory: as few as the
+/// off-surface method takes (see [`super::surface::AUTO_MIN_POINTS`]).
+pub const MIN_LEVEL0: usize = super::surface::AUTO_MIN_POINTS;
 
 /// What to change where level 0 does not fit.
 const LEVEL0_ADVICE: &str =

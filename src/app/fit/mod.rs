@@ -286,19 +286,28 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     };
     let two_levels = two_level.is_some();
     let (fitted, summary, method, kernel, why) = if let Some((method, kernel, why)) = two_level {
+        // level 0 takes as many points as its dense fit has room for, up to --coarse-points
+        let coarse = levels::level0_points(a, n, machine)?;
         if comm.rank() == 0 {
             eprintln!(
                 "volspline fit: {points_read} points read from {}, {} duplicates merged, N = {n}, two levels: \
-                 dense r on up to {} of them, then kernel {}, carrier {}",
+                 dense r on up to {coarse} of them{}, then kernel {}, carrier {}",
                 a.input.display(),
                 prep.merged,
-                a.coarse_points,
+                if coarse < a.coarse_points.min(n) {
+                    format!(
+                        " (the most whose dense off-surface fit fits the ranks' memory; --coarse-points {})",
+                        a.coarse_points
+                    )
+                } else {
+                    String::new()
+                },
                 kernel.name(),
                 prep.carrier
             );
         }
         check_grid(comm, &grid)?;
-        let (fitted, summary) = levels::fit(&run, kernel, &prep, a.coarse_points, &mut stages)?;
+        let (fitted, summary) = levels::fit(&run, kernel, &prep, coarse, &mut stages)?;
         super::finite::check_fit(&fitted, &prep)?;
         (fitted, Some(summary), method, kernel, why)
     } else {
