@@ -136,7 +136,8 @@ pub struct FitArgs {
     #[arg(long, allow_hyphen_values = true, default_value = "1e-6", value_name = "F", value_parser = merge_tol)]
     pub merge_tol: f64,
     /// Isolated points (their 8th nearest neighbour more than 10 times the median such distance
-    /// away: stray scanner returns, alone or in groups of up to 8) are named and left out of the
+    /// away: stray scanner returns, alone or in groups of up to 8; and groups apart from the rest
+    /// by that distance holding at most 1 % of the points) are named and left out of the
     /// fit (on), or named in a warning and fitted (off). Kept, they stretch the carrier and the
     /// grid over empty space and the surface is pulled out to them.
     #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]

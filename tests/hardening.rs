@@ -1324,3 +1324,45 @@ fn the_grid_grows_until_the_solid_of_a_carrier_fit_of_the_cow_is_closed() {
         }
     }
 }
+
+#[test]
+fn a_group_of_stray_returns_apart_from_a_real_scan_is_left_out() {
+    // 2000 points of the cow and 15 stray returns close together far from it (a reflection):
+    // each stray has its 8 nearest neighbours in the group, so only the group's size (at most 1 %
+    // of the points) and its distance from the rest tell it from the scan
+    let dir = temp_dir("hardening-stray-group");
+    let plain = dir.join("cow.xyz");
+    std::fs::copy(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/cow-2000-seed3.xyz"), &plain).unwrap();
+    let group: String = (0..15)
+        .map(|q| format!("{} {} {}\n", 3.0 + 0.01 * (q % 4) as f64, 2.5 + 0.01 * (q / 4) as f64, -2.0))
+        .collect();
+    let stray = dir.join("cow-group.xyz");
+    std::fs::write(&stray, std::fs::read_to_string(&plain).unwrap() + &group).unwrap();
+    let fit = |input: &Path, name: &str, ranks: usize, extra: &[&str]| {
+        let prefix = dir.join(name);
+        let args =
+            ["fit", s(input), "--out", s(&prefix), "--grid", "24", "--no-preview", "--surface", "carrier"];
+        let out = run(ranks, &[&args[..], extra].concat());
+        let t = text(&out);
+        assert!(out.status.success(), "{t}");
+        (t, volspline::io::model_file::read_model(&prefix.with_extension("model.h5")).unwrap())
+    };
+    let (t, clean) = fit(&plain, "plain", 2, &[]);
+    assert!(!t.contains("are isolated"), "{t}");
+    for ranks in [1, 2] {
+        let (t, dropped) = fit(&stray, &format!("dropped{ranks}"), ranks, &[]);
+        assert!(
+            t.contains("15 of the 2015 points are isolated") && t.contains("#2001 (3.0000e0, 2.5000e0"),
+            "{t}"
+        );
+        assert!(t.contains("2015 read, 15 isolated left out"), "{t}");
+        assert_eq!(dropped.provenance.box_hi, clean.provenance.box_hi);
+        if ranks == 2 {
+            assert_eq!(dropped.spline.weights, clean.spline.weights);
+        }
+    }
+    // kept on request, they stretch the box to them
+    let (t, kept) = fit(&stray, "kept", 2, &["--drop-isolated", "off"]);
+    assert!(t.contains("volspline: warning: 15 of the 2015 points are isolated"), "{t}");
+    assert!(kept.provenance.box_hi[0] >= 3.0, "{:?}", kept.provenance);
+}

@@ -4,7 +4,8 @@ Writes every set of the eight samplings the surface benchmark is judged on (area
 the scanner's vertices strided) as .xyz, fits each with the cheapest method (the plain carrier, the
 compactly supported spline, an 8-node grid) and reads `isolated_points` from its timings, beside the
 same count by the definition computed here with scipy (the distance to the 8th nearest other point
-above 10 times the median over at most 4096 evenly spaced points). Usage:
+above 10 times the median over at most 4096 evenly spaced points, or a place in a group apart from
+the rest by that distance holding at most 1 % of the points, or 8). Usage:
     python3 jobs/bench/isolated.py OUT --binary BIN
 """
 import csv
@@ -22,10 +23,25 @@ def by_definition(p):
     import numpy as np
     from scipy.spatial import cKDTree
 
+    from scipy import ndimage
+
     d, _ = cKDTree(p).query(p, k=9)
     kth = d[:, 8]
     sampled = np.sort(kth[:: -(-len(kth) // 4096)])
-    return int(np.count_nonzero(kth > 10 * sampled[len(sampled) // 2]))
+    threshold = 10 * sampled[len(sampled) // 2]
+    alone = kth > threshold
+    # groups apart from the rest: connected parts (26-neighbourhood) of the occupied cubes of a
+    # lattice as wide as the threshold, all but the largest, holding at most 1 % of the points
+    # (or 8)
+    cube = np.floor((p - p.min(axis=0)) / threshold).astype(np.int64)
+    occupied = np.zeros(cube.max(axis=0) + 1, bool)
+    occupied[tuple(cube.T)] = True
+    labels, _ = ndimage.label(occupied, structure=np.ones((3, 3, 3), bool))
+    part = labels[tuple(cube.T)]
+    size = np.bincount(part)
+    most = max(8, int(0.01 * len(p)))
+    apart = (size[part] <= most) & (size[part] < size[part].max())
+    return int(np.count_nonzero(alone | apart))
 
 
 def main(out, binary):

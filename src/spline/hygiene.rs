@@ -46,16 +46,28 @@ pub const ISOLATION_NEIGHBOUR: usize = 8;
 /// point's own must exceed for it to count as isolated.
 pub const ISOLATION_FACTOR: f64 = 10.0;
 
+/// The most points a group apart from the rest may hold for [`isolated_points`] to take it for
+/// stray returns, as a share of all points (at least [`ISOLATION_NEIGHBOUR`]).
+pub const STRAY_GROUP_SHARE: f64 = 0.01;
+
 /// The points (indices, ascending) whose [`ISOLATION_NEIGHBOUR`]-th nearest other point lies
-/// more than [`ISOLATION_FACTOR`] times the median of that distance away: stray returns of a
-/// scanner, alone or in small groups far from the surface. The median is taken over at most
-/// [`ISOLATION_SAMPLES`] points evenly spaced in the input's order. The groups found have fewer
-/// members than the neighbour counted. Empty for fewer than 2 (k + 1) points, and where the
+/// more than [`ISOLATION_FACTOR`] times the median of that distance away, and the points of
+/// groups apart from the rest that hold at most [`STRAY_GROUP_SHARE`] of the points: stray
+/// returns of a scanner, alone or in groups far from the surface (a reflection, something
+/// passing through the beam). The median is taken over at most [`ISOLATION_SAMPLES`] points
+/// evenly spaced in the input's order. Empty for fewer than 2 (k + 1) points, and where the
 /// median distance is 0 (most points repeated k times).
 ///
 /// Only few points need their distance: on a lattice of cubes whose diagonal is the threshold,
 /// a point whose cube holds at least k others has them within the threshold. The others (points
 /// of cubes the data only graze, and the strays) are measured through an octree.
+///
+/// A group of more than k strays passes that test (each has its k neighbours in the group), so
+/// the occupied cubes of a lattice as wide as the threshold are also joined with their 26
+/// neighbours into connected parts: two parts lie more than the threshold apart.
+/// The points of every part but the largest that holds at most [`STRAY_GROUP_SHARE`] of the
+/// points (or k) are strays too; separate objects of a scene with more points than that are
+/// kept.
 pub fn isolated_points(points: &[f64]) -> Vec<usize> {
     let k = ISOLATION_NEIGHBOUR;
     let n = points.len() / 3;
@@ -90,7 +102,53 @@ pub fn isolated_points(points: &[f64]) -> Vec<usize> {
         // a lattice too fine to number (a few points spread over 1e15 thresholds)
         None => (0..n).collect(),
     };
-    candidates.into_par_iter().filter(|&i| kth(i) > threshold).collect()
+    let mut isolated: Vec<usize> = candidates.into_par_iter().filter(|&i| kth(i) > threshold).collect();
+    // cubes as wide as the threshold: points in cubes that do not touch are farther apart
+    let wide: Option<Vec<[i64; 3]>> = cells.as_ref().map(|_| {
+        points
+            .chunks_exact(3)
+            .map(|p| std::array::from_fn(|d| ((p[d] - lo[d]) / threshold).floor() as i64))
+            .collect()
+    });
+    if let Some(wide) = &wide {
+        let most = ((STRAY_GROUP_SHARE * n as f64) as usize).max(k);
+        isolated.extend(small_parts(wide, most));
+        isolated.sort_unstable();
+        isolated.dedup();
+    }
+    isolated
+}
+
+/// The points (indices) of the connected parts of the occupied `cells` (one per point, joined
+/// with their 26 neighbours) that hold at most `most` points, all but the largest part.
+fn small_parts(cells: &[[i64; 3]], most: usize) -> Vec<usize> {
+    let mut index: HashMap<[i64; 3], usize> = HashMap::new();
+    for c in cells {
+        let next = index.len();
+        index.entry(*c).or_insert(next);
+    }
+    let mut parent: Vec<usize> = (0..index.len()).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for (c, &i) in &index {
+        for d in 0..27 {
+            let off = [d % 3, d / 3 % 3, d / 9].map(|v| v as i64 - 1);
+            if let Some(&j) = index.get(&[c[0] + off[0], c[1] + off[1], c[2] + off[2]]) {
+                let (a, b) = (root(&mut parent, i), root(&mut parent, j));
+                parent[a.max(b)] = a.min(b);
+            }
+        }
+    }
+    let part: Vec<usize> = cells.iter().map(|c| root(&mut parent, index[c])).collect();
+    let mut size: HashMap<usize, usize> = HashMap::new();
+    part.iter().for_each(|&p| *size.entry(p).or_default() += 1);
+    let largest = size.values().copied().max().unwrap_or(0);
+    (0..cells.len()).filter(|&i| size[&part[i]] <= most && size[&part[i]] < largest).collect()
 }
 
 /// The most points whose distances set the median of [`isolated_points`].
@@ -439,12 +497,29 @@ mod tests {
         let want: Vec<usize> = (0..n).filter(|&i| kth[i] > threshold).collect();
         assert!(!want.is_empty() && want.len() < 12, "{want:?}");
         assert_eq!(isolated_points(&cloud), want);
-        // a group of as many points as the neighbour counted is a part of the data, not strays
+        // a group of more points than the neighbour counted and than 1 % of all is a part of the
+        // data (another object of the scene), not strays
         let mut group = sphere(1.0);
         for q in 0..ISOLATION_NEIGHBOUR + 1 {
             group.extend_from_slice(&[-20.0 + 0.1 * q as f64, 20.0, 0.0]);
         }
         assert!(isolated_points(&group).is_empty());
+        // beside 3000 points, groups apart from them of up to 30 points (1 %) are strays, each
+        // point with its 8 neighbours in the group, and larger ones are kept: a cloud of 20 far
+        // away, a line of 25 beside the shell (0.05 apart, beyond twice the threshold of about
+        // 0.9 from it), and a cloud of 31
+        let ball = |at: [f64; 3], count: usize, unit: &mut dyn FnMut() -> f64| -> Vec<f64> {
+            (0..3 * count).map(|q| at[q % 3] + 0.1 * (unit() - 0.5)).collect()
+        };
+        let mut scene = cloud[..3 * 3000].to_vec();
+        scene.extend(ball([40.0, 0.0, 0.0], 20, &mut unit));
+        scene.extend((0..25).flat_map(|q| [0.0, 0.0, 3.5 + 0.05 * q as f64]));
+        scene.extend(ball([0.0, -30.0, 5.0], 31, &mut unit));
+        assert_eq!(isolated_points(&scene), (3000..3045).collect::<Vec<_>>());
+        // the same groups beside a tenth of the points: more than 1 % of them, kept
+        let mut few: Vec<f64> = cloud[..3 * 3000].chunks_exact(3).step_by(3).flatten().copied().collect();
+        few.extend_from_slice(&scene[3 * 3000..3 * 3020]);
+        assert!(isolated_points(&few).is_empty());
     }
 
     #[test]

@@ -27,7 +27,9 @@ use crate::io::{self, model_file, points};
 use crate::linalg::dist::Layout;
 use crate::par::{agree, on_root, Comm};
 use crate::spline::compact::{default_support, DEFAULT_NEIGHBOURS};
-use crate::spline::hygiene::{isolated_points, prepare, Prepared, ISOLATION_FACTOR, ISOLATION_NEIGHBOUR};
+use crate::spline::hygiene::{
+    isolated_points, prepare, Prepared, ISOLATION_FACTOR, ISOLATION_NEIGHBOUR, STRAY_GROUP_SHARE,
+};
 use crate::spline::system::power_of_two_below_inverse;
 use crate::spline::{Evaluator, Kernel, Model, Provenance, Spline};
 use crate::surface::support::DataSupport;
@@ -76,11 +78,13 @@ fn isolated_line(raw: &[f64], isolated: &[usize], dropped: bool) -> String {
     }
     format!(
         "{} of the {} points are isolated (their {}th nearest neighbour more than {} times the median such \
-         distance away; stray returns?): {}; {}",
+         distance away, or in a group of at most {} % of the points that far from the rest; stray returns?): \
+         {}; {}",
         isolated.len(),
         raw.len() / 3,
         ISOLATION_NEIGHBOUR,
         ISOLATION_FACTOR,
+        100.0 * STRAY_GROUP_SHARE,
         named.join(", "),
         if dropped {
             "left out of the fit (--drop-isolated off fits them)"
