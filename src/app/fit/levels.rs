@@ -21,6 +21,9 @@
 //!
 //! The subsample keeps, in each cell of a cubic lattice, the point nearest the cell's centre; the
 //! cell size is bisected (in its logarithm) until at most the wanted number of cells is occupied.
+//! The wanted number is `--coarse-points`, or fewer where the ranks' memory does not hold the
+//! dense fit of that many ([`level0_points`]): `auto` takes the two levels exactly where the dense
+//! fit of all points does not fit, so level 0 must not be that same fit.
 
 use std::collections::HashMap;
 use std::time::Instant;
