@@ -511,3 +511,46 @@ fn level_0_takes_as_many_points_as_its_dense_fit_has_room_for() {
         assert!(p.with_extension("ply").exists(), "{what}");
     }
 }
+
+#[test]
+fn level_1_of_the_two_levels_is_checked_before_level_0() {
+    // 2000 points of the cow with a support that takes every point as a neighbour: level 0 (300
+    // points and their off points) fits 230 MB a rank, level 1's sparse factor (the lower
+    // triangle of 2000 x 2000, the second rank's rows holding three quarters of it) does not;
+    // the estimate from a sample of each rank's rows refuses the run before level 0 is solved
+    let dir = common::temp_dir("preflight-level1");
+    let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/cow-2000-seed3.xyz");
+    let p = dir.join("o");
+    for ranks in [1, 2] {
+        let args = [
+            "fit",
+            input.to_str().unwrap(),
+            "--out",
+            p.to_str().unwrap(),
+            "--grid",
+            "24",
+            "--no-preview",
+            "--method",
+            "csrbf",
+            "--coarse-points",
+            "300",
+            "--support",
+            "3.0",
+            "--memory-per-rank",
+            "230MB",
+        ];
+        let out = common::run(ranks, &args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{ranks} ranks: {err}");
+        let said =
+            "not enough memory: level 1 of the two-level fit: the sparse factor of 2000 points with about \
+                    2000 neighbours each (support 3)";
+        assert!(err.contains(said), "{ranks} ranks: {err}");
+        // all 2000 x 2001 / 2 entries, 12 + 8 x 12 bytes each with the fill allowed, on the
+        // rank holding the most of them
+        let most = if ranks == 1 { 2_001_000.0 } else { 2_001_000.0 - 1000.0 * 1001.0 / 2.0 };
+        let mb = (most * 108.0 + 100e6) / 1e6;
+        assert!(err.contains(&format!("needs about {mb:.0} MB per rank")), "{ranks} ranks, {mb}: {err}");
+        assert_eq!(files_in(&dir), Vec::<String>::new());
+    }
+}

@@ -55,6 +55,52 @@ fn name(s: SparseSolver) -> &'static str {
     }
 }
 
+/// The bytes a rank needs for the sparse factor of a matrix with `nnz` stored entries of its rows
+/// (the lower triangle, with [`FILL_ALLOWANCE`] for the fill).
+fn factor_bytes(nnz: f64) -> f64 {
+    nnz * (12.0 + 8.0 * FILL_ALLOWANCE) + 100e6
+}
+
+/// Rows sampled per rank by [`check_before`].
+const SAMPLED_ROWS: usize = 4096;
+
+/// Refuses, before any other work, a compactly supported fit of `prep`'s points whose sparse
+/// factor would not fit the ranks' memory, by the check [`fit`] makes after its assembly, with the
+/// stored entries of each rank's rows estimated from at most [`SAMPLED_ROWS`] of them evenly
+/// spread (the entries of a row are its neighbours within the support that come before it in the
+/// order, so they depend on the rank's place in the order). `what` names the fit in the message.
+/// Collective.
+pub fn check_before(run: &Run<'_>, kernel: &Kernel, prep: &Prepared, what: &str) -> Result<()> {
+    let Run { args: a, comm, .. } = *run;
+    let support = kernel.is_compact().expect("a compactly supported kernel");
+    let centres = &prep.centres;
+    let n = centres.len() / 3;
+    let tree = Octree::new(centres, a.leaf);
+    let rows = block_rows(n, comm.size(), comm.rank());
+    let stride = rows.len().div_ceil(SAMPLED_ROWS).max(1);
+    let sampled: Vec<usize> = rows.clone().step_by(stride).collect();
+    let (lower, all): (usize, usize) = sampled
+        .par_iter()
+        .map(|&i| {
+            let mut near = Vec::new();
+            tree.within([centres[3 * i], centres[3 * i + 1], centres[3 * i + 2]], support, &mut near);
+            (near.iter().filter(|&&j| j <= i).count(), near.len())
+        })
+        .reduce(|| (0, 0), |x, y| (x.0 + y.0, x.1 + y.1));
+    let per_row = lower as f64 / sampled.len().max(1) as f64;
+    let mut mean = [all as f64, sampled.len() as f64];
+    comm.sum_f64(&mut mean);
+    check_memory(
+        comm,
+        factor_bytes(per_row * rows.len() as f64),
+        &format!(
+            "{what}: the sparse factor of {n} points with about {:.0} neighbours each (support {support})",
+            mean[0] / mean[1].max(1.0)
+        ),
+        "use a smaller --support, more ranks (with mumps) or fewer points",
+    )
+}
+
 /// Fits the compactly supported spline of `kernel` to the prepared points. Collective.
 pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) -> Result<Fitted> {
     let Run { args: a, comm, threads, .. } = *run;
@@ -74,7 +120,7 @@ pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) 
     let (nnz_row_mean, lower_nnz) = (whole[0] / n as f64, whole[1]);
     check_memory(
         comm,
-        lower.nnz() as f64 * (12.0 + 8.0 * FILL_ALLOWANCE) + 100e6,
+        factor_bytes(lower.nnz() as f64),
         &format!(
             "the sparse factor of {n} points with {nnz_row_mean:.0} neighbours each (support {support})"
         ),

@@ -175,6 +175,8 @@ pub fn fit(
     stages: &mut Stages,
 ) -> Result<(Fitted, SurfaceSummary)> {
     let t0 = Instant::now();
+    // level 1's sparse factor is checked first: a refusal after level 0 would waste its solve
+    super::compact::check_before(run, &kernel, prep, "level 1 of the two-level fit")?;
     // level 0 has its own stage table: its stages would otherwise count twice in the run's
     let mut inner = Stages::default();
     let keep = even_subsample(&prep.centres, coarse_points);
