@@ -101,6 +101,25 @@ pub fn limit_memory(bytes: f64) {
     let _ = LIMIT.set(bytes);
 }
 
+/// The largest count in `lo..=hi` whose need fits (`fits` is true up to some count and false
+/// beyond it, and true at `lo`), by bisection.
+pub fn largest_fitting(lo: usize, hi: usize, fits: impl Fn(usize) -> bool) -> usize {
+    if fits(hi) {
+        return hi;
+    }
+    // fits(lo), not fits(hi)
+    let (mut lo, mut hi) = (lo, hi);
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if fits(mid) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    lo
+}
+
 /// The user's limit on each rank's memory (`--memory-per-rank`), if one was set.
 pub fn user_limit() -> Option<f64> {
     LIMIT.get().copied()
@@ -293,6 +312,17 @@ mod tests {
     use super::*;
     use crate::grid::GridSize;
     use crate::par::Solo;
+
+    #[test]
+    fn the_largest_count_that_fits_is_found_by_bisection() {
+        // needs growing like the bordering's, m rows times m columns, against a room
+        let fits = |room: usize| move |m: usize| m * m <= room;
+        assert_eq!(largest_fitting(0, 500, fits(40_000)), 200);
+        assert_eq!(largest_fitting(0, 500, fits(39_999)), 199);
+        assert_eq!(largest_fitting(0, 500, fits(1_000_000)), 500);
+        assert_eq!(largest_fitting(50, 500, fits(2_500)), 50);
+        assert_eq!(largest_fitting(7, 7, fits(0)), 7);
+    }
 
     #[test]
     fn estimates_grow_as_the_work_does() {

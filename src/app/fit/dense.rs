@@ -8,7 +8,8 @@ use faer::Par;
 
 use super::{Fitted, Run};
 use crate::app::preflight::{
-    bordered_fit_bytes, check_memory, check_memory_beside, dense_fit_bytes, dense_matrix_bytes, FIXED_BYTES,
+    bordered_fit_bytes, check_memory, check_memory_beside, dense_fit_bytes, dense_matrix_bytes,
+    largest_fitting, FIXED_BYTES,
 };
 use crate::app::progress::Progress;
 use crate::app::stages::{Stage, Stages};
@@ -289,23 +290,10 @@ pub fn appendable(
         ),
     };
     let room = super::agreed_room(run.comm, held);
-    if need(most) <= room {
-        return most;
-    }
     if need(0) > room {
         return 0;
     }
-    // need(lo) fits, need(hi) does not
-    let (mut lo, mut hi) = (0, most);
-    while hi - lo > 1 {
-        let mid = lo + (hi - lo) / 2;
-        if need(mid) <= room {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    lo
+    largest_fitting(0, most, |m| need(m) <= room)
 }
 
 /// A fit from `first`'s factor, reported as the dense fit is: with its bordered factor where

@@ -30,7 +30,7 @@ use std::time::Instant;
 
 use super::surface::{check_first_fit, constrain, SurfaceSummary};
 use super::{dense, Fitted, Run};
-use crate::app::preflight::dense_fit_bytes;
+use crate::app::preflight::{dense_fit_bytes, largest_fitting};
 use crate::app::stages::{Stage, Stages};
 use crate::cli::FitArgs;
 use crate::error::{Error, Result};
@@ -141,20 +141,10 @@ pub fn level0_points(args: &FitArgs, n: usize, (ranks, room): (usize, f64)) -> R
         let panel = dense::estimate_panel(args.panel, args.solver, system);
         dense_fit_bytes(system, ranks, args.precision, lower, panel)
     };
-    if need(wanted) <= room || need(MIN_LEVEL0) > room {
+    if wanted <= MIN_LEVEL0 || need(MIN_LEVEL0) > room {
         return Ok(wanted);
     }
-    // need(lo) fits, need(hi) does not
-    let (mut lo, mut hi) = (MIN_LEVEL0, wanted);
-    while hi - lo > 1 {
-        let mid = lo + (hi - lo) / 2;
-        if need(mid) <= room {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    Ok(lo)
+    Ok(largest_fitting(MIN_LEVEL0, wanted, |m| need(m) <= room))
 }
 
 /// The fewest points [`level0_points`] gives level 0 to fit the memory: as few as the
