@@ -389,6 +389,23 @@ fn slices_solved_side_by_side_are_counted_together() {
     }
 }
 
+/// The report of a `fit` of `input` on `ranks` ranks that succeeds within `--memory-per-rank
+/// limit`, writing under the prefix `p` and the timings to `csv`, with the options `extra`.
+fn fit_within(ranks: usize, input: &Path, (p, csv): (&Path, &Path), limit: &str, extra: &[&str]) -> String {
+    let args = [
+        "fit",
+        input.to_str().unwrap(),
+        "--out",
+        p.to_str().unwrap(),
+        "--no-preview",
+        "--memory-per-rank",
+        limit,
+        "--timings",
+        csv.to_str().unwrap(),
+    ];
+    common::run_ok(ranks, &[&args[..], extra].concat())
+}
+
 #[test]
 fn second_fits_without_room_for_every_blob_point_thin_them_and_finish() {
     // the cow with a hole: the first fit (1231 centres, 1235 rows) keeps its factor, and its
@@ -413,26 +430,9 @@ fn second_fits_without_room_for_every_blob_point_thin_them_and_finish() {
         let beside = limit.trim_end_matches("MB").parse::<f64>().unwrap() * 1e6 - held;
         let room = (0..303).take_while(|&m| bordered_fit_bytes(1231, m, 4, ranks) <= beside).last().unwrap();
         assert!((190..210).contains(&room), "room {room}");
-        let p = dir.join(format!("o{ranks}"));
-        let csv = dir.join(format!("t{ranks}.csv"));
-        let args = [
-            "fit",
-            input.to_str().unwrap(),
-            "--out",
-            p.to_str().unwrap(),
-            "--grid",
-            "40",
-            "--no-preview",
-            "--method",
-            "dense",
-            "--panel",
-            "32",
-            "--memory-per-rank",
-            &limit,
-            "--timings",
-            csv.to_str().unwrap(),
-        ];
-        let text = common::run_ok(ranks, &args);
+        let (p, csv) = (dir.join(format!("o{ranks}")), dir.join(format!("t{ranks}.csv")));
+        let extra = ["--grid", "40", "--method", "dense", "--panel", "32"];
+        let text = fit_within(ranks, &input, (&p, &csv), &limit, &extra);
         let what = format!("{ranks} ranks, --memory-per-rank {limit}");
         assert!(text.contains("method dense (as asked)"), "{what}: {text}");
         assert!(
@@ -478,22 +478,8 @@ fn level_0_takes_as_many_points_as_its_dense_fit_has_room_for() {
         assert!(dense_bytes(rows(896), ranks) > room + 1e6);
         let m = (0..=896).take_while(|&m| dense_bytes(rows(m), ranks) <= room).last().unwrap();
         assert!((690..=700).contains(&m), "{m}");
-        let p = dir.join(format!("o{ranks}"));
-        let csv = dir.join(format!("t{ranks}.csv"));
-        let args = [
-            "fit",
-            input.to_str().unwrap(),
-            "--out",
-            p.to_str().unwrap(),
-            "--grid",
-            "32",
-            "--no-preview",
-            "--memory-per-rank",
-            &limit,
-            "--timings",
-            csv.to_str().unwrap(),
-        ];
-        let text = common::run_ok(ranks, &args);
+        let (p, csv) = (dir.join(format!("o{ranks}")), dir.join(format!("t{ranks}.csv")));
+        let text = fit_within(ranks, &input, (&p, &csv), &limit, &["--grid", "32"]);
         let what = format!("{ranks} ranks, --memory-per-rank {limit}");
         assert!(text.contains("method csrbf (auto: the dense system would need"), "{what}: {text}");
         assert!(

@@ -337,30 +337,6 @@ pub fn check_first_fit(
     run: &Run<'_>,
     data: &Prepared,
     c: &mut Constrained,
-    first: Fitted,
-    stages: &mut Stages,
-    refit: &mut Refit<'_>,
-    room: usize,
-) -> Result<Fitted> {
-    let fit = search_and_turn(run, data, c, first, stages, refit, room)?;
-    if let (Some(l), 0) = (c.summary.memory_limit, run.comm.rank()) {
-        eprintln!(
-            "volspline: warning: the ranks' memory leaves room for {} centres appended to the first fit, \
-             {} wanted: the constraint points against spurious blobs were thinned or the solid lost to \
-             them was not given back, so spurious sheets may remain; use more ranks or nodes{}",
-            l.room,
-            l.wanted,
-            if crate::app::preflight::user_limit().is_some() { " or a larger --memory-per-rank" } else { "" }
-        );
-    }
-    Ok(fit)
-}
-
-/// [`check_first_fit`] without its warning.
-fn search_and_turn(
-    run: &Run<'_>,
-    data: &Prepared,
-    c: &mut Constrained,
     mut first: Fitted,
     stages: &mut Stages,
     refit: &mut Refit<'_>,
@@ -382,11 +358,23 @@ fn search_and_turn(
     // without a kept factor (a solver the user chose, or no room to keep it) a try is a fresh
     // fit: affordable on small systems alone
     let affordable = basis.is_some() || c.prep.values.len() < FRESH_TRIES_BELOW;
-    if run.args.orient_turns && affordable {
+    let fit = if run.args.orient_turns && affordable {
         let at = (basis.as_ref(), &lattice, &areas[..]);
-        return turn_by_surface(run, data, c, (fit, values), stages, refit, at);
+        turn_by_surface(run, data, c, (fit, values), stages, refit, at)?
+    } else {
+        c.summary.turns_skipped = run.args.orient_turns;
+        fit
+    };
+    if let (Some(l), 0) = (c.summary.memory_limit, run.comm.rank()) {
+        eprintln!(
+            "volspline: warning: the ranks' memory leaves room for {} centres appended to the first fit, \
+             {} wanted: the constraint points against spurious blobs were thinned or the solid lost to \
+             them was not given back, so spurious sheets may remain; use more ranks or nodes{}",
+            l.room,
+            l.wanted,
+            if crate::app::preflight::user_limit().is_some() { " or a larger --memory-per-rank" } else { "" }
+        );
     }
-    c.summary.turns_skipped = run.args.orient_turns;
     Ok(fit)
 }
 
