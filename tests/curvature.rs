@@ -260,3 +260,49 @@ fn analytic_derivatives_of_a_fit_match_finite_differences() {
         );
     }
 }
+
+#[test]
+fn morph_frames_carry_the_curvature_arrays() {
+    // the first frame of a metamorphosis of two balls is the first ball, f = r^2 - |x - c|^2,
+    // whose level surface through a node at distance d from c is the sphere of radius d: mean
+    // curvature 1/d and Gaussian 1/d^2 at every node, and on the mesh's vertices (d = r)
+    let dir = temp_dir("curv-morph");
+    let out = dir.join("m");
+    for ranks in [1, 2] {
+        run_ok(
+            ranks,
+            &[
+                "morph",
+                "ball:-2,10,0,8",
+                "ball:4,12,0,8",
+                "--out",
+                out.to_str().unwrap(),
+                "--frames",
+                "2",
+                "--grid",
+                "24",
+                "--curvature",
+            ],
+        );
+        let frame = dir.join("m_000.hdf");
+        let (grid, m) = read_image(&frame, "mean_curvature").unwrap();
+        let (_, k) = read_image(&frame, "gaussian_curvature").unwrap();
+        let [nx, ny, _] = grid.dims;
+        let mut checked = 0;
+        for (q, (&mq, &kq)) in m.iter().zip(&k).enumerate() {
+            let p = grid.node(q % nx, (q / nx) % ny, q / (nx * ny));
+            let d = ((p[0] + 2.0).powi(2) + (p[1] - 10.0).powi(2) + p[2] * p[2]).sqrt();
+            if d > 1.0 {
+                assert!((mq * d - 1.0).abs() < 1e-6 && (kq * d * d - 1.0).abs() < 1e-6, "{p:?}: {mq}, {kq}");
+                checked += 1;
+            }
+        }
+        assert!(checked > 5_000, "{checked}");
+        let (pos, props) = ply_vertices(&dir.join("m_000.ply"), &["mean_curvature", "gaussian_curvature"]);
+        assert!(pos.len() > 100, "{ranks} ranks");
+        for (p, m) in pos.iter().zip(&props[0]) {
+            let d = ((p[0] + 2.0).powi(2) + (p[1] - 10.0).powi(2) + p[2] * p[2]).sqrt();
+            assert!((m * d - 1.0).abs() < 1e-6, "{ranks} ranks, vertex {p:?}: {m}");
+        }
+    }
+}

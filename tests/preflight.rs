@@ -540,3 +540,20 @@ fn level_1_of_the_two_levels_is_checked_before_level_0() {
         assert_eq!(files_in(&dir), Vec::<String>::new());
     }
 }
+
+#[test]
+fn the_curvature_arrays_count_in_the_grid_s_memory() {
+    // a grid of 100^3 nodes: its values, ghost layer and mesh fit 24 MB on one rank, with the
+    // mean and Gaussian curvature at every node as well they do not (32 MB), and the run is
+    // refused before the evaluation
+    let dir = common::temp_dir("preflight-curvature");
+    let p = dir.join("e");
+    let args =
+        ["eval", "ball:0,0,0,1", "--bounds", "-1.5,-1.5,-1.5,1.5,1.5,1.5", "--out", p.to_str().unwrap()];
+    let limit = ["--grid", "100", "--memory-per-rank", "24MB"];
+    common::run_ok(1, &[&args[..], &limit].concat());
+    let out = common::run(1, &[&args[..], &limit, &["--curvature"]].concat());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("the grid of 100 x 100 x 100 nodes needs about 32 MB per rank"), "{err}");
+}

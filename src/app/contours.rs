@@ -176,7 +176,7 @@ pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let (lo, hi) = bounding_box(&world, 3);
     let (plo, phi) = padded_box(&lo, &hi, a.grid.margin.fraction);
     let grid = Grid::covering(plo, phi, a.grid.grid)?;
-    check_grid(comm, &grid)?;
+    check_grid(comm, &grid, a.grid.curvature)?;
     check_slice_systems(comm, &sections, &a.kernel)?;
     if comm.rank() == 0 {
         eprintln!(

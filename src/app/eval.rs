@@ -47,7 +47,7 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let volume = if is_contour {
         let model = stages.time(Stage::Read, || agree(comm, read_contour_model(path)))?;
         let grid = model_grid(a.grid.grid, a.bounds, a.grid.margin.fraction, &model.provenance)?;
-        check_grid(comm, &grid)?;
+        check_grid(comm, &grid, a.grid.curvature)?;
         check_grid_field(comm, &model, &grid)?;
         let curvature = a.grid.curvature.then_some(&model as &dyn Implicit);
         let job = Volume::new(&model, grid, &a.out).curvature(curvature).grow(grows(a));
@@ -66,7 +66,7 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     } else {
         let model = stages.time(Stage::Read, || agree(comm, read_model(path)))?;
         let grid = model_grid(a.grid.grid, a.bounds, a.grid.margin.fraction, &model.provenance)?;
-        check_grid(comm, &grid)?;
+        check_grid(comm, &grid, a.grid.curvature)?;
         check_grid_field(comm, &model, &grid)?;
         // grown as the fit grew its grid: not where the model is unbounded
         let grow = grows(a) && check_bounded(&model).is_none();
@@ -117,7 +117,7 @@ fn expression(
         }
     };
     let grid = Grid::covering(lo, hi, a.grid.grid)?;
-    check_grid(comm, &grid)?;
+    check_grid(comm, &grid, a.grid.curvature)?;
     check_grid_field(comm, &expr, &grid)?;
     let curvature = a.grid.curvature.then_some(&expr as &dyn Implicit);
     // an expression's box is the caller's to choose (a difference or intersection may be meant

@@ -23,6 +23,7 @@ use crate::cli::MorphArgs;
 use crate::error::{Error, Result};
 use crate::frep::expr::{hull, Expr};
 use crate::frep::morph::{read_pairs_with_lines, Fold, FoldTally, Morph, SlabCache};
+use crate::frep::Implicit;
 use crate::grid::{padded_box, Grid};
 use crate::io;
 use crate::par::{agree, on_root, Comm};
@@ -72,7 +73,7 @@ pub fn run(a: &MorphArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         },
     };
     let grid = Grid::covering(lo, hi, a.grid.grid)?;
-    check_grid(comm, &grid)?;
+    check_grid(comm, &grid, a.grid.curvature)?;
     let [nx, ny, nz] = grid.dims;
     if let Some(p) = &pairs {
         // each frame solves the two maps side by side, each a bordered system and its LU
@@ -110,7 +111,8 @@ pub fn run(a: &MorphArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         }
         let prefix = frame_prefix(&a.out, i);
         // every frame on the same grid, as a time series wants it: no growth
-        let v = write_volume(comm, Volume::new(&frame, grid, &prefix), &mut stages)?;
+        let curvature = a.grid.curvature.then_some(&frame as &dyn Implicit);
+        let v = write_volume(comm, Volume::new(&frame, grid, &prefix).curvature(curvature), &mut stages)?;
         per_node = per_node.max(v.evals_per_node);
         triangles.push(v.triangles);
         let name = v.hdf_path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();

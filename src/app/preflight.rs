@@ -85,11 +85,13 @@ pub fn bordered_fit_bytes(n: usize, m: usize, k: usize, ranks: usize) -> f64 {
 }
 
 /// Memory the volume outputs need on the rank with the thickest slab of `grid`: its values with
-/// a ghost layer, and about as much again for the marching-cubes piece and the welding of the mesh.
-pub fn grid_bytes(grid: &Grid, ranks: usize) -> f64 {
+/// a ghost layer, and about as much again for the marching-cubes piece and the welding of the
+/// mesh; with `curvature`, the mean and Gaussian curvature at every node of the slab too.
+pub fn grid_bytes(grid: &Grid, ranks: usize, curvature: bool) -> f64 {
     let [nx, ny, nz] = grid.dims;
     let layers = nz.div_ceil(ranks.max(1)) + 1;
-    2.0 * (nx * ny * layers) as f64 * 8.0
+    let arrays = if curvature { 4.0 } else { 2.0 };
+    arrays * (nx * ny * layers) as f64 * 8.0
 }
 
 /// The user's limit on the memory of each rank, in bytes (`--memory-per-rank`).
@@ -367,8 +369,9 @@ mod tests {
         let rows = dense_matrix_bytes(100_000, 1024, Precision::F64, false);
         assert!(panel_bytes(100_000, 1024, 384) > 9.0 * rows);
         let g = Grid::covering([0.0; 3], [1.0; 3], GridSize::Longest(101)).unwrap();
-        assert_eq!(grid_bytes(&g, 1), 2.0 * (101 * 101 * 102) as f64 * 8.0);
-        assert!(grid_bytes(&g, 4) < grid_bytes(&g, 1) / 3.0);
+        assert_eq!(grid_bytes(&g, 1, false), 2.0 * (101 * 101 * 102) as f64 * 8.0);
+        assert_eq!(grid_bytes(&g, 1, true), 2.0 * grid_bytes(&g, 1, false));
+        assert!(grid_bytes(&g, 4, false) < grid_bytes(&g, 1, false) / 3.0);
     }
 
     #[test]

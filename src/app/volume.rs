@@ -110,12 +110,13 @@ pub fn model_grid(
     Grid::covering(lo, hi, size)
 }
 
-/// Refuses a grid whose slab would not fit in a rank's memory. Collective.
-pub fn check_grid(comm: &dyn Comm, grid: &Grid) -> Result<()> {
+/// Refuses a grid whose slab (with the curvature arrays where asked) would not fit in a rank's
+/// memory. Collective.
+pub fn check_grid(comm: &dyn Comm, grid: &Grid, curvature: bool) -> Result<()> {
     let [nx, ny, nz] = grid.dims;
     check_memory(
         comm,
-        grid_bytes(grid, comm.size()),
+        grid_bytes(grid, comm.size(), curvature),
         &format!("the grid of {nx} x {ny} x {nz} nodes"),
         "use a coarser --grid or more ranks (the grid is split in z-slabs over them)",
     )
@@ -158,11 +159,21 @@ fn eval_in_pieces(
 /// The names of the curvature arrays, in the VTKHDF file and the PLY mesh.
 pub const CURVATURE_ARRAYS: [&str; 2] = ["mean_curvature", "gaussian_curvature"];
 
-/// The curvatures at `points`, threaded: (mean, Gaussian).
-fn curvatures(solid: &dyn Implicit, points: &[[f64; 3]]) -> (Vec<f64>, Vec<f64>) {
+/// The curvatures at the `count` points `point(0..count)`, threaded: (mean, Gaussian), without
+/// other arrays of the points' size (on a grid's slab they are the memory the check counts).
+fn curvatures(
+    solid: &dyn Implicit,
+    count: usize,
+    point: impl Fn(usize) -> [f64; 3] + Sync,
+) -> (Vec<f64>, Vec<f64>) {
     use rayon::prelude::*;
-    let c: Vec<Curvature> = points.par_iter().map(|&p| curvature(solid, p)).collect();
-    (c.iter().map(|c| c.mean).collect(), c.iter().map(|c| c.gaussian).collect())
+    (0..count)
+        .into_par_iter()
+        .map(|q| {
+            let c: Curvature = curvature(solid, point(q));
+            (c.mean, c.gaussian)
+        })
+        .unzip()
 }
 
 /// What trimming left of the surface.
@@ -233,7 +244,7 @@ struct Evaluated {
 fn evaluate_growing(
     comm: &dyn Comm,
     field: &dyn Field,
-    grid: &Grid,
+    (grid, curvature): (&Grid, bool),
     grow: bool,
     evals_per_node: usize,
     stages: &mut Stages,
@@ -253,7 +264,7 @@ fn evaluate_growing(
             || !touched.contains(&true)
             || !room
             || e.inside == e.grid.node_count() as u64
-            || check_grid(comm, &next).is_err()
+            || check_grid(comm, &next, curvature).is_err()
         {
             return Ok((e, steps, nodes));
         }
@@ -349,7 +360,7 @@ pub fn write_volume(comm: &dyn Comm, v: Volume<'_>, stages: &mut Stages) -> Resu
     // measured once (a compact model samples its neighbour counts through an octree)
     let evals_per_node = field.kernel_evals_per_node();
     let (e, grown_steps, nodes_evaluated) =
-        evaluate_growing(comm, field, grid, grow, evals_per_node, stages)?;
+        evaluate_growing(comm, field, (grid, curvature.is_some()), grow, evals_per_node, stages)?;
     let Evaluated { grid, values, k0, layers, on_faces, faces, inside } = e;
     let grid = &grid;
     let [nx, ny, nz] = grid.dims;
@@ -366,9 +377,8 @@ pub fn write_volume(comm: &dyn Comm, v: Volume<'_>, stages: &mut Stages) -> Resu
 
     let node_curvature = curvature.map(|solid| {
         stages.time(Stage::Evaluate, || {
-            let nodes: Vec<[f64; 3]> =
-                (0..nx * ny * layers).map(|q| grid.node(q % nx, (q / nx) % ny, k0 + q / (nx * ny))).collect();
-            curvatures(solid, &nodes)
+            let node = |q: usize| grid.node(q % nx, (q / nx) % ny, k0 + q / (nx * ny));
+            curvatures(solid, nx * ny * layers, node)
         })
     });
     let hdf_path = output_path(prefix, ".hdf");
@@ -397,7 +407,8 @@ pub fn write_volume(comm: &dyn Comm, v: Volume<'_>, stages: &mut Stages) -> Resu
         on_root(comm, || {
             let mesh: TriMesh = mesh::weld(&gathered.unwrap_or_default());
             counts = [mesh.triangles.len() as u64, mesh.vertices.len() as u64];
-            let at_vertices = curvature.map(|solid| curvatures(solid, &mesh.vertices));
+            let at_vertices =
+                curvature.map(|solid| curvatures(solid, mesh.vertices.len(), |q| mesh.vertices[q]));
             let props: Vec<mesh::VertexProperty<'_>> = match &at_vertices {
                 Some((mean, gauss)) => vec![(CURVATURE_ARRAYS[0], mean), (CURVATURE_ARRAYS[1], gauss)],
                 None => Vec::new(),

@@ -310,7 +310,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
                 prep.carrier
             );
         }
-        check_grid(comm, &grid)?;
+        check_grid(comm, &grid, a.grid.curvature)?;
         let (fitted, summary) = levels::fit(&run, kernel, &prep, coarse, &mut stages)?;
         super::finite::check_fit(&fitted, &prep)?;
         (fitted, Some(summary), method, kernel, why)
@@ -335,7 +335,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         if method != Method::Csrbf {
             dense::check(comm, &kernel, rows, a)?;
         }
-        check_grid(comm, &grid)?;
+        check_grid(comm, &grid, a.grid.curvature)?;
         // the second fit against spurious blobs has more rows: checked again
         let mut fit_with = |p: &Prepared, first: Option<&dense::KeptFactor>, stages: &mut Stages| match method
         {
