@@ -4,7 +4,8 @@
 
 use std::path::PathBuf;
 
-use clap::{Args, Parser, Subcommand};
+use clap::parser::ValueSource;
+use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};
 
 use crate::app::progress;
 use crate::contour::planes::PlaneFamily;
@@ -250,6 +251,10 @@ pub struct FitArgs {
     pub coarse_points: usize,
     #[command(flatten)]
     pub grid: GridArgs,
+    /// The options given on the command line (their field names), for the warning about those
+    /// that have no effect on the fit the run makes ([`Cli::parse_noting_given`]).
+    #[arg(skip)]
+    pub given: Vec<String>,
 }
 
 /// `--lookahead`: on or off as asked, or None for the layout's default.
@@ -481,6 +486,21 @@ pub struct ViewArgs {
 }
 
 impl Cli {
+    /// The command line parsed as [`Parser::try_parse`] does, noting which of `fit`'s options
+    /// were given (not defaults) in [`FitArgs::given`].
+    pub fn parse_noting_given() -> Result<Cli, clap::Error> {
+        let matches = Cli::command().try_get_matches()?;
+        let mut cli = Cli::from_arg_matches(&matches)?;
+        if let (Command::Fit(a), Some((_, sub))) = (&mut cli.command, matches.subcommand()) {
+            a.given = sub
+                .ids()
+                .filter(|id| sub.value_source(id.as_str()) == Some(ValueSource::CommandLine))
+                .map(|id| id.to_string())
+                .collect();
+        }
+        Ok(cli)
+    }
+
     /// The `--progress` mode (auto for the commands without one).
     pub fn progress(&self) -> progress::Mode {
         match &self.command {

@@ -2,13 +2,12 @@
 //! need no MPI and are printed by one rank), starts MPI and the thread pool, runs the command and
 //! turns its result into an exit status. All logic is in the library.
 
-use clap::Parser;
 use volspline::cli::{default_threads, launcher_rank, threads_warning, Cli};
 use volspline::par::mpi::World;
 use volspline::par::Comm;
 
 fn main() {
-    let cli = match Cli::try_parse() {
+    let cli = match Cli::parse_noting_given() {
         Ok(c) => c,
         Err(e) => {
             if launcher_rank() == 0 {

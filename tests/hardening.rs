@@ -1366,3 +1366,35 @@ fn a_group_of_stray_returns_apart_from_a_real_scan_is_left_out() {
     assert!(t.contains("volspline: warning: 15 of the 2015 points are isolated"), "{t}");
     assert!(kept.provenance.box_hi[0] >= 3.0, "{:?}", kept.provenance);
 }
+
+#[test]
+fn options_that_have_no_effect_on_the_fit_are_named() {
+    // the plain carrier method on the cow's 400 points with options of the off-surface method and
+    // of the compactly supported one: both groups are named once, on any rank count, and the fit
+    // is the one without them, to the bit; options that do act draw no such warning
+    let dir = temp_dir("hardening-idle-options");
+    let cow = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/cow-400.xyz");
+    let fit = |name: &str, ranks: usize, extra: &[&str]| {
+        let prefix = dir.join(name);
+        let args = ["fit", cow, "--out", s(&prefix), "--grid", "16", "--no-preview"];
+        let out = run(ranks, &[&args[..], extra].concat());
+        let t = text(&out);
+        assert!(out.status.success(), "{t}");
+        (t, volspline::io::model_file::read_model(&prefix.with_extension("model.h5")).unwrap())
+    };
+    let idle = ["--surface", "carrier", "--off-points", "2", "--blob-choice", "off", "--support", "0.3"];
+    for ranks in [1, 2] {
+        let (t, with) = fit(&format!("idle{ranks}"), ranks, &idle);
+        let off =
+            "volspline: warning: --off-points, --blob-choice have no effect on this fit: options of the \
+                   off-surface method, and this fit is the plain carrier method (--surface)";
+        let compact = "volspline: warning: --support has no effect on this fit: an option of the compactly \
+                       supported method, and this fit is dense (--method)";
+        assert!(t.contains(off) && t.contains(compact), "{t}");
+        assert_eq!(t.matches("have no effect").count() + t.matches("has no effect").count(), 2, "{t}");
+        let (_, without) = fit(&format!("plain{ranks}"), ranks, &["--surface", "carrier"]);
+        assert_eq!(with.spline.weights, without.spline.weights);
+    }
+    let (t, _) = fit("acting", 2, &["--off-points", "1", "--blob-choice", "off"]);
+    assert!(!t.contains("no effect"), "{t}");
+}

@@ -181,6 +181,67 @@ fn choose(
     Ok((method, kernel.with_smoothing(a.smooth)?, why))
 }
 
+/// The warnings about options given on the command line that have no effect on this fit: `off`,
+/// whether it has off-surface constraints; `method`, dense or compactly supported (`two_levels`:
+/// the compactly supported level on a dense level 0, which takes the dense solvers' options).
+fn idle_options(a: &FitArgs, off: bool, method: Method, two_levels: bool) -> Vec<String> {
+    const OFF_SURFACE: &[&str] = &[
+        "off_points",
+        "doubtful_share",
+        "denoise",
+        "orient_side",
+        "orient_energy",
+        "orient_rays",
+        "blob_choice",
+        "restore_solid",
+        "orient_turns",
+        "coarse_points",
+    ];
+    let groups: [(&[&str], bool, &str); 4] = [
+        (OFF_SURFACE, !off, "the off-surface method, and this fit is the plain carrier method (--surface)"),
+        (
+            &["coarse_points"],
+            off && !two_levels,
+            "level 0 of the two-level compactly supported fit, and this fit is dense",
+        ),
+        (
+            &["support", "leaf", "sparse_solver"],
+            method == Method::Dense,
+            "the compactly supported method, and this fit is dense (--method)",
+        ),
+        (
+            &["solver", "precision", "panel", "lookahead", "layout"],
+            method == Method::Csrbf && !two_levels,
+            "the dense solvers, and this fit is compactly supported (--method)",
+        ),
+    ];
+    let mut named: Vec<&str> = Vec::new();
+    let mut out = Vec::new();
+    for (ids, _, of) in groups.iter().filter(|g| g.1) {
+        let given: Vec<String> = ids
+            .iter()
+            .filter(|id| a.given.iter().any(|g| g == *id) && !named.contains(id))
+            .map(|id| format!("--{}", id.replace('_', "-")))
+            .collect();
+        named.extend(ids.iter().copied());
+        match given.len() {
+            0 => {}
+            1 => out.push(format!("{} has no effect on this fit: an option of {of}", given[0])),
+            _ => out.push(format!("{} have no effect on this fit: options of {of}", given.join(", "))),
+        }
+    }
+    out
+}
+
+/// Says on rank 0 which of the options given have no effect on this fit ([`idle_options`]).
+fn warn_idle_options(comm: &dyn Comm, a: &FitArgs, off: bool, method: Method, two_levels: bool) {
+    if comm.rank() == 0 {
+        for w in idle_options(a, off, method, two_levels) {
+            eprintln!("volspline: warning: {w}");
+        }
+    }
+}
+
 /// Runs `volspline fit`. Collective.
 pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
@@ -290,6 +351,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     };
     let two_levels = two_level.is_some();
     let (fitted, summary, method, kernel, why) = if let Some((method, kernel, why)) = two_level {
+        warn_idle_options(comm, a, off, method, true);
         // level 0 takes as many points as its dense fit has room for, up to --coarse-points
         let coarse = levels::level0_points(a, n, machine)?;
         if comm.rank() == 0 {
@@ -322,6 +384,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         let first_summary = constrained.as_ref().map(|c| c.summary.clone());
         let rows = fit_prep.values.len();
         let (method, kernel, why) = choose(a, rows, machine, &fit_prep.centres)?;
+        warn_idle_options(comm, a, off, method, false);
         if comm.rank() == 0 {
             eprintln!(
                 "volspline fit: {points_read} points read from {}, {} duplicates merged, N = {n}{}, kernel {}, carrier {}",
