@@ -62,7 +62,7 @@ fn factor_bytes(nnz: f64) -> f64 {
 }
 
 /// Rows sampled per rank by [`check_before`].
-const SAMPLED_ROWS: usize = 4096;
+pub const SAMPLED_ROWS: usize = 4096;
 
 /// Refuses, before any other work, a compactly supported fit of `prep`'s points whose sparse
 /// factor would not fit the ranks' memory, by the check [`fit`] makes after its assembly, with the
