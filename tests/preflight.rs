@@ -118,10 +118,23 @@ fn the_memory_per_rank_the_user_sets_decides_the_checks_and_the_method() {
     let p = dir.join("o");
     let o = p.to_str().unwrap();
     for ranks in [1, 2] {
-        // too little for the dense system: refused before the assembly, saying whose limit it is;
-        // `auto` takes the two levels for it, whose level 0 is then that same dense fit
+        // too little for the dense system: refused before the assembly, saying whose limit it is
+        // and what the need is made of; `auto` takes the two levels for it, whose level 0 does
+        // not fit either (not even on 50 points: the fixed part alone is more)
+        let mb = |b: f64| (b / 1e6).round();
+        let parts = format!(
+            "not enough memory: the dense system of 1235 rows (1231 points; per rank its rows {} MB, the \
+             solver's panels {} MB and 200 MB for the libraries and MPI's buffers) needs about",
+            mb(volspline::app::preflight::dense_matrix_bytes(
+                1235,
+                ranks,
+                volspline::linalg::dist::Precision::F64,
+                true
+            )),
+            mb(volspline::app::preflight::panel_bytes(1235, ranks, 256)),
+        );
         let cases: [(&[&str], &str); 2] = [
-            (&["--method", "dense"], "not enough memory: the dense system of 1235 rows"),
+            (&["--method", "dense"], &parts),
             (&[], "not enough memory: level 0 of the two-level fit (a dense off-surface fit of 896 of the points)"),
         ];
         for (extra, message) in cases {

@@ -9,7 +9,7 @@ use faer::Par;
 use super::{Fitted, Run};
 use crate::app::preflight::{
     bordered_fit_bytes, check_memory, check_memory_beside, dense_fit_bytes, dense_matrix_bytes,
-    largest_fitting, FIXED_BYTES,
+    largest_fitting, panel_bytes, FIXED_BYTES,
 };
 use crate::app::progress::Progress;
 use crate::app::stages::{Stage, Stages};
@@ -173,10 +173,19 @@ pub const DENSE_ADVICE: &str = "use --method csrbf (compactly supported, sparse)
 pub fn check(comm: &dyn Comm, kernel: &Kernel, n: usize, a: &FitArgs) -> Result<()> {
     let system = n + kernel.poly_count();
     let lower = lower_for(a.solver, kernel, system);
+    let panel = estimate_panel(a.panel, a.solver, system);
+    let (ranks, mb) = (comm.size(), |b: f64| (b / 1e6).round());
+    let rows = dense_matrix_bytes(system, ranks, a.precision, lower);
     check_memory(
         comm,
-        dense_fit_bytes(system, comm.size(), a.precision, lower, estimate_panel(a.panel, a.solver, system)),
-        &format!("the dense system of {system} rows ({n} points)"),
+        dense_fit_bytes(system, ranks, a.precision, lower, panel),
+        &format!(
+            "the dense system of {system} rows ({n} points; per rank its rows {} MB, the solver's panels \
+             {} MB and {} MB for the libraries and MPI's buffers)",
+            mb(rows),
+            mb(panel_bytes(system, ranks, panel)),
+            mb(FIXED_BYTES)
+        ),
         DENSE_ADVICE,
     )
 }
