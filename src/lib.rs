@@ -22,6 +22,7 @@ pub mod cli;
 pub mod contour;
 pub mod error;
 pub mod frep;
+pub mod graph;
 pub mod grid;
 pub mod io;
 pub mod linalg;

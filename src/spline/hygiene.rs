@@ -103,16 +103,15 @@ pub fn isolated_points(points: &[f64]) -> Vec<usize> {
         None => (0..n).collect(),
     };
     let mut isolated: Vec<usize> = candidates.into_par_iter().filter(|&i| kth(i) > threshold).collect();
-    // cubes as wide as the threshold: points in cubes that do not touch are farther apart
-    let wide: Option<Vec<[i64; 3]>> = cells.as_ref().map(|_| {
-        points
+    // where the lattice can be numbered: cubes as wide as the threshold, so that points in cubes
+    // that do not touch are farther apart
+    if cells.is_some() {
+        let wide: Vec<[i64; 3]> = points
             .chunks_exact(3)
             .map(|p| std::array::from_fn(|d| ((p[d] - lo[d]) / threshold).floor() as i64))
-            .collect()
-    });
-    if let Some(wide) = &wide {
+            .collect();
         let most = ((STRAY_GROUP_SHARE * n as f64) as usize).max(k);
-        isolated.extend(small_parts(wide, most));
+        isolated.extend(small_parts(&wide, most));
         isolated.sort_unstable();
         isolated.dedup();
     }
@@ -127,28 +126,19 @@ fn small_parts(cells: &[[i64; 3]], most: usize) -> Vec<usize> {
         let next = index.len();
         index.entry(*c).or_insert(next);
     }
-    let mut parent: Vec<usize> = (0..index.len()).collect();
-    fn root(parent: &mut [usize], mut i: usize) -> usize {
-        while parent[i] != i {
-            parent[i] = parent[parent[i]];
-            i = parent[i];
-        }
-        i
-    }
-    for (c, &i) in &index {
-        for d in 0..27 {
+    let touching = index.iter().flat_map(|(c, &i)| {
+        let index = &index;
+        (0..27).filter_map(move |d| {
             let off = [d % 3, d / 3 % 3, d / 9].map(|v| v as i64 - 1);
-            if let Some(&j) = index.get(&[c[0] + off[0], c[1] + off[1], c[2] + off[2]]) {
-                let (a, b) = (root(&mut parent, i), root(&mut parent, j));
-                parent[a.max(b)] = a.min(b);
-            }
-        }
-    }
-    let part: Vec<usize> = cells.iter().map(|c| root(&mut parent, index[c])).collect();
-    let mut size: HashMap<usize, usize> = HashMap::new();
-    part.iter().for_each(|&p| *size.entry(p).or_default() += 1);
-    let largest = size.values().copied().max().unwrap_or(0);
-    (0..cells.len()).filter(|&i| size[&part[i]] <= most && size[&part[i]] < largest).collect()
+            index.get(&[c[0] + off[0], c[1] + off[1], c[2] + off[2]]).map(|&j| (i, j))
+        })
+    });
+    let (label, count) = crate::graph::components(index.len(), touching);
+    let part: Vec<usize> = cells.iter().map(|c| label[index[c]]).collect();
+    let mut size = vec![0usize; count];
+    part.iter().for_each(|&p| size[p] += 1);
+    let largest = size.iter().copied().max().unwrap_or(0);
+    (0..cells.len()).filter(|&i| size[part[i]] <= most && size[part[i]] < largest).collect()
 }
 
 /// The most points whose distances set the median of [`isolated_points`].

@@ -93,6 +93,7 @@ use faer::Par;
 
 use super::normals::dist2;
 use crate::error::{Error, Result};
+use crate::graph::components;
 use crate::linalg::sparse::{SparseCholesky, SpdSolve, SymCsr};
 use crate::par::{agree, Comm};
 
@@ -142,38 +143,6 @@ fn unit_between(points: &[f64], i: usize, j: usize) -> ([f64; 3], f64) {
     } else {
         ([0.0; 3], 0.0)
     }
-}
-
-/// Union-find root with path halving.
-fn root(parent: &mut [usize], mut i: usize) -> usize {
-    while parent[i] != i {
-        parent[i] = parent[parent[i]];
-        i = parent[i];
-    }
-    i
-}
-
-/// Labels 0..count of the connected components of `edges` over `n` vertices, numbered in the
-/// order of their smallest vertex.
-fn components(n: usize, edges: impl Iterator<Item = (usize, usize)>) -> (Vec<usize>, usize) {
-    let mut parent: Vec<usize> = (0..n).collect();
-    for (a, b) in edges {
-        let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
-        if ra != rb {
-            parent[ra.max(rb)] = ra.min(rb);
-        }
-    }
-    let mut label = vec![usize::MAX; n];
-    let mut count = 0;
-    for i in 0..n {
-        let r = root(&mut parent, i);
-        if label[r] == usize::MAX {
-            label[r] = count;
-            count += 1;
-        }
-        label[i] = label[r];
-    }
-    (label, count)
 }
 
 /// The undirected edges (i < j) of the graph of the first `k` of each point's `kmax` neighbours.
