@@ -69,8 +69,8 @@ pub const SAMPLED_ROWS: usize = 4096;
 /// stored entries of each rank's rows estimated from at most [`SAMPLED_ROWS`] of them evenly
 /// spread (the entries of a row are its neighbours within the support that come before it in the
 /// order, so they depend on the rank's place in the order). `what` names the fit in the message.
-/// Collective.
-pub fn check_before(run: &Run<'_>, kernel: &Kernel, prep: &Prepared, what: &str) -> Result<()> {
+/// Returns the octree of the centres, for [`fit`] to take. Collective.
+pub fn check_before(run: &Run<'_>, kernel: &Kernel, prep: &Prepared, what: &str) -> Result<Octree> {
     let Run { args: a, comm, .. } = *run;
     let support = kernel.is_compact().expect("a compactly supported kernel");
     let centres = &prep.centres;
@@ -98,17 +98,28 @@ pub fn check_before(run: &Run<'_>, kernel: &Kernel, prep: &Prepared, what: &str)
             mean[0] / mean[1].max(1.0)
         ),
         "use a smaller --support, more ranks (with mumps) or fewer points",
-    )
+    )?;
+    Ok(tree)
 }
 
-/// Fits the compactly supported spline of `kernel` to the prepared points. Collective.
-pub fn fit(run: &Run<'_>, kernel: Kernel, prep: &Prepared, stages: &mut Stages) -> Result<Fitted> {
+/// Fits the compactly supported spline of `kernel` to the prepared points; `tree`: the octree of
+/// their centres where the caller built it ([`check_before`]). Collective.
+pub fn fit(
+    run: &Run<'_>,
+    kernel: Kernel,
+    prep: &Prepared,
+    tree: Option<Octree>,
+    stages: &mut Stages,
+) -> Result<Fitted> {
     let Run { args: a, comm, threads, .. } = *run;
     let support = kernel.is_compact().expect("a compactly supported kernel");
     let solver = resolve(a.sparse_solver, comm.size())?;
     let (centres, values) = (&prep.centres, &prep.values);
     let n = values.len();
-    let tree = stages.time(Stage::Tree, || Octree::new(centres, a.leaf));
+    let tree = match tree {
+        Some(t) => t,
+        None => stages.time(Stage::Tree, || Octree::new(centres, a.leaf)),
+    };
     let tree_stats = tree.stats();
     let rows: Vec<usize> = block_rows(n, comm.size(), comm.rank()).collect();
     let (lower, row_stats) =

@@ -164,9 +164,11 @@ pub fn fit(
     coarse_points: usize,
     stages: &mut Stages,
 ) -> Result<(Fitted, SurfaceSummary)> {
-    let t0 = Instant::now();
     // level 1's sparse factor is checked first: a refusal after level 0 would waste its solve
-    super::compact::check_before(run, &kernel, prep, "level 1 of the two-level fit")?;
+    let tree = stages.time(Stage::Tree, || {
+        super::compact::check_before(run, &kernel, prep, "level 1 of the two-level fit")
+    })?;
+    let t0 = Instant::now();
     // level 0 has its own stage table: its stages would otherwise count twice in the run's
     let mut inner = Stages::default();
     let keep = even_subsample(&prep.centres, coarse_points);
@@ -195,7 +197,8 @@ pub fn fit(
     }
     let coarse_seconds = t0.elapsed().as_secs_f64();
     stages.add(Stage::Coarse, coarse_seconds);
-    let level1 = super::compact::fit(run, kernel, &top, stages)?;
+    // the same centres as `prep`'s (only the values differ): the octree is theirs
+    let level1 = super::compact::fit(run, kernel, &top, Some(tree), stages)?;
     let mut figures = level1.figures;
     figures.push(("coarse_points".into(), keep.len().to_string()));
     figures.push(("coarse_rows".into(), rows.to_string()));

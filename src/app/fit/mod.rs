@@ -403,12 +403,12 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         let mut fit_with = |p: &Prepared, first: Option<&dense::KeptFactor>, stages: &mut Stages| match method
         {
             Method::Dense | Method::Auto => dense::refit(&run, kernel, p, first, stages),
-            Method::Csrbf => compact::fit(&run, kernel, p, stages),
+            Method::Csrbf => compact::fit(&run, kernel, p, None, stages),
         };
         // a first fit that may be followed by a second keeps its factor for it
         let mut fitted = match method {
             Method::Dense | Method::Auto => dense::fit(&run, kernel, fit_prep, off, &mut stages)?,
-            Method::Csrbf => compact::fit(&run, kernel, fit_prep, &mut stages)?,
+            Method::Csrbf => compact::fit(&run, kernel, fit_prep, None, &mut stages)?,
         };
         if let Some(c) = constrained.as_mut() {
             // the second fits append at most as many centres as the ranks have room for
