@@ -12,34 +12,21 @@ fn valid_triangles(mesh: &TriMesh) -> impl Iterator<Item = [u32; 3]> + '_ {
     mesh.triangles.iter().copied().filter(move |t| t.iter().all(|&v| (v as usize) < n))
 }
 
-fn find(parent: &mut [u32], mut x: u32) -> u32 {
-    while parent[x as usize] != x {
-        let grand = parent[parent[x as usize] as usize];
-        parent[x as usize] = grand;
-        x = grand;
-    }
-    x
-}
-
 /// Number of connected components, two triangles being connected when they
 /// share a vertex. Vertices used by no triangle are not counted.
 pub fn connected_components(mesh: &TriMesh) -> usize {
     let n = mesh.vertices.len();
-    let mut parent: Vec<u32> = (0..n as u32).collect();
     let mut used = vec![false; n];
     for t in valid_triangles(mesh) {
         for &v in &t {
             used[v as usize] = true;
         }
-        for &v in &t[1..] {
-            let r0 = find(&mut parent, t[0]);
-            let r = find(&mut parent, v);
-            // Linking the larger root under the smaller keeps this deterministic.
-            let (lo, hi) = if r < r0 { (r, r0) } else { (r0, r) };
-            parent[hi as usize] = lo;
-        }
     }
-    (0..n as u32).filter(|&v| used[v as usize] && find(&mut parent, v) == v).count()
+    let edges =
+        valid_triangles(mesh).flat_map(|t| [(t[0] as usize, t[1] as usize), (t[0] as usize, t[2] as usize)]);
+    let (label, _) = crate::graph::components(n, edges);
+    let mut seen = vec![false; n];
+    (0..n).filter(|&v| used[v] && !std::mem::replace(&mut seen[label[v]], true)).count()
 }
 
 /// True when every undirected edge is used by exactly two triangles, once in

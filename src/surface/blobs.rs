@@ -296,14 +296,8 @@ impl Lattice {
             }
         }
         first_run.push(runs.len());
-        let mut parent: Vec<usize> = (0..runs.len()).collect();
-        fn root(parent: &mut [usize], mut r: usize) -> usize {
-            while parent[r] != r {
-                parent[r] = parent[parent[r]];
-                r = parent[r];
-            }
-            r
-        }
+        // runs of neighbouring rows that overlap, merged by sweeping both rows' runs in x order
+        let mut joins = Vec::new();
         for row in 0..ny * nz {
             let (y, z) = (row % ny, row / ny);
             let below = [(y > 0).then(|| row - 1), (z > 0).then(|| row - ny)];
@@ -312,8 +306,7 @@ impl Lattice {
                 while a < first_run[row + 1] && b < first_run[other + 1] {
                     let ((s, e), (t, f)) = (runs[a], runs[b]);
                     if s < f && t < e {
-                        let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
-                        parent[ra.max(rb)] = ra.min(rb);
+                        joins.push((a, b));
                     }
                     if e < f {
                         a += 1;
@@ -323,18 +316,13 @@ impl Lattice {
                 }
             }
         }
+        // runs are numbered in node order, so their components are numbered by first node
+        let (of_run, count) = crate::graph::components(runs.len(), joins.into_iter());
         let mut label = vec![usize::MAX; self.len()];
-        let mut of_root = vec![usize::MAX; runs.len()];
-        let mut count = 0;
         for row in 0..ny * nz {
             for r in first_run[row]..first_run[row + 1] {
-                let top = root(&mut parent, r);
-                if of_root[top] == usize::MAX {
-                    of_root[top] = count;
-                    count += 1;
-                }
                 let (s, e) = runs[r];
-                label[row * nx + s..row * nx + e].fill(of_root[top]);
+                label[row * nx + s..row * nx + e].fill(of_run[r]);
             }
         }
         (label, count)
