@@ -391,6 +391,10 @@ pub struct SliceArgs {
     /// sweeping along AXIS while turning about a hinge line outside the mesh: non-parallel).
     #[arg(long, default_value = "z:40", value_name = "SPEC", value_parser = with(PlaneFamily::parse))]
     pub planes: PlaneFamily,
+    /// Also write the run's figures (planes, slices, contours, points, the cuts merged, chains
+    /// joined, crossings, stage seconds) as `key,value` CSV to this file.
+    #[arg(long, value_name = "FILE")]
+    pub timings: Option<PathBuf>,
 }
 
 #[derive(Debug, Args)]

@@ -905,3 +905,192 @@ fn contours_bulging_past_their_box_get_a_grown_grid_and_a_closed_surface() {
         assert_eq!(text.contains("the solid reaches the grid's faces"), !closed, "{text}");
     }
 }
+
+/// A `slice plane` line of section `sec` with its axes scaled by `su` and `sv`, and the points
+/// divided by them: the same points in space.
+fn scaled_plane_text(sections: &[Section], su: f64, sv: f64) -> String {
+    let mut text = String::new();
+    for sec in sections {
+        let (o, u, v) = (sec.origin, sec.frame.x_axis * su, sec.frame.y_axis * sv);
+        text += &format!(
+            "slice plane {:?} {:?} {:?}  {:?} {:?} {:?}  {:?} {:?} {:?}\n",
+            o.x, o.y, o.z, u.x, u.y, u.z, v.x, v.y, v.z
+        );
+        for c in &sec.contours {
+            text += "contour\n";
+            for p in c {
+                text += &format!("{:?} {:?}\n", p[0] / su, p[1] / sv);
+            }
+        }
+    }
+    text
+}
+
+/// The cow's mesh with a second copy of it `shift` higher in z, and a vertical square sheet
+/// (two triangles, no volume) `apart` beyond its largest x, over its whole height: OBJ text.
+fn cow_scene(shift: Option<f64>, sheet: bool) -> (String, f64, f64) {
+    let cow = common::load_mesh(Path::new(common::COW));
+    let (zlo, zhi) =
+        cow.vertices.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p[2]), b.max(p[2])));
+    let xhi = cow.vertices.iter().fold(f64::NEG_INFINITY, |a, p| a.max(p[0]));
+    let mut v: Vec<[f64; 3]> = cow.vertices.clone();
+    let mut t: Vec<[u32; 3]> = cow.triangles.clone();
+    if let Some(dz) = shift {
+        let n = v.len() as u32;
+        v.extend(cow.vertices.iter().map(|p| [p[0], p[1], p[2] + dz]));
+        t.extend(cow.triangles.iter().map(|f| [f[0] + n, f[1] + n, f[2] + n]));
+    }
+    if sheet {
+        let (n, x) = (v.len() as u32, xhi + 0.3 * (zhi - zlo));
+        v.extend([[x, 0.0, zlo - 0.1], [x, 1.0, zlo - 0.1], [x, 1.0, zhi + 0.1], [x, 0.0, zhi + 0.1]]);
+        t.extend([[n, n + 1, n + 2], [n, n + 2, n + 3]]);
+    }
+    let mut text = String::new();
+    for p in &v {
+        text += &format!("v {:?} {:?} {:?}\n", p[0], p[1], p[2]);
+    }
+    for f in &t {
+        text += &format!("f {} {} {}\n", f[0] + 1, f[1] + 1, f[2] + 1);
+    }
+    (text, zlo, zhi)
+}
+
+#[test]
+fn sections_that_would_be_misread_are_refused_named_or_read_as_written() {
+    let dir = common::temp_dir("contours-misread");
+    let cow = dir.join("cow.txt");
+    common::run_ok(0, &["slice", common::COW, "--out", s(&cow), "--planes", "z:6"]);
+    let sections = format::read(&cow).unwrap();
+    let grid = ["--grid", "30", "--no-preview"];
+    let rebuild = |input: &Path, name: &str| {
+        let out = dir.join(name);
+        common::run(0, &[&["contours", s(input), "--out", s(&out)][..], &grid[..]].concat())
+    };
+
+    // axes of any length place a point (a, b) at o + a u + b v: axes 2 and 4 units long with the
+    // coordinates halved and quartered are the same points, so the same solid to the bit
+    let scaled = dir.join("scaled.txt");
+    std::fs::write(&scaled, scaled_plane_text(&sections, 2.0, 4.0)).unwrap();
+    let unit = dir.join("unit.txt");
+    std::fs::write(&unit, scaled_plane_text(&sections, 1.0, 1.0)).unwrap();
+    assert!(rebuild(&unit, "unit").status.success());
+    assert!(rebuild(&scaled, "scaled").status.success());
+    let ply = |name: &str| std::fs::read(dir.join(format!("{name}.ply"))).unwrap();
+    assert!(!common::load_mesh(&dir.join("unit.ply")).triangles.is_empty());
+    assert!(ply("unit") == ply("scaled"), "axes scaled with their coordinates changed the solid");
+
+    // the fourth slice's plane turned 60 degrees about its own x line: it meets the third plane
+    // inside the third contour, which is refused, naming both slices
+    let mut tilted = sections.clone();
+    let (c, s60) = (0.5, 0.75f64.sqrt());
+    tilted[3].frame = DMat3::from_cols(DVec3::X, DVec3::new(0.0, c, s60), DVec3::new(0.0, -s60, c));
+    let tilted_path = dir.join("tilted.txt");
+    write_sections(&tilted_path, &tilted);
+    let read_back = std::fs::read_to_string(&tilted_path).unwrap();
+    let line_of = |k: usize| {
+        read_back
+            .lines()
+            .enumerate()
+            .filter(|(_, l)| l.starts_with("slice"))
+            .nth(k)
+            .map(|(i, _)| i + 1)
+            .unwrap()
+    };
+    let out = rebuild(&tilted_path, "tilted");
+    let said = String::from_utf8_lossy(&out.stderr).to_string();
+    assert_eq!(out.status.code(), Some(1), "{said}");
+    assert!(
+        said.contains(&format!(
+            "line {}: this slice's plane crosses the previous one (line {}) within the contours",
+            line_of(3),
+            line_of(2)
+        )),
+        "{said}"
+    );
+    assert!(!dir.join("tilted.ply").exists());
+
+    // the cow a hundred orders of magnitude smaller: its caps would underflow, refused
+    let tiny: Vec<Section> = sections
+        .iter()
+        .map(|sec| Section {
+            origin: sec.origin * 1e-100,
+            contours: sec
+                .contours
+                .iter()
+                .map(|c| c.iter().map(|p| [p[0] * 1e-100, p[1] * 1e-100]).collect())
+                .collect(),
+            ..sec.clone()
+        })
+        .collect();
+    let tiny_path = dir.join("tiny.txt");
+    write_sections(&tiny_path, &tiny);
+    let out = rebuild(&tiny_path, "tiny");
+    let said = String::from_utf8_lossy(&out.stderr).to_string();
+    assert_eq!(out.status.code(), Some(1), "{said}");
+    assert!(said.contains("the contours' extent is not representable"), "{said}");
+
+    // two cows one above the other, the second 2 heights up: the planes in the empty height
+    // between them are counted and named (the contours would join the cows across it)
+    let (_, zlo, zhi) = cow_scene(None, false);
+    let height = zhi - zlo;
+    let (text, _, _) = cow_scene(Some(2.0 * height), false);
+    let two_cows = dir.join("two.obj");
+    std::fs::write(&two_cows, text).unwrap();
+    let (cut, csv) = (dir.join("two.txt"), dir.join("two.csv"));
+    let said = common::run_ok(
+        0,
+        &["slice", s(&two_cows), "--out", s(&cut), "--planes", "z:20", "--timings", s(&csv)],
+    );
+    // planes at zlo + (k + 1/2) 3h / 20; those strictly between zhi and zlo + 2h meet nothing
+    let empty = (0..20)
+        .map(|k| zlo + (k as f64 + 0.5) * 3.0 * height / 20.0)
+        .filter(|&z| z > zhi && z < zlo + 2.0 * height)
+        .count();
+    assert!(empty >= 4, "{empty}");
+    assert_eq!(figure(&csv, "planes_between_missing_the_mesh"), empty.to_string());
+    assert!(said.contains(&format!("warning: {}: {empty} of the planes between", cut.display())), "{said}");
+
+    // the cow beside a sheet without volume: each plane's cut of the sheet is a contour without
+    // area, left out and counted, so that the file reconstructs (its points on one line made the
+    // slice's system singular)
+    let (text, zlo, zhi) = cow_scene(None, true);
+    // the planes through the cow (the box reaches 0.1 beyond it, the sheet's ends)
+    let through_cow = (0..10)
+        .map(|k| zlo - 0.1 + (k as f64 + 0.5) * (zhi - zlo + 0.2) / 10.0)
+        .filter(|&z| z > zlo && z < zhi)
+        .count();
+    let sheet = dir.join("sheet.obj");
+    std::fs::write(&sheet, text).unwrap();
+    let (cut, csv) = (dir.join("sheet.txt"), dir.join("sheet.csv"));
+    common::run_ok(0, &["slice", s(&sheet), "--out", s(&cut), "--planes", "z:10", "--timings", s(&csv)]);
+    // (a cut whose middle point lies next to an end is merged into two points, left out as ever)
+    let flat: usize = figure(&csv, "flat_contours").parse().unwrap();
+    assert!((1..=10).contains(&flat), "{flat}");
+    assert_eq!(figure(&csv, "slices"), through_cow.to_string());
+    let written = format::read(&cut).unwrap();
+    assert!(written
+        .iter()
+        .flat_map(|sec| &sec.contours)
+        .all(|c| !volspline::contour::planes::without_area(c)));
+    assert_eq!(
+        written.iter().map(|sec| sec.contours.len()).sum::<usize>().to_string(),
+        figure(&csv, "contours")
+    );
+    assert!(rebuild(&cut, "sheet").status.success());
+
+    // an output naming a directory is refused before the cut; a point file is not a mesh
+    let nodir = format!("{}/", dir.join("nodir").display());
+    let out = common::run(0, &["slice", common::COW, "--out", &nodir]);
+    let said = String::from_utf8_lossy(&out.stderr).to_string();
+    assert_eq!(out.status.code(), Some(2), "{said}");
+    assert!(
+        said.contains("expected the name of the contour file to write") && !said.contains("planes"),
+        "{said}"
+    );
+    let points = dir.join("cow.xyz");
+    std::fs::write(&points, "0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 1 1\n").unwrap();
+    let out = common::run(0, &["slice", s(&points), "--out", s(&dir.join("p.txt"))]);
+    let said = String::from_utf8_lossy(&out.stderr).to_string();
+    assert_eq!(out.status.code(), Some(1), "{said}");
+    assert!(said.contains("cow.xyz: file extension '.xyz': a mesh file"), "{said}");
+}

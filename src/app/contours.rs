@@ -194,7 +194,8 @@ pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let fits = stages.time(Stage::Solve, || {
         solve_sections(comm, &a.input, &sections, &a.kernel, a.carrier, a.merge_tol)
     })?;
-    super::finite::check_sections(&fits, &lo, &hi)?;
+    let lines: Vec<usize> = sections.iter().map(|s| s.line).collect();
+    super::finite::check_sections(&a.input, &lines, &fits, &lo, &hi)?;
     let max_residual = fits.iter().map(|f| f.residual).fold(0.0, f64::max);
     let max_abs = fits.iter().map(|f| f.max_abs_at_points).fold(0.0, f64::max);
     let merged: usize = fits.iter().map(|f| f.merged).sum();

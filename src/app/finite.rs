@@ -16,6 +16,8 @@
 //! negative). The surface is still the fitted one (curvature tests use such fits), so this is a
 //! warning in the report and on standard error, not a refusal.
 
+use std::path::Path;
+
 use super::fit::Fitted;
 use crate::contour::SectionFit;
 use crate::error::{Error, Result};
@@ -111,18 +113,29 @@ pub fn check_bounded(model: &Model) -> Option<String> {
 
 /// Refuses contour sections whose solution or residual is not finite, naming the first such slice
 /// and the data's coordinates. Identical on every rank (every rank holds every section).
-pub fn check_sections(fits: &[SectionFit], lo: &[f64], hi: &[f64]) -> Result<()> {
+/// `lines`: the line of the contour file `path` that opens each section.
+pub fn check_sections(
+    path: &Path,
+    lines: &[usize],
+    fits: &[SectionFit],
+    lo: &[f64],
+    hi: &[f64],
+) -> Result<()> {
     let bad = fits.iter().position(|f| {
         let s = &f.spline;
         !f.residual.is_finite() || !s.weights.iter().chain(&s.poly).all(|v| v.is_finite())
     });
     let Some(i) = bad else { return Ok(()) };
-    Err(Error::Numerical(format!(
-        "the solution of slice {i} is not finite (residual {:e}): the data's coordinates reach {:e}, \
-         beyond what the solve can represent; rescale the data",
-        fits[i].residual,
-        reach(lo).max(reach(hi))
-    )))
+    Err(Error::input(
+        path,
+        format!("line {}", lines[i]),
+        format!(
+            "the solution of this slice's spline is not finite (residual {:e}): the data's coordinates reach \
+             {:e}, beyond what the solve can represent; rescale the data",
+            fits[i].residual,
+            reach(lo).max(reach(hi))
+        ),
+    ))
 }
 
 /// Refuses a grid whose origin or spacing is not finite, or on whose corners `field` is not finite
@@ -133,7 +146,7 @@ pub fn check_grid_field(comm: &dyn Comm, field: &dyn Field, grid: &Grid) -> Resu
             (0..3).map(|d| grid.origin[d] + grid.spacing[d] * (grid.dims[d] - 1) as f64).collect();
         if grid.origin.iter().chain(&grid.spacing).chain(&far).any(|v| !v.is_finite()) {
             return Err(Error::Usage(format!(
-                "the grid is not representable: origin {:?}, spacing {:?}; choose --bounds nearer the data",
+                "the grid is not representable: origin {:?}, spacing {:?}; choose a smaller --margin, or with eval and morph --bounds nearer the data",
                 grid.origin, grid.spacing
             )));
         }
@@ -148,7 +161,8 @@ pub fn check_grid_field(comm: &dyn Comm, field: &dyn Field, grid: &Grid) -> Resu
         }
         Err(Error::Numerical(format!(
             "f is not finite at the grid's corners (the grid reaches coordinates of {:e}): the carrier's \
-             magnitude overflows so far from the data; choose --bounds nearer the data or rescale it",
+             magnitude overflows so far from the data; choose a smaller --margin (with eval and morph, --bounds \
+             nearer the data) or rescale the data",
             reach(&grid.origin).max(reach(&far))
         )))
     })();
@@ -250,10 +264,12 @@ mod tests {
             residual,
             max_abs_at_points: 0.0,
         };
-        check_sections(&[fit(1e-16, 1.0), fit(0.0, 2.0)], &[0.0; 3], &[1.0; 3]).unwrap();
-        let e = check_sections(&[fit(1e-16, 1.0), fit(f64::NAN, 2.0)], &[0.0; 3], &[1.0; 3]).unwrap_err();
-        assert!(e.to_string().contains("slice 1"), "{e}");
-        assert!(check_sections(&[fit(0.0, f64::INFINITY)], &[0.0; 3], &[1.0; 3]).is_err());
+        let (path, lines) = (Path::new("c.txt"), [1, 7]);
+        check_sections(path, &lines, &[fit(1e-16, 1.0), fit(0.0, 2.0)], &[0.0; 3], &[1.0; 3]).unwrap();
+        let e = check_sections(path, &lines, &[fit(1e-16, 1.0), fit(f64::NAN, 2.0)], &[0.0; 3], &[1.0; 3])
+            .unwrap_err();
+        assert!(e.to_string().contains("c.txt: line 7: the solution of this slice"), "{e}");
+        assert!(check_sections(path, &lines, &[fit(0.0, f64::INFINITY)], &[0.0; 3], &[1.0; 3]).is_err());
     }
 
     #[test]

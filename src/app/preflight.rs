@@ -286,14 +286,33 @@ fn separate_timings(timings: &Path, prefix: &Path, input: Option<&Path>) -> Resu
     }
 }
 
-fn writable_prefix(prefix: &Path) -> Result<()> {
-    let text = prefix.to_string_lossy();
-    if text.is_empty() || text.ends_with('/') || prefix.is_dir() {
+/// Refuses an output file path (`what` it should name, for the message) that is a directory or
+/// ends in a separator, lies in a directory that does not exist or cannot be written, or is also
+/// the `--timings` file or the `input`. Rank 0's check; callers agree on it.
+pub fn writable_file(path: &Path, what: &str, timings: Option<&Path>, input: &Path) -> Result<()> {
+    let text = path.to_string_lossy();
+    if text.is_empty() || text.ends_with('/') || path.is_dir() {
+        return Err(Error::Usage(format!("--out {text}: expected the name of {what}, not a directory")));
+    }
+    if timings.is_some_and(|t| t == path || same_file(t, path)) {
         return Err(Error::Usage(format!(
-            "--out {text}: expected a file prefix such as results/bunny (outputs are PREFIX.model.h5, PREFIX.hdf, PREFIX.ply), not a directory"
+            "--timings {text}: names the output file; give it a name of its own"
         )));
     }
-    let dir = &parent_dir(prefix);
+    if same_file(path, input) {
+        return Err(Error::Usage(format!(
+            "--out {text}: the output would replace the input {}; choose another name",
+            input.display()
+        )));
+    }
+    if let Some(t) = timings {
+        writable_dir(&parent_dir(t))?;
+    }
+    writable_dir(&parent_dir(path))
+}
+
+/// Refuses an output directory that does not exist or in which no file can be created.
+fn writable_dir(dir: &Path) -> Result<()> {
     if !dir.is_dir() {
         return Err(Error::io(
             dir,
@@ -307,6 +326,16 @@ fn writable_prefix(prefix: &Path) -> Result<()> {
     })?;
     let _ = std::fs::remove_file(&probe);
     Ok(())
+}
+
+fn writable_prefix(prefix: &Path) -> Result<()> {
+    let text = prefix.to_string_lossy();
+    if text.is_empty() || text.ends_with('/') || prefix.is_dir() {
+        return Err(Error::Usage(format!(
+            "--out {text}: expected a file prefix such as results/bunny (outputs are PREFIX.model.h5, PREFIX.hdf, PREFIX.ply), not a directory"
+        )));
+    }
+    writable_dir(&parent_dir(prefix))
 }
 
 #[cfg(test)]

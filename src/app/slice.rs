@@ -9,12 +9,36 @@ use crate::contour::planes::{slice_mesh, SliceSummary};
 use crate::error::{Error, Result};
 use crate::io::{self, points};
 use crate::mesh::TriMesh;
-use crate::par::{on_root, Comm};
+use crate::par::{agree, on_root, Comm};
+use crate::spline::hygiene::bounding_box;
+
+/// Why no two planes met the mesh, when its box is flat along an axis.
+fn flat_hint(vertices: &[[f64; 3]]) -> String {
+    let flat: Vec<f64> = vertices.iter().flatten().copied().collect();
+    let (lo, hi) = bounding_box(&flat, 3);
+    match (0..3).find(|&d| !(hi[d] > lo[d])) {
+        Some(d) => format!(" (the mesh is flat: its extent along {} is 0)", ["x", "y", "z"][d]),
+        None => String::new(),
+    }
+}
 
 /// Runs `volspline slice`. Collective (the work is rank 0's).
 pub fn run(a: &SliceArgs, comm: &dyn Comm) -> Result<()> {
     let mut stages = Stages::default();
     let mut summary = None;
+    agree(
+        comm,
+        if comm.rank() == 0 {
+            super::preflight::writable_file(
+                &a.out,
+                "the contour file to write, such as bunny.txt",
+                a.timings.as_deref(),
+                &a.mesh,
+            )
+        } else {
+            Ok(())
+        },
+    )?;
     stages.time(Stage::Slice, || {
         on_root(comm, || {
             let set = points::read_mesh(&a.mesh)?;
@@ -27,11 +51,23 @@ pub fn run(a: &SliceArgs, comm: &dyn Comm) -> Result<()> {
             };
             let (sections, s) = slice_mesh(&mesh, &a.planes.planes(&mesh.vertices));
             if sections.len() < 2 {
-                return Err(Error::Usage(format!(
-                    "only {} of the {} planes meet the mesh; at least two slices are needed",
-                    sections.len(),
-                    s.planes
-                )));
+                let flat = if s.flat > 0 {
+                    format!(" ({} contours without area left out)", s.flat)
+                } else {
+                    String::new()
+                };
+                return Err(Error::input(
+                    &a.mesh,
+                    "",
+                    format!(
+                        "only {} of the {} planes {} meet the mesh in contours with area{flat}; at least two \
+                         slices are needed{}",
+                        sections.len(),
+                        s.planes,
+                        a.planes,
+                        flat_hint(&mesh.vertices)
+                    ),
+                ));
             }
             let header = format!(
                 "volspline contours from {} cut by planes {}\n{} slices, {} contours, {} points",
@@ -68,6 +104,24 @@ pub fn run(a: &SliceArgs, comm: &dyn Comm) -> Result<()> {
             crate::mesh::NEAR_CUT * 100.0
         ));
     }
+    if s.flat > 0 {
+        r.line(format!(
+            "{} contours without area (their points on one line: a sheet of the mesh with no volume, or a face \
+             in the plane) were left out",
+            s.flat
+        ));
+    }
+    if s.gaps > 0 && comm.rank() == 0 {
+        eprintln!(
+            "volspline: warning: {}: {} of the planes between the first and the last slice meet no mesh (the \
+             first is plane {} of {}): the mesh has parts apart along the planes, and `volspline contours` \
+             joins the slices on either side of such a gap into one solid; cut each part by planes of its own",
+            a.out.display(),
+            s.gaps,
+            s.first_gap,
+            s.planes
+        );
+    }
     if s.crossings > 0 && comm.rank() == 0 {
         eprintln!(
             "volspline: warning: {}: the contours cross {} time(s), where the mesh intersects itself (or \
@@ -84,7 +138,9 @@ pub fn run(a: &SliceArgs, comm: &dyn Comm) -> Result<()> {
     r.figure("joined_chains", s.joined);
     r.figure("merged_cuts", s.merged);
     r.figure("contour_crossings", s.crossings);
+    r.figure("flat_contours", s.flat);
+    r.figure("planes_between_missing_the_mesh", s.gaps);
     r.output(&a.out);
-    r.finish(comm, &stages, &|_| Vec::new(), None)?;
+    r.finish(comm, &stages, &|_| Vec::new(), a.timings.as_deref())?;
     Ok(())
 }

@@ -517,9 +517,9 @@ fn cut_open(on_faces: u64, faces: u64, grown: Option<usize>) -> Option<String> {
         let advice = match grown {
             Some(steps) => format!(
                 "the grid grew {steps} step(s) (--margin auto) and stopped at its limit: the solid reaches \
-                 far from the data or is unbounded; --bounds or a fixed --margin sets the box"
+                 far from the data or is unbounded; a fixed --margin (with eval, or --bounds) sets the box"
             ),
-            None => "a larger --margin (or --bounds) takes in the whole solid".to_string(),
+            None => "a larger --margin (with eval, or --bounds) takes in the whole solid".to_string(),
         };
         format!(
             "the solid reaches the grid's faces (f >= 0 at {on_faces} places on the {faces} nodes on them), \

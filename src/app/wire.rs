@@ -77,12 +77,24 @@ impl Wire for SectionFit {
 
 impl Wire for SliceSummary {
     fn put(&self, out: &mut Vec<u8>) {
-        [self.planes, self.slices, self.contours, self.points, self.joined, self.merged, self.crossings]
-            .put(out);
+        [
+            self.planes,
+            self.slices,
+            self.contours,
+            self.points,
+            self.joined,
+            self.merged,
+            self.crossings,
+            self.flat,
+            self.gaps,
+            self.first_gap,
+        ]
+        .put(out);
     }
     fn take(r: &mut Reader<'_>) -> Self {
-        let [planes, slices, contours, points, joined, merged, crossings] = Wire::take(r);
-        SliceSummary { planes, slices, contours, points, joined, merged, crossings }
+        let [planes, slices, contours, points, joined, merged, crossings, flat, gaps, first_gap] =
+            Wire::take(r);
+        SliceSummary { planes, slices, contours, points, joined, merged, crossings, flat, gaps, first_gap }
     }
 }
 

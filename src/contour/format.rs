@@ -10,8 +10,9 @@
 //! contour                                      # another contour in the same slice
 //! ...
 //! slice plane ox oy oz  ux uy uz  vx vy vz     # origin o and in-plane axes u, v: a point
-//!                                              # (a, b) is o + a u + b v (u is normalised and v
-//!                                              # made orthogonal to it; the normal is u x v)
+//!                                              # (a, b) is o + a u + b v (axes of any length,
+//!                                              # such as a pixel spacing, and not necessarily
+//!                                              # orthogonal; the normal is along u x v)
 //! slice omega w1 w2 w3  ox oy oz               # by angular velocities: this frame is
 //!                                              # the previous one turned for one unit of the slice
 //!                                              # parameter at angular velocity w (moving axes,
@@ -21,8 +22,16 @@
 //! Rules: at least two slices; every slice has at least one contour and every contour at least
 //! three points; a point line must follow a `contour` line; the slices are ordered along their
 //! normals (each plane in front of the previous one, by more than a millionth of the diagonal of
-//! all contour points: closer slices are one slice given twice); the first slice cannot be
-//! `omega`.
+//! all contour points: closer slices are one slice given twice); neighbouring planes that are
+//! not parallel meet on a line outside the contours of both (every point of a slice lies behind
+//! the next plane and in front of the previous one); the first slice cannot be `omega`; the
+//! contours' diagonal lies within [`SPREAD`].
+//!
+//! A `plane` slice's axes need not be orthonormal: the slice keeps the orthonormal frame of u and
+//! of v's part orthogonal to u, and its points are taken to that frame's coordinates, a' =
+//! (a u + b v) . u/|u| and b' likewise along the second axis, so each lies at o + a u + b v as
+//! written. Axes orthonormal to 1e-12 are taken as they are, so a file this module wrote reads
+//! back to the bit.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -73,6 +82,8 @@ impl Section {
 pub fn parse(path: &Path, text: &str) -> Result<Vec<Section>> {
     let err = |line: usize, why: String| Error::input(path, format!("line {line}"), why);
     let mut sections: Vec<Section> = Vec::new();
+    // the current slice's map from the file's (a, b) to its orthonormal frame's coordinates
+    let mut to_frame: Option<[[f64; 2]; 2]> = None;
     let mut last_line = 0;
     for (i, raw) in text.lines().enumerate() {
         let line = i + 1;
@@ -108,19 +119,21 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<Section>> {
                 };
                 let (origin, frame, kind) = match kind.as_str() {
                     "z" => {
+                        to_frame = None;
                         let v = expect(1, "slice z Z")?;
                         (DVec3::new(0.0, 0.0, v[0]), DMat3::IDENTITY, "z")
                     }
                     "plane" => {
                         let v = expect(9, "slice plane ox oy oz ux uy uz vx vy vz")?;
-                        let frame =
-                            frame_from_axes(DVec3::new(v[3], v[4], v[5]), DVec3::new(v[6], v[7], v[8]))
-                                .ok_or_else(|| {
-                                    err(line, "the in-plane axes u and v are zero or parallel".into())
-                                })?;
+                        let (u, w) = (DVec3::new(v[3], v[4], v[5]), DVec3::new(v[6], v[7], v[8]));
+                        let frame = frame_from_axes(u, w).ok_or_else(|| {
+                            err(line, "the in-plane axes u and v are zero or parallel".into())
+                        })?;
+                        to_frame = axes_map(&frame, u, w);
                         (DVec3::new(v[0], v[1], v[2]), frame, "plane")
                     }
                     "omega" => {
+                        to_frame = None;
                         let v = expect(6, "slice omega w1 w2 w3 ox oy oz")?;
                         let prev = sections.last().ok_or_else(|| {
                             err(line, "the first slice cannot be 'omega': angular velocities turn the previous frame".into())
@@ -175,11 +188,16 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<Section>> {
                         format!("a point has 2 coordinates in its plane, got {}", v.len()),
                     ));
                 }
-                let c = sections
-                    .last_mut()
-                    .and_then(|s| s.contours.last_mut())
-                    .ok_or_else(|| err(line, "a point before any 'slice' and 'contour' line".into()))?;
-                c.push([v[0], v[1]]);
+                let s =
+                    sections.last_mut().ok_or_else(|| err(line, "a point before any 'slice' line".into()))?;
+                let opened = s.line;
+                let c = s.contours.last_mut().ok_or_else(|| {
+                    err(line, format!("a point before any 'contour' line of the slice of line {opened}"))
+                })?;
+                c.push(match to_frame {
+                    Some([r0, r1]) => [r0[0] * v[0] + r0[1] * v[1], r1[0] * v[0] + r1[1] * v[1]],
+                    None => [v[0], v[1]],
+                });
             }
         }
     }
@@ -195,7 +213,65 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<Section>> {
         ));
     }
     check_apart(path, &sections)?;
+    check_planes_clear(path, &sections)?;
     Ok(sections)
+}
+
+/// The map from a `plane` slice's coordinates (a, b) along the axes `u`, `v` as written to those
+/// of its orthonormal `frame` (rows: a' and b' as combinations of a and b); None when the axes
+/// are orthonormal to 1e-12 already.
+fn axes_map(frame: &DMat3, u: DVec3, v: DVec3) -> Option<[[f64; 2]; 2]> {
+    let map = [[frame.x_axis.dot(u), frame.x_axis.dot(v)], [frame.y_axis.dot(u), frame.y_axis.dot(v)]];
+    let off = (map[0][0] - 1.0).abs().max(map[0][1].abs()).max(map[1][0].abs()).max((map[1][1] - 1.0).abs());
+    (off > 1e-12).then_some(map)
+}
+
+/// The range of the contours' diagonal the model represents: its capped ends take products of
+/// lengths to the fourth power (the sections' values are lengths squared, and the caps square
+/// them again), which stay within double precision's range for diagonals from 1e-60 to 1e60.
+/// Beyond, the caps underflow (the solid runs on past its end slices) or overflow.
+pub const SPREAD: (f64, f64) = (1e-60, 1e60);
+
+/// Refuses neighbouring slices whose planes meet within the contours: between two planes that
+/// are not parallel the solid is interpolated as the plane turns about the line where they meet,
+/// and a point is placed between them by its signs with respect to both, so a contour point in
+/// front of the next plane (or behind the previous one) would be classed beyond its own slice
+/// and that part of the contour lost.
+fn check_planes_clear(path: &Path, sections: &[Section]) -> Result<()> {
+    for pair in sections.windows(2) {
+        let (prev, next) = (&pair[0], &pair[1]);
+        let ahead: Vec<[f64; 2]> = prev
+            .contours
+            .iter()
+            .flatten()
+            .filter(|p| !(next.signed_distance(prev.world(**p)) < 0.0))
+            .copied()
+            .collect();
+        let behind: Vec<[f64; 2]> = next
+            .contours
+            .iter()
+            .flatten()
+            .filter(|p| !(prev.signed_distance(next.world(**p)) > 0.0))
+            .copied()
+            .collect();
+        let (count, first, whose, side) = match (ahead.first(), behind.first()) {
+            (Some(p), _) => (ahead.len(), p, prev.line, "on or in front of this slice's plane"),
+            (None, Some(p)) => (behind.len(), p, next.line, "on or behind the previous slice's plane"),
+            (None, None) => continue,
+        };
+        return Err(Error::input(
+            path,
+            format!("line {}", next.line),
+            format!(
+                "this slice's plane crosses the previous one (line {}) within the contours: {count} point(s) \
+                 of the slice of line {whose} lie {side} (the first at ({}, {})). Between two planes that are \
+                 not parallel the solid turns about the line where they meet, which must pass outside the \
+                 contours of both; add slices between them or turn them less",
+                prev.line, first[0], first[1]
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Slices closer than this fraction of the diagonal of all contour points are refused as the
@@ -217,7 +293,22 @@ fn check_apart(path: &Path, sections: &[Section]) -> Result<()> {
             hi = hi.max(x);
         }
     }
-    let diagonal = (hi - lo).length();
+    let extent = hi - lo;
+    let scale = extent.max_element();
+    let diagonal = if scale > 0.0 { scale * (extent / scale).length() } else { 0.0 };
+    if !(diagonal.is_finite() && diagonal >= SPREAD.0 && diagonal <= SPREAD.1) {
+        let reach = lo.abs().max(hi.abs()).max_element();
+        return Err(Error::input(
+            path,
+            "",
+            format!(
+                "the contours' extent is not representable: their diagonal is {diagonal:e} (coordinates up to \
+                 {reach:e}), outside {:e} to {:e}, where the capped ends' products of lengths to the fourth \
+                 power stay within double precision; rescale the coordinates",
+                SPREAD.0, SPREAD.1
+            ),
+        ));
+    }
     for pair in sections.windows(2) {
         let (prev, s) = (&pair[0], &pair[1]);
         let gap = prev.gap_to(&s.frame, s.origin);
@@ -319,11 +410,49 @@ mod tests {
     }
 
     #[test]
+    fn plane_axes_of_any_length_place_points_at_o_plus_a_u_plus_b_v() {
+        let p = Path::new("axes.txt");
+        // u twice a unit long, v sheared: (a, b) = (1, 1) is o + u + v = (3, 1, 0) + o
+        let text =
+            "slice z 0\ncontour\n0 0\n1 0\n1 1\nslice plane 0 0 1  2 0 0  1 1 0\ncontour\n0 0\n1 0\n1 1\n";
+        let s = parse(p, text).unwrap();
+        let world: Vec<DVec3> = s[1].contours[0].iter().map(|q| s[1].world(*q)).collect();
+        for (got, want) in world.iter().zip([
+            DVec3::new(0.0, 0.0, 1.0),
+            DVec3::new(2.0, 0.0, 1.0),
+            DVec3::new(3.0, 1.0, 1.0),
+        ]) {
+            assert!((*got - want).length() < 1e-14, "{got} against {want}");
+        }
+        // orthonormal axes keep the points' bits
+        let unit = "slice z 0\ncontour\n0 0\n1 0\n1 1\nslice plane 0 0 1  0.6 0.8 0  -0.8 0.6 0\ncontour\n0.1 0.2\n1 0\n1 1\n";
+        assert_eq!(parse(p, unit).unwrap()[1].contours[0][0], [0.1, 0.2]);
+    }
+
+    #[test]
     fn faults_name_their_line() {
         let p = Path::new("bad.txt");
         let cases = [
             ("slice z 0\ncontour\n0 0\n1 0\n0 x\n", "line 5", "not a finite number"),
-            ("slice z 0\n0 0\n", "line 2", "before any"),
+            ("slice z 0\n0 0\n", "line 2", "before any 'contour' line of the slice of line 1"),
+            ("0 0\n", "line 1", "before any 'slice' line"),
+            // a plane turned 60 degrees about the line x = 0.5 of the square below: through it
+            (
+                "slice z 0\ncontour\n0 0\n1 0\n1 1\n0 1\nslice plane 1 0 0.8660254037844386  0.5 0 0.8660254037844386  0 1 0\n\
+                 contour\n-0.5 0\n0.5 0\n0.5 1\n-0.5 1\n",
+                "line 7",
+                "crosses the previous one (line 1) within the contours: 2 point(s) of the slice of line 1",
+            ),
+            (
+                "slice z 0\ncontour\n0 0\n1e-100 0\n1e-100 1e-100\nslice z 1e-100\ncontour\n0 0\n1e-100 0\n1e-100 1e-100\n",
+                "",
+                "not representable: their diagonal is 1.7",
+            ),
+            (
+                "slice z 0\ncontour\n0 0\n1e200 0\n1e200 1e200\nslice z 1e200\ncontour\n0 0\n1e200 0\n1e200 1e200\n",
+                "",
+                "not representable",
+            ),
             ("slice q 0\n", "line 1", "unknown slice kind"),
             ("slice z 0\ncontour\n0 0\n1 0\ncontour\n", "line 5", "at least 3"),
             (

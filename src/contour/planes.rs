@@ -127,6 +127,38 @@ pub struct SliceSummary {
     /// chains across holes could not avoid it), each slice's counted up to
     /// [`COUNTED_PER_SLICE`].
     pub crossings: usize,
+    /// Contours without area left out (their points on one line: a cut through a sheet of the
+    /// mesh with no volume on either side, or along a face lying in the plane).
+    pub flat: usize,
+    /// Planes between the first and the last slice that meet no mesh (where the mesh's parts lie
+    /// apart along the family), and the first of them (1-based, 0 when none).
+    pub gaps: usize,
+    pub first_gap: usize,
+}
+
+/// A contour with less area than this fraction of its bounding box's diagonal squared has none:
+/// its points lie on one line to rounding.
+pub const FLAT_AREA: f64 = 1e-12;
+
+/// Whether a closed polygon in its plane's coordinates encloses no area ([`FLAT_AREA`]).
+pub fn without_area(c: &[[f64; 2]]) -> bool {
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in c {
+        for d in 0..2 {
+            lo[d] = lo[d].min(p[d]);
+            hi[d] = hi[d].max(p[d]);
+        }
+    }
+    let diag2 = (hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2);
+    // the shoelace sum about the first point, which keeps its terms small
+    let area2: f64 = (1..c.len().saturating_sub(1))
+        .map(|i| {
+            let (a, b) =
+                ([c[i][0] - c[0][0], c[i][1] - c[0][1]], [c[i + 1][0] - c[0][0], c[i + 1][1] - c[0][1]]);
+            a[0] * b[1] - a[1] * b[0]
+        })
+        .sum();
+    !(0.5 * area2.abs() > FLAT_AREA * diag2)
 }
 
 /// Closes the chains a plane cut that end on holes of the mesh: from the end of a chain, the
@@ -164,11 +196,14 @@ fn join_open_chains(mut chains: Vec<Vec<[f64; 3]>>) -> Vec<Vec<[f64; 3]>> {
     loops
 }
 
-/// Cuts `mesh` by `planes` into sections (planes that miss the mesh give no slice).
+/// Cuts `mesh` by `planes` into sections (planes that miss the mesh, or whose contours have no
+/// area, give no slice).
 pub fn slice_mesh(mesh: &TriMesh, planes: &[(DVec3, DMat3)]) -> (Vec<Section>, SliceSummary) {
     let mut summary = SliceSummary { planes: planes.len(), ..Default::default() };
     let mut sections = Vec::new();
-    for (o, m) in planes {
+    // the planes that gave a slice
+    let mut met = Vec::new();
+    for (k, (o, m)) in planes.iter().enumerate() {
         let cut = cut_by_plane(mesh, o.to_array(), m.z_axis.to_array());
         summary.joined += cut.open.len();
         summary.merged += cut.merged;
@@ -187,9 +222,13 @@ pub fn slice_mesh(mesh: &TriMesh, planes: &[(DVec3, DMat3)]) -> (Vec<Section>, S
                     .collect()
             })
             .collect();
+        let before = contours.len();
+        let contours: Vec<Vec<[f64; 2]>> = contours.into_iter().filter(|c| !without_area(c)).collect();
+        summary.flat += before - contours.len();
         if contours.is_empty() {
             continue;
         }
+        met.push(k);
         summary.contours += contours.len();
         summary.points += contours.iter().map(Vec::len).sum::<usize>();
         let section = Section { line: 0, origin: *o, frame: *m, kind: "plane", contours };
@@ -197,6 +236,10 @@ pub fn slice_mesh(mesh: &TriMesh, planes: &[(DVec3, DMat3)]) -> (Vec<Section>, S
         sections.push(section);
     }
     summary.slices = sections.len();
+    if let (Some(&first), Some(&last)) = (met.first(), met.last()) {
+        summary.gaps = (last - first + 1) - met.len();
+        summary.first_gap = met.windows(2).find(|w| w[1] > w[0] + 1).map_or(0, |w| w[0] + 2);
+    }
     (sections, summary)
 }
 

@@ -96,6 +96,19 @@ pub fn read_points(path: &Path) -> Result<PointSet> {
 /// Same as read_points but requires at least one triangle (for ground-truth meshes); error
 /// otherwise.
 pub fn read_mesh(path: &Path) -> Result<PointSet> {
+    const MESHES: &str = ".obj or .ply with faces, or .stl";
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    if path.is_dir() {
+        return Err(Error::input(path, "", format!("a directory, not a mesh file ({MESHES})")));
+    }
+    if !matches!(ext.as_str(), "obj" | "ply" | "stl") {
+        let shown = if ext.is_empty() { "none".to_string() } else { format!("'.{ext}'") };
+        return Err(Error::input(
+            path,
+            "",
+            format!("file extension {shown}: a mesh file ({MESHES}) is needed here, with triangles to cut"),
+        ));
+    }
     let set = read_points(path)?;
     if set.triangles.is_empty() {
         return Err(Error::input(
@@ -275,7 +288,8 @@ mod tests {
             assert!(read_points(&path).is_ok());
             match read_mesh(&path) {
                 Err(Error::Input { reason, .. }) => {
-                    assert!(reason.contains("no faces"), "{reason}")
+                    let why = if path.extension().unwrap() == "xyz" { "a mesh file" } else { "no faces" };
+                    assert!(reason.contains(why), "{reason}")
                 }
                 other => panic!("{other:?}"),
             }
