@@ -53,6 +53,11 @@ pub struct Grid {
     pub spacing: [f64; 3],
 }
 
+/// The smallest grid spacing relative to the coordinates of its nodes: 16 units of double
+/// precision's rounding, so that neighbouring nodes, and the surface's vertices between them, are
+/// told apart.
+pub const RESOLVED: f64 = 16.0 * f64::EPSILON;
+
 impl Grid {
     /// A grid covering the box lo..hi. `Longest(n)`: cubic cells, n nodes along the longest side,
     /// the other sides rounded up to whole cells and centred on the box.
@@ -63,10 +68,20 @@ impl Grid {
             return Err(Error::Usage("the grid box is empty or not finite".into()));
         }
         let mut g = Grid { dims: [0; 3], origin: [0.0; 3], spacing: [0.0; 3] };
+        let underflow = |h: f64, d: usize| {
+            Error::Usage(format!(
+                "the grid box is too small: its longest side {longest:e} gives a spacing of {h:e} along {}; \
+                 give a larger box (--bounds)",
+                ["x", "y", "z"][d]
+            ))
+        };
         for d in 0..3 {
             match size {
                 GridSize::Longest(n) => {
                     let h = longest / (n - 1) as f64;
+                    if !(h > 0.0) {
+                        return Err(underflow(h, d));
+                    }
                     let cells = ((ext[d] / h) - 1e-9).ceil().max(1.0) as usize;
                     g.dims[d] = cells + 1;
                     g.spacing[d] = h;
@@ -76,8 +91,24 @@ impl Grid {
                     let e = if ext[d] > 0.0 { ext[d] } else { longest * 1e-3 };
                     g.dims[d] = n[d];
                     g.spacing[d] = e / (n[d] - 1) as f64;
+                    if !(g.spacing[d] > 0.0) {
+                        return Err(underflow(g.spacing[d], d));
+                    }
                     g.origin[d] = 0.5 * (lo[d] + hi[d]) - 0.5 * e;
                 }
+            }
+        }
+        for d in 0..3 {
+            let far = g.origin[d] + g.spacing[d] * (g.dims[d] - 1) as f64;
+            let reach = g.origin[d].abs().max(far.abs());
+            if !(g.spacing[d] >= RESOLVED * reach) || !reach.is_finite() {
+                return Err(Error::Usage(format!(
+                    "the grid's spacing along {} ({:e}) is not resolved at its coordinates (up to {reach:.3e}): \
+                     a spacing below {RESOLVED:e} of them puts nodes on one another, and the surface's vertices \
+                     with them; give a larger box (--bounds) or one nearer the origin (translate the solid)",
+                    ["x", "y", "z"][d],
+                    g.spacing[d]
+                )));
             }
         }
         let nodes = g.dims.iter().map(|&n| n as u128).product::<u128>();
@@ -214,6 +245,23 @@ mod tests {
         let far = g.node(20, 10, 5);
         assert!(g.origin[0] <= 0.0 && far[0] >= 2.0 - 1e-12);
         assert!(g.origin[2] <= 0.0 && far[2] >= 0.5 - 1e-12);
+    }
+
+    #[test]
+    fn grids_whose_nodes_coordinates_cannot_tell_apart_are_refused() {
+        let err = |lo: [f64; 3], hi: [f64; 3], size: GridSize| {
+            Grid::covering(lo, hi, size).unwrap_err().to_string()
+        };
+        // a box of the smallest subnormal: the spacing underflows to 0
+        let e = err([0.0; 3], [5e-324; 3], GridSize::Longest(10));
+        assert!(e.contains("the grid box is too small") && e.contains("spacing of 0e0 along x"), "{e}");
+        let e = err([0.0; 3], [5e-324; 3], GridSize::Each([10, 10, 10]));
+        assert!(e.contains("the grid box is too small"), "{e}");
+        // a unit box at 1e16: a spacing of 0.1 is below the coordinates' rounding
+        let e = err([1e16, 0.0, 0.0], [1e16 + 1.0, 1.0, 1.0], GridSize::Longest(11));
+        assert!(e.contains("spacing along x") && e.contains("not resolved"), "{e}");
+        // at 1e12 the same box is resolved (0.1 is 800 roundings there)
+        assert!(Grid::covering([1e12, 0.0, 0.0], [1e12 + 1.0, 1.0, 1.0], GridSize::Longest(11)).is_ok());
     }
 
     #[test]

@@ -142,7 +142,9 @@ fn contours_at_extreme_scales_are_refused() {
     let out = run(0, &["slice", COW, "--out", s(&cut), "--planes", "z:6"]);
     assert!(out.status.success(), "{}", text(&out));
     let original = std::fs::read_to_string(&cut).unwrap();
-    for (scale, needle) in [(1e150, "not finite"), (1e-200, "spread is not representable")] {
+    for (scale, needle) in
+        [(1e150, "contours' extent is not representable"), (1e-200, "contours' extent is not representable")]
+    {
         let input = dir.join(format!("scaled-{scale:e}.txt"));
         std::fs::write(&input, scaled_contours(&original, scale)).unwrap();
         for ranks in [1, 2] {
@@ -314,6 +316,14 @@ fn edited_models_are_refused() {
                 rewrite_f64(f, "weights", ndarray::Array1::from_elem(n, 1e307).into_dyn());
             },
             "evaluating the spline overflows",
+        ),
+        (
+            "inverted-box",
+            |_, a| {
+                a.file.delete_attr("data_box_lo").unwrap();
+                a.put_f64s("data_box_lo", &[1.0e3, 0.0, 0.0]).unwrap();
+            },
+            "'data_box_lo' and 'data_box_hi' are not a box: along x the low corner 1e3 lies above",
         ),
     ];
     let (dir, model) = fitted_model("hardening-edits");
@@ -1397,4 +1407,67 @@ fn options_that_have_no_effect_on_the_fit_are_named() {
     }
     let (t, _) = fit("acting", 2, &["--off-points", "1", "--blob-choice", "off"]);
     assert!(!t.contains("no effect"), "{t}");
+}
+
+#[test]
+fn eval_render_and_morph_refuse_what_they_cannot_represent_before_any_work() {
+    let (dir, model) = fitted_model("hardening-represent");
+    let input = dir.join("points.xyz");
+    let keep = [input.as_path(), model.as_path()];
+    let m = s(&model);
+    let e_prefix = dir.join("e");
+    let e = s(&e_prefix);
+    for ranks in [1, 2] {
+        // a unit-sized model moved to 1e16: its grid's spacing is below the coordinates' rounding
+        // (it was meshed flat in one plane); at 1e5 it evaluates
+        let far = format!("translate({m},1e16,0,0)");
+        refused(
+            &run(ranks, &["eval", &far, "--out", e, "--grid", "12"]),
+            2,
+            "is not resolved at its coordinates",
+            &dir,
+            &keep,
+        );
+        let near = format!("translate({m},1e5,0,0)");
+        let out = run(ranks, &["eval", &near, "--out", e, "--grid", "12"]);
+        assert!(out.status.success(), "{}", text(&out));
+        for ext in ["hdf", "ply"] {
+            std::fs::remove_file(dir.join(format!("e.{ext}"))).unwrap();
+        }
+        // a box whose spacing underflows (a grid of 0 x 0 x 0 nodes was written)
+        let tiny = ["eval", m, "--out", e, "--grid", "10", "--bounds=0,0,0,5e-324,5e-324,5e-324"];
+        refused(&run(ranks, &tiny), 2, "the grid box is too small", &dir, &keep);
+        // scale factors and radii whose squares underflow (render drew a flat disc of colour)
+        let small = format!("scale({m},1e-170)");
+        let out = run(ranks, &["render", &small, "--out", s(&dir.join("p.png")), "--size", "40x30"]);
+        refused(&out, 2, "a scale factor must lie within 1e-150 to 1e150", &dir, &keep);
+        refused(
+            &run(ranks, &["eval", "ball:0,0,0,1e-300", "--out", e]),
+            2,
+            "ball radius 1e-300 is below 1e-150",
+            &dir,
+            &keep,
+        );
+        // a --timings file naming an input, before any work (the frames were all computed first)
+        let out = run(
+            ranks,
+            &["morph", m, m, "--frames", "3", "--grid", "8", "--out", s(&dir.join("f")), "--timings", m],
+        );
+        refused(&out, 2, "names the input file", &dir, &keep);
+        let out =
+            run(ranks, &["render", m, "--out", s(&dir.join("p.png")), "--size", "40x30", "--timings", m]);
+        refused(&out, 2, "names the input file", &dir, &keep);
+        assert!(!String::from_utf8_lossy(&out.stdout).contains("outputs:"));
+    }
+    // a model given as PREFIX.hdf that the run's volume would replace: refused before the work
+    let as_hdf = dir.join("in.hdf");
+    std::fs::copy(&model, &as_hdf).unwrap();
+    let out = run(0, &["eval", s(&as_hdf), "--out", s(&dir.join("in")), "--grid", "8"]);
+    refused(&out, 2, "would replace the input", &dir, &[&input, &model, &as_hdf]);
+    assert!(!String::from_utf8_lossy(&out.stdout).contains("outputs:"), "{}", text(&out));
+    // a named pipe (nothing writes to it: HDF5's open blocked for ever)
+    let fifo = dir.join("pipe.model.h5");
+    assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    let out = run(0, &["eval", s(&fifo), "--out", e, "--grid", "8"]);
+    refused(&out, 1, "not a regular file", &dir, &[&input, &model, &as_hdf, &fifo]);
 }

@@ -6,7 +6,7 @@ use super::finite::{check_bounded, check_grid_field};
 use super::preflight::check_prefix;
 use super::report::Report;
 use super::stages::{Stage, Stages};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use super::volume::{check_grid, model_grid, throughput_line, write_volume, Volume, VolumeSummary};
 use crate::cli::EvalArgs;
@@ -23,7 +23,9 @@ use crate::surface::support::DataSupport;
 /// Runs `volspline eval`. Collective.
 pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
-    check_prefix(comm, &a.out, a.grid.timings.as_deref(), None)?;
+    let models = a.model.models();
+    let inputs: Vec<&Path> = models.iter().map(PathBuf::as_path).collect();
+    check_prefix(comm, &a.out, a.grid.timings.as_deref(), &inputs)?;
     let text = a.model.to_string();
     let mut r = Report::new("eval", Path::new(&text));
     r.figure("model", &text);

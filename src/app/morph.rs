@@ -49,7 +49,11 @@ pub fn series_json(names: &[String], times: &[f64]) -> String {
 pub fn run(a: &MorphArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
     let frames: Vec<PathBuf> = (0..a.frames).map(|i| frame_prefix(&a.out, i)).collect();
-    check_prefixes(comm, &a.out, &frames, a.grid.timings.as_deref(), None)?;
+    let mut inputs: Vec<PathBuf> = a.a.models();
+    inputs.extend(a.b.models());
+    inputs.extend(a.pairs.iter().cloned());
+    let inputs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+    check_prefixes(comm, &a.out, &frames, a.grid.timings.as_deref(), &inputs)?;
     let subject = format!("{} -> {}", a.a, a.b);
     let mut r = Report::new("morph", Path::new(&subject));
     let (ea, eb) = stages

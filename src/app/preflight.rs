@@ -206,15 +206,11 @@ fn gigabytes(bytes: f64) -> String {
 }
 
 /// Checks on rank 0 that outputs can be written under `prefix` (its directory exists and takes a
-/// new file, and the prefix has a file name), and that the `--timings` file is neither one of the
-/// prefix's outputs nor the input file; agrees on the outcome. Collective.
-pub fn check_prefix(
-    comm: &dyn Comm,
-    prefix: &Path,
-    timings: Option<&Path>,
-    input: Option<&Path>,
-) -> Result<()> {
-    check_prefixes(comm, prefix, &[], timings, input)
+/// new file, and the prefix has a file name), that none of them is one of the `inputs`, and that
+/// the `--timings` file is neither one of the prefix's outputs nor an input; agrees on the
+/// outcome. Collective.
+pub fn check_prefix(comm: &dyn Comm, prefix: &Path, timings: Option<&Path>, inputs: &[&Path]) -> Result<()> {
+    check_prefixes(comm, prefix, &[], timings, inputs)
 }
 
 /// [`check_prefix`] for a command that also writes under the prefixes `more` in the directory of
@@ -225,13 +221,13 @@ pub fn check_prefixes(
     prefix: &Path,
     more: &[PathBuf],
     timings: Option<&Path>,
-    input: Option<&Path>,
+    inputs: &[&Path],
 ) -> Result<()> {
     let local = if comm.rank() == 0 {
         let mut all = std::iter::once(prefix).chain(more.iter().map(PathBuf::as_path));
-        let timings_apart = |t: &Path| all.try_for_each(|p| separate_timings(t, p, input));
+        let timings_apart = |t: &Path| all.try_for_each(|p| separate_timings(t, p, inputs));
         writable_prefix(prefix)
-            .and_then(|()| input.map_or(Ok(()), |i| spares_input(prefix, i)))
+            .and_then(|()| inputs.iter().try_for_each(|i| spares_input(prefix, i)))
             .and_then(|()| timings.map_or(Ok(()), timings_apart))
     } else {
         Ok(())
@@ -264,7 +260,7 @@ fn spares_input(prefix: &Path, input: &Path) -> Result<()> {
     }
 }
 
-fn separate_timings(timings: &Path, prefix: &Path, input: Option<&Path>) -> Result<()> {
+fn separate_timings(timings: &Path, prefix: &Path, inputs: &[&Path]) -> Result<()> {
     let clash = |what: String| {
         Err(Error::Usage(format!("--timings {}: names {what}; give it a name of its own", timings.display())))
     };
@@ -277,7 +273,7 @@ fn separate_timings(timings: &Path, prefix: &Path, input: Option<&Path>) -> Resu
             std::io::Error::new(std::io::ErrorKind::NotFound, "the directory of --timings does not exist");
         return Err(Error::io(dir, &why));
     }
-    if let Some(input) = input.filter(|i| same_file(timings, i)) {
+    if let Some(input) = inputs.iter().find(|i| same_file(timings, i)) {
         return clash(format!("the input file {}", input.display()));
     }
     match prefix_outputs(prefix).find(|o| same_file(timings, o)) {
@@ -288,8 +284,9 @@ fn separate_timings(timings: &Path, prefix: &Path, input: Option<&Path>) -> Resu
 
 /// Refuses an output file path (`what` it should name, for the message) that is a directory or
 /// ends in a separator, lies in a directory that does not exist or cannot be written, or is also
-/// the `--timings` file or the `input`. Rank 0's check; callers agree on it.
-pub fn writable_file(path: &Path, what: &str, timings: Option<&Path>, input: &Path) -> Result<()> {
+/// the `--timings` file or one of the `inputs` (which the `--timings` file may not name either).
+/// Rank 0's check; callers agree on it.
+pub fn writable_file(path: &Path, what: &str, timings: Option<&Path>, inputs: &[&Path]) -> Result<()> {
     let text = path.to_string_lossy();
     if text.is_empty() || text.ends_with('/') || path.is_dir() {
         return Err(Error::Usage(format!("--out {text}: expected the name of {what}, not a directory")));
@@ -299,13 +296,20 @@ pub fn writable_file(path: &Path, what: &str, timings: Option<&Path>, input: &Pa
             "--timings {text}: names the output file; give it a name of its own"
         )));
     }
-    if same_file(path, input) {
+    if let Some(input) = inputs.iter().find(|i| same_file(path, i)) {
         return Err(Error::Usage(format!(
             "--out {text}: the output would replace the input {}; choose another name",
             input.display()
         )));
     }
     if let Some(t) = timings {
+        if let Some(input) = inputs.iter().find(|i| same_file(t, i)) {
+            return Err(Error::Usage(format!(
+                "--timings {}: names the input file {}; give it a name of its own",
+                t.display(),
+                input.display()
+            )));
+        }
         writable_dir(&parent_dir(t))?;
     }
     writable_dir(&parent_dir(path))
@@ -416,12 +420,12 @@ mod tests {
     fn prefixes_must_name_a_writable_file() {
         let dir = std::env::temp_dir().join(format!("volspline-preflight-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        assert!(check_prefix(&Solo, &dir.join("out"), None, None).is_ok());
-        assert!(matches!(check_prefix(&Solo, &dir, None, None).unwrap_err(), Error::Usage(_)));
+        assert!(check_prefix(&Solo, &dir.join("out"), None, &[]).is_ok());
+        assert!(matches!(check_prefix(&Solo, &dir, None, &[]).unwrap_err(), Error::Usage(_)));
         let slash = format!("{}/", dir.display());
-        assert!(matches!(check_prefix(&Solo, Path::new(&slash), None, None).unwrap_err(), Error::Usage(_)));
+        assert!(matches!(check_prefix(&Solo, Path::new(&slash), None, &[]).unwrap_err(), Error::Usage(_)));
         assert!(matches!(
-            check_prefix(&Solo, &dir.join("missing/out"), None, None).unwrap_err(),
+            check_prefix(&Solo, &dir.join("missing/out"), None, &[]).unwrap_err(),
             Error::Io { .. }
         ));
         let _ = std::fs::remove_dir_all(&dir);

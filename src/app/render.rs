@@ -6,7 +6,7 @@
 //! the picture's curvature scale, computed on rank 0 from every pixel), so any number of ranks
 //! and threads gives the same picture.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rayon::prelude::*;
@@ -262,7 +262,14 @@ fn view_warning(solid: &dyn Implicit, view: &View, hits: usize) -> Option<String
 /// Runs `volspline render`. Collective.
 pub fn run(a: &RenderArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
-    agree(comm, if comm.rank() == 0 { check_png_path(&a.out) } else { Ok(()) })?;
+    // the models an expression reads (a text that parses as none is refused by the reader below)
+    let models = Syntax::parse(&a.model).map(|s| s.models()).unwrap_or_default();
+    let inputs: Vec<&Path> = models.iter().map(PathBuf::as_path).collect();
+    let checked = || {
+        check_png_path(&a.out)?;
+        super::preflight::writable_file(&a.out, "a .png file", a.timings.as_deref(), &inputs)
+    };
+    agree(comm, if comm.rank() == 0 { checked() } else { Ok(()) })?;
     let solid = stages.time(Stage::Read, || agree(comm, load_solid(&a.model)))?;
     let view = view_of(&a.view);
     let hits = write_picture(comm, solid.as_ref(), &view, a.view.color, &a.out, &mut stages)?;

@@ -33,7 +33,7 @@ pub fn run(a: &SliceArgs, comm: &dyn Comm) -> Result<()> {
                 &a.out,
                 "the contour file to write, such as bunny.txt",
                 a.timings.as_deref(),
-                &a.mesh,
+                &[&a.mesh],
             )
         } else {
             Ok(())

@@ -91,6 +91,24 @@ impl Syntax {
         Ok(e)
     }
 
+    /// The model files the expression reads, in the order they appear (each once).
+    pub fn models(&self) -> Vec<PathBuf> {
+        fn walk(e: &Syntax, out: &mut Vec<PathBuf>) {
+            match e {
+                Syntax::Model(p) | Syntax::Swap(p, _) => {
+                    if !out.contains(p) {
+                        out.push(p.clone());
+                    }
+                }
+                Syntax::Apply(_, args) => args.iter().for_each(|a| walk(a, out)),
+                Syntax::Carrier(_) | Syntax::Number(_) => {}
+            }
+        }
+        let mut out = Vec::new();
+        walk(self, &mut out);
+        out
+    }
+
     /// The model file when the expression is nothing but one.
     pub fn as_model(&self) -> Option<&PathBuf> {
         match self {
@@ -423,6 +441,18 @@ impl Parser<'_> {
                 if let Some(i) = v.iter().position(|s| !(*s > 0.0)) {
                     return Err(self.error_at(args[1 + i].1, "a scale factor must be positive"));
                 }
+                // the gradient scales by 1/s and its square must stay finite (the pictures' shading
+                // and the curvature square it), the factor's too
+                if let Some(i) = v.iter().position(|s| !(*s >= 1e-150 && *s <= 1e150)) {
+                    return Err(self.error_at(
+                        args[1 + i].1,
+                        &format!(
+                            "a scale factor must lie within 1e-150 to 1e150 (the gradient is scaled by its \
+                             inverse, and squared), not {:e}; rescale the models' data instead",
+                            v[i]
+                        ),
+                    ));
+                }
                 Op::Scale(if n == 2 { [v[0]; 3] } else { [v[0], v[1], v[2]] })
             }
             _ => {
@@ -485,6 +515,8 @@ mod tests {
             ("offset(a.model.h5,1", 20, "expected ',' or ')'"),
             ("scale(a.model.h5,-1)", 18, "positive"),
             ("scale(a.model.h5,1,0,2)", 20, "positive"),
+            ("scale(a.model.h5,1e-170)", 18, "within 1e-150 to 1e150"),
+            ("scale(a.model.h5,1,1,1e-200)", 22, "within 1e-150 to 1e150"),
             ("scale(a.model.h5,1,2)", 1, "factors sx, sy, sz"),
             ("ball:0,0,1", 11, "expected ','"),
             ("ball:0,0,0,-1", 1, "radius"),

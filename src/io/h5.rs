@@ -88,7 +88,7 @@ impl Attrs<'_> {
         if fits {
             return Ok(got);
         }
-        let show = |v: Vec<String>| v.join(" x ");
+        let show = |v: Vec<String>| if v.is_empty() { "scalar (no axes)".to_string() } else { v.join(" x ") };
         let want: Vec<String> = want.iter().map(|w| w.map_or("N".to_string(), |w| w.to_string())).collect();
         Err(self.bad(format!(
             "dataset '{name}' has shape {}, expected {}",
@@ -128,10 +128,20 @@ impl Attrs<'_> {
     pub fn provenance(&self) -> Result<Provenance> {
         let stages = self.str("timing_stages").unwrap_or_default();
         let secs = self.f64s("timing_seconds").unwrap_or_default();
+        let (box_lo, box_hi) = (self.point("data_box_lo")?, self.point("data_box_hi")?);
+        if let Some(d) = (0..3).find(|&d| box_lo[d] > box_hi[d]) {
+            return Err(self.bad(format!(
+                "attributes 'data_box_lo' and 'data_box_hi' are not a box: along {} the low corner {:e} lies \
+                 above the high one {:e}",
+                ["x", "y", "z"][d],
+                box_lo[d],
+                box_hi[d]
+            )));
+        }
         Ok(Provenance {
             input: self.str("input").unwrap_or_default(),
-            box_lo: self.point("data_box_lo")?,
-            box_hi: self.point("data_box_hi")?,
+            box_lo,
+            box_hi,
             points_read: self.int("points_read").unwrap_or(0) as usize,
             duplicates_merged: self.int("duplicates_merged").unwrap_or(0) as usize,
             data_points: self.int("data_points").unwrap_or(0).max(0) as usize,
@@ -165,6 +175,15 @@ pub fn format_of(path: &Path) -> Result<String> {
     }
     if path.is_dir() {
         return Err(Error::input(path, "", format!("a directory, not a model file ({MODEL_FILES})")));
+    }
+    // a pipe or a device would block HDF5's open (a pipe without a writer, forever) and cannot
+    // be read at random as HDF5 reads
+    if !path.metadata().is_ok_and(|m| m.is_file()) {
+        return Err(Error::input(
+            path,
+            "",
+            format!("not a regular file (a pipe or a device), so not a model: HDF5 reads models from files ({MODEL_FILES})"),
+        ));
     }
     super::staging::note_input(path);
     let f = hdf5::File::open(path).map_err(|e| {

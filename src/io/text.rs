@@ -45,6 +45,9 @@ pub fn decode<'a>(path: &Path, bytes: &'a [u8], what: &str) -> Result<Cow<'a, st
 
 /// The file at `path` read and decoded as [`decode`] does.
 pub fn read(path: &Path, what: &str) -> Result<String> {
+    if path.is_dir() {
+        return Err(Error::input(path, "", format!("a directory, not a {what} file")));
+    }
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
     decode(path, &bytes, what).map(Cow::into_owned)
 }

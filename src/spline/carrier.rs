@@ -176,6 +176,12 @@ impl fmt::Display for Carrier {
 /// and the square of 1e150 (1e300) is still below the largest double (about 1.8e308).
 pub const MAX_CARRIER_NUMBER: f64 = 1e150;
 
+/// The smallest radius or semi-axis of a carrier: f_c divides by their squares (an ellipsoid) or
+/// subtracts a coordinate's square from theirs (a ball), and below 1e-150 the square underflows
+/// (a ball of radius 1e-300 would be f_c = -|x - c|^2 to the last bit, zero at its centre only,
+/// and an ellipsoid's 1 / a^2 overflows).
+pub const MIN_CARRIER_LENGTH: f64 = 1e-150;
+
 /// How deeply R-functions may nest in a carrier spec (the parser, the evaluation and the printing
 /// recurse once per level).
 pub const MAX_CARRIER_DEPTH: usize = 64;
@@ -296,6 +302,13 @@ impl Parser<'_> {
                 if v[d] <= 0.0 {
                     return Err(self.error("ball radius must be positive"));
                 }
+                if v[d] < MIN_CARRIER_LENGTH {
+                    return Err(self.error(&format!(
+                        "ball radius {:e} is below {MIN_CARRIER_LENGTH:e}, the smallest whose square is \
+                         representable; rescale the data",
+                        v[d]
+                    )));
+                }
                 Ok(Carrier::Ball { centre: v[..d].to_vec(), radius: v[d] })
             }
             "ellipsoid" | "ellipse" => {
@@ -310,6 +323,12 @@ impl Parser<'_> {
                 }
                 if v[d..].iter().any(|&a| a <= 0.0) {
                     return Err(self.error("ellipsoid semi-axes must be positive"));
+                }
+                if let Some(a) = v[d..].iter().find(|&&a| a < MIN_CARRIER_LENGTH) {
+                    return Err(self.error(&format!(
+                        "ellipsoid semi-axis {a:e} is below {MIN_CARRIER_LENGTH:e}, the smallest whose square is \
+                         representable; rescale the data"
+                    )));
                 }
                 Ok(Carrier::Ellipsoid { centre: v[..d].to_vec(), semi_axes: v[d..].to_vec() })
             }
@@ -368,10 +387,15 @@ mod tests {
             "ellipsoid:0,0,0,1,0,1",
             "ball:a,b,c,d",
             "ball x",
+            "ball:0,0,0,1e-300",
+            "ellipsoid:0,0,0,1,1e-160,1",
         ] {
             let e = Carrier::parse(spec, 3).unwrap_err();
             assert!(matches!(e, Error::Usage(ref m) if m.contains(spec)), "{spec}: {e}");
         }
+        let e = Carrier::parse("ball:0,0,0,1e-300", 3).unwrap_err().to_string();
+        assert!(e.contains("radius 1e-300 is below 1e-150"), "{e}");
+        assert!(Carrier::parse("ball:0,0,0,1e-150", 3).is_ok());
     }
 
     #[test]

@@ -247,7 +247,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
     crate::linalg::gemm::choose_agreed(comm, a.gemm);
     dense::check_layout(a, comm.size())?;
-    check_prefix(comm, &a.out, a.grid.timings.as_deref(), Some(&a.input))?;
+    check_prefix(comm, &a.out, a.grid.timings.as_deref(), &[&a.input])?;
     let raw = stages.time(Stage::Read, || read_points_everywhere(comm, &a.input))?;
     let points_read = raw.len() / 3;
     // the same points on every rank, so the same isolated ones
