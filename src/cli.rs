@@ -541,29 +541,32 @@ impl Cli {
     }
 }
 
-/// Threads per rank when the user gave 0: this node's cores divided by the ranks on it, at least 1,
-/// so that the defaults never oversubscribe the cores.
+/// Threads per rank: for 0 (the default) this node's cores divided by the ranks on it, at least 1,
+/// so that the defaults never oversubscribe the cores; otherwise the count asked for, but at most
+/// the CPUs this process may run on (its affinity mask): more threads would only take turns on
+/// them, and the dense solvers' threads, which wait for each other at every panel, then run
+/// hundreds of times slower (1000 threads on 2 CPUs: 134 s for a 0.07 s solve).
 pub fn default_threads(requested: usize) -> usize {
+    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
     if requested > 0 {
-        return requested;
+        return requested.min(cpus);
     }
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    (cores / ranks_on_this_node()).max(1)
+    (cpus / ranks_on_this_node()).max(1)
 }
 
 /// The warning when `--threads` asks for more threads than the CPUs this process may run on (its
 /// affinity mask, which the launcher sets: Open MPI binds each rank to one core when it starts
-/// two or fewer, `srun` to its `--cpus-per-task`): the threads would share those CPUs, and a
-/// hybrid run would be no faster than one thread a rank. None for the default (0), which counts
-/// only those CPUs.
+/// two or fewer, `srun` to its `--cpus-per-task`): as many threads as those CPUs are started
+/// ([`default_threads`]). None for the default (0), which counts only those CPUs.
 pub fn threads_warning(requested: usize) -> Option<String> {
     let cpus = std::thread::available_parallelism().ok()?.get();
     (requested > cpus).then(|| {
         format!(
             "--threads {requested}, but this rank may run on {cpus} CPU(s) (its affinity mask, as the \
-             launcher set it: Open MPI binds each rank to a core when it starts 2 or fewer), so the \
-             threads share them; start the ranks unbound (mpirun --bind-to none) or with {requested} \
-             CPUs each (mpirun --map-by slot:PE={requested}, srun --cpus-per-task={requested})"
+             launcher set it: Open MPI binds each rank to a core when it starts 2 or fewer), so {cpus} \
+             thread(s) are started: more would only take turns on them; for {requested} threads start the \
+             ranks unbound (mpirun --bind-to none) or with {requested} CPUs each (mpirun --map-by \
+             slot:PE={requested}, srun --cpus-per-task={requested})"
         )
     })
 }

@@ -766,11 +766,12 @@ fn outputs_that_are_inputs_or_each_other_are_refused() {
         let missing = dir.join("missing").join("t.csv");
         let args = ["fit", s(&input), "--out", s(&prefix), "--grid", "8", "--timings", s(&missing)];
         refused(&run(ranks, &args), 1, "the directory of --timings does not exist", &dir, &[&input, &model]);
+        // refused before the work now (it was at the commit: "an input of this run")
         let out = run(
             ranks,
             &["eval", s(&model), "--out", s(&dir.join("e")), "--grid", "8", "--timings", s(&model)],
         );
-        refused(&out, 2, "an input of this run", &dir, &[&input, &model]);
+        refused(&out, 2, "names the input file", &dir, &[&input, &model]);
         assert!(volspline::io::model_file::read_model(&model).is_ok());
         // the scan's own name as the prefix: the mesh PREFIX.ply would be the scan
         let scan = dir.join("scan.ply");
@@ -1212,7 +1213,8 @@ fn directories_and_non_models_are_named_for_what_they_are() {
 #[test]
 fn more_threads_than_the_rank_s_cpus_are_named() {
     // a rank confined to one CPU (as Open MPI binds each of up to 2 ranks, here by taskset) asked
-    // for 2 threads: the threads would share the CPU, and the run says how to start it unbound
+    // for 2 threads: the threads would take turns on the CPU, so one is started, and the run says
+    // how to start it unbound
     let dir = temp_dir("hardening-threads");
     let cow = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/cow-400.xyz");
     for threads in ["2", "1"] {
@@ -1227,7 +1229,8 @@ fn more_threads_than_the_rank_s_cpus_are_named() {
             "volspline: warning: --threads 2, but this rank may run on 1 CPU(s) (its affinity mask, as the launcher set it",
         ) && t.contains("mpirun --bind-to none");
         assert_eq!(warned, threads == "2", "{t}");
-        assert!(t.contains(&format!("threads per rank = {threads}")), "{t}");
+        assert_eq!(t.contains("so 1 thread(s) are started"), threads == "2", "{t}");
+        assert!(t.contains("threads per rank = 1"), "{t}");
     }
 }
 

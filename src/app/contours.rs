@@ -8,7 +8,7 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
-use super::preflight::check_prefix;
+use super::preflight::{check_prefix, MODEL_OUTPUTS};
 use super::render::{preview_view, write_picture};
 use super::report::{run_provenance, Report};
 use super::stages::{Stage, Stages};
@@ -165,7 +165,7 @@ fn contour_crossings(path: &Path, sections: &[Section]) -> (usize, Option<String
 /// Runs `volspline contours`. Collective.
 pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
-    check_prefix(comm, &a.out, a.grid.timings.as_deref(), &[&a.input])?;
+    check_prefix(comm, &a.out, MODEL_OUTPUTS, a.grid.timings.as_deref(), &[&a.input])?;
     let sections = stages.time(Stage::Read, || read_sections_everywhere(comm, &a.input))?;
     let points_read: usize = sections.iter().map(Section::point_count).sum();
     let contours: usize = sections.iter().map(|s| s.contours.len()).sum();

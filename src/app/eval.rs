@@ -3,7 +3,7 @@
 //! reads the small model files itself and all agree on the outcome.
 
 use super::finite::{check_bounded, check_grid_field};
-use super::preflight::check_prefix;
+use super::preflight::{check_prefix, VOLUME_OUTPUTS};
 use super::report::Report;
 use super::stages::{Stage, Stages};
 use std::path::{Path, PathBuf};
@@ -25,7 +25,7 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
     let models = a.model.models();
     let inputs: Vec<&Path> = models.iter().map(PathBuf::as_path).collect();
-    check_prefix(comm, &a.out, a.grid.timings.as_deref(), &inputs)?;
+    check_prefix(comm, &a.out, VOLUME_OUTPUTS, a.grid.timings.as_deref(), &inputs)?;
     let text = a.model.to_string();
     let mut r = Report::new("eval", Path::new(&text));
     r.figure("model", &text);

@@ -15,7 +15,7 @@
 use std::path::{Path, PathBuf};
 
 use super::finite::check_grid_field;
-use super::preflight::check_prefixes;
+use super::preflight::{check_prefixes, SERIES_OUTPUT, VOLUME_OUTPUTS};
 use super::report::Report;
 use super::stages::{Stage, Stages};
 use super::volume::{check_grid, output_path, throughput_line, write_volume, Volume};
@@ -53,7 +53,8 @@ pub fn run(a: &MorphArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     inputs.extend(a.b.models());
     inputs.extend(a.pairs.iter().cloned());
     let inputs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
-    check_prefixes(comm, &a.out, &frames, a.grid.timings.as_deref(), &inputs)?;
+    let writes = [VOLUME_OUTPUTS, SERIES_OUTPUT].concat();
+    check_prefixes(comm, &a.out, &writes, &frames, a.grid.timings.as_deref(), &inputs)?;
     let subject = format!("{} -> {}", a.a, a.b);
     let mut r = Report::new("morph", Path::new(&subject));
     let (ea, eb) = stages
@@ -82,12 +83,25 @@ pub fn run(a: &MorphArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     if let Some(p) = &pairs {
         // each frame solves the two maps side by side, each a bordered system and its LU
         let n = (p.len() + 4) as f64;
-        let need = 2.0 * 2.0 * n * n * 8.0 + super::preflight::FIXED_BYTES;
+        let maps = 2.0 * 2.0 * n * n * 8.0;
+        let fixed = super::preflight::FIXED_BYTES;
+        // fewer pairs only help where their systems are a sizeable part of the need
+        let advice = if maps > 0.1 * fixed {
+            "give fewer pairs or the ranks more memory (fewer ranks per node, --memory-per-rank)"
+        } else {
+            "give the ranks more memory (fewer ranks per node, --memory-per-rank above the fixed part)"
+        };
         super::preflight::check_memory(
             comm,
-            need,
-            &format!("solving the space maps of {} point pairs", p.len()),
-            "give fewer pairs or the ranks more memory (fewer ranks per node, --memory-per-rank)",
+            maps + fixed,
+            &format!(
+                "solving the space maps of {} point pairs ({:.1} MB, beside {:.0} MB for the libraries and MPI's \
+                 buffers)",
+                p.len(),
+                maps / 1e6,
+                fixed / 1e6
+            ),
+            advice,
         )?;
     }
 

@@ -186,10 +186,13 @@ pub fn check_memory_beside(comm: &dyn Comm, held: f64, need: f64, what: &str, ad
         Some((have, source)) if need > have => {
             let beside =
                 if held > 0.0 { format!(" beside the {} it holds", gigabytes(held)) } else { String::new() };
+            // figures that would print alike are printed to more digits, which tell them apart
+            let (mut n, mut h) = (gigabytes(need), gigabytes(have));
+            if n == h {
+                (n, h) = (format!("{:.3} MB", need / 1e6), format!("{:.3} MB", have / 1e6));
+            }
             Err(Error::Memory(format!(
-                "{what} needs about {} per rank, but this rank can have {}{beside} ({source}); {advice}",
-                gigabytes(need),
-                gigabytes(have)
+                "{what} needs about {n} per rank, but this rank can have {h}{beside} ({source}); {advice}"
             )))
         }
         _ => Ok(()),
@@ -209,8 +212,14 @@ fn gigabytes(bytes: f64) -> String {
 /// new file, and the prefix has a file name), that none of them is one of the `inputs`, and that
 /// the `--timings` file is neither one of the prefix's outputs nor an input; agrees on the
 /// outcome. Collective.
-pub fn check_prefix(comm: &dyn Comm, prefix: &Path, timings: Option<&Path>, inputs: &[&Path]) -> Result<()> {
-    check_prefixes(comm, prefix, &[], timings, inputs)
+pub fn check_prefix(
+    comm: &dyn Comm,
+    prefix: &Path,
+    writes: &[&str],
+    timings: Option<&Path>,
+    inputs: &[&Path],
+) -> Result<()> {
+    check_prefixes(comm, prefix, writes, &[], timings, inputs)
 }
 
 /// [`check_prefix`] for a command that also writes under the prefixes `more` in the directory of
@@ -219,15 +228,19 @@ pub fn check_prefix(comm: &dyn Comm, prefix: &Path, timings: Option<&Path>, inpu
 pub fn check_prefixes(
     comm: &dyn Comm,
     prefix: &Path,
+    writes: &[&str],
     more: &[PathBuf],
     timings: Option<&Path>,
     inputs: &[&Path],
 ) -> Result<()> {
     let local = if comm.rank() == 0 {
         let mut all = std::iter::once(prefix).chain(more.iter().map(PathBuf::as_path));
-        let timings_apart = |t: &Path| all.try_for_each(|p| separate_timings(t, p, inputs));
+        let timings_apart = |t: &Path| all.try_for_each(|p| separate_timings(t, p, writes, inputs));
+        let spared = |p: &Path| inputs.iter().try_for_each(|i| spares_input(p, writes, i));
         writable_prefix(prefix)
-            .and_then(|()| inputs.iter().try_for_each(|i| spares_input(prefix, i)))
+            .and_then(|()| {
+                std::iter::once(prefix).chain(more.iter().map(PathBuf::as_path)).try_for_each(spared)
+            })
             .and_then(|()| timings.map_or(Ok(()), timings_apart))
     } else {
         Ok(())
@@ -235,12 +248,18 @@ pub fn check_prefixes(
     agree(comm, local)
 }
 
-/// The names a command may write under a prefix.
-const PREFIX_OUTPUTS: [&str; 6] = [".model.h5", ".hdf", ".ply", ".png", ".trimmed.ply", ".hdf.series"];
+/// The names `fit` and `contours` may write under their prefix.
+pub const MODEL_OUTPUTS: &[&str] = &[".model.h5", ".hdf", ".ply", ".png", ".trimmed.ply"];
 
-/// The outputs under `prefix`, by the names a command may write.
-fn prefix_outputs(prefix: &Path) -> impl Iterator<Item = PathBuf> + '_ {
-    PREFIX_OUTPUTS.iter().map(move |ext| {
+/// The names `eval` writes under its prefix and `morph` under each frame's.
+pub const VOLUME_OUTPUTS: &[&str] = &[".hdf", ".ply", ".trimmed.ply"];
+
+/// The name `morph` writes under its prefix: the time series of the frames.
+pub const SERIES_OUTPUT: &[&str] = &[".hdf.series"];
+
+/// The outputs under `prefix` by the names in `writes`.
+fn prefix_outputs<'a>(prefix: &'a Path, writes: &'a [&str]) -> impl Iterator<Item = PathBuf> + 'a {
+    writes.iter().map(move |ext| {
         let mut name = prefix.as_os_str().to_owned();
         name.push(ext);
         PathBuf::from(name)
@@ -248,8 +267,8 @@ fn prefix_outputs(prefix: &Path) -> impl Iterator<Item = PathBuf> + '_ {
 }
 
 /// Refuses a prefix one of whose outputs is the input (`fit scan.ply --out scan`).
-fn spares_input(prefix: &Path, input: &Path) -> Result<()> {
-    match prefix_outputs(prefix).find(|o| same_file(o, input)) {
+fn spares_input(prefix: &Path, writes: &[&str], input: &Path) -> Result<()> {
+    match prefix_outputs(prefix, writes).find(|o| same_file(o, input)) {
         Some(o) => Err(Error::Usage(format!(
             "--out {}: the output {} would replace the input {}; choose another prefix",
             prefix.display(),
@@ -260,7 +279,7 @@ fn spares_input(prefix: &Path, input: &Path) -> Result<()> {
     }
 }
 
-fn separate_timings(timings: &Path, prefix: &Path, inputs: &[&Path]) -> Result<()> {
+fn separate_timings(timings: &Path, prefix: &Path, writes: &[&str], inputs: &[&Path]) -> Result<()> {
     let clash = |what: String| {
         Err(Error::Usage(format!("--timings {}: names {what}; give it a name of its own", timings.display())))
     };
@@ -276,7 +295,7 @@ fn separate_timings(timings: &Path, prefix: &Path, inputs: &[&Path]) -> Result<(
     if let Some(input) = inputs.iter().find(|i| same_file(timings, i)) {
         return clash(format!("the input file {}", input.display()));
     }
-    match prefix_outputs(prefix).find(|o| same_file(timings, o)) {
+    match prefix_outputs(prefix, writes).find(|o| same_file(timings, o)) {
         Some(o) => clash(format!("the output {}", o.display())),
         None => Ok(()),
     }
@@ -317,6 +336,15 @@ pub fn writable_file(path: &Path, what: &str, timings: Option<&Path>, inputs: &[
 
 /// Refuses an output directory that does not exist or in which no file can be created.
 fn writable_dir(dir: &Path) -> Result<()> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(Error::io(
+            dir,
+            &std::io::Error::new(
+                std::io::ErrorKind::NotADirectory,
+                "a file, not a directory, so no output can go in it",
+            ),
+        ));
+    }
     if !dir.is_dir() {
         return Err(Error::io(
             dir,
@@ -420,12 +448,15 @@ mod tests {
     fn prefixes_must_name_a_writable_file() {
         let dir = std::env::temp_dir().join(format!("volspline-preflight-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        assert!(check_prefix(&Solo, &dir.join("out"), None, &[]).is_ok());
-        assert!(matches!(check_prefix(&Solo, &dir, None, &[]).unwrap_err(), Error::Usage(_)));
+        assert!(check_prefix(&Solo, &dir.join("out"), MODEL_OUTPUTS, None, &[]).is_ok());
+        assert!(matches!(check_prefix(&Solo, &dir, MODEL_OUTPUTS, None, &[]).unwrap_err(), Error::Usage(_)));
         let slash = format!("{}/", dir.display());
-        assert!(matches!(check_prefix(&Solo, Path::new(&slash), None, &[]).unwrap_err(), Error::Usage(_)));
         assert!(matches!(
-            check_prefix(&Solo, &dir.join("missing/out"), None, &[]).unwrap_err(),
+            check_prefix(&Solo, Path::new(&slash), MODEL_OUTPUTS, None, &[]).unwrap_err(),
+            Error::Usage(_)
+        ));
+        assert!(matches!(
+            check_prefix(&Solo, &dir.join("missing/out"), MODEL_OUTPUTS, None, &[]).unwrap_err(),
             Error::Io { .. }
         ));
         let _ = std::fs::remove_dir_all(&dir);

@@ -102,7 +102,7 @@ pub fn read_pairs_with_lines(path: &Path) -> Result<(Vec<Pair>, Vec<usize>)> {
             format!("{} point pairs: a space mapping needs 4 to {MAX_PAIRS} pairs", pairs.len()),
         ));
     }
-    if let Some((i, j, t)) = paths_meeting(&pairs) {
+    if let Some((i, j, t, tol)) = paths_meeting(&pairs) {
         let x: [f64; 3] = std::array::from_fn(|d| (1.0 - t) * pairs[i].0[d] + t * pairs[i].1[d]);
         let when = match t {
             0.0 => "start at one point of A".to_string(),
@@ -113,11 +113,33 @@ pub fn read_pairs_with_lines(path: &Path) -> Result<(Vec<Pair>, Vec<usize>)> {
             path,
             format!("lines {} and {}", lines[i], lines[j]),
             format!(
-                "the two pairs {when}, ({:.6e}, {:.6e}, {:.6e}): at that frame one point would have to show two \
-                 features; move one of them",
+                "the two pairs {when}, ({:.6e}, {:.6e}, {:.6e}), closer than {tol:.3e} (1e-9 of the extent of \
+                 all pairs): at that frame one point would have to show two features; move one of them (or a \
+                 pair far from the others, which widens the extent)",
                 x[0], x[1], x[2]
             ),
         ));
+    }
+    // the maps' first and last frames interpolate the pairs' starts and ends: each set must
+    // determine a linear polynomial
+    for (side, points) in [
+        ("starts (in A)", pairs.iter().map(|p| p.0).collect::<Vec<_>>()),
+        ("ends (in B)", pairs.iter().map(|p| p.1).collect()),
+    ] {
+        let flat: Vec<f64> = points.iter().flatten().copied().collect();
+        let (lo, hi) = bounding_box(&flat, 3);
+        let norm = Normalisation::of_box(&lo, &hi);
+        let mut centres = vec![0.0; flat.len()];
+        for (c, p) in centres.chunks_exact_mut(3).zip(flat.chunks_exact(3)) {
+            norm.apply(p, c);
+        }
+        if let Err(e) = check_unisolvent(&Kernel::new(3, 2)?, &centres) {
+            let m = match e {
+                Error::Numerical(m) => m,
+                e => e.to_string(),
+            };
+            return Err(Error::input(path, "", format!("the pairs' {side}: {m}")));
+        }
     }
     Ok((pairs, lines))
 }
@@ -126,7 +148,7 @@ pub fn read_pairs_with_lines(path: &Path) -> Result<(Vec<Pair>, Vec<usize>)> {
 /// straight paths q_i(t) = (1 - t) p_i + t p'_i and q_j(t) come closest, when that is closer than
 /// 1e-9 of the pairs' extent (the displacement splines of that frame would be singular, and of
 /// the frames near it fold space). The first such i, then j.
-fn paths_meeting(pairs: &[Pair]) -> Option<(usize, usize, f64)> {
+fn paths_meeting(pairs: &[Pair]) -> Option<(usize, usize, f64, f64)> {
     let all: Vec<f64> = pairs.iter().flat_map(|(p, r)| p.iter().chain(r).copied()).collect();
     let (lo, hi) = bounding_box(&all, 3);
     let extent = (0..3).map(|d| (hi[d] - lo[d]).powi(2)).sum::<f64>().sqrt();
@@ -142,7 +164,7 @@ fn paths_meeting(pairs: &[Pair]) -> Option<(usize, usize, f64)> {
                 if bb > 0.0 { (-(0..3).map(|d| a[d] * b[d]).sum::<f64>() / bb).clamp(0.0, 1.0) } else { 0.0 };
             let gap = (0..3).map(|d| (a[d] + t * b[d]).powi(2)).sum::<f64>().sqrt();
             if gap <= tol {
-                return Some((i, j, t));
+                return Some((i, j, t, tol));
             }
         }
     }
@@ -633,6 +655,28 @@ mod tests {
     }
 
     #[test]
+    fn pairs_files_whose_starts_or_ends_lie_on_one_plane_are_refused_by_name() {
+        let path = std::env::temp_dir().join(format!("volspline-pairs-{}.txt", std::process::id()));
+        // four starts on the plane z = 0 (ends in space), then four ends on the plane y = 2
+        let flat_starts = "0 0 0 0 0 1\n1 0 0 1 0 0\n0 1 0 0 1 0\n1 1 0 2 2 2\n";
+        let flat_ends = "0 0 0 0 2 0\n1 0 0 1 2 0\n0 1 0 0 2 1\n1 1 1 1 2 1\n";
+        for (text, side) in [(flat_starts, "starts (in A)"), (flat_ends, "ends (in B)")] {
+            std::fs::write(&path, text).unwrap();
+            let e = read_pairs(&path).unwrap_err().to_string();
+            assert!(
+                e.starts_with(&format!(
+                    "{}: the pairs' {side}: the 4 points all lie on one plane",
+                    path.display()
+                )),
+                "{e}"
+            );
+        }
+        std::fs::write(&path, "0 0 0 0 0 1\n1 0 0 1 0 0\n0 1 0 0 1 0\n1 1 1 2 2 2\n").unwrap();
+        assert_eq!(read_pairs(&path).unwrap().len(), 4);
+        std::fs::remove_file(&path).unwrap();
+    }
+
+    #[test]
     fn pairs_whose_paths_meet_are_found_with_the_time() {
         let still = |p: [f64; 3]| (p, p);
         let base = [still([0.0, 0.0, 1.0]), still([3.0, 3.0, 3.0]), still([0.0, 3.0, 0.0])];
@@ -648,7 +692,7 @@ mod tests {
             (with(([0.0, 0.0, 0.0], [4.0, 0.0, 0.0]), ([1.0, 1.0, 0.1], [1.0, -3.0, 0.1])), None),
         ];
         for (pairs, want) in cases {
-            assert_eq!(paths_meeting(&pairs), want, "{pairs:?}");
+            assert_eq!(paths_meeting(&pairs).map(|(i, j, t, _)| (i, j, t)), want, "{pairs:?}");
         }
     }
 }

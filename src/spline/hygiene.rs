@@ -207,6 +207,18 @@ pub fn after_merging(e: Error, merged: usize, total: usize, merge_tol: f64) -> E
     }
 }
 
+/// The kernels whose splines carry the polynomial part of `order` in `dim` dimensions, for the
+/// messages: the unisolvency they need is the same.
+fn kernels_of_order(dim: usize, order: usize) -> &'static str {
+    match (dim, order) {
+        (3, 2) => "r, wendland0, wendland2, wendland4",
+        (3, _) => "r3",
+        (2, 2) => "r2log",
+        (2, _) => "r4log",
+        _ => "of this order",
+    }
+}
+
 /// Checks that the (normalised) points determine the polynomial part uniquely: the N x k matrix
 /// of the basis polynomials must have full column rank. Says what is wrong when it has not.
 pub fn check_unisolvent(kernel: &Kernel, points: &[f64]) -> Result<()> {
@@ -215,9 +227,10 @@ pub fn check_unisolvent(kernel: &Kernel, points: &[f64]) -> Result<()> {
     let k = kernel.poly_count();
     if n < k {
         return Err(Error::Numerical(format!(
-            "{n} distinct points are too few: kernel {} in {dim}D needs at least {k} points \
-             not on a common {}",
-            kernel.name(),
+            "{n} distinct points are too few: a spline in {dim}D with a polynomial part of degree {} (kernels \
+             {}) needs at least {k} points not on a common {}",
+            kernel.order() - 1,
+            kernels_of_order(dim, kernel.order()),
             degenerate_set(kernel, 0)
         )));
     }
@@ -237,10 +250,11 @@ pub fn check_unisolvent(kernel: &Kernel, points: &[f64]) -> Result<()> {
     if lacking > 0 {
         return Err(Error::Numerical(format!(
             "the {n} points all lie on one {}, so the polynomial part of degree {} is not \
-             determined (the points are not unisolvent); kernel {} needs points that span {dim}D",
+             determined (the points are not unisolvent): every spline with that polynomial part (kernels {}) \
+             needs points that span {dim}D",
             degenerate_set(kernel, lacking),
             kernel.order() - 1,
-            kernel.name(),
+            kernels_of_order(dim, kernel.order()),
         )));
     }
     Ok(())

@@ -13,7 +13,7 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
-use super::preflight::{available_beside, check_prefix, dense_fit_bytes};
+use super::preflight::{available_beside, check_prefix, dense_fit_bytes, MODEL_OUTPUTS};
 use super::render::{preview_view, write_picture};
 use super::report::{run_provenance, Report};
 use super::stages::{Stage, Stages};
@@ -247,7 +247,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
     crate::linalg::gemm::choose_agreed(comm, a.gemm);
     dense::check_layout(a, comm.size())?;
-    check_prefix(comm, &a.out, a.grid.timings.as_deref(), &[&a.input])?;
+    check_prefix(comm, &a.out, MODEL_OUTPUTS, a.grid.timings.as_deref(), &[&a.input])?;
     let raw = stages.time(Stage::Read, || read_points_everywhere(comm, &a.input))?;
     let points_read = raw.len() / 3;
     // the same points on every rank, so the same isolated ones
@@ -272,7 +272,11 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         KernelChoice::Global(k) => k,
         _ => Kernel::new(3, 2)?,
     };
-    let prep = prepare(&raw, &base, &a.carrier, a.merge_tol)?;
+    // the points' geometry refused (too few, all on one plane) is the input file's fault
+    let prep = prepare(&raw, &base, &a.carrier, a.merge_tol).map_err(|e| match e {
+        Error::Numerical(m) => Error::input(&a.input, "", m),
+        other => other,
+    })?;
     let n = prep.values.len();
     let off = surface::with_off_surface(a.surface, n);
     let layout = a.layout.resolve(comm.size(), n + base.poly_count(), a.precision);
