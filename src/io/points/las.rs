@@ -8,7 +8,9 @@
 //! The header fields read (byte offsets, little-endian): the signature `LASF` (0), the version
 //! (24, 25), the header size (94), the offset to the point data (96), the record format (104) and
 //! length (105), the legacy point count (107), the scales (131, 139, 147) and offsets (155, 163,
-//! 171), and from version 1.4 the 64-bit point count (247) where the legacy count is 0. LAZ, the
+//! 171), and in version 1.4 the 64-bit point count (247), which the legacy count must be 0 or
+//! equal to. The header size must be at least the version's (227 bytes to 1.2, 235 in 1.3, 375 in
+//! 1.4), and the point data must start after the header. LAZ, the
 //! LASzip-compressed form, marks the record format with its two top bits; it is named, with the
 //! command that expands it.
 
@@ -72,10 +74,47 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
             ),
         ));
     }
-    let mut count = u32_at(bytes, 107);
-    if count == 0 && minor >= 4 && header >= 255 && bytes.len() >= 255 {
-        count = u64::from_le_bytes(std::array::from_fn(|k| bytes[247 + k])).try_into().unwrap_or(usize::MAX);
+    // the public header grew with the versions: 227 bytes to 1.2, 235 in 1.3, 375 in 1.4
+    let least_header = match minor {
+        0..=2 => 227,
+        3 => 235,
+        _ => 375,
+    };
+    if header < least_header {
+        return Err(err(
+            "byte offset 94",
+            format!("header size {header}: a LAS {major}.{minor} header takes at least {least_header} bytes"),
+        ));
     }
+    if bytes.len() < header {
+        return Err(err(
+            "",
+            format!("{} bytes: shorter than the header's {header} bytes (truncated?)", bytes.len()),
+        ));
+    }
+    if data < header {
+        return Err(err(
+            "byte offset 96",
+            format!("the point data start at byte {data}, inside the {header}-byte header"),
+        ));
+    }
+    let legacy = u32_at(bytes, 107);
+    let count = if minor >= 4 {
+        // 1.4 counts in 64 bits; the legacy 32-bit count is 0 or the same number
+        let wide = u64::from_le_bytes(std::array::from_fn(|k| bytes[247 + k]));
+        if legacy != 0 && legacy as u64 != wide {
+            return Err(err(
+                "byte offset 107",
+                format!(
+                    "inconsistent header: the legacy point count {legacy} differs from the 64-bit point \
+                     count {wide} (byte offset 247)"
+                ),
+            ));
+        }
+        wide.try_into().unwrap_or(usize::MAX)
+    } else {
+        legacy
+    };
     let scale = [131, 139, 147].map(|at| f64_at(bytes, at));
     let offset = [155, 163, 171].map(|at| f64_at(bytes, at));
     if let Some(d) = (0..3).find(|&d| !(scale[d].is_finite() && scale[d] != 0.0 && offset[d].is_finite())) {
@@ -90,7 +129,7 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
         ));
     }
     let body = bytes.get(data..).unwrap_or(&[]);
-    let need = count.checked_mul(record).filter(|&n| data >= header && n <= body.len()).ok_or_else(|| {
+    let need = count.checked_mul(record).filter(|&n| n <= body.len()).ok_or_else(|| {
         err(
             "",
             format!(
@@ -171,7 +210,11 @@ mod tests {
         record: u16,
         minor: u8,
     ) -> Vec<u8> {
-        let header: u16 = if minor >= 4 { 375 } else { 227 };
+        let header: u16 = match minor {
+            0..=2 => 227,
+            3 => 235,
+            _ => 375,
+        };
         let mut b = vec![0u8; header as usize];
         b[..4].copy_from_slice(b"LASF");
         (b[24], b[25]) = (1, minor);
@@ -283,5 +326,48 @@ mod tests {
             fails_with(&dir.file(&format!("{i}.LAS"), bytes), at, why);
         }
         fails_with(&dir.file("c.laz", &good), "", "LAZ (LASzip-compressed)");
+    }
+
+    #[test]
+    fn header_sizes_and_the_data_offset_must_fit_the_version() {
+        let dir = TempDir::new();
+        let raw = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]];
+        for (minor, least) in [(0u8, 227u16), (2, 227), (3, 235), (4, 375)] {
+            let mut b = las(&raw, [0.1; 3], [0.0; 3], 1, 28, minor);
+            assert!(read_points(&dir.file("ok.las", &b)).is_ok(), "1.{minor}");
+            b[94..96].copy_from_slice(&(least - 1).to_le_bytes());
+            let why =
+                format!("header size {}: a LAS 1.{minor} header takes at least {least} bytes", least - 1);
+            fails_with(&dir.file("h.las", &b), "byte offset 94", &why);
+        }
+        // header bytes taken for points: the data offset inside the header
+        let mut b = las(&raw, [0.1; 3], [0.0; 3], 1, 28, 2);
+        b[96..100].copy_from_slice(&100u32.to_le_bytes());
+        fails_with(&dir.file("d.las", &b), "byte offset 96", "start at byte 100, inside the 227-byte header");
+        // a 1.4 header cut short
+        let b = las(&raw, [0.1; 3], [0.0; 3], 6, 30, 4);
+        fails_with(&dir.file("t.las", &b[..300]), "", "300 bytes: shorter than the header's 375 bytes");
+    }
+
+    #[test]
+    fn las_1_4_counts_in_64_bits() {
+        let dir = TempDir::new();
+        let raw: Vec<[i32; 3]> = (0..6).map(|i| [i, 2 * i, i * i]).collect();
+        let b = las(&raw, [0.5; 3], [0.0; 3], 6, 30, 4);
+        // the legacy count may be 0 (the helper's), or the same number
+        let with_legacy = |n: u32| {
+            let mut b = b.clone();
+            b[107..111].copy_from_slice(&n.to_le_bytes());
+            b
+        };
+        for legacy in [0, 6] {
+            assert_eq!(read_points(&dir.file("a.las", with_legacy(legacy))).unwrap().points.len(), 6);
+        }
+        // a legacy count that disagrees is refused, not taken
+        fails_with(
+            &dir.file("b.las", with_legacy(4)),
+            "byte offset 107",
+            "the legacy point count 4 differs from the 64-bit point count 6",
+        );
     }
 }

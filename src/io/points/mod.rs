@@ -44,7 +44,9 @@ pub struct PointSet {
 /// whitespace and/or commas; `#` starts a comment and blank lines are ignored. Where the first
 /// non-blank, non-comment line holds a semicolon, semicolons separate the values instead of
 /// commas and a comma inside a value is its decimal mark (`0,5;1,25;3`, as spreadsheets in
-/// decimal-comma locales export), and [`PointSet::note`] says so. The first
+/// decimal-comma locales export), and [`PointSet::note`] says so. A first data line of three or
+/// more blank-separated numbers each with one comma between digits (`100,934 237,145 333,457`)
+/// is refused as decimal commas between blanks, which would be split at the commas. The first
 /// non-blank, non-comment line may be a column header such as `x,y,z` or `//X Y Z Nx Ny Nz`,
 /// but only if none of its tokens is a number; anywhere else a non-numeric token is an error.
 /// The coordinates are the columns the header names x, y and z (any case, leading slashes

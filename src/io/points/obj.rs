@@ -1,5 +1,7 @@
 //! Wavefront OBJ: only `v` and `f` records matter; materials, groups, normals and texture
-//! coordinates are irrelevant to the geometry and are ignored (so a missing .mtl is harmless).
+//! coordinates are irrelevant to the geometry and are ignored (so a missing .mtl is harmless). A
+//! `v` record holds 3 numbers (x y z), 4 (and w), 6 (and a colour r g b) or 7; other counts are
+//! refused.
 //!
 //! OBJ is parsed by hand rather than with `tobj`: tobj either duplicates positions when texture
 //! coordinates are present (`single_index`) or re-indexes them per group, whereas the solver
@@ -26,12 +28,21 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
         match tokens.next() {
             Some("v") => {
                 let mut xyz = [0.0; 3];
-                for c in xyz.iter_mut() {
-                    let tok =
-                        tokens.next().ok_or_else(|| err("vertex needs 3 coordinates (v x y z)".into()))?;
-                    *c = tok.parse().map_err(|_| err(format!("'{tok}' is not a number")))?;
+                let mut n = 0;
+                for tok in tokens {
+                    let v: f64 = tok.parse().map_err(|_| err(format!("'{tok}' is not a number")))?;
+                    if let Some(c) = xyz.get_mut(n) {
+                        *c = v;
+                    }
+                    n += 1;
                 }
-                // Extra values (w, or per-vertex colours) are legal and irrelevant here.
+                // Extra values (w, or per-vertex colours, with or without w) are legal and
+                // irrelevant here; other counts are not a vertex.
+                if !matches!(n, 3 | 4 | 6 | 7) {
+                    return Err(err(format!(
+                        "vertex has {n} numbers; expected 3 (v x y z), 4 (x y z w), 6 (x y z r g b) or 7"
+                    )));
+                }
                 set.points.push(check_finite(xyz).map_err(err)?);
             }
             Some("f") => {
@@ -131,7 +142,19 @@ mod tests {
     #[test]
     fn obj_bad_vertices_name_the_line() {
         let dir = TempDir::new();
-        fails_with(&dir.file("a.obj", "v 0 0 0\nv 1 0\nv 0 1 0\nv 0 0 1\n"), "line 2", "3 coordinates");
+        fails_with(
+            &dir.file("a.obj", "v 0 0 0\nv 1 0\nv 0 1 0\nv 0 0 1\n"),
+            "line 2",
+            "vertex has 2 numbers",
+        );
+        for (extra, n) in [(" 1 1", 5), (" 1 1 1 1 1", 8)] {
+            let text = format!("v 0 0 0\nv 1 0 0\nv 0 1 0{extra}\nv 0 0 1\n");
+            fails_with(&dir.file("v.obj", text), "line 3", &format!("vertex has {n} numbers; expected 3"));
+        }
+        fails_with(&dir.file("w.obj", "v 0 0 0\nv 1 0 0 one\n"), "line 2", "'one' is not a number");
+        // 4 (w), 6 (colour) and 7 (both) numbers are vertices
+        let set = read_points(&dir.file("x.obj", "v 0 0 0\nv 1 0 0 1\nv 0 1 0 1 0 0\nv 0 0 1 1 0 0 1\n"));
+        assert_eq!(set.unwrap().points, CUBE[..4]);
         fails_with(&dir.file("b.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 nan 1\n"), "line 4", "non-finite");
         fails_with(&dir.file("c.obj", "# nothing\nvt 0 0\n"), "", "no vertices");
     }

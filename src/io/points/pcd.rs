@@ -19,8 +19,10 @@
 //! The coordinates are the fields x, y and z; every other field is skipped. A binary record is the
 //! fields in order, COUNT x SIZE bytes each, little-endian; the compressed form is two u32 sizes
 //! (compressed, uncompressed) and an LZF stream that expands to all points' first field, then all
-//! points' second, and so on. Organised clouds mark pixels without a return with NaN coordinates:
-//! those points are left out, with the other readers' note.
+//! points' second, and so on. Data beyond the points the header declares is refused, as are ascii
+//! values that are no number of their field's type (an integer type's values must be whole numbers
+//! in its range). Organised clouds mark pixels without a return with NaN coordinates: those points
+//! are left out, with the other readers' note.
 
 use std::path::Path;
 
@@ -39,6 +41,32 @@ struct Field {
 impl Field {
     fn bytes(&self) -> usize {
         self.size * self.count
+    }
+
+    /// One value of this field written as text: a number, for the integer types a whole number in
+    /// the type's range, as the binary forms can only hold.
+    fn parse(&self, tok: &str) -> std::result::Result<f64, String> {
+        let bits = 8 * self.size as u32;
+        let (value, range) = match self.kind {
+            b'F' => (tok.parse::<f64>().ok(), String::new()),
+            b'U' => {
+                let hi = u64::MAX >> (64 - bits);
+                (tok.parse::<u64>().ok().filter(|&v| v <= hi).map(|v| v as f64), format!("from 0 to {hi}"))
+            }
+            _ => {
+                let (lo, hi) = (i64::MIN >> (64 - bits), i64::MAX >> (64 - bits));
+                let v = tok.parse::<i64>().ok().filter(|v| (lo..=hi).contains(v));
+                (v.map(|v| v as f64), format!("from {lo} to {hi}"))
+            }
+        };
+        value.ok_or_else(|| {
+            let what =
+                if range.is_empty() { "a number".to_string() } else { format!("a whole number {range}") };
+            format!(
+                "field '{}' (TYPE {}, SIZE {}): '{tok}' is not {what}",
+                self.name, self.kind as char, self.size
+            )
+        })
     }
 
     /// The first value of this field at the start of `b`, little-endian.
@@ -215,14 +243,7 @@ fn header(path: &Path, bytes: &[u8]) -> Result<Header> {
 
 fn ascii(path: &Path, body: &[u8], h: &Header, axes: [usize; 3], out: &mut Vec<[f64; 3]>) -> Result<()> {
     let text = crate::io::text::decode(path, body, "PCD")?;
-    // the value of each field's first element within a line
-    let mut first = Vec::with_capacity(h.fields.len());
-    let mut at = 0;
-    for f in &h.fields {
-        first.push(at);
-        at += f.count;
-    }
-    let width = at;
+    let width: usize = h.fields.iter().map(|f| f.count).sum();
     let data_line = h.data_line;
     for (i, line) in text.lines().enumerate() {
         let err = |reason: String| Error::input(path, format!("line {}", data_line + 1 + i), reason);
@@ -236,10 +257,18 @@ fn ascii(path: &Path, body: &[u8], h: &Header, axes: [usize; 3], out: &mut Vec<[
         if tokens.len() != width {
             return Err(err(format!("found {} values, where the fields have {width}", tokens.len())));
         }
+        // every value is checked against its field's type, so that a line that is not what the
+        // header says is named
         let mut p = [0.0; 3];
-        for (c, &a) in p.iter_mut().zip(&axes) {
-            let t = tokens[first[a]];
-            *c = t.parse().map_err(|_| err(format!("'{t}' is not a number")))?;
+        let mut at = 0;
+        for (fi, f) in h.fields.iter().enumerate() {
+            for (k, t) in tokens[at..at + f.count].iter().enumerate() {
+                let v = f.parse(t).map_err(err)?;
+                if let (0, Some(a)) = (k, axes.iter().position(|&a| a == fi)) {
+                    p[a] = v;
+                }
+            }
+            at += f.count;
         }
         out.push(p);
     }
@@ -263,6 +292,19 @@ fn binary(path: &Path, body: &[u8], h: &Header, axes: [usize; 3], out: &mut Vec<
             ),
         )
     })?;
+    if body.len() > need {
+        return Err(Error::input(
+            path,
+            format!("byte offset {}", h.body + need),
+            format!(
+                "{} bytes follow the {} points the header declares (POINTS {} of {stride} bytes); wrong \
+                 WIDTH, HEIGHT or POINTS in the header?",
+                body.len() - need,
+                h.points,
+                h.points
+            ),
+        ));
+    }
     let offsets: Vec<usize> =
         h.fields.iter().scan(0, |o, f| Some(std::mem::replace(o, *o + f.bytes()))).collect();
     for rec in body[..need].chunks_exact(stride) {
@@ -299,6 +341,16 @@ fn compressed(path: &Path, body: &[u8], h: &Header, axes: [usize; 3], out: &mut 
             ),
         )
     })?;
+    if body.len() > 8 + packed {
+        return Err(Error::input(
+            path,
+            format!("byte offset {}", h.body + 8 + packed),
+            format!(
+                "{} bytes follow the {packed} bytes of compressed data that its size declares",
+                body.len() - 8 - packed
+            ),
+        ));
+    }
     let data =
         lzf_expand(stream, size).map_err(|why| Error::input(path, "", format!("compressed data: {why}")))?;
     // field by field: all points' values of field 0, then of field 1, ...
@@ -469,5 +521,66 @@ mod tests {
         for (i, (text, at, why)) in cases.iter().enumerate() {
             fails_with(&dir.file(&format!("{i}.pcd"), text), at, why);
         }
+    }
+
+    #[test]
+    fn ascii_integers_must_fit_their_type() {
+        let dir = TempDir::new();
+        let h = head("x y z rgb n", "1 2 4 4 8", "I U I U I", "1 1 1 1 2", 4, "ascii");
+        let good = "0 0 0 4278190080 -9 9\n-128 65535 -2147483648 0 0 0\n127 1 2147483647 1 0 0\n";
+        let set =
+            read_points(&dir.file("g.pcd", format!("{h}{good}0 0 1 0 -9223372036854775808 0\n"))).unwrap();
+        assert_eq!(set.points[1], [-128.0, 65535.0, -2147483648.0]);
+        let cases = [
+            ("-300 0 1 0 0 0", "field 'x' (TYPE I, SIZE 1): '-300' is not a whole number from -128 to 127"),
+            ("0 65536 1 0 0 0", "field 'y' (TYPE U, SIZE 2): '65536' is not a whole number from 0 to 65535"),
+            ("0 -1 1 0 0 0", "field 'y' (TYPE U, SIZE 2): '-1' is not"),
+            ("0 0 12.345 0 0 0", "field 'z' (TYPE I, SIZE 4): '12.345' is not a whole number"),
+            ("0 0 1 4294967296 0 0", "field 'rgb' (TYPE U, SIZE 4): '4294967296' is not"),
+            ("0 0 1 0 0 1.5", "field 'n' (TYPE I, SIZE 8): '1.5' is not"),
+        ];
+        for (last, why) in cases {
+            fails_with(&dir.file("b.pcd", format!("{h}{good}{last}\n")), "line 15", why);
+        }
+        let floats = head("x y z", "4 4 4", "F F F", "1 1 1", 4, "ascii") + "0 0 0\n1 0 0\n0 1 0\n0 0 1,5\n";
+        fails_with(
+            &dir.file("f.pcd", floats),
+            "line 15",
+            "field 'z' (TYPE F, SIZE 4): '1,5' is not a number",
+        );
+    }
+
+    #[test]
+    fn binary_data_past_the_declared_points_are_refused() {
+        let dir = TempDir::new();
+        let records: Vec<u8> =
+            (0..5u8).flat_map(|i| [i as f32, 1.0, 2.0]).flat_map(f32::to_le_bytes).collect();
+        // the header declares 4 points of 12 bytes; the data hold 5
+        let mut binary = head("x y z", "4 4 4", "F F F", "1 1 1", 4, "binary").into_bytes();
+        let start = binary.len();
+        binary.extend(&records);
+        fails_with(
+            &dir.file("b.pcd", &binary),
+            &format!("byte offset {}", start + 48),
+            "12 bytes follow the 4 points the header declares (POINTS 4 of 12 bytes)",
+        );
+        assert_eq!(read_points(&dir.file("c.pcd", &binary[..start + 48])).unwrap().points.len(), 4);
+        // compressed: bytes after the stream its sizes declare
+        let soa: Vec<u8> =
+            (0..4u8).map(|i| i as f32).chain([1.0; 4]).chain([2.0; 4]).flat_map(f32::to_le_bytes).collect();
+        let stream: Vec<u8> =
+            soa.chunks(32).flat_map(|c| [vec![c.len() as u8 - 1], c.to_vec()].concat()).collect();
+        let mut compressed = head("x y z", "4 4 4", "F F F", "1 1 1", 4, "binary_compressed").into_bytes();
+        compressed.extend((stream.len() as u32).to_le_bytes());
+        compressed.extend((soa.len() as u32).to_le_bytes());
+        compressed.extend(&stream);
+        let end = compressed.len();
+        assert_eq!(read_points(&dir.file("d.pcd", &compressed)).unwrap().points.len(), 4);
+        compressed.extend([0u8; 7]);
+        fails_with(
+            &dir.file("e.pcd", &compressed),
+            &format!("byte offset {end}"),
+            "7 bytes follow the 50 bytes",
+        );
     }
 }

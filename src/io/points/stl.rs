@@ -7,9 +7,9 @@
 //! Binary STL is an 80-byte header, a little-endian u32 facet count and 50 bytes a facet (normal,
 //! three corners as f32 triples, a u16 attribute), so its size is exactly 84 + 50 count. Ascii STL
 //! is `solid NAME`, then `facet normal nx ny nz / outer loop / vertex x y z (three times) / endloop
-//! / endfacet` per facet, then `endsolid`. Some binary writers start the header with the word
-//! `solid` too, so the size decides first: a file of exactly 84 + 50 count bytes is binary, one that
-//! starts with `solid` otherwise is ascii.
+//! / endfacet` per facet, then `endsolid` (a `vertex` line holds exactly three numbers). Some
+//! binary writers start the header with the word `solid` too, so the size decides first: a file of
+//! exactly 84 + 50 count bytes is binary, one that starts with `solid` otherwise is ascii.
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -130,6 +130,10 @@ fn ascii(path: &Path, bytes: &[u8]) -> Result<PointSet> {
                         .ok_or_else(|| err("vertex needs 3 coordinates (vertex x y z)".into()))?;
                     *c = tok.parse().map_err(|_| err(format!("'{tok}' is not a number")))?;
                 }
+                let extra = tokens.count();
+                if extra > 0 {
+                    return Err(err(format!("vertex has {} values; it takes 3 (vertex x y z)", 3 + extra)));
+                }
                 let p = check_finite(p).map_err(err)?;
                 fan.push(corners.add(p), &mut corners.set.triangles);
             }
@@ -231,6 +235,11 @@ mod tests {
                 format!("solid s\n{}endsolid\n", facet("vertex 0 0 0\nvertex 1 0\nvertex 0 1 0\n")),
                 "line 5",
                 "3 coordinates",
+            ),
+            (
+                format!("solid s\n{}endsolid\n", facet("vertex 0 0 0\nvertex 1 0 0 4\nvertex 0 1 0\n")),
+                "line 5",
+                "vertex has 4 values; it takes 3 (vertex x y z)",
             ),
             (format!("solid s\n{}endsolid\n", facet("vertex 0 0 0\nvertex 1 0 0\n")), "line 2", "at least 3"),
             (

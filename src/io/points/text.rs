@@ -68,7 +68,12 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
         let n = values.len();
         let (width, cols, first) = match layout {
             Some(l) => l,
-            None => *layout.insert((n, columns(header.as_deref(), n).map_err(err)?, i + 1)),
+            None => {
+                if !semicolons {
+                    decimal_commas(line).map_err(err)?;
+                }
+                *layout.insert((n, columns(header.as_deref(), n).map_err(err)?, i + 1))
+            }
         };
         if n != width {
             return Err(err(format!(
@@ -108,6 +113,36 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
     let notes: Vec<String> = decimal_note.into_iter().chain(columns_note).chain(missing_note).collect();
     let note = (!notes.is_empty()).then(|| notes.join("; "));
     Ok(PointSet { points, triangles: Vec::new(), note })
+}
+
+/// Refuses a first data line that looks written with decimal commas and blanks between the values
+/// (`100,934 237,145 333,457`): split at its commas it would give twice the values, the wrong ones.
+/// It does when every blank-separated token is a number with one comma between two digits
+/// (`-12,5`, `100,934`, `1,5e3`) and there are at least three of them.
+fn decimal_commas(line: &str) -> std::result::Result<(), String> {
+    let comma_number = |tok: &str| {
+        let b = tok.as_bytes();
+        let mut commas = b.iter().enumerate().filter(|&(_, &c)| c == b',');
+        match (commas.next(), commas.next()) {
+            (Some((k, _)), None) => {
+                k > 0
+                    && b[k - 1].is_ascii_digit()
+                    && b.get(k + 1).is_some_and(u8::is_ascii_digit)
+                    && tok.replacen(',', ".", 1).parse::<f64>().is_ok()
+            }
+            _ => false,
+        }
+    };
+    let tokens: Vec<&str> = line.split_ascii_whitespace().collect();
+    if tokens.len() >= 3 && tokens.iter().all(|t| comma_number(t)) {
+        return Err(format!(
+            "'{}' looks like numbers with decimal commas separated by blanks, which would be split at \
+             the commas: with decimal commas, separate the values by semicolons (`0,5;1,25;3`), or write \
+             decimal points",
+            tokens.join(" ")
+        ));
+    }
+    Ok(())
 }
 
 /// The columns of x, y and z in lines of `n` values: those the header names x, y and z, or else
@@ -160,6 +195,31 @@ mod tests {
             "line 2",
             "';' separates values in files whose first line",
         );
+    }
+
+    #[test]
+    fn decimal_commas_between_blanks_are_refused() {
+        let dir = TempDir::new();
+        // blanks or tabs between values with decimal commas: split at the commas they would be
+        // twice as many values, the wrong ones
+        for text in [
+            "100,934 237,145 333,457\n67,785 181,190 266,707\n1,0 2,0 3,0\n4,5 5,5 6,5\n",
+            "x y z\n-12,5\t1,5e3\t0,25\n1,0\t2,0\t3,0\n4,5\t5,5\t6,5\n7,0\t8,0\t9,0\n",
+        ] {
+            let line = if text.starts_with('x') { "line 2" } else { "line 1" };
+            fails_with(&dir.file("eu.xyz", text), line, "decimal commas separated by blanks");
+            fails_with(&dir.file("eu.xyz", text), line, "separate the values by semicolons (`0,5;1,25;3`)");
+        }
+        // commas as separators, with or without blanks, still read
+        for text in [
+            "1.0, 2.0, 3.0\n0, 0, 0\n1, 0, 0\n0, 1, 0\n",
+            "1,2,3\n0,0,0\n1,0,0\n0,1,0\n",
+            "1,2, 3\n0,0, 0\n1,0, 0\n0,1, 0\n",
+            "1,2 3,4\n0,0 0,0\n1,0 0,0\n0,1 0,0\n",
+        ] {
+            let set = read_points(&dir.file("ok.xyz", text)).unwrap_or_else(|e| panic!("{text:?}: {e}"));
+            assert_eq!(set.points[0], [1.0, 2.0, 3.0], "{text:?}");
+        }
     }
 
     #[test]

@@ -107,27 +107,46 @@ impl<'a> AsciiSource<'a> {
         Ok(&self.data[start..self.pos])
     }
 
-    fn parse<T: std::str::FromStr>(&mut self, ty: Scalar) -> std::result::Result<T, Fail> {
+    /// The next token as a value of type `ty`: for the integer types a whole number in the type's
+    /// range, as the binary forms can only hold.
+    fn value(&mut self, ty: Scalar) -> std::result::Result<f64, Fail> {
+        self.int_or_float(ty).map(|v| v.map_or_else(|f| f, |i| i as f64))
+    }
+
+    /// The next token as an integer (for the integer types) or a float (`Err` inside `Ok`).
+    fn int_or_float(&mut self, ty: Scalar) -> std::result::Result<std::result::Result<i64, f64>, Fail> {
         let tok = self.token()?;
-        std::str::from_utf8(tok).ok().and_then(|s| s.parse().ok()).ok_or_else(|| {
+        let text = std::str::from_utf8(tok).ok();
+        let (lo, hi) = ty.range();
+        let parsed = if ty.is_int() {
+            text.and_then(|s| s.parse::<i64>().ok()).filter(|v| (lo..=hi).contains(v)).map(Ok)
+        } else {
+            text.and_then(|s| s.parse::<f64>().ok()).map(Err)
+        };
+        parsed.ok_or_else(|| {
             let shown = String::from_utf8_lossy(tok);
-            Fail::Bad(format!("'{shown}' is not a valid {ty:?} value"))
+            let range =
+                if ty.is_int() { format!(" (a whole number from {lo} to {hi})") } else { String::new() };
+            Fail::Bad(format!("'{shown}' is not a valid {ty:?} value{range}"))
         })
     }
 }
 
 impl Source for AsciiSource<'_> {
     fn float(&mut self, ty: Scalar) -> std::result::Result<f64, Fail> {
-        self.parse(ty)
+        self.value(ty)
     }
 
     fn int(&mut self, ty: Scalar) -> std::result::Result<i64, Fail> {
-        self.parse(ty)
+        // the header admits only integer types where integers are read
+        self.int_or_float(ty).map(|v| v.unwrap_or_else(|f| f as i64))
     }
 
-    fn skip(&mut self, _ty: Scalar, n: u64) -> std::result::Result<(), Fail> {
+    fn skip(&mut self, ty: Scalar, n: u64) -> std::result::Result<(), Fail> {
+        // skipped values are checked all the same: a value that is no number of its type means
+        // the line is not what the header says
         for _ in 0..n {
-            self.token()?;
+            self.value(ty)?;
         }
         Ok(())
     }
@@ -331,31 +350,50 @@ fn read_instance<S: Source>(
 ) -> std::result::Result<(), InstanceError> {
     let mut xyz = [0.0; 3];
     for (pi, prop) in el.props.iter().enumerate() {
-        match (prop.kind, el.role) {
-            (Kind::Scalar(ty), Role::Vertex(axes)) if axes.contains(&pi) => {
-                let v = src.float(ty)?;
-                for (c, &a) in xyz.iter_mut().zip(&axes) {
-                    if a == pi {
-                        *c = v;
-                    }
-                }
+        read_property(src, el, pi, nverts, &mut xyz, set).map_err(|e| match e {
+            InstanceError::Fail(Fail::Bad(why)) => {
+                InstanceError::Fail(Fail::Bad(format!("property '{}': {why}", prop.name)))
             }
-            (Kind::Scalar(ty), _) => src.skip(ty, 1)?,
-            (Kind::List { count, item }, role) => {
-                let n = src.int(count)?;
-                let n = u64::try_from(n)
-                    .map_err(|_| InstanceError::Invalid(format!("negative list length {n}")))?;
-                if role == Role::Face(pi) {
-                    read_face(src, item, n, nverts, &mut set.triangles)?;
-                } else {
-                    src.skip(item, n)?;
-                }
-            }
-        }
+            other => other,
+        })?;
     }
     if let Role::Vertex(_) = el.role {
         let p = if no_return(&xyz) { xyz } else { check_finite(xyz).map_err(InstanceError::Invalid)? };
         set.points.push(p);
+    }
+    Ok(())
+}
+
+/// Reads (or skips) property `pi` of one instance of `el`, into `xyz` where it is a coordinate.
+fn read_property<S: Source>(
+    src: &mut S,
+    el: &Element,
+    pi: usize,
+    nverts: usize,
+    xyz: &mut [f64; 3],
+    set: &mut PointSet,
+) -> std::result::Result<(), InstanceError> {
+    let prop = &el.props[pi];
+    match (prop.kind, el.role) {
+        (Kind::Scalar(ty), Role::Vertex(axes)) if axes.contains(&pi) => {
+            let v = src.float(ty)?;
+            for (c, &a) in xyz.iter_mut().zip(&axes) {
+                if a == pi {
+                    *c = v;
+                }
+            }
+        }
+        (Kind::Scalar(ty), _) => src.skip(ty, 1)?,
+        (Kind::List { count, item }, role) => {
+            let n = src.int(count)?;
+            let n =
+                u64::try_from(n).map_err(|_| InstanceError::Invalid(format!("negative list length {n}")))?;
+            if role == Role::Face(pi) {
+                read_face(src, item, n, nverts, &mut set.triangles)?;
+            } else {
+                src.skip(item, n)?;
+            }
+        }
     }
     Ok(())
 }
@@ -604,6 +642,47 @@ mod tests {
         let dir = TempDir::new();
         let text = ply(&four_vertices("float"), &unit_rows(), Encoding::Ascii);
         let text = String::from_utf8(text).expect("utf8").replace("\n1 0 0\n", "\n1 zero 0\n");
-        fails_with(&dir.file("b.ply", text), "line 10", "vertex 1: 'zero'");
+        fails_with(
+            &dir.file("b.ply", text),
+            "line 10",
+            "vertex 1: property 'y': 'zero' is not a valid F32 value",
+        );
+    }
+
+    #[test]
+    fn ply_ascii_integers_must_fit_their_type() {
+        let dir = TempDir::new();
+        let header = "element vertex 4\nproperty short x\nproperty char y\nproperty int z\n\
+                      property uchar red\nproperty list uchar uint extra\n";
+        let row = |x: &str, y: &str, z: &str, red: &str, n: &str| format!("{x} {y} {z} {red} {n} 7 7\n");
+        let good =
+            [row("0", "0", "0", "0", "2"), row("1", "-128", "0", "255", "2"), row("0", "127", "0", "9", "2")];
+        let file = |last: String| {
+            let body: String = good.iter().cloned().chain([last]).collect();
+            format!("ply\nformat ascii 1.0\n{header}end_header\n{body}").replace(" 7 7\n", " 7 4294967295\n")
+        };
+        let set = read_points(&dir.file("g.ply", file(row("0", "0", "1", "1", "2")))).unwrap();
+        assert_eq!(set.points[1], [1.0, -128.0, 0.0]);
+        let cases = [
+            (
+                row("0", "-300", "1", "1", "2"),
+                "property 'y': '-300' is not a valid I8 value (a whole number from -128 to 127)",
+            ),
+            (row("0", "0", "12.345", "1", "2"), "property 'z': '12.345' is not a valid I32 value"),
+            (row("40000", "0", "1", "1", "2"), "property 'x': '40000' is not a valid I16 value"),
+            (
+                row("0", "0", "1", "399", "2"),
+                "property 'red': '399' is not a valid U8 value (a whole number from 0 to 255)",
+            ),
+            (row("0", "0", "1", "-1", "2"), "property 'red': '-1' is not a valid U8 value"),
+            (row("0", "0", "1", "1", "2.5"), "property 'extra': '2.5' is not a valid U8 value"),
+            (
+                row("0", "0", "1", "1", "2").replace(" 7 7", " 7 -7"),
+                "property 'extra': '-7' is not a valid U32 value",
+            ),
+        ];
+        for (last, why) in cases {
+            fails_with(&dir.file("b.ply", file(last)), "line 13", &format!("vertex 3: {why}"));
+        }
     }
 }

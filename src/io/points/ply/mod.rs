@@ -4,8 +4,10 @@
 //! properties (scalars, or lists with a count type and an item type). Only two elements matter
 //! here: `vertex` supplies the points through its scalar `x`, `y` and `z` properties, and `face`
 //! (optional) its polygons through an integer list named `vertex_indices` or `vertex_index`;
-//! every other element and property is read past. This file parses the header and assigns those
-//! roles; [`body`] reads the values.
+//! every other element and property is read past (in ascii files each value is checked against its
+//! type all the same: an integer type's values must be whole numbers in its range). An element
+//! name declared twice is refused. This file parses the header and assigns those roles; [`body`]
+//! reads the values.
 
 mod body;
 
@@ -52,6 +54,19 @@ impl Scalar {
 
     fn is_int(self) -> bool {
         !matches!(self, Scalar::F32 | Scalar::F64)
+    }
+
+    /// The least and greatest value of an integer type.
+    fn range(self) -> (i64, i64) {
+        match self {
+            Scalar::I8 => (i8::MIN.into(), i8::MAX.into()),
+            Scalar::U8 => (0, u8::MAX.into()),
+            Scalar::I16 => (i16::MIN.into(), i16::MAX.into()),
+            Scalar::U16 => (0, u16::MAX.into()),
+            Scalar::I32 => (i32::MIN.into(), i32::MAX.into()),
+            Scalar::U32 => (0, u32::MAX.into()),
+            Scalar::F32 | Scalar::F64 => (i64::MIN, i64::MAX),
+        }
     }
 }
 
@@ -210,6 +225,9 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header> {
                 let count = count
                     .parse::<usize>()
                     .map_err(|_| err(format!("element count '{count}' is not a valid number")))?;
+                if elements.iter().any(|e| e.name == name) {
+                    return Err(err(format!("element '{name}' declared twice")));
+                }
                 elements.push(Element { name: name.to_string(), count, props: Vec::new(), role: Role::Skip });
             }
             Some("property") => {
@@ -411,6 +429,11 @@ mod tests {
             ("format ascii 1.0\nelement vertex 4\nproperty quad x\n", "line 4", "quad"),
             ("format ascii 1.0\nelement vertex 4\nproperty float x\nproperty float x\n", "line 5", "twice"),
             ("format ascii 1.0\nelement vertex 4\nproperty list float int x\n", "line 4", "integer"),
+            (
+                "format ascii 1.0\nelement vertex 1\nproperty float x\nelement vertex 3\nproperty float x\n",
+                "line 5",
+                "element 'vertex' declared twice",
+            ),
             ("format ascii 1.0\nelemnt vertex 4\n", "line 3", "elemnt"),
             ("element vertex 4\nproperty float x\nproperty float y\nproperty float z\n", "", "format"),
             ("format ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n", "", "'z'"),
