@@ -445,7 +445,10 @@ impl GridArgs {
 
 #[derive(Debug, Args)]
 pub struct RenderArgs {
-    /// The solid: a model written by `volspline fit` or `volspline contours` (PREFIX.model.h5).
+    /// The solid: a model written by `volspline fit` or `volspline contours` (PREFIX.model.h5), or
+    /// an FRep expression over models, carriers and numbers, as `eval` takes it (README.md,
+    /// "Expressions").
+    #[arg(value_name = "MODEL|EXPR")]
     pub model: String,
     /// The picture to write (.png).
     #[arg(long, value_name = "PNG")]

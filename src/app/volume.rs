@@ -47,17 +47,26 @@ impl VolumeSummary {
     /// Adds the grid, the surface and the two outputs to `report`.
     pub fn report(&self, report: &mut Report) {
         let g = &self.grid;
+        // six decimals, or six digits with an exponent where decimals would show too few or too
+        // many digits (a box at 1e100 printed 100 of them)
+        let c = |v: f64| {
+            if v != 0.0 && !(1e-3..1e6).contains(&v.abs()) {
+                format!("{v:.6e}")
+            } else {
+                format!("{v:.6}")
+            }
+        };
         report.line(format!(
-            "grid {} x {} x {} nodes, origin ({:.6}, {:.6}, {:.6}), spacing ({:.6}, {:.6}, {:.6})",
+            "grid {} x {} x {} nodes, origin ({}, {}, {}), spacing ({}, {}, {})",
             g.dims[0],
             g.dims[1],
             g.dims[2],
-            g.origin[0],
-            g.origin[1],
-            g.origin[2],
-            g.spacing[0],
-            g.spacing[1],
-            g.spacing[2]
+            c(g.origin[0]),
+            c(g.origin[1]),
+            c(g.origin[2]),
+            c(g.spacing[0]),
+            c(g.spacing[1]),
+            c(g.spacing[2])
         ));
         if self.grown_steps > 0 {
             report.line(format!(
@@ -299,7 +308,7 @@ fn evaluate(
     let ghost = usize::from(layers > 0 && k0 + layers < nz);
     let layer = nx * ny;
     if comm.rank() == 0 {
-        eprintln!(
+        let line = format!(
             "volspline: grid {}x{}x{} = {} nodes, {} kernel evaluations per node",
             nx,
             ny,
@@ -307,6 +316,13 @@ fn evaluate(
             grid.node_count(),
             evals_per_node
         );
+        // said once for the frames of a morph, which all share it
+        static SAID: std::sync::Mutex<String> = std::sync::Mutex::new(String::new());
+        let mut said = SAID.lock().unwrap_or_else(|e| e.into_inner());
+        if *said != line {
+            eprintln!("{line}");
+            *said = line;
+        }
     }
     let values = stages.time(Stage::Evaluate, || {
         let progress = Progress::new("evaluate", comm);

@@ -94,6 +94,15 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<Section>> {
         if toks.is_empty() {
             continue;
         }
+        // commas separate values: two with nothing between them (or one before the first value)
+        // lost a value, which splitting would hide by reading the next one in its place
+        let fields: Vec<&str> = body.split(',').collect();
+        if fields[..fields.len() - 1].iter().any(|f| f.trim().is_empty()) {
+            return Err(err(
+                line,
+                "an empty value between commas (or before the first one): a value is missing".into(),
+            ));
+        }
         let nums = |t: &[&str], what: &str| -> Result<Vec<f64>> {
             t.iter()
                 .map(|s| match s.parse::<f64>() {
@@ -436,6 +445,7 @@ mod tests {
             ("slice z 0\ncontour\n0 0\n1 0\n0 x\n", "line 5", "not a finite number"),
             ("slice z 0\n0 0\n", "line 2", "before any 'contour' line of the slice of line 1"),
             ("0 0\n", "line 1", "before any 'slice' line"),
+            ("slice z 0\ncontour\n1,,0\n", "line 3", "an empty value between commas"),
             // a plane turned 60 degrees about the line x = 0.5 of the square below: through it
             (
                 "slice z 0\ncontour\n0 0\n1 0\n1 1\n0 1\nslice plane 1 0 0.8660254037844386  0.5 0 0.8660254037844386  0 1 0\n\

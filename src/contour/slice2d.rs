@@ -86,6 +86,12 @@ pub fn fit_values(kernel: &Kernel, points: &[f64], values: &[f64]) -> Result<(Sp
     Ok((Spline::from_solution(*kernel, centres, &x, norm), residual))
 }
 
+/// The largest relative residual ||M x - b|| / ||b|| a slice's solve may leave: a well-posed slice
+/// solves to 1e-15..1e-12, and a system whose pivots pass the singularity test but whose
+/// residual is far above this (two points 1e-11 of the diagonal apart, left unmerged with
+/// --merge-tol 0, left 4e4) has a solution that interpolates nothing.
+pub const MAX_RESIDUAL: f64 = 1e-6;
+
 /// Consecutive points of a contour a median step apart shorter than this fraction of the slice's
 /// diagonal, or a shortest step shorter than [`CLOSE_STEP`] of it, are the likely cause of a
 /// singular slice system.
@@ -192,6 +198,14 @@ pub fn fit_section(
             other => other,
         }
     })?;
+    if !(residual <= MAX_RESIDUAL) {
+        return Err(Error::Numerical(format!(
+            "{}: the slice's system solved to a relative residual of {residual:.3e}, above {MAX_RESIDUAL:e}: it \
+             is too close to singular for its solution to be trusted{}",
+            where_(),
+            dense_hint(section, diag)
+        )));
+    }
     let max_abs_at_points =
         points.chunks_exact(2).map(|p| (carrier.eval(p) - spline.eval(p)).abs()).fold(0.0, f64::max);
     Ok(SectionFit { carrier, spline, points: values.len(), merged, residual, max_abs_at_points })
@@ -213,6 +227,25 @@ mod tests {
                 [cx + r * a.cos(), cy + r * a.sin()]
             })
             .collect()
+    }
+
+    #[test]
+    fn a_slice_solved_to_a_large_residual_is_refused_with_the_cure() {
+        let k = Kernel::new(2, 2).unwrap();
+        let square = vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+        let fit = fit_section(&section(vec![square.clone()]), &k, SectionCarrier::Disc, 0.0).unwrap();
+        assert!(fit.residual < 1e-12, "{}", fit.residual);
+        // a fifth point 1e-11 from a corner, kept apart by --merge-tol 0
+        let near = [square, vec![[1e-11, 0.0]]].concat();
+        let e =
+            fit_section(&section(vec![near.clone()]), &k, SectionCarrier::Disc, 0.0).unwrap_err().to_string();
+        assert!(
+            e.contains("the slice of line 7: the slice's system solved to a relative residual of"),
+            "{e}"
+        );
+        assert!(e.contains("--merge-tol 1e-10 or more"), "{e}");
+        // merged, as by default, it fits
+        assert!(fit_section(&section(vec![near]), &k, SectionCarrier::Disc, 1e-6).is_ok());
     }
 
     #[test]

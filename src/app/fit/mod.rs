@@ -152,11 +152,17 @@ fn choose(
             k.name()
         )))
         }
-        (Method::Dense | Method::Auto, KernelChoice::Global(k)) => (Method::Dense, k, asked()),
+        (Method::Dense, KernelChoice::Global(k)) => (Method::Dense, k, asked()),
+        (Method::Auto, KernelChoice::Global(k)) => {
+            (Method::Dense, k, format!("auto: kernel {} is globally supported", k.name()))
+        }
         (Method::Dense, KernelChoice::Auto) => (Method::Dense, Kernel::new(3, 2)?, asked()),
         (Method::Dense, KernelChoice::Wendland(s)) => (Method::Dense, wendland(a, s, centres)?, asked()),
-        (Method::Csrbf | Method::Auto, KernelChoice::Wendland(s)) => {
-            (Method::Csrbf, wendland(a, s, centres)?, asked())
+        (Method::Csrbf, KernelChoice::Wendland(s)) => (Method::Csrbf, wendland(a, s, centres)?, asked()),
+        (Method::Auto, KernelChoice::Wendland(s)) => {
+            let k = wendland(a, s, centres)?;
+            let why = format!("auto: kernel {} is compactly supported", k.name());
+            (Method::Csrbf, k, why)
         }
         (Method::Csrbf, KernelChoice::Auto) => (Method::Csrbf, wendland(a, 1, centres)?, asked()),
         (Method::Auto, KernelChoice::Auto) => {
