@@ -1474,3 +1474,33 @@ fn eval_render_and_morph_refuse_what_they_cannot_represent_before_any_work() {
     let out = run(0, &["eval", s(&fifo), "--out", e, "--grid", "8"]);
     refused(&out, 1, "not a regular file", &dir, &[&input, &model, &as_hdf, &fifo]);
 }
+
+/// A morph of fewer frames over an earlier one's prefix names the older frames left beside its
+/// own (its series lists its own; a pattern open would mix them in), and leaves them alone.
+#[test]
+fn frames_of_an_earlier_longer_morph_are_named() {
+    let dir = temp_dir("hardening-stale-frames");
+    let prefix = dir.join("mm");
+    let morph = |frames: &str| {
+        let args = ["morph", "ball:0,0,0,1", "ball:0.5,0,0,1", "--frames", frames, "--grid", "10"];
+        run(2, &[&args[..], &["--out", s(&prefix)]].concat())
+    };
+    let first = morph("5");
+    assert!(
+        first.status.success() && !text(&first).contains("remain from an earlier morph"),
+        "{}",
+        text(&first)
+    );
+    let second = morph("3");
+    let t = text(&second);
+    assert!(second.status.success(), "{t}");
+    let want = format!(
+        "{} to {} (frames 3 to 4) remain from an earlier morph",
+        dir.join("mm_003").display(),
+        dir.join("mm_004").display()
+    );
+    assert!(t.contains(&want), "{want} not in {t}");
+    assert!(dir.join("mm_004.hdf").exists());
+    let series = std::fs::read_to_string(dir.join("mm.hdf.series")).unwrap();
+    assert!(series.contains("mm_002.hdf") && !series.contains("mm_003.hdf"), "{series}");
+}

@@ -33,6 +33,26 @@ pub fn frame_prefix(prefix: &Path, k: usize) -> PathBuf {
     output_path(prefix, &format!("_{k:03}"))
 }
 
+/// The warning about frames of an earlier, longer morph under the same prefix (`PREFIX_NNN.hdf`
+/// or `.ply` from frame `k` on): this run lists only its own in the series, but a ParaView pattern
+/// open of `PREFIX_*.hdf` would mix them in. They are the user's files and are left alone.
+fn stale_frames(prefix: &Path, k: usize) -> Option<String> {
+    let exists = |i: usize| {
+        ["hdf", "ply"].iter().any(|e| output_path(&frame_prefix(prefix, i), &format!(".{e}")).exists())
+    };
+    if !exists(k) {
+        return None;
+    }
+    let last = (k..k + 100_000).take_while(|&i| exists(i)).last().unwrap_or(k);
+    Some(format!(
+        "{} to {} (frames {k} to {last}) remain from an earlier morph with more frames under this prefix; \
+         {} lists this run's {k} frames only, but a pattern open of the frames would mix them in: remove them",
+        frame_prefix(prefix, k).display(),
+        frame_prefix(prefix, last).display(),
+        output_path(prefix, ".hdf.series").display()
+    ))
+}
+
 /// The series file's text for the volumes `names` at `times`.
 pub fn series_json(names: &[String], times: &[f64]) -> String {
     let files: Vec<String> = names
@@ -147,6 +167,9 @@ pub fn run(a: &MorphArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
 
     r.figure("folded_frames", folded_frames(&folds));
     if comm.rank() == 0 {
+        if let Some(w) = stale_frames(&a.out, k) {
+            eprintln!("volspline: warning: {w}");
+        }
         if let Some(w) = fold_warning(&folds, k, &lines) {
             eprintln!("volspline: warning: {}: {w}", a.pairs.as_deref().unwrap_or(Path::new("")).display());
         }

@@ -88,6 +88,18 @@ impl Syntax {
         if p.pos != p.s.len() {
             return Err(p.error("unexpected text after the expression"));
         }
+        // nested scales multiply: each factor within range is not enough
+        let (small, large) = scale_extremes(&e, 1.0, 1.0);
+        if !(small >= 1e-150 && large <= 1e150) {
+            let bad = if small < 1e-150 { small } else { large };
+            return Err(p.error_at(
+                0,
+                &format!(
+                    "nested scale factors multiply to {bad:e}, outside 1e-150 to 1e150 (the gradient is scaled \
+                     by the inverse, and squared); rescale the models' data instead"
+                ),
+            ));
+        }
         Ok(e)
     }
 
@@ -115,6 +127,26 @@ impl Syntax {
             Syntax::Model(p) => Some(p),
             _ => None,
         }
+    }
+}
+
+/// The smallest and largest product of scale factors along any path from `e` to a leaf, given
+/// the products `small` and `large` above it.
+fn scale_extremes(e: &Syntax, small: f64, large: f64) -> (f64, f64) {
+    match e {
+        Syntax::Apply(op, args) => {
+            let (small, large) = match op {
+                Op::Scale(f) => {
+                    let (lo, hi) = f.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
+                    (small * lo, large * hi)
+                }
+                _ => (small, large),
+            };
+            args.iter()
+                .map(|a| scale_extremes(a, small, large))
+                .fold((small, large), |(a, b), (c, d)| (a.min(c), b.max(d)))
+        }
+        _ => (small, large),
     }
 }
 
@@ -517,6 +549,7 @@ mod tests {
             ("scale(a.model.h5,1,0,2)", 20, "positive"),
             ("scale(a.model.h5,1e-170)", 18, "within 1e-150 to 1e150"),
             ("scale(a.model.h5,1,1,1e-200)", 22, "within 1e-150 to 1e150"),
+            ("scale(scale(a.model.h5,1e-100),1e-100)", 1, "nested scale factors multiply to 1e-200"),
             ("scale(a.model.h5,1,2)", 1, "factors sx, sy, sz"),
             ("ball:0,0,1", 11, "expected ','"),
             ("ball:0,0,0,-1", 1, "radius"),
