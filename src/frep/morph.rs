@@ -126,13 +126,7 @@ pub fn read_pairs_with_lines(path: &Path) -> Result<(Vec<Pair>, Vec<usize>)> {
         ("starts (in A)", pairs.iter().map(|p| p.0).collect::<Vec<_>>()),
         ("ends (in B)", pairs.iter().map(|p| p.1).collect()),
     ] {
-        let flat: Vec<f64> = points.iter().flatten().copied().collect();
-        let (lo, hi) = bounding_box(&flat, 3);
-        let norm = Normalisation::of_box(&lo, &hi);
-        let mut centres = vec![0.0; flat.len()];
-        for (c, p) in centres.chunks_exact_mut(3).zip(flat.chunks_exact(3)) {
-            norm.apply(p, c);
-        }
+        let (centres, _) = normalised(&points);
         if let Err(e) = check_unisolvent(&Kernel::new(3, 2)?, &centres) {
             let m = match e {
                 Error::Numerical(m) => m,
@@ -171,6 +165,19 @@ fn paths_meeting(pairs: &[Pair]) -> Option<(usize, usize, f64, f64)> {
     None
 }
 
+/// `points` in the normalised coordinates of their bounding box (3 values each), and that
+/// normalisation.
+fn normalised(points: &[[f64; 3]]) -> (Vec<f64>, Normalisation) {
+    let flat: Vec<f64> = points.iter().flatten().copied().collect();
+    let (lo, hi) = bounding_box(&flat, 3);
+    let norm = Normalisation::of_box(&lo, &hi);
+    let mut centres = vec![0.0; flat.len()];
+    for (c, p) in centres.chunks_exact_mut(3).zip(flat.chunks_exact(3)) {
+        norm.apply(p, c);
+    }
+    (centres, norm)
+}
+
 /// x -> x + D(x), D a volume spline (kernel r, linear polynomial) per component.
 #[derive(Debug, Clone)]
 pub struct SpaceMap {
@@ -181,13 +188,7 @@ impl SpaceMap {
     /// The map with D(from_i) = to_i - from_i.
     pub fn through(from: &[[f64; 3]], to: &[[f64; 3]]) -> Result<SpaceMap> {
         let kernel = Kernel::new(3, 2)?;
-        let flat: Vec<f64> = from.iter().flatten().copied().collect();
-        let (lo, hi) = bounding_box(&flat, 3);
-        let norm = Normalisation::of_box(&lo, &hi);
-        let mut centres = vec![0.0; flat.len()];
-        for (c, p) in centres.chunks_exact_mut(3).zip(flat.chunks_exact(3)) {
-            norm.apply(p, c);
-        }
+        let (centres, norm) = normalised(from);
         let why = "the pair points of a space mapping must be distinct and not all on one plane";
         let because = |e: Error| {
             Error::Numerical(match e {
