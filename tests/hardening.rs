@@ -1504,3 +1504,19 @@ fn frames_of_an_earlier_longer_morph_are_named() {
     let series = std::fs::read_to_string(dir.join("mm.hdf.series")).unwrap();
     assert!(series.contains("mm_002.hdf") && !series.contains("mm_003.hdf"), "{series}");
 }
+
+/// A point file whose lines end in carriage returns alone (classic Mac OS) fits as the same file
+/// with line feeds (it was read as one line of 1200 values and refused).
+#[test]
+fn lines_ended_by_carriage_returns_alone_fit_as_with_line_feeds() {
+    let dir = temp_dir("hardening-cr");
+    let cow = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/cow-400.xyz");
+    let cr = dir.join("cow-cr.xyz");
+    std::fs::write(&cr, std::fs::read_to_string(cow).unwrap().replace("\r\n", "\n").replace('\n', "\r"))
+        .unwrap();
+    for (input, out) in [(Path::new(cow), dir.join("lf")), (cr.as_path(), dir.join("cr"))] {
+        let run = run(0, &["fit", s(input), "--out", s(&out), "--grid", "16", "--no-preview"]);
+        assert!(run.status.success(), "{}", text(&run));
+    }
+    assert!(std::fs::read(dir.join("lf.ply")).unwrap() == std::fs::read(dir.join("cr.ply")).unwrap());
+}

@@ -162,6 +162,42 @@ fn contour_crossings(path: &Path, sections: &[Section]) -> (usize, Option<String
     (total, warning)
 }
 
+/// The warning about contours whose points all lie within `merge_tol` of their slice's diagonal
+/// of each other: merged as duplicates, they become one point, a contour without inside, and the
+/// solid has no section there (a tracing at the wrong scale, or a stray click). Names the first
+/// three by slice line and number.
+fn collapsed_contours(path: &Path, sections: &[Section], merge_tol: f64) -> Option<String> {
+    let span = |pts: &mut dyn Iterator<Item = [f64; 2]>| {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in pts {
+            for d in 0..2 {
+                lo[d] = lo[d].min(p[d]);
+                hi[d] = hi[d].max(p[d]);
+            }
+        }
+        (hi[0] - lo[0]).hypot(hi[1] - lo[1])
+    };
+    let mut found = Vec::new();
+    for s in sections {
+        let diag = span(&mut s.contours.iter().flatten().copied());
+        for (k, c) in s.contours.iter().enumerate() {
+            if span(&mut c.iter().copied()) <= merge_tol * diag {
+                found.push(format!("contour {} of the slice of line {}", k + 1, s.line));
+            }
+        }
+    }
+    (!found.is_empty()).then(|| {
+        let more = if found.len() > 3 { ", ..." } else { "" };
+        format!(
+            "{}: {} contour(s) span no more than --merge-tol {merge_tol:e} of their slice's diagonal ({}{more}): \
+             their points merge into one, so the solid has no section there; check their scale, or remove them",
+            path.display(),
+            found.len(),
+            found[..found.len().min(3)].join("; ")
+        )
+    })
+}
+
 /// Runs `volspline contours`. Collective.
 pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
@@ -189,6 +225,9 @@ pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     }
     let (crossings, warning) = contour_crossings(&a.input, &sections);
     if let (0, Some(w)) = (comm.rank(), warning) {
+        eprintln!("volspline: warning: {w}");
+    }
+    if let (0, Some(w)) = (comm.rank(), collapsed_contours(&a.input, &sections, a.merge_tol)) {
         eprintln!("volspline: warning: {w}");
     }
     let fits = stages.time(Stage::Solve, || {
@@ -263,4 +302,27 @@ pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     }
     r.finish(comm, &stages, &|_| Vec::new(), a.grid.timings.as_deref())?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn contours_that_merge_into_one_point_are_named() {
+        let square = |c: f64, h: f64| vec![[c, c], [c + h, c], [c + h, c + h], [c, c + h]];
+        let section = |line: usize, contours: Vec<Vec<[f64; 2]>>| Section {
+            line,
+            origin: glam::DVec3::new(0.0, 0.0, line as f64),
+            frame: glam::DMat3::IDENTITY,
+            kind: "z",
+            contours,
+        };
+        let sections =
+            [section(1, vec![square(0.0, 1.0)]), section(7, vec![square(0.0, 1.0), square(0.5, 1e-9)])];
+        let w = collapsed_contours(Path::new("c.txt"), &sections, 1e-6).unwrap();
+        assert!(w.starts_with("c.txt: 1 contour(s) span no more than --merge-tol 1e-6"), "{w}");
+        assert!(w.contains("(contour 2 of the slice of line 7)"), "{w}");
+        assert!(collapsed_contours(Path::new("c.txt"), &sections, 1e-10).is_none());
+    }
 }

@@ -9,7 +9,8 @@
 //! and since the numbers are ASCII, how the other bytes are shown changes nothing that is read. A
 //! NUL or another control byte marks binary data (a binary PLY named `.xyz`, an executable),
 //! refused with the line and byte offset where it starts. UTF-16, whose every ASCII character
-//! carries a NUL, is named as such, with the conversion that fixes it.
+//! carries a NUL, is named as such, with the conversion that fixes it. Lines may end in LF, CR LF,
+//! or CR alone (a file without a single LF: classic Mac OS and some instruments' exports).
 
 use std::borrow::Cow;
 use std::path::Path;
@@ -37,10 +38,12 @@ pub fn decode<'a>(path: &Path, bytes: &'a [u8], what: &str) -> Result<Cow<'a, st
             format!("binary data at byte offset {at}; this is not a text {what} file"),
         ));
     }
-    Ok(match std::str::from_utf8(bytes) {
+    let text = match std::str::from_utf8(bytes) {
         Ok(text) => Cow::Borrowed(text.strip_prefix('\u{feff}').unwrap_or(text)),
         Err(_) => Cow::Owned(bytes.iter().map(|&b| char::from(b)).collect()),
-    })
+    };
+    // lines ended by carriage returns alone (classic Mac OS, some instruments' exports)
+    Ok(if text.contains('\r') && !text.contains('\n') { Cow::Owned(text.replace('\r', "\n")) } else { text })
 }
 
 /// The file at `path` read and decoded as [`decode`] does.
@@ -64,6 +67,13 @@ mod tests {
 
     fn decoded(bytes: &[u8]) -> std::result::Result<String, String> {
         decode(Path::new("f.txt"), bytes, "point").map(Cow::into_owned).map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn lines_ended_by_carriage_returns_alone_are_lines() {
+        assert_eq!(decoded(b"0 0 0\r1 2 3\r").unwrap(), "0 0 0\n1 2 3\n");
+        // with line feeds present, a carriage return is left for the line's reader to trim
+        assert_eq!(decoded(b"0 0 0\r\n1 2 3\n").unwrap(), "0 0 0\r\n1 2 3\n");
     }
 
     #[test]
