@@ -16,6 +16,7 @@ use super::volume::{check_grid, output_path, write_volume, Volume};
 use crate::cli::ContoursArgs;
 use crate::contour::crossing;
 use crate::contour::format::{self, Section};
+use crate::contour::planes::diagonal_2d;
 use crate::contour::{fit_section, ContourModel, SectionCarrier, SectionFit, SectionModel};
 use crate::error::{Error, Result};
 use crate::frep::raycast::Colouring;
@@ -167,21 +168,11 @@ fn contour_crossings(path: &Path, sections: &[Section]) -> (usize, Option<String
 /// solid has no section there (a tracing at the wrong scale, or a stray click). Names the first
 /// three by slice line and number.
 fn collapsed_contours(path: &Path, sections: &[Section], merge_tol: f64) -> Option<String> {
-    let span = |pts: &mut dyn Iterator<Item = [f64; 2]>| {
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for p in pts {
-            for d in 0..2 {
-                lo[d] = lo[d].min(p[d]);
-                hi[d] = hi[d].max(p[d]);
-            }
-        }
-        (hi[0] - lo[0]).hypot(hi[1] - lo[1])
-    };
     let mut found = Vec::new();
     for s in sections {
-        let diag = span(&mut s.contours.iter().flatten().copied());
+        let diag = diagonal_2d(&s.contours.concat());
         for (k, c) in s.contours.iter().enumerate() {
-            if span(&mut c.iter().copied()) <= merge_tol * diag {
+            if diagonal_2d(c) <= merge_tol * diag {
                 found.push(format!("contour {} of the slice of line {}", k + 1, s.line));
             }
         }

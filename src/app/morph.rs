@@ -43,7 +43,7 @@ fn stale_frames(prefix: &Path, k: usize) -> Option<String> {
     if !exists(k) {
         return None;
     }
-    let last = (k..k + 100_000).take_while(|&i| exists(i)).last().unwrap_or(k);
+    let last = (k..crate::cli::MAX_FRAMES).take_while(|&i| exists(i)).last().unwrap_or(k);
     Some(format!(
         "{} to {} (frames {k} to {last}) remain from an earlier morph with more frames under this prefix; \
          {} lists this run's {k} frames only, but a pattern open of the frames would mix them in: remove them",

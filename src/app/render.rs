@@ -179,17 +179,11 @@ pub fn write_png(path: &Path, pic: &Picture) -> Result<()> {
     writer.finish().map_err(png_err)
 }
 
-/// Refuses an output path that is not a writable `.png` file name.
-fn check_png_path(path: &Path) -> Result<()> {
-    let text = path.to_string_lossy();
-    let is_png = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"));
-    if !is_png || path.is_dir() {
-        return Err(Error::Usage(format!("--out {text}: expected the name of a .png file")));
-    }
-    let dir = crate::io::staging::parent_dir(path);
-    if !dir.is_dir() {
-        let e = std::io::Error::new(std::io::ErrorKind::NotFound, "the output directory does not exist");
-        return Err(Error::io(dir, &e));
+/// Refuses an output path whose name is not a `.png` file's (where it may be written is
+/// [`super::preflight::writable_file`]'s check).
+fn check_png_name(path: &Path) -> Result<()> {
+    if !path.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
+        return Err(Error::Usage(format!("--out {}: expected the name of a .png file", path.display())));
     }
     Ok(())
 }
@@ -265,11 +259,10 @@ pub fn run(a: &RenderArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     // the models an expression reads (a text that parses as none is refused by the reader below)
     let models = Syntax::parse(&a.model).map(|s| s.models()).unwrap_or_default();
     let inputs: Vec<&Path> = models.iter().map(PathBuf::as_path).collect();
-    let checked = || {
-        check_png_path(&a.out)?;
+    on_root(comm, || {
+        check_png_name(&a.out)?;
         super::preflight::writable_file(&a.out, "a .png file", a.timings.as_deref(), &inputs)
-    };
-    agree(comm, if comm.rank() == 0 { checked() } else { Ok(()) })?;
+    })?;
     let solid = stages.time(Stage::Read, || agree(comm, load_solid(&a.model)))?;
     let view = view_of(&a.view);
     let hits = write_picture(comm, solid.as_ref(), &view, a.view.color, &a.out, &mut stages)?;

@@ -9,7 +9,7 @@ use crate::contour::planes::{slice_mesh, SliceSummary};
 use crate::error::{Error, Result};
 use crate::io::{self, points};
 use crate::mesh::TriMesh;
-use crate::par::{agree, on_root, Comm};
+use crate::par::{on_root, Comm};
 use crate::spline::hygiene::bounding_box;
 
 /// Why no two planes met the mesh, when its box is flat along an axis.
@@ -26,19 +26,10 @@ fn flat_hint(vertices: &[[f64; 3]]) -> String {
 pub fn run(a: &SliceArgs, comm: &dyn Comm) -> Result<()> {
     let mut stages = Stages::default();
     let mut summary = None;
-    agree(
-        comm,
-        if comm.rank() == 0 {
-            super::preflight::writable_file(
-                &a.out,
-                "the contour file to write, such as bunny.txt",
-                a.timings.as_deref(),
-                &[&a.mesh],
-            )
-        } else {
-            Ok(())
-        },
-    )?;
+    on_root(comm, || {
+        let what = "the contour file to write, such as bunny.txt";
+        super::preflight::writable_file(&a.out, what, a.timings.as_deref(), &[&a.mesh])
+    })?;
     stages.time(Stage::Slice, || {
         on_root(comm, || {
             let set = points::read_mesh(&a.mesh)?;

@@ -302,9 +302,7 @@ fn check_apart(path: &Path, sections: &[Section]) -> Result<()> {
             hi = hi.max(x);
         }
     }
-    let extent = hi - lo;
-    let scale = extent.max_element();
-    let diagonal = if scale > 0.0 { scale * (extent / scale).length() } else { 0.0 };
+    let diagonal = crate::spline::hygiene::diagonal(&lo.to_array(), &hi.to_array());
     if !(diagonal.is_finite() && diagonal >= SPREAD.0 && diagonal <= SPREAD.1) {
         let reach = lo.abs().max(hi.abs()).max_element();
         return Err(Error::input(

@@ -8,7 +8,7 @@ use super::crossing::{crossings, COUNTED_PER_SLICE};
 use super::format::Section;
 use crate::error::{Error, Result};
 use crate::mesh::{cut_by_plane, TriMesh};
-use crate::spline::hygiene::bounding_box;
+use crate::spline::hygiene::{bounding_box, diagonal};
 
 /// A family of cutting planes for `volspline slice`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -140,16 +140,16 @@ pub struct SliceSummary {
 /// its points lie on one line to rounding.
 pub const FLAT_AREA: f64 = 1e-12;
 
+/// The diagonal of the bounding box of points in a plane.
+pub fn diagonal_2d(points: &[[f64; 2]]) -> f64 {
+    let flat: Vec<f64> = points.iter().flatten().copied().collect();
+    let (lo, hi) = bounding_box(&flat, 2);
+    diagonal(&lo, &hi)
+}
+
 /// Whether a closed polygon in its plane's coordinates encloses no area ([`FLAT_AREA`]).
 pub fn without_area(c: &[[f64; 2]]) -> bool {
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for p in c {
-        for d in 0..2 {
-            lo[d] = lo[d].min(p[d]);
-            hi[d] = hi[d].max(p[d]);
-        }
-    }
-    let diag2 = (hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2);
+    let diag2 = diagonal_2d(c).powi(2);
     // the shoelace sum about the first point, which keeps its terms small
     let area2: f64 = (1..c.len().saturating_sub(1))
         .map(|i| {
