@@ -1094,3 +1094,70 @@ fn sections_that_would_be_misread_are_refused_named_or_read_as_written() {
     assert_eq!(out.status.code(), Some(1), "{said}");
     assert!(said.contains("cow.xyz: file extension '.xyz': a mesh file"), "{said}");
 }
+
+/// The cow's vertices and faces as its OBJ file lists them.
+fn cow_obj() -> (Vec<String>, Vec<[usize; 3]>) {
+    let text = std::fs::read_to_string(common::COW).unwrap();
+    let vertices = text.lines().filter(|l| l.starts_with("v ")).map(str::to_string).collect();
+    let faces = text
+        .lines()
+        .filter(|l| l.starts_with("f "))
+        .map(|l| {
+            let v: Vec<usize> =
+                l.split_whitespace().skip(1).map(|c| c.split('/').next().unwrap().parse().unwrap()).collect();
+            [v[0], v[1], v[2]]
+        })
+        .collect();
+    (vertices, faces)
+}
+
+fn obj_text(vertices: &[String], faces: &[[usize; 3]]) -> String {
+    let mut text: String = vertices.iter().map(|v| format!("{v}\n")).collect();
+    text.extend(faces.iter().map(|f| format!("f {} {} {}\n", f[0], f[1], f[2])));
+    text
+}
+
+#[test]
+fn meshes_written_double_sided_or_as_triangle_soups_slice_as_their_surface() {
+    let dir = common::temp_dir("contours-soup");
+    let (vertices, faces) = cow_obj();
+    // every face twice, the second time the other way round, as double-sided exports write them
+    let mut double = faces.clone();
+    double.extend(faces.iter().map(|f| [f[2], f[1], f[0]]));
+    std::fs::write(dir.join("double.obj"), obj_text(&vertices, &double)).unwrap();
+    // every face with three vertices of its own, as triangle soups are written
+    let soup_vertices: Vec<String> = faces.iter().flat_map(|f| f.map(|v| vertices[v - 1].clone())).collect();
+    let soup_faces: Vec<[usize; 3]> = (0..faces.len()).map(|i| [3 * i + 1, 3 * i + 2, 3 * i + 3]).collect();
+    std::fs::write(dir.join("soup.obj"), obj_text(&soup_vertices, &soup_faces)).unwrap();
+    let cut = |mesh: &str, name: &str| -> (Vec<Section>, PathBuf) {
+        let (out, csv) = (dir.join(format!("{name}.txt")), dir.join(format!("{name}.csv")));
+        common::run_ok(0, &["slice", mesh, "--out", s(&out), "--planes", "z:20", "--timings", s(&csv)]);
+        (format::read(&out).unwrap(), csv)
+    };
+    let (cow, cow_csv) = cut(common::COW, "cow");
+    let points =
+        |sections: &[Section]| sections.iter().flat_map(|x| &x.contours).map(Vec::len).sum::<usize>();
+    assert_eq!((cow.len(), points(&cow)), (20, 1929));
+    // the cow's file repeats one vertex, which no cut here meets
+    assert_eq!(figure(&cow_csv, "joined_vertices"), "1");
+
+    // went round every section twice (3858 points) before
+    let (twice, csv) = cut(s(&dir.join("double.obj")), "double");
+    assert_eq!(figure(&csv, "repeated_faces"), faces.len().to_string());
+    assert_eq!(twice, cow, "a double-sided cow cut otherwise than the cow");
+
+    // were 1976 chains "ending on holes", joined into crossing contours, before
+    let (soup, csv) = cut(s(&dir.join("soup.obj")), "soup");
+    assert_eq!(figure(&csv, "joined_chains"), "0");
+    assert_eq!(figure(&csv, "joined_vertices"), (3 * faces.len() - vertices.len() + 1).to_string());
+    assert_eq!(figure(&csv, "contour_crossings"), figure(&cow_csv, "contour_crossings"));
+    assert_eq!(soup.len(), cow.len());
+    for (a, b) in soup.iter().zip(&cow) {
+        assert_eq!(a.contours.len(), b.contours.len());
+        for (p, q) in a.contours.iter().flatten().zip(b.contours.iter().flatten()) {
+            // the crossing of an edge is found from either end, so the last bits may differ
+            assert!((p[0] - q[0]).abs() < 1e-14 && (p[1] - q[1]).abs() < 1e-14, "{p:?} {q:?}");
+        }
+        assert_eq!(points(std::slice::from_ref(a)), points(std::slice::from_ref(b)));
+    }
+}

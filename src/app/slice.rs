@@ -8,6 +8,7 @@ use crate::contour::format;
 use crate::contour::planes::{slice_mesh, SliceSummary};
 use crate::error::{Error, Result};
 use crate::io::{self, points};
+use crate::mesh::clean::indexed;
 use crate::mesh::TriMesh;
 use crate::par::{on_root, Comm};
 use crate::spline::hygiene::bounding_box;
@@ -36,11 +37,13 @@ pub fn run(a: &SliceArgs, comm: &dyn Comm) -> Result<()> {
             if let Some(note) = &set.note {
                 eprintln!("volspline slice: {}: {note}", a.mesh.display());
             }
-            let mesh = TriMesh {
+            let read = TriMesh {
                 vertices: set.points.clone(),
                 triangles: set.triangles.iter().map(|t| [t[0] as u32, t[1] as u32, t[2] as u32]).collect(),
             };
-            let (sections, s) = slice_mesh(&mesh, &a.planes.planes(&mesh.vertices));
+            let (mesh, indexing) = indexed(&read);
+            let (sections, mut s) = slice_mesh(&mesh, &a.planes.planes(&mesh.vertices));
+            s.indexing = indexing;
             if sections.len() < 2 {
                 let flat = if s.flat > 0 {
                     format!(" ({} contours without area left out)", s.flat)
@@ -81,6 +84,15 @@ pub fn run(a: &SliceArgs, comm: &dyn Comm) -> Result<()> {
         "planes {}: {} planes, {} slices meet the mesh: {} contours, {} points",
         a.planes, s.planes, s.slices, s.contours, s.points
     ));
+    let ix = s.indexing;
+    if ix.joined_vertices + ix.repeated_faces + ix.collapsed_faces > 0 {
+        r.line(format!(
+            "the mesh as cut: {} vertices at the coordinates of an earlier one joined with it, {} faces over the \
+             vertices of an earlier face (a double-sided surface) and {} faces without three distinct vertices \
+             left out",
+            ix.joined_vertices, ix.repeated_faces, ix.collapsed_faces
+        ));
+    }
     if s.joined > 0 {
         r.line(format!(
             "{} chains ended on holes of the mesh and were closed by joining each end to the nearest free end",
@@ -126,6 +138,9 @@ pub fn run(a: &SliceArgs, comm: &dyn Comm) -> Result<()> {
     r.figure("slices", s.slices);
     r.figure("contours", s.contours);
     r.figure("points", s.points);
+    r.figure("joined_vertices", ix.joined_vertices);
+    r.figure("repeated_faces", ix.repeated_faces);
+    r.figure("collapsed_faces", ix.collapsed_faces);
     r.figure("joined_chains", s.joined);
     r.figure("merged_cuts", s.merged);
     r.figure("contour_crossings", s.crossings);

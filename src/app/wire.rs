@@ -4,6 +4,7 @@
 
 use crate::contour::planes::SliceSummary;
 use crate::contour::SectionFit;
+use crate::mesh::clean::Indexing;
 use crate::mesh::MeshPiece;
 use crate::par::{Reader, Wire};
 use crate::spline::{Carrier, Kernel, Normalisation, Spline};
@@ -88,13 +89,29 @@ impl Wire for SliceSummary {
             self.flat,
             self.gaps,
             self.first_gap,
+            self.indexing.joined_vertices,
+            self.indexing.repeated_faces,
+            self.indexing.collapsed_faces,
         ]
         .put(out);
     }
     fn take(r: &mut Reader<'_>) -> Self {
-        let [planes, slices, contours, points, joined, merged, crossings, flat, gaps, first_gap] =
+        let [planes, slices, contours, points, joined, merged, crossings, flat, gaps, first_gap, joined_vertices, repeated_faces, collapsed_faces] =
             Wire::take(r);
-        SliceSummary { planes, slices, contours, points, joined, merged, crossings, flat, gaps, first_gap }
+        let indexing = Indexing { joined_vertices, repeated_faces, collapsed_faces };
+        SliceSummary {
+            planes,
+            slices,
+            contours,
+            points,
+            joined,
+            merged,
+            crossings,
+            flat,
+            gaps,
+            first_gap,
+            indexing,
+        }
     }
 }
 

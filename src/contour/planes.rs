@@ -134,6 +134,9 @@ pub struct SliceSummary {
     /// apart along the family), and the first of them (1-based, 0 when none).
     pub gaps: usize,
     pub first_gap: usize,
+    /// How the mesh was made fit for cutting (vertices joined, faces left out), filled in by the
+    /// caller that made it so.
+    pub indexing: crate::mesh::clean::Indexing,
 }
 
 /// A contour with less area than this fraction of its bounding box's diagonal squared has none:

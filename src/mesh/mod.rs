@@ -5,8 +5,8 @@
 //! per-rank pieces into one deterministic mesh ([`weld()`]), PLY output
 //! ([`write_ply`]), exact point-to-mesh distances ([`point_mesh_distances`]) and
 //! topological checks ([`connected_components`], [`is_closed_manifold_edges`],
-//! [`signed_volume`]), plane cuts into polylines ([`cut_by_plane`]) and trimming
-//! ([`trim::keep_triangles`]).
+//! [`signed_volume`]), plane cuts into polylines ([`cut_by_plane`]) of meshes as files hold them
+//! ([`clean::indexed`]) and trimming ([`trim::keep_triangles`]).
 //!
 //! Conventions shared by all submodules:
 //! - grid values are stored x fastest: `index = i + nx * (j + ny * k)`, node
@@ -16,6 +16,7 @@
 //!   (towards decreasing values), which makes [`signed_volume`] positive.
 
 mod cases;
+pub mod clean;
 pub mod distance;
 pub mod marching_cubes;
 pub mod ply;
