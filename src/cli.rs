@@ -354,9 +354,10 @@ pub struct ContoursArgs {
     /// Output prefix: writes PREFIX.model.h5, PREFIX.hdf, PREFIX.ply.
     #[arg(long, value_name = "PREFIX")]
     pub out: PathBuf,
-    /// Interpolation between slices: linear or cubic (cardinal natural cubic splines in the slice
-    /// parameter).
-    #[arg(long, default_value = "linear", value_name = "linear|cubic", value_parser = with(Interp::parse))]
+    /// Interpolation between slices: linear, cubic (cardinal natural cubic splines in the slice
+    /// parameter: C^2, but may overshoot where the sections change abruptly) or monotone (C^1
+    /// cubic Hermite that stays between the two neighbouring slices' values: no overshoot).
+    #[arg(long, default_value = "linear", value_name = "linear|cubic|monotone", value_parser = with(Interp::parse))]
     pub interp: Interp,
     /// Interpolation of the section frames of non-parallel slices: slerp (quaternion geodesic) or
     /// log (exp((1-t) ln M_i + t ln M_i+1)).

@@ -35,6 +35,29 @@
 //! negative weights let F overshoot across an abrupt change of the sections (see
 //! [`CARDINAL_CUTOFF`]). In exchange F is C^2 in tau: between parallel slices the surface has no
 //! creases at the slices.
+//!
+//! **Monotone** (`--interp monotone`): on interval i the cubic Hermite polynomial through F_i and
+//! F_(i+1) with slopes d_i, d_(i+1) chosen from the neighbouring values so that it never leaves
+//! the range of F_i and F_(i+1) (piecewise cubic Hermite interpolation that keeps the data's
+//! shape, Fritsch and Butland's slopes). With the secants s_k = (F_(k+1) - F_k) / h_k, an
+//! interior slope is
+//!
+//! ```text
+//! d_k = 0                                            where s_(k-1) s_k <= 0 (F turns at knot k),
+//! d_k = (w1 + w2) / (w1 / s_(k-1) + w2 / s_k)        else, w1 = 2 h_k + h_(k-1), w2 = h_k + 2 h_(k-1),
+//! ```
+//!
+//! a weighted harmonic mean of the secants, of their sign and at most 3 min(|s_(k-1)|, |s_k|);
+//! the first knot's slope is the three-point one-sided difference ((2 h_0 + h_1) s_0 - h_0 s_1) /
+//! (h_0 + h_1), set to 0 where its sign is not s_0's and to 3 s_0 where the secants change sign
+//! and it exceeds that (the last knot's alike), and a slope of the only interval of two slices is
+//! its secant. Slopes of the secant's sign and at most three times it keep the cubic on an
+//! interval monotone (Fritsch and Carlson's sufficient condition), so F between two slices lies
+//! between their values: where a point is outside both neighbouring sections it stays outside,
+//! and the solid between two slices never reaches beyond what the two sections' functions give,
+//! however abruptly the sections change. F is C^1 in tau (no creases at parallel slices), depends
+//! on the four slices around the interval only, and is not a linear combination of the F_j: the
+//! slopes depend on the values at the point.
 
 use crate::error::{Error, Result};
 
@@ -43,6 +66,7 @@ use crate::error::{Error, Result};
 pub enum Interp {
     Linear,
     Cubic,
+    Monotone,
 }
 
 impl Interp {
@@ -50,7 +74,10 @@ impl Interp {
         match name {
             "linear" => Ok(Interp::Linear),
             "cubic" => Ok(Interp::Cubic),
-            other => Err(Error::Usage(format!("unknown --interp '{other}' (expected linear or cubic)"))),
+            "monotone" => Ok(Interp::Monotone),
+            other => {
+                Err(Error::Usage(format!("unknown --interp '{other}' (expected linear, cubic or monotone)")))
+            }
         }
     }
 
@@ -58,6 +85,7 @@ impl Interp {
         match self {
             Interp::Linear => "linear",
             Interp::Cubic => "cubic",
+            Interp::Monotone => "monotone",
         }
     }
 }
@@ -118,10 +146,42 @@ impl Blend {
         self.knots[1..n - 1].partition_point(|&k| k <= tau)
     }
 
+    /// F at fraction t in [0, 1] of interval i, from the sections' values `f(j)` at the point.
+    /// Linear and cubic sum the weights of [`Blend::weights`] (`scratch` holds them); monotone
+    /// reads the values of at most the four slices i - 1 .. i + 2 (see the module documentation).
+    pub fn value(&self, i: usize, t: f64, scratch: &mut Vec<(usize, f64)>, f: impl Fn(usize) -> f64) -> f64 {
+        if self.interp != Interp::Monotone {
+            self.weights(i, t, scratch);
+            return scratch.iter().map(|&(j, w)| w * f(j)).sum();
+        }
+        let n = self.knots.len();
+        let h = |k: usize| self.knots[k + 1] - self.knots[k];
+        let (fi, fj) = (f(i), f(i + 1));
+        let secant = (fj - fi) / h(i);
+        let before = (i > 0).then(|| (h(i - 1), (fi - f(i - 1)) / h(i - 1)));
+        let after = (i + 2 < n).then(|| (h(i + 1), (f(i + 2) - fj) / h(i + 1)));
+        let d_i = match before {
+            Some((hb, sb)) => interior_slope(hb, sb, h(i), secant),
+            None => after.map_or(secant, |(ha, sa)| end_slope(h(i), secant, ha, sa)),
+        };
+        let d_j = match after {
+            Some((ha, sa)) => interior_slope(h(i), secant, ha, sa),
+            None => before.map_or(secant, |(hb, sb)| end_slope(h(i), secant, hb, sb)),
+        };
+        let (t2, t3) = (t * t, t * t * t);
+        let h00 = 2.0 * t3 - 3.0 * t2 + 1.0;
+        let h10 = t3 - 2.0 * t2 + t;
+        let h01 = -2.0 * t3 + 3.0 * t2;
+        let h11 = t3 - t2;
+        h00 * fi + h01 * fj + h(i) * (h10 * d_i + h11 * d_j)
+    }
+
     /// Appends (j, w_j) for a point at fraction t in [0, 1] of interval i to `out` (cleared first).
+    /// Monotone interpolation has no weights (it is not linear in the F_j): see [`Blend::value`].
     pub fn weights(&self, i: usize, t: f64, out: &mut Vec<(usize, f64)>) {
         out.clear();
         match self.interp {
+            Interp::Monotone => panic!("monotone interpolation has no weights; Blend::value computes it"),
             Interp::Linear => {
                 out.push((i, 1.0 - t));
                 out.push((i + 1, t));
@@ -147,6 +207,30 @@ impl Blend {
                 }
             }
         }
+    }
+}
+
+/// The slope at a knot between intervals of lengths `h0`, `h1` with secants `s0`, `s1`: their
+/// weighted harmonic mean, or 0 where F turns there.
+fn interior_slope(h0: f64, s0: f64, h1: f64, s1: f64) -> f64 {
+    if s0 * s1 <= 0.0 {
+        return 0.0;
+    }
+    let (w1, w2) = (2.0 * h1 + h0, h1 + 2.0 * h0);
+    (w1 + w2) / (w1 / s0 + w2 / s1)
+}
+
+/// The slope at an end knot of an interval of length `h0` and secant `s0`, whose neighbour has
+/// length `h1` and secant `s1`: the one-sided three-point difference, limited to the secant's sign
+/// and, where the secants change sign, to three times it.
+fn end_slope(h0: f64, s0: f64, h1: f64, s1: f64) -> f64 {
+    let d = ((2.0 * h0 + h1) * s0 - h0 * s1) / (h0 + h1);
+    if d * s0 <= 0.0 {
+        0.0
+    } else if s0 * s1 < 0.0 && d.abs() > 3.0 * s0.abs() {
+        3.0 * s0
+    } else {
+        d
     }
 }
 
@@ -272,6 +356,42 @@ mod tests {
             assert!((sum - 1.0).abs() < 1e-7 && (lin - tau).abs() < 1e-7 * (1.0 + tau), "{sum} {lin}");
             assert!(w.len() <= 2 * CARDINAL_REACH + 2 && w.len() > 10, "{}", w.len());
         }
+    }
+
+    #[test]
+    fn monotone_values_stay_between_the_slices_and_follow_smooth_data() {
+        let knots: Vec<f64> = (0..9).map(|i| i as f64 * 0.5 + 0.03 * (i * i) as f64).collect();
+        let b = Blend::new(Interp::Monotone, knots.clone());
+        let mut scratch = Vec::new();
+        // an abrupt change (a section that appears between two empty ones, as a thin part
+        // cut by one slice) never leaves the range of the interval's two values
+        let step: [f64; 9] = [-1.0, -1.0, -1.0, 2.0, 2.0, -1.0, -1.0, 0.5, -3.0];
+        for i in 0..8 {
+            let (lo, hi) = (step[i].min(step[i + 1]), step[i].max(step[i + 1]));
+            for k in 0..=50 {
+                let t = k as f64 / 50.0;
+                let v = b.value(i, t, &mut scratch, |j| step[j]);
+                assert!(v >= lo - 1e-15 && v <= hi + 1e-15, "interval {i} t {t}: {v} outside [{lo}, {hi}]");
+            }
+            assert_eq!(b.value(i, 0.0, &mut scratch, |j| step[j]), step[i]);
+            assert_eq!(b.value(i, 1.0, &mut scratch, |j| step[j]), step[i + 1]);
+        }
+        // the natural cubic through the same values overshoots: below -1 between two -1s
+        let cubic = Blend::new(Interp::Cubic, knots.clone());
+        assert!(cubic.value(1, 0.5, &mut scratch, |j| step[j]) < -1.05);
+        assert_eq!(b.value(1, 0.5, &mut scratch, |j| step[j]), -1.0);
+        // smooth monotone data: a line is reproduced and a quadratic followed to third order
+        let line = |j: usize| 3.0 - 2.0 * knots[j];
+        let quad = |tau: f64| 1.0 + tau * tau;
+        for i in 0..8 {
+            let tau = knots[i] + 0.37 * (knots[i + 1] - knots[i]);
+            assert!((b.value(i, 0.37, &mut scratch, line) - (3.0 - 2.0 * tau)).abs() < 1e-13);
+            let err = (b.value(i, 0.37, &mut scratch, |j| quad(knots[j])) - quad(tau)).abs();
+            assert!(err < 0.02, "interval {i}: {err}");
+        }
+        // two slices: the secant
+        let two = Blend::new(Interp::Monotone, vec![0.0, 2.0]);
+        assert_eq!(two.value(0, 0.25, &mut scratch, |j| [1.0, -3.0][j]), 0.0);
     }
 
     #[test]

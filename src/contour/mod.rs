@@ -43,7 +43,9 @@
 //! F(x) = sum_j w_j F_j(a, b)                           (weights w_j of interval i at t)
 //! ```
 //!
-//! with M(t) by log/exp or slerp ([`orientation`]) and the weights linear or cubic ([`interp`]),
+//! with M(t) by log/exp or slerp ([`orientation`]) and the weights linear or cubic ([`interp`];
+//! the monotone interpolation there is a cubic in t through F_i(a, b) and F_(i+1)(a, b) whose
+//! slopes depend on the values of the slices around, not a weighted sum),
 //! on knots spaced by the distances between the planes ([`knots_of`]). On plane i, t = 0,
 //! o(0) = o_i and M(0) = M_i, so F = F_i again (on the inner planes; the end planes are capped,
 //! below); for parallel slices M(t) = M_i and t is the fraction of the way in z, which is the
@@ -233,8 +235,7 @@ impl ContourModel {
             Placement::Between { i, t } => {
                 let (o, m) = self.frame_at(i, t);
                 let ab = local(o, &m);
-                self.blend.weights(i, t, weights);
-                let mut f: f64 = weights.iter().map(|&(j, w)| w * s[j].eval(ab)).sum();
+                let mut f = self.blend.value(i, t, weights, |j| s[j].eval(ab));
                 // the end caps fade out across the end intervals (1 / (1 - t) and 1 / t), so that F
                 // is continuous where the next interval begins
                 if i == 0 {
@@ -288,6 +289,7 @@ impl Field for ContourModel {
             Interp::Linear => 2 * mean,
             // about fourteen neighbours on either side keep a weight above the cut-off
             Interp::Cubic => self.sections.len().min(29) * mean,
+            Interp::Monotone => self.sections.len().min(4) * mean,
         }
     }
 }

@@ -5,7 +5,7 @@
 //!
 //! Layout (all in the root group), S slices, N_i centres in slice i, N = sum N_i:
 //! - attributes `format` = "volspline-contour-model", `format_version` = 1, `kernel_dim` (2),
-//!   `kernel_order` (m), `kernel` (name), `interp` ("linear"/"cubic"), `orient` ("log"/"slerp"),
+//!   `kernel_order` (m), `kernel` (name), `interp` ("linear"/"cubic"/"monotone"), `orient` ("log"/"slerp"),
 //!   `section_carriers` (the S carrier specs in the plane's coordinates, joined by ';'), and the
 //!   provenance as in the scattered-point model (`input`, `data_box_lo`, `data_box_hi`,
 //!   `points_read`, `duplicates_merged`, `solver`, `residual`, `ranks`, `threads`,
