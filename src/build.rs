@@ -4,12 +4,53 @@
 //! mumps_common, ScaLAPACK, LAPACK, the Fortran MPI bindings). On Debian 12 both come with
 //! `libmumps-dev` (jobs/setup.sh installs it). Elsewhere, `MUMPS_INCLUDE_DIR` and `MUMPS_LIB_DIR`
 //! name the folders of the header and the library.
+//!
+//! It also records the commit the program is built from (`VOLSPLINE_REVISION`, for `--version`,
+//! the timings and the models' provenance): the first 12 digits of git's HEAD, followed by
+//! `+modified` where the program's sources (`src`, `Cargo.toml`, `Cargo.lock`) differ from it,
+//! or `unknown` outside a git work tree.
 
 use std::env;
 use std::path::PathBuf;
+use std::process::Command;
+
+/// The output of `git ARGS` run in the package's folder, trimmed, when it succeeds.
+fn git(args: &[&str]) -> Option<String> {
+    let out = Command::new("git").args(args).output().ok()?;
+    out.status.success().then(|| String::from_utf8_lossy(&out.stdout).trim().to_string())
+}
+
+/// The revision the sources are at, and tells cargo when to look again.
+fn revision() -> String {
+    for path in ["src", "Cargo.toml", "Cargo.lock"] {
+        println!("cargo:rerun-if-changed={path}");
+    }
+    let Some(head) = git(&["rev-parse", "--short=12", "HEAD"]) else {
+        return "unknown".to_string();
+    };
+    // a commit or a checkout moves HEAD or the branch it names
+    if let Some(dir) = git(&["rev-parse", "--absolute-git-dir"]) {
+        println!("cargo:rerun-if-changed={dir}/HEAD");
+    }
+    if let Some(common) = git(&["rev-parse", "--path-format=absolute", "--git-common-dir"]) {
+        for refs in ["refs/heads", "packed-refs"] {
+            if std::path::Path::new(&common).join(refs).exists() {
+                println!("cargo:rerun-if-changed={common}/{refs}");
+            }
+        }
+    }
+    let changed =
+        git(&["status", "--porcelain", "--untracked-files=no", "--", "src", "Cargo.toml", "Cargo.lock"]);
+    match changed {
+        Some(c) if c.is_empty() => head,
+        Some(_) => format!("{head}+modified"),
+        None => format!("{head}+unknown"),
+    }
+}
 
 fn main() {
     println!("cargo:rerun-if-changed=src/build.rs");
+    println!("cargo:rustc-env=VOLSPLINE_REVISION={}", revision());
     println!("cargo:rerun-if-env-changed=MUMPS_INCLUDE_DIR");
     println!("cargo:rerun-if-env-changed=MUMPS_LIB_DIR");
 

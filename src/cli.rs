@@ -18,13 +18,18 @@ use crate::linalg::dist::{Layout, Precision, SolverKind};
 use crate::linalg::gemm::Engine;
 use crate::spline::{Carrier, Kernel};
 
+/// The program's version and the commit it was built from (`unknown` outside a git work tree,
+/// `+modified` where its sources differ from that commit), as `--version`, the timings and the
+/// models' provenance give it.
+pub const VERSION: &str = concat!(env!("CARGO_PKG_VERSION"), " (", env!("VOLSPLINE_REVISION"), ")");
+
 /// volspline: reconstruct solids from scattered surface points as a volume spline f(x,y,z) with
 /// f >= 0 inside (Savchenko et al. 1995), on any number of MPI ranks.
 ///
 /// Run under `mpirun -n P volspline ...` (or as one process without mpirun). The rows of the dense
 /// system and the evaluation grid are split across ranks; each rank uses threads for its share.
 #[derive(Debug, Parser)]
-#[command(name = "volspline", version, about, long_about)]
+#[command(name = "volspline", version = VERSION, about, long_about)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,

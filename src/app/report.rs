@@ -129,7 +129,7 @@ pub fn run_provenance(comm: &dyn Comm, threads: usize, stages: &Stages) -> Prove
         ranks: comm.size(),
         threads,
         timings: stages.summarise(comm).named_max(),
-        version: env!("CARGO_PKG_VERSION").to_string(),
+        version: crate::cli::VERSION.to_string(),
         ..Provenance::default()
     }
 }
