@@ -38,6 +38,7 @@ impl Report {
             outputs: Vec::new(),
         };
         r.figure("command", command);
+        r.figure("version", crate::cli::VERSION);
         r
     }
 
@@ -142,6 +143,7 @@ mod tests {
     fn csv_escapes_commas_and_keeps_order() {
         let mut r = Report::new("fit", Path::new("a,b.xyz"));
         r.figure("input", "a,b.xyz");
-        assert_eq!(r.to_csv(), "key,value\ncommand,fit\ninput,a;b.xyz\n");
+        let version = crate::cli::VERSION;
+        assert_eq!(r.to_csv(), format!("key,value\ncommand,fit\nversion,{version}\ninput,a;b.xyz\n"));
     }
 }
