@@ -1520,3 +1520,56 @@ fn lines_ended_by_carriage_returns_alone_fit_as_with_line_feeds() {
     }
     assert!(std::fs::read(dir.join("lf.ply")).unwrap() == std::fs::read(dir.join("cr.ply")).unwrap());
 }
+
+#[test]
+fn version_names_the_commit_the_program_was_built_from() {
+    let out = common::run(0, &["--version"]);
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    let (version, revision) = text
+        .trim()
+        .strip_prefix("volspline ")
+        .and_then(|v| v.strip_suffix(')'))
+        .and_then(|v| v.split_once(" ("))
+        .unwrap_or_else(|| panic!("{text}"));
+    assert_eq!(version, env!("CARGO_PKG_VERSION"));
+    // built in this work tree: its HEAD, marked where the program's sources differ from it
+    let git = |args: &[&str]| {
+        std::process::Command::new("git")
+            .args(args)
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .output()
+            .ok()
+            .filter(|o| o.status.success())
+            .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+    };
+    match git(&["rev-parse", "--short=12", "HEAD"]) {
+        Some(head) => {
+            let changed = git(&[
+                "status",
+                "--porcelain",
+                "--untracked-files=no",
+                "--",
+                "src",
+                "Cargo.toml",
+                "Cargo.lock",
+            ]);
+            let want = if changed.is_some_and(|c| c.is_empty()) { head } else { format!("{head}+modified") };
+            assert_eq!(revision, want);
+        }
+        None => assert_eq!(revision, "unknown"),
+    }
+    // the timings and a model's provenance carry the same
+    let dir = common::temp_dir("version");
+    let (contours, csv) = (dir.join("cow.txt"), dir.join("t.csv"));
+    let (c, t) = (contours.to_str().unwrap(), csv.to_str().unwrap());
+    common::run_ok(0, &["slice", common::COW, "--out", c, "--planes", "z:8", "--timings", t]);
+    assert_eq!(
+        figure(&std::fs::read_to_string(&csv).unwrap(), "version"),
+        text.trim().strip_prefix("volspline ").unwrap()
+    );
+    let prefix = dir.join("cow");
+    common::run_ok(0, &["contours", c, "--out", prefix.to_str().unwrap(), "--grid", "12", "--no-preview"]);
+    let model = volspline::io::contour_model_file::read_contour_model(&dir.join("cow.model.h5")).unwrap();
+    assert_eq!(model.provenance.version, text.trim().strip_prefix("volspline ").unwrap());
+}
