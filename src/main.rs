@@ -24,6 +24,13 @@ fn main() {
         eprintln!("volspline: error: MPI could not be initialised");
         std::process::exit(1);
     };
+    // a panic removes this run's temporary outputs before the hook of `World::start` aborts the
+    // job: only SIGKILL, or a lost node, may leave `.NAME.RUNID.partial` files behind
+    let abort_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        volspline::io::staging::discard_after_panic();
+        abort_hook(info);
+    }));
     volspline::app::progress::set_mode(cli.progress());
     if let Some(bytes) = cli.memory_per_rank() {
         volspline::app::preflight::limit_memory(bytes);
@@ -103,17 +110,19 @@ mod interrupts {
                 unsafe { libc::_exit(code) }
             }
             let name = if sig == libc::SIGINT { "SIGINT" } else { "SIGTERM" };
-            let temps = staging::pending_temps();
             let (removed, renamed) = staging::discard_all();
             let replaced = if renamed == 0 {
                 "no output was replaced".to_string()
             } else {
                 format!("the {renamed} output(s) of this run had already been renamed into place, complete")
             };
-            eprintln!(
-                "volspline: interrupted by {name}; removed {removed} temporary file(s){}; {replaced}",
-                if temps.is_empty() { String::new() } else { format!(" ({})", temps[0].display()) }
+            let line = format!(
+                "volspline: interrupted by {name}; removed {} temporary file(s){}; {replaced}\n",
+                removed.len(),
+                removed.first().map_or(String::new(), |t| format!(" ({})", t.display()))
             );
+            // not eprintln!, which would panic where the launcher has closed standard error
+            let _ = std::io::Write::write_all(&mut std::io::stderr(), line.as_bytes());
             // SAFETY: ends the process at once, without running exit handlers that could touch MPI
             unsafe { libc::_exit(128 + sig) }
         });

@@ -1,8 +1,9 @@
 //! Fault injection through the binary: a full disk (a 2 MB tmpfs, mounted when the tests run as
 //! root, otherwise skipped with a message), SIGTERM in the middle of a run, two concurrent runs
-//! on one prefix, a failing rerun over good outputs, `--timings` to a special file and ranks started
-//! with different command lines. Each test checks the exit code, the message and the exact set of
-//! files left in the output directory.
+//! on one prefix, a failing rerun over good outputs, `--timings` to a special file or to a
+//! directory that takes no files, a standard output closed before the report, outputs of an
+//! earlier run left under the prefix, and ranks started with different command lines. Each test
+//! checks the exit code, the message and the exact set of files left in the output directory.
 
 mod common;
 
@@ -136,6 +137,108 @@ fn sigterm_mid_run_removes_the_temporaries_and_says_so() {
     assert_eq!(names(&dir.join("out")), set(&[]), "{t}");
 }
 
+#[test]
+fn a_closed_standard_output_loses_the_report_not_the_outputs() {
+    // `volspline fit ... | head -1`: the reader of standard output is gone before the report
+    let dir = temp_dir("closed-stdout");
+    let input = dir.join("s.xyz");
+    sphere(&input, 1.0);
+    std::fs::create_dir(dir.join("out")).unwrap();
+    let out = dir.join("out/a");
+    let timings = dir.join("out/t.csv");
+    let mut c = Command::new(BIN);
+    c.args(["fit", input.to_str().unwrap(), "--out", out.to_str().unwrap(), "--grid", "16", "--no-preview"])
+        .args(["--timings", timings.to_str().unwrap()])
+        .env("RAYON_NUM_THREADS", "1")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    let mut child = c.spawn().unwrap();
+    drop(child.stdout.take());
+    let done = child.wait_with_output().unwrap();
+    let t = text(&done);
+    assert_eq!(done.status.code(), Some(0), "{t}");
+    assert!(t.contains("warning: the report could not be printed on standard output"), "{t}");
+    assert!(!t.contains("panic"), "{t}");
+    assert_eq!(names(&dir.join("out")), set(&["a.hdf", "a.model.h5", "a.ply", "t.csv"]), "{t}");
+}
+
+#[test]
+fn outputs_an_earlier_run_left_under_the_prefix_are_named() {
+    let dir = temp_dir("left-from-earlier");
+    let input = dir.join("s.xyz");
+    sphere(&input, 1.0);
+    std::fs::create_dir(dir.join("out")).unwrap();
+    let out = dir.join("out/a");
+    let fit = |more: &[&str]| {
+        let mut args = vec!["fit", input.to_str().unwrap(), "--out", out.to_str().unwrap(), "--grid", "16"];
+        args.extend_from_slice(more);
+        let done = run(1, &args);
+        assert!(done.status.success(), "{}", text(&done));
+        text(&done)
+    };
+    let t = fit(&["--trim"]);
+    assert!(!t.contains("earlier run"), "{t}");
+    let all = ["a.hdf", "a.model.h5", "a.ply", "a.png", "a.trimmed.ply"];
+    assert_eq!(names(&dir.join("out")), set(&all));
+    // a rerun without the picture and the trimmed surface: the earlier ones stay, named
+    let t = fit(&["--no-preview"]);
+    let (png, trimmed) = (dir.join("out/a.png"), dir.join("out/a.trimmed.ply"));
+    assert!(
+        t.contains(&format!(
+            "volspline: warning: {}, {} remain from an earlier run under this prefix",
+            png.display(),
+            trimmed.display()
+        )),
+        "{t}"
+    );
+    assert_eq!(names(&dir.join("out")), set(&all));
+    // eval writes no picture: only the trimmed surface is named
+    let model = dir.join("out/a.model.h5");
+    let done = run(1, &["eval", model.to_str().unwrap(), "--out", out.to_str().unwrap(), "--grid", "16"]);
+    let t = text(&done);
+    assert!(done.status.success(), "{t}");
+    assert!(
+        t.contains(&format!("volspline: warning: {} remains from an earlier run", trimmed.display())),
+        "{t}"
+    );
+    assert!(!t.contains(&format!("{},", png.display())), "{t}");
+    let t = fit(&["--trim"]);
+    assert!(!t.contains("earlier run"), "{t}");
+}
+
+#[test]
+fn a_timings_directory_that_takes_no_files_is_refused_before_the_work() {
+    let dir = temp_dir("timings-dir");
+    let input = dir.join("s.xyz");
+    sphere(&input, 1.0);
+    std::fs::create_dir(dir.join("out")).unwrap();
+    let out = dir.join("out/a");
+    // /proc takes no new files, even from root
+    let bad = format!("/proc/volspline-{}-t.csv", std::process::id());
+    for ranks in [1, 2] {
+        let done = run(
+            ranks,
+            &[
+                "fit",
+                input.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "--grid",
+                "16",
+                "--timings",
+                &bad,
+            ],
+        );
+        let t = text(&done);
+        assert_eq!(done.status.code(), Some(1), "{t}");
+        assert!(t.contains("volspline: error: /proc: cannot create a file in the output directory"), "{t}");
+        assert!(t.contains(&format!("(for --timings {bad})")), "{t}");
+        assert!(!t.contains("kernel evaluations per node"), "refused after the work:\n{t}");
+        assert_eq!(names(&dir.join("out")), set(&[]), "{t}");
+    }
+}
+
 /// The x extent of a PLY mesh's vertices.
 fn mesh_width(path: &Path) -> f64 {
     let m = common::load_mesh(path);
@@ -193,18 +296,20 @@ fn failing_rerun_leaves_the_previous_set_untouched() {
             .iter()
             .map(|n| std::fs::read(dir.join("out").join(n)).unwrap())
             .collect();
-        // the rerun fails at its very end (the timings file cannot be created: /proc takes no new
-        // files, even from root), after the model, the volume and the mesh were written under
-        // their temporary names
-        let bad = std::path::PathBuf::from(format!("/proc/volspline-{}-t.csv", std::process::id()));
+        // the rerun fails at its very end (the timings file, a link to a file of /proc that takes
+        // no writes, is written directly, as links to special files are), after the model, the
+        // volume and the mesh were written under their temporary names
+        let bad = dir.join("t.csv");
+        let _ = std::fs::remove_file(&bad);
+        std::os::unix::fs::symlink("/proc/version", &bad).unwrap();
         let done = run(
             ranks,
             &["fit", input.to_str().unwrap(), "--out", o, "--grid", "30", "--timings", bad.to_str().unwrap()],
         );
         let t = text(&done);
         assert_eq!(done.status.code(), Some(1), "{t}");
-        // the error names the file as the user gave it, the temporary name only in the reason
-        assert!(t.contains(&format!("volspline: error: {}: cannot be written", bad.display())), "{t}");
+        assert!(t.contains(&format!("volspline: error: {}: ", bad.display())), "{t}");
+        assert!(t.contains("kernel evaluations per node"), "not at the end:\n{t}");
         assert_eq!(names(&dir.join("out")), set(&["a.hdf", "a.model.h5", "a.ply", "a.png"]), "{t}");
         let after: Vec<Vec<u8>> = ["a.hdf", "a.model.h5", "a.ply", "a.png"]
             .iter()
@@ -237,6 +342,19 @@ fn timings_to_stdout_prints_the_csv() {
     let stdout = String::from_utf8_lossy(&done.stdout);
     assert!(done.status.success(), "{}", text(&done));
     assert!(stdout.contains("key,value\n") && stdout.contains("\npoints,300\n"), "{stdout}");
+    // the stage table's total is there, the stages' sum without the wait inside the solve
+    let figure = |key: &str| -> f64 {
+        let line =
+            stdout.lines().find(|l| l.starts_with(&format!("{key},"))).unwrap_or_else(|| panic!("{key}"));
+        line[key.len() + 1..].parse().unwrap()
+    };
+    let stages: f64 = stdout
+        .lines()
+        .filter(|l| l.starts_with("stage_") && !l.starts_with("stage_comm_wait"))
+        .filter_map(|l| l.split_once("_max_s,").map(|(_, v)| v.parse::<f64>().unwrap()))
+        .sum();
+    assert!((figure("total_max_s") - stages).abs() < 1e-5, "{stdout}");
+    assert!(figure("total_min_s") <= figure("total_max_s"), "{stdout}");
     assert_eq!(names(&dir.join("out")), set(&["a.hdf", "a.model.h5", "a.ply", "a.png"]));
     // the link itself is untouched (never renamed over)
     assert!(std::fs::symlink_metadata("/dev/stdout").is_ok_and(|m| m.file_type().is_symlink()));

@@ -47,6 +47,33 @@ pub fn same_arguments(comm: &dyn Comm, args: Vec<String>) -> Result<()> {
     agree(comm, local)
 }
 
+/// The warning about outputs an earlier run left under the prefix of `command` that this run did
+/// not write (`PREFIX.png` after a rerun with `--no-preview`, `PREFIX.trimmed.ply` after one
+/// without `--trim`): beside this run's outputs they would pass for them, but may show another
+/// solid. They are the user's files and are left alone. (`morph` names its own, the frames of an
+/// earlier longer morph.)
+fn left_from_earlier(command: &Command) -> Option<String> {
+    let (prefix, writes) = match command {
+        Command::Fit(a) => (&a.out, preflight::MODEL_OUTPUTS),
+        Command::Contours(a) => (&a.out, preflight::MODEL_OUTPUTS),
+        Command::Eval(a) => (&a.out, preflight::VOLUME_OUTPUTS),
+        Command::Morph(_) | Command::Slice(_) | Command::Render(_) => return None,
+    };
+    let candidates: Vec<_> = writes.iter().map(|ext| volume::output_path(prefix, ext)).collect();
+    let left = staging::left_from_earlier(&candidates);
+    if left.is_empty() {
+        return None;
+    }
+    let names: Vec<String> = left.iter().map(|p| p.display().to_string()).collect();
+    let (verb, they, them) =
+        if left.len() == 1 { ("remains", "it", "it") } else { ("remain", "they", "them") };
+    Some(format!(
+        "{} {verb} from an earlier run under this prefix; this run did not write {them}, so beside its \
+         outputs {they} may show another solid: remove {them} or choose another prefix",
+        names.join(", ")
+    ))
+}
+
 /// Runs a parsed command on `comm` with `threads` threads per rank. Collective.
 ///
 /// Every output is written under a temporary name unique to this run (chosen by rank 0, the same on
@@ -67,6 +94,11 @@ pub fn run(command: &Command, comm: &dyn Comm, threads: usize) -> Result<()> {
         Ok(()) => {
             let committed = on_root(comm, staging::commit_all);
             staging::forget_all();
+            if committed.is_ok() && comm.rank() == 0 {
+                if let Some(w) = left_from_earlier(command) {
+                    eprintln!("volspline: warning: {w}");
+                }
+            }
             committed
         }
         Err(e) => {

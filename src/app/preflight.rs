@@ -18,7 +18,7 @@ use std::sync::OnceLock;
 use crate::cli::ranks_on_this_node;
 use crate::error::{Error, Result};
 use crate::grid::Grid;
-use crate::io::staging::{parent_dir, same_file};
+use crate::io::staging::{is_special, output_target, parent_dir, same_file};
 use crate::linalg::dist::{Precision, KEPT_SHARE};
 use crate::par::{agree, Comm};
 
@@ -297,8 +297,24 @@ fn separate_timings(timings: &Path, prefix: &Path, writes: &[&str], inputs: &[&P
     }
     match prefix_outputs(prefix, writes).find(|o| same_file(timings, o)) {
         Some(o) => clash(format!("the output {}", o.display())),
-        None => Ok(()),
+        None => timings_dir_takes_files(timings),
     }
+}
+
+/// Refuses a `--timings` file whose directory takes no new file (a read-only file system, say),
+/// before any work: the file is written last, and the whole run's outputs would be lost with it.
+/// A special target (`/dev/stdout`, a pipe) is written directly, without a file of its own in
+/// the directory, and is not probed.
+fn timings_dir_takes_files(timings: &Path) -> Result<()> {
+    if is_special(&output_target(timings)) {
+        return Ok(());
+    }
+    writable_dir(&parent_dir(timings)).map_err(|e| match e {
+        Error::Io { path, reason } => {
+            Error::Io { path, reason: format!("{reason} (for --timings {})", timings.display()) }
+        }
+        e => e,
+    })
 }
 
 /// Refuses an output file path (`what` it should name, for the message) that is a directory or
@@ -329,7 +345,7 @@ pub fn writable_file(path: &Path, what: &str, timings: Option<&Path>, inputs: &[
                 input.display()
             )));
         }
-        writable_dir(&parent_dir(t))?;
+        timings_dir_takes_files(t)?;
     }
     writable_dir(&parent_dir(path))
 }

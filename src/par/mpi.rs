@@ -28,7 +28,11 @@ impl World {
         let default_hook = std::panic::take_hook();
         std::panic::set_hook(Box::new(move |info| {
             default_hook(info);
-            eprintln!("volspline: internal error (panic); aborting all ranks");
+            // not eprintln!, which panics again where standard error is closed
+            let _ = std::io::Write::write_all(
+                &mut std::io::stderr(),
+                b"volspline: internal error (panic); aborting all ranks\n",
+            );
             abort_all(70);
         }));
         Some(World { universe })
