@@ -19,6 +19,11 @@ fn main() {
             std::process::exit(e.exit_code());
         }
     };
+    // a write past the file-size limit (`ulimit -f`, a batch system's) fails with EFBIG, which the
+    // writers report with the file's name and the run's temporary files removed, instead of
+    // SIGXFSZ ending the rank without a word and leaving them
+    // SAFETY: sets the process-wide disposition of one signal, before any other thread exists
+    unsafe { libc::signal(libc::SIGXFSZ, libc::SIG_IGN) };
     interrupts::watch();
     let Some(world) = World::start() else {
         eprintln!("volspline: error: MPI could not be initialised");

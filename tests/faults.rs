@@ -103,6 +103,61 @@ fn disk_full_ends_the_job_with_a_message_on_1_and_2_ranks() {
     }
 }
 
+/// `mpirun -n ranks` of the binary through a wrapper that sets a file-size limit of `kb` KiB on
+/// the ranks (as `ulimit -f`, or a batch system's, does): the launcher itself keeps none, since
+/// its session files would not fit.
+fn mpirun_with_file_size_limit(dir: &Path, ranks: usize, kb: u64, args: &[&str]) -> Command {
+    let wrapper = dir.join("limited.sh");
+    std::fs::write(&wrapper, format!("#!/bin/bash\nulimit -f {kb}\nexec {BIN} \"$@\"\n")).unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&wrapper, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let mut c = Command::new("mpirun");
+    c.args(["-n", &ranks.to_string(), "--oversubscribe"])
+        .arg(&wrapper)
+        .args(args)
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .env("RAYON_NUM_THREADS", "1");
+    c
+}
+
+#[test]
+fn a_file_size_limit_is_named_and_leaves_nothing() {
+    let dir = temp_dir("file-size-limit");
+    let input = dir.join("s.xyz");
+    sphere(&input, 1.0);
+    std::fs::create_dir(dir.join("out")).unwrap();
+    let out = dir.join("out/a");
+    let o = out.to_str().unwrap();
+    for ranks in [1, 2] {
+        // a volume of 8 MB against a limit of 2 MB: refused before the write, by every rank
+        let args = ["fit", input.to_str().unwrap(), "--out", o, "--grid", "100", "--surface", "carrier"];
+        let done = output_within(mpirun_with_file_size_limit(&dir, ranks, 2048, &args), run_limit());
+        let t = text(&done.output);
+        assert!(!done.timed_out, "hung on {ranks} ranks:\n{t}");
+        assert_eq!(done.output.status.code(), Some(1), "{ranks} ranks:\n{t}");
+        assert!(
+            t.contains("the volume needs 8.6 MB, but this process may write files of at most 2.0 MB"),
+            "{ranks} ranks:\n{t}"
+        );
+        assert_eq!(names(&dir.join("out")), set(&[]), "{t}");
+    }
+    // a picture past the limit: its write fails with its name (SIGXFSZ would end the rank without
+    // a word and leave the temporary file)
+    let done = run(1, &["fit", input.to_str().unwrap(), "--out", o, "--grid", "16", "--no-preview"]);
+    assert!(done.status.success(), "{}", text(&done));
+    let model = dir.join("out/a.model.h5");
+    let png = dir.join("out/big.png");
+    let args = ["render", model.to_str().unwrap(), "--out", png.to_str().unwrap(), "--size", "400x400"];
+    let done = output_within(mpirun_with_file_size_limit(&dir, 1, 8, &args), run_limit());
+    let t = text(&done.output);
+    assert!(!done.timed_out, "hung:\n{t}");
+    assert_eq!(done.output.status.code(), Some(1), "{t}");
+    assert!(t.contains(&format!("volspline: error: {}: cannot be written", png.display())), "{t}");
+    assert!(t.contains("File too large"), "{t}");
+    assert_eq!(names(&dir.join("out")), set(&["a.hdf", "a.model.h5", "a.ply"]), "{t}");
+}
+
 #[test]
 fn sigterm_mid_run_removes_the_temporaries_and_says_so() {
     let dir = temp_dir("sigterm");
