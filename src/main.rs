@@ -51,6 +51,7 @@ fn main() {
             1
         }
         Ok(()) => match volspline::app::same_arguments(&comm, std::env::args().skip(1).collect())
+            .and_then(|()| volspline::app::same_directory(&comm, &cli.command))
             .and_then(|()| volspline::app::run(&cli.command, &comm, threads))
         {
             Ok(()) => 0,

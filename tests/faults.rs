@@ -451,3 +451,62 @@ fn ranks_started_with_different_arguments_are_refused_without_a_hang() {
     );
     assert_eq!(names(&dir), set(&["s.xyz", "each-its-own.sh"]), "nothing written");
 }
+
+#[test]
+fn ranks_in_different_directories_with_relative_paths_are_refused_without_a_hang() {
+    // a wrapper that starts each rank in its own directory, as a launcher that does not carry the
+    // working directory over to other nodes does: `out/a` is a different file on each rank, and
+    // the parallel create of the volume waited for ever
+    let dir = temp_dir("different-directories");
+    for rank in 0..2 {
+        std::fs::create_dir_all(dir.join(format!("wd{rank}/out"))).unwrap();
+        sphere(&dir.join(format!("wd{rank}/s.xyz")), 1.0);
+    }
+    let wrapper = dir.join("each-its-own-directory.sh");
+    let script = format!("#!/bin/sh\ncd {}/wd$OMPI_COMM_WORLD_RANK && exec {BIN} \"$@\"\n", dir.display());
+    std::fs::write(&wrapper, script).unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&wrapper, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let job = |args: &[&str]| {
+        let mut c = Command::new("mpirun");
+        c.args(["-n", "2", "--oversubscribe"])
+            .arg(&wrapper)
+            .args(args)
+            .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+            .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+            .env("RAYON_NUM_THREADS", "1");
+        output_within(c, Duration::from_secs(120))
+    };
+    let done = job(&["fit", "s.xyz", "--out", "out/a", "--grid", "16", "--no-preview"]);
+    let t = text(&done.output);
+    assert!(!done.timed_out, "the job hung:\n{t}");
+    assert_eq!(done.output.status.code(), Some(2), "{t}");
+    // the directories as the ranks see them (a temporary directory may be reached through a link)
+    let real = std::fs::canonicalize(&dir).unwrap();
+    assert!(
+        t.contains(&format!(
+            "error on rank 1: invalid argument: rank 1 runs in the directory {}/wd1, rank 0 in {}/wd0",
+            real.display(),
+            real.display()
+        )) && t.contains("mpirun --wdir DIR"),
+        "{t}"
+    );
+    for rank in 0..2 {
+        assert_eq!(names(&dir.join(format!("wd{rank}/out"))), set(&[]), "{t}");
+    }
+    // absolute paths name one file whatever the directory
+    let input = dir.join("wd0/s.xyz");
+    let out = dir.join("wd0/out/a");
+    let done = job(&[
+        "fit",
+        input.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--grid",
+        "16",
+        "--no-preview",
+    ]);
+    let t = text(&done.output);
+    assert!(!done.timed_out && done.output.status.success(), "{t}");
+    assert_eq!(names(&dir.join("wd0/out")), set(&["a.hdf", "a.model.h5", "a.ply"]), "{t}");
+}

@@ -74,6 +74,29 @@ fn left_from_earlier(command: &Command) -> Option<String> {
     ))
 }
 
+/// Refuses a job whose ranks run in different working directories while the command line names
+/// a file by a relative path: each rank would resolve it in its own directory and read or write
+/// another file (the ranks then waited on each other for ever in the parallel create of the
+/// volume, each opening its own file; a model read by every rank could differ between them).
+/// With absolute paths alone the directories do not matter. Collective.
+pub fn same_directory(comm: &dyn Comm, command: &Command) -> Result<()> {
+    let here = std::env::current_dir().map(|d| d.display().to_string()).unwrap_or_default();
+    let first: String = comm.broadcast_value(0, (comm.rank() == 0).then(|| here.clone()));
+    let paths = command.paths();
+    let relative = paths.iter().find(|p| p.is_relative());
+    let local = match relative {
+        Some(p) if here != first => Err(Error::Usage(format!(
+            "rank {} runs in the directory {here}, rank 0 in {first}, so the relative path {} names \
+             another file on each; start every rank in one directory (mpirun --wdir DIR) or give \
+             absolute paths",
+            comm.rank(),
+            p.display()
+        ))),
+        _ => Ok(()),
+    };
+    agree(comm, local)
+}
+
 /// Runs a parsed command on `comm` with `threads` threads per rank. Collective.
 ///
 /// Every output is written under a temporary name unique to this run (chosen by rank 0, the same on
