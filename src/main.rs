@@ -26,7 +26,7 @@ fn main() {
     unsafe { libc::signal(libc::SIGXFSZ, libc::SIG_IGN) };
     interrupts::watch();
     let Some(world) = World::start() else {
-        eprintln!("volspline: error: MPI could not be initialised");
+        volspline::note!("volspline: error: MPI could not be initialised");
         std::process::exit(1);
     };
     // a panic removes this run's temporary outputs before the hook of `World::start` aborts the
@@ -43,11 +43,11 @@ fn main() {
     let threads = default_threads(cli.threads());
     let comm = world.comm();
     if let (0, Some(w)) = (comm.rank(), threads_warning(cli.threads())) {
-        eprintln!("volspline: warning: {w}");
+        volspline::note!("volspline: warning: {w}");
     }
     let code = match rayon::ThreadPoolBuilder::new().num_threads(threads).build_global() {
         Err(e) => {
-            eprintln!("volspline: error: cannot start {threads} threads: {e}");
+            volspline::note!("volspline: error: cannot start {threads} threads: {e}");
             1
         }
         Ok(()) => match volspline::app::same_arguments(&comm, std::env::args().skip(1).collect())
@@ -58,8 +58,8 @@ fn main() {
             Err(e) => {
                 if comm.rank() == 0 {
                     match e.remote_rank() {
-                        Some(rank) => eprintln!("volspline: error on rank {rank}: {e}"),
-                        None => eprintln!("volspline: error: {e}"),
+                        Some(rank) => volspline::note!("volspline: error on rank {rank}: {e}"),
+                        None => volspline::note!("volspline: error: {e}"),
                     }
                 }
                 e.exit_code()
@@ -75,9 +75,10 @@ fn main() {
     std::process::exit(code);
 }
 
-/// SIGINT and SIGTERM: blocked in every thread (they inherit the mask of the main thread, set
-/// before any is started) and taken by one watcher thread, which removes this run's temporary
-/// output files, says so and ends the process with 128 + the signal's number.
+/// SIGINT, SIGTERM and SIGHUP (the terminal of a run without `mpirun` closed, a dropped ssh
+/// session): blocked in every thread (they inherit the mask of the main thread, set before any
+/// is started) and taken by one watcher thread, which removes this run's temporary output files,
+/// says so and ends the process with 128 + the signal's number.
 ///
 /// Once the command has finished (its outcome agreed by every rank and reported by rank 0), a
 /// signal only ends the process with that outcome's status, silently: the launcher ends the other
@@ -101,6 +102,7 @@ mod interrupts {
             libc::sigemptyset(&mut set);
             libc::sigaddset(&mut set, libc::SIGINT);
             libc::sigaddset(&mut set, libc::SIGTERM);
+            libc::sigaddset(&mut set, libc::SIGHUP);
             libc::pthread_sigmask(libc::SIG_BLOCK, &set, std::ptr::null_mut());
             set
         };
@@ -115,20 +117,22 @@ mod interrupts {
                 // SAFETY: as below
                 unsafe { libc::_exit(code) }
             }
-            let name = if sig == libc::SIGINT { "SIGINT" } else { "SIGTERM" };
+            let name = match sig {
+                libc::SIGINT => "SIGINT",
+                libc::SIGHUP => "SIGHUP",
+                _ => "SIGTERM",
+            };
             let (removed, renamed) = staging::discard_all();
             let replaced = if renamed == 0 {
                 "no output was replaced".to_string()
             } else {
                 format!("the {renamed} output(s) of this run had already been renamed into place, complete")
             };
-            let line = format!(
-                "volspline: interrupted by {name}; removed {} temporary file(s){}; {replaced}\n",
+            volspline::note!(
+                "volspline: interrupted by {name}; removed {} temporary file(s){}; {replaced}",
                 removed.len(),
                 removed.first().map_or(String::new(), |t| format!(" ({})", t.display()))
             );
-            // not eprintln!, which would panic where the launcher has closed standard error
-            let _ = std::io::Write::write_all(&mut std::io::stderr(), line.as_bytes());
             // SAFETY: ends the process at once, without running exit handlers that could touch MPI
             unsafe { libc::_exit(128 + sig) }
         });

@@ -1,9 +1,10 @@
 //! Fault injection through the binary: a full disk (a 2 MB tmpfs, mounted when the tests run as
-//! root, otherwise skipped with a message), SIGTERM in the middle of a run, two concurrent runs
-//! on one prefix, a failing rerun over good outputs, `--timings` to a special file or to a
-//! directory that takes no files, a standard output closed before the report, outputs of an
-//! earlier run left under the prefix, and ranks started with different command lines. Each test
-//! checks the exit code, the message and the exact set of files left in the output directory.
+//! root, otherwise skipped with a message), a file-size limit, SIGTERM in the middle of a run and
+//! SIGHUP to one without mpirun, two concurrent runs on one prefix, a failing rerun over good
+//! outputs, `--timings` to a special file or to a directory that takes no files, a standard output
+//! closed before the report, outputs of an earlier run left under the prefix, and ranks started
+//! with different command lines or in different directories. Each test checks the exit code, the
+//! message and the exact set of files left in the output directory.
 
 mod common;
 
@@ -219,6 +220,34 @@ fn a_closed_standard_output_loses_the_report_not_the_outputs() {
 }
 
 #[test]
+fn a_closed_standard_error_loses_the_messages_not_the_outputs() {
+    // `volspline fit ... 2>&1 >/dev/null | head -1`: the reader of standard error goes after the
+    // first line, and every later message met a closed pipe
+    let dir = temp_dir("closed-stderr");
+    let input = dir.join("s.xyz");
+    sphere(&input, 1.0);
+    std::fs::create_dir(dir.join("out")).unwrap();
+    let out = dir.join("out/a");
+    let mut c = Command::new(BIN);
+    c.args(["fit", input.to_str().unwrap(), "--out", out.to_str().unwrap(), "--grid", "16", "--no-preview"])
+        .env("RAYON_NUM_THREADS", "1")
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped());
+    let mut child = c.spawn().unwrap();
+    let mut first = String::new();
+    {
+        use std::io::BufRead;
+        let mut err = std::io::BufReader::new(child.stderr.take().unwrap());
+        err.read_line(&mut first).unwrap();
+    }
+    let status = child.wait().unwrap();
+    assert!(first.starts_with("volspline fit: 300 points read"), "{first}");
+    assert_eq!(status.code(), Some(0), "{first}");
+    assert_eq!(names(&dir.join("out")), set(&["a.hdf", "a.model.h5", "a.ply"]));
+}
+
+#[test]
 fn outputs_an_earlier_run_left_under_the_prefix_are_named() {
     let dir = temp_dir("left-from-earlier");
     let input = dir.join("s.xyz");
@@ -292,6 +321,39 @@ fn a_timings_directory_that_takes_no_files_is_refused_before_the_work() {
         assert!(!t.contains("kernel evaluations per node"), "refused after the work:\n{t}");
         assert_eq!(names(&dir.join("out")), set(&[]), "{t}");
     }
+}
+
+#[test]
+fn sighup_to_a_run_without_mpirun_removes_the_temporaries() {
+    // one process started from a terminal that closes (a dropped ssh session): SIGHUP ended it
+    // at once, leaving the model's temporary file
+    let dir = temp_dir("sighup");
+    let input = dir.join("s.xyz");
+    sphere(&input, 1.0);
+    let log = dir.join("stderr.txt");
+    std::fs::create_dir(dir.join("out")).unwrap();
+    let out = dir.join("out/a");
+    let mut c = Command::new(BIN);
+    c.args(["fit", input.to_str().unwrap(), "--out", out.to_str().unwrap(), "--grid", "400"])
+        .env("RAYON_NUM_THREADS", "1")
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(&log).unwrap());
+    let mut child = c.spawn().unwrap();
+    let start = Instant::now();
+    while !std::fs::read_to_string(&log).unwrap_or_default().contains("kernel evaluations per node") {
+        assert!(start.elapsed() < run_limit(), "the run never reached the evaluation");
+        assert!(child.try_wait().unwrap().is_none(), "the run ended early");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    std::thread::sleep(Duration::from_millis(300));
+    // SAFETY: a signal to the child process this test started
+    unsafe { libc::kill(child.id() as i32, libc::SIGHUP) };
+    let status = child.wait().unwrap();
+    let t = std::fs::read_to_string(&log).unwrap();
+    assert_eq!(status.code(), Some(129), "{status:?}: {t}");
+    assert!(t.contains("volspline: interrupted by SIGHUP; removed 1 temporary file(s)"), "{t}");
+    assert_eq!(names(&dir.join("out")), set(&[]), "{t}");
 }
 
 /// The x extent of a PLY mesh's vertices.

@@ -119,7 +119,7 @@ pub fn run(command: &Command, comm: &dyn Comm, threads: usize) -> Result<()> {
             staging::forget_all();
             if committed.is_ok() && comm.rank() == 0 {
                 if let Some(w) = left_from_earlier(command) {
-                    eprintln!("volspline: warning: {w}");
+                    crate::note!("volspline: warning: {w}");
                 }
             }
             committed

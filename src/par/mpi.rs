@@ -28,11 +28,7 @@ impl World {
         let default_hook = std::panic::take_hook();
         std::panic::set_hook(Box::new(move |info| {
             default_hook(info);
-            // not eprintln!, which panics again where standard error is closed
-            let _ = std::io::Write::write_all(
-                &mut std::io::stderr(),
-                b"volspline: internal error (panic); aborting all ranks\n",
-            );
+            crate::note!("volspline: internal error (panic); aborting all ranks");
             abort_all(70);
         }));
         Some(World { universe })
