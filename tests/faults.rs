@@ -292,6 +292,21 @@ fn outputs_an_earlier_run_left_under_the_prefix_are_named() {
 }
 
 #[test]
+fn a_prefix_too_long_for_the_temporary_names_is_refused_before_the_work() {
+    // the outputs' names fit the file system's 255 bytes, their temporary names do not
+    let dir = temp_dir("long-prefix");
+    let input = dir.join("s.xyz");
+    sphere(&input, 1.0);
+    let out = dir.join("x".repeat(235));
+    let done = run(1, &["fit", input.to_str().unwrap(), "--out", out.to_str().unwrap(), "--grid", "16"]);
+    let t = text(&done);
+    assert_eq!(done.status.code(), Some(2), "{t}");
+    assert!(t.contains("has a name too long for its temporary file"), "{t}");
+    assert!(!t.contains("kernel evaluations per node"), "refused after the work:\n{t}");
+    assert_eq!(names(&dir), set(&["s.xyz"]), "{t}");
+}
+
+#[test]
 fn a_timings_directory_that_takes_no_files_is_refused_before_the_work() {
     let dir = temp_dir("timings-dir");
     let input = dir.join("s.xyz");

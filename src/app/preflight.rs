@@ -239,6 +239,12 @@ pub fn check_prefixes(
         let spared = |p: &Path| inputs.iter().try_for_each(|i| spares_input(p, writes, i));
         writable_prefix(prefix)
             .and_then(|()| {
+                // the last of `more` has the longest names (the frames' numbers widen)
+                std::iter::once(prefix)
+                    .chain(more.last().map(PathBuf::as_path))
+                    .try_for_each(|p| prefix_outputs(p, writes).try_for_each(|o| temporary_name_fits(&o)))
+            })
+            .and_then(|()| {
                 std::iter::once(prefix).chain(more.iter().map(PathBuf::as_path)).try_for_each(spared)
             })
             .and_then(|()| timings.map_or(Ok(()), timings_apart))
@@ -264,6 +270,28 @@ fn prefix_outputs<'a>(prefix: &'a Path, writes: &'a [&str]) -> impl Iterator<Ite
         name.push(ext);
         PathBuf::from(name)
     })
+}
+
+/// Refuses an output whose temporary name (`.NAME.RUNID.partial`, some 30 characters longer than
+/// its name) is too long for its directory's file system, before any work: a prefix of 220
+/// characters or more failed at the first write, after the solve, with 'File name too long'.
+/// Probed by creating that file and removing it at once.
+fn temporary_name_fits(output: &Path) -> Result<()> {
+    let tmp = crate::io::staging::temp_path(&output_target(output));
+    match std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp) {
+        Ok(_) => {
+            let _ = std::fs::remove_file(&tmp);
+            Ok(())
+        }
+        Err(e) if e.raw_os_error() == Some(libc::ENAMETOOLONG) => Err(Error::Usage(format!(
+            "--out: the output {} has a name too long for its temporary file {} ({} bytes); choose a shorter prefix",
+            output.display(),
+            tmp.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(),
+            tmp.file_name().map_or(0, |n| n.len())
+        ))),
+        // other failures (the directory's own) are the directory check's to name
+        Err(_) => Ok(()),
+    }
 }
 
 /// Refuses a prefix one of whose outputs is the input (`fit scan.ply --out scan`).
