@@ -498,6 +498,37 @@ pub struct ViewArgs {
     pub color: Colouring,
 }
 
+impl Command {
+    /// The files the command line names: inputs, models of expressions, the output prefix or
+    /// file and the `--timings` file, as given (relative paths are resolved by each rank in its
+    /// own working directory).
+    pub fn paths(&self) -> Vec<PathBuf> {
+        let mut paths = match self {
+            Command::Fit(a) => vec![a.input.clone(), a.out.clone()],
+            Command::Eval(a) => [a.model.models(), vec![a.out.clone()]].concat(),
+            Command::Morph(a) => {
+                [a.a.models(), a.b.models(), vec![a.out.clone()], a.pairs.iter().cloned().collect()].concat()
+            }
+            Command::Contours(a) => vec![a.input.clone(), a.out.clone()],
+            Command::Slice(a) => vec![a.mesh.clone(), a.out.clone()],
+            Command::Render(a) => {
+                [Syntax::parse(&a.model).map(|e| e.models()).unwrap_or_default(), vec![a.out.clone()]]
+                    .concat()
+            }
+        };
+        let timings = match self {
+            Command::Fit(a) => &a.grid.timings,
+            Command::Eval(a) => &a.grid.timings,
+            Command::Morph(a) => &a.grid.timings,
+            Command::Contours(a) => &a.grid.timings,
+            Command::Slice(a) => &a.timings,
+            Command::Render(a) => &a.timings,
+        };
+        paths.extend(timings.iter().cloned());
+        paths
+    }
+}
+
 impl Cli {
     /// The command line parsed as [`Parser::try_parse`] does, noting which of `fit`'s options
     /// were given (not defaults) in [`FitArgs::given`].

@@ -17,6 +17,17 @@
 //! - [`frep`]: reconstructed solids as function-representation objects (evaluation at points,
 //!   derivatives, bounds) for modelling and pictures.
 
+/// `eprintln!` that never panics: a line for a standard error whose reader has gone (`2>&1 | head
+/// -1`, a launcher tearing the job down) is lost, not the run (`eprintln!` panics there, and the
+/// panic aborts the job with its outputs unwritten). Every message of the crate goes through it.
+#[macro_export]
+macro_rules! note {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
+}
+
 pub mod app;
 pub mod cli;
 pub mod contour;

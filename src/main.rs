@@ -19,11 +19,23 @@ fn main() {
             std::process::exit(e.exit_code());
         }
     };
+    // a write past the file-size limit (`ulimit -f`, a batch system's) fails with EFBIG, which the
+    // writers report with the file's name and the run's temporary files removed, instead of
+    // SIGXFSZ ending the rank without a word and leaving them
+    // SAFETY: sets the process-wide disposition of one signal, before any other thread exists
+    unsafe { libc::signal(libc::SIGXFSZ, libc::SIG_IGN) };
     interrupts::watch();
     let Some(world) = World::start() else {
-        eprintln!("volspline: error: MPI could not be initialised");
+        volspline::note!("volspline: error: MPI could not be initialised");
         std::process::exit(1);
     };
+    // a panic removes this run's temporary outputs before the hook of `World::start` aborts the
+    // job: only SIGKILL, or a lost node, may leave `.NAME.RUNID.partial` files behind
+    let abort_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        volspline::io::staging::discard_after_panic();
+        abort_hook(info);
+    }));
     volspline::app::progress::set_mode(cli.progress());
     if let Some(bytes) = cli.memory_per_rank() {
         volspline::app::preflight::limit_memory(bytes);
@@ -31,22 +43,23 @@ fn main() {
     let threads = default_threads(cli.threads());
     let comm = world.comm();
     if let (0, Some(w)) = (comm.rank(), threads_warning(cli.threads())) {
-        eprintln!("volspline: warning: {w}");
+        volspline::note!("volspline: warning: {w}");
     }
     let code = match rayon::ThreadPoolBuilder::new().num_threads(threads).build_global() {
         Err(e) => {
-            eprintln!("volspline: error: cannot start {threads} threads: {e}");
+            volspline::note!("volspline: error: cannot start {threads} threads: {e}");
             1
         }
         Ok(()) => match volspline::app::same_arguments(&comm, std::env::args().skip(1).collect())
+            .and_then(|()| volspline::app::same_directory(&comm, &cli.command))
             .and_then(|()| volspline::app::run(&cli.command, &comm, threads))
         {
             Ok(()) => 0,
             Err(e) => {
                 if comm.rank() == 0 {
                     match e.remote_rank() {
-                        Some(rank) => eprintln!("volspline: error on rank {rank}: {e}"),
-                        None => eprintln!("volspline: error: {e}"),
+                        Some(rank) => volspline::note!("volspline: error on rank {rank}: {e}"),
+                        None => volspline::note!("volspline: error: {e}"),
                     }
                 }
                 e.exit_code()
@@ -62,9 +75,10 @@ fn main() {
     std::process::exit(code);
 }
 
-/// SIGINT and SIGTERM: blocked in every thread (they inherit the mask of the main thread, set
-/// before any is started) and taken by one watcher thread, which removes this run's temporary
-/// output files, says so and ends the process with 128 + the signal's number.
+/// SIGINT, SIGTERM and SIGHUP (the terminal of a run without `mpirun` closed, a dropped ssh
+/// session): blocked in every thread (they inherit the mask of the main thread, set before any
+/// is started) and taken by one watcher thread, which removes this run's temporary output files,
+/// says so and ends the process with 128 + the signal's number.
 ///
 /// Once the command has finished (its outcome agreed by every rank and reported by rank 0), a
 /// signal only ends the process with that outcome's status, silently: the launcher ends the other
@@ -88,6 +102,7 @@ mod interrupts {
             libc::sigemptyset(&mut set);
             libc::sigaddset(&mut set, libc::SIGINT);
             libc::sigaddset(&mut set, libc::SIGTERM);
+            libc::sigaddset(&mut set, libc::SIGHUP);
             libc::pthread_sigmask(libc::SIG_BLOCK, &set, std::ptr::null_mut());
             set
         };
@@ -102,17 +117,21 @@ mod interrupts {
                 // SAFETY: as below
                 unsafe { libc::_exit(code) }
             }
-            let name = if sig == libc::SIGINT { "SIGINT" } else { "SIGTERM" };
-            let temps = staging::pending_temps();
+            let name = match sig {
+                libc::SIGINT => "SIGINT",
+                libc::SIGHUP => "SIGHUP",
+                _ => "SIGTERM",
+            };
             let (removed, renamed) = staging::discard_all();
             let replaced = if renamed == 0 {
                 "no output was replaced".to_string()
             } else {
                 format!("the {renamed} output(s) of this run had already been renamed into place, complete")
             };
-            eprintln!(
-                "volspline: interrupted by {name}; removed {removed} temporary file(s){}; {replaced}",
-                if temps.is_empty() { String::new() } else { format!(" ({})", temps[0].display()) }
+            volspline::note!(
+                "volspline: interrupted by {name}; removed {} temporary file(s){}; {replaced}",
+                removed.len(),
+                removed.first().map_or(String::new(), |t| format!(" ({})", t.display()))
             );
             // SAFETY: ends the process at once, without running exit handlers that could touch MPI
             unsafe { libc::_exit(128 + sig) }

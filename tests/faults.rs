@@ -1,8 +1,10 @@
 //! Fault injection through the binary: a full disk (a 2 MB tmpfs, mounted when the tests run as
-//! root, otherwise skipped with a message), SIGTERM in the middle of a run, two concurrent runs
-//! on one prefix, a failing rerun over good outputs, `--timings` to a special file and ranks started
-//! with different command lines. Each test checks the exit code, the message and the exact set of
-//! files left in the output directory.
+//! root, otherwise skipped with a message), a file-size limit, SIGTERM in the middle of a run and
+//! SIGHUP to one without mpirun, two concurrent runs on one prefix, a failing rerun over good
+//! outputs, `--timings` to a special file or to a directory that takes no files, a standard output
+//! closed before the report, outputs of an earlier run left under the prefix, and ranks started
+//! with different command lines or in different directories. Each test checks the exit code, the
+//! message and the exact set of files left in the output directory.
 
 mod common;
 
@@ -102,6 +104,61 @@ fn disk_full_ends_the_job_with_a_message_on_1_and_2_ranks() {
     }
 }
 
+/// `mpirun -n ranks` of the binary through a wrapper that sets a file-size limit of `kb` KiB on
+/// the ranks (as `ulimit -f`, or a batch system's, does): the launcher itself keeps none, since
+/// its session files would not fit.
+fn mpirun_with_file_size_limit(dir: &Path, ranks: usize, kb: u64, args: &[&str]) -> Command {
+    let wrapper = dir.join("limited.sh");
+    std::fs::write(&wrapper, format!("#!/bin/bash\nulimit -f {kb}\nexec {BIN} \"$@\"\n")).unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&wrapper, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let mut c = Command::new("mpirun");
+    c.args(["-n", &ranks.to_string(), "--oversubscribe"])
+        .arg(&wrapper)
+        .args(args)
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .env("RAYON_NUM_THREADS", "1");
+    c
+}
+
+#[test]
+fn a_file_size_limit_is_named_and_leaves_nothing() {
+    let dir = temp_dir("file-size-limit");
+    let input = dir.join("s.xyz");
+    sphere(&input, 1.0);
+    std::fs::create_dir(dir.join("out")).unwrap();
+    let out = dir.join("out/a");
+    let o = out.to_str().unwrap();
+    for ranks in [1, 2] {
+        // a volume of 8 MB against a limit of 2 MB: refused before the write, by every rank
+        let args = ["fit", input.to_str().unwrap(), "--out", o, "--grid", "100", "--surface", "carrier"];
+        let done = output_within(mpirun_with_file_size_limit(&dir, ranks, 2048, &args), run_limit());
+        let t = text(&done.output);
+        assert!(!done.timed_out, "hung on {ranks} ranks:\n{t}");
+        assert_eq!(done.output.status.code(), Some(1), "{ranks} ranks:\n{t}");
+        assert!(
+            t.contains("the volume needs 8.6 MB, but this process may write files of at most 2.0 MB"),
+            "{ranks} ranks:\n{t}"
+        );
+        assert_eq!(names(&dir.join("out")), set(&[]), "{t}");
+    }
+    // a picture past the limit: its write fails with its name (SIGXFSZ would end the rank without
+    // a word and leave the temporary file)
+    let done = run(1, &["fit", input.to_str().unwrap(), "--out", o, "--grid", "16", "--no-preview"]);
+    assert!(done.status.success(), "{}", text(&done));
+    let model = dir.join("out/a.model.h5");
+    let png = dir.join("out/big.png");
+    let args = ["render", model.to_str().unwrap(), "--out", png.to_str().unwrap(), "--size", "400x400"];
+    let done = output_within(mpirun_with_file_size_limit(&dir, 1, 8, &args), run_limit());
+    let t = text(&done.output);
+    assert!(!done.timed_out, "hung:\n{t}");
+    assert_eq!(done.output.status.code(), Some(1), "{t}");
+    assert!(t.contains(&format!("volspline: error: {}: cannot be written", png.display())), "{t}");
+    assert!(t.contains("File too large"), "{t}");
+    assert_eq!(names(&dir.join("out")), set(&["a.hdf", "a.model.h5", "a.ply"]), "{t}");
+}
+
 #[test]
 fn sigterm_mid_run_removes_the_temporaries_and_says_so() {
     let dir = temp_dir("sigterm");
@@ -133,6 +190,184 @@ fn sigterm_mid_run_removes_the_temporaries_and_says_so() {
     let t = std::fs::read_to_string(&log).unwrap();
     assert!(!status.success(), "{t}");
     assert!(t.contains("interrupted by SIGTERM"), "{t}");
+    assert_eq!(names(&dir.join("out")), set(&[]), "{t}");
+}
+
+#[test]
+fn a_closed_standard_output_loses_the_report_not_the_outputs() {
+    // `volspline fit ... | head -1`: the reader of standard output is gone before the report
+    let dir = temp_dir("closed-stdout");
+    let input = dir.join("s.xyz");
+    sphere(&input, 1.0);
+    std::fs::create_dir(dir.join("out")).unwrap();
+    let out = dir.join("out/a");
+    let timings = dir.join("out/t.csv");
+    let mut c = Command::new(BIN);
+    c.args(["fit", input.to_str().unwrap(), "--out", out.to_str().unwrap(), "--grid", "16", "--no-preview"])
+        .args(["--timings", timings.to_str().unwrap()])
+        .env("RAYON_NUM_THREADS", "1")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    let mut child = c.spawn().unwrap();
+    drop(child.stdout.take());
+    let done = child.wait_with_output().unwrap();
+    let t = text(&done);
+    assert_eq!(done.status.code(), Some(0), "{t}");
+    assert!(t.contains("warning: the report could not be printed on standard output"), "{t}");
+    assert!(!t.contains("panic"), "{t}");
+    assert_eq!(names(&dir.join("out")), set(&["a.hdf", "a.model.h5", "a.ply", "t.csv"]), "{t}");
+}
+
+#[test]
+fn a_closed_standard_error_loses_the_messages_not_the_outputs() {
+    // `volspline fit ... 2>&1 >/dev/null | head -1`: the reader of standard error goes after the
+    // first line, and every later message met a closed pipe
+    let dir = temp_dir("closed-stderr");
+    let input = dir.join("s.xyz");
+    sphere(&input, 1.0);
+    std::fs::create_dir(dir.join("out")).unwrap();
+    let out = dir.join("out/a");
+    let mut c = Command::new(BIN);
+    c.args(["fit", input.to_str().unwrap(), "--out", out.to_str().unwrap(), "--grid", "16", "--no-preview"])
+        .env("RAYON_NUM_THREADS", "1")
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped());
+    let mut child = c.spawn().unwrap();
+    let mut first = String::new();
+    {
+        use std::io::BufRead;
+        let mut err = std::io::BufReader::new(child.stderr.take().unwrap());
+        err.read_line(&mut first).unwrap();
+    }
+    let status = child.wait().unwrap();
+    assert!(first.starts_with("volspline fit: 300 points read"), "{first}");
+    assert_eq!(status.code(), Some(0), "{first}");
+    assert_eq!(names(&dir.join("out")), set(&["a.hdf", "a.model.h5", "a.ply"]));
+}
+
+#[test]
+fn outputs_an_earlier_run_left_under_the_prefix_are_named() {
+    let dir = temp_dir("left-from-earlier");
+    let input = dir.join("s.xyz");
+    sphere(&input, 1.0);
+    std::fs::create_dir(dir.join("out")).unwrap();
+    let out = dir.join("out/a");
+    let fit = |more: &[&str]| {
+        let mut args = vec!["fit", input.to_str().unwrap(), "--out", out.to_str().unwrap(), "--grid", "16"];
+        args.extend_from_slice(more);
+        let done = run(1, &args);
+        assert!(done.status.success(), "{}", text(&done));
+        text(&done)
+    };
+    let t = fit(&["--trim"]);
+    assert!(!t.contains("earlier run"), "{t}");
+    let all = ["a.hdf", "a.model.h5", "a.ply", "a.png", "a.trimmed.ply"];
+    assert_eq!(names(&dir.join("out")), set(&all));
+    // a rerun without the picture and the trimmed surface: the earlier ones stay, named
+    let t = fit(&["--no-preview"]);
+    let (png, trimmed) = (dir.join("out/a.png"), dir.join("out/a.trimmed.ply"));
+    assert!(
+        t.contains(&format!(
+            "volspline: warning: {}, {} remain from an earlier run under this prefix",
+            png.display(),
+            trimmed.display()
+        )),
+        "{t}"
+    );
+    assert_eq!(names(&dir.join("out")), set(&all));
+    // eval writes no picture: only the trimmed surface is named
+    let model = dir.join("out/a.model.h5");
+    let done = run(1, &["eval", model.to_str().unwrap(), "--out", out.to_str().unwrap(), "--grid", "16"]);
+    let t = text(&done);
+    assert!(done.status.success(), "{t}");
+    assert!(
+        t.contains(&format!("volspline: warning: {} remains from an earlier run", trimmed.display())),
+        "{t}"
+    );
+    assert!(!t.contains(&format!("{},", png.display())), "{t}");
+    let t = fit(&["--trim"]);
+    assert!(!t.contains("earlier run"), "{t}");
+}
+
+#[test]
+fn a_prefix_too_long_for_the_temporary_names_is_refused_before_the_work() {
+    // the outputs' names fit the file system's 255 bytes, their temporary names do not
+    let dir = temp_dir("long-prefix");
+    let input = dir.join("s.xyz");
+    sphere(&input, 1.0);
+    let out = dir.join("x".repeat(235));
+    let done = run(1, &["fit", input.to_str().unwrap(), "--out", out.to_str().unwrap(), "--grid", "16"]);
+    let t = text(&done);
+    assert_eq!(done.status.code(), Some(2), "{t}");
+    assert!(t.contains("has a name too long for its temporary file"), "{t}");
+    assert!(!t.contains("kernel evaluations per node"), "refused after the work:\n{t}");
+    assert_eq!(names(&dir), set(&["s.xyz"]), "{t}");
+}
+
+#[test]
+fn a_timings_directory_that_takes_no_files_is_refused_before_the_work() {
+    let dir = temp_dir("timings-dir");
+    let input = dir.join("s.xyz");
+    sphere(&input, 1.0);
+    std::fs::create_dir(dir.join("out")).unwrap();
+    let out = dir.join("out/a");
+    // /proc takes no new files, even from root
+    let bad = format!("/proc/volspline-{}-t.csv", std::process::id());
+    for ranks in [1, 2] {
+        let done = run(
+            ranks,
+            &[
+                "fit",
+                input.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "--grid",
+                "16",
+                "--timings",
+                &bad,
+            ],
+        );
+        let t = text(&done);
+        assert_eq!(done.status.code(), Some(1), "{t}");
+        assert!(t.contains("volspline: error: /proc: cannot create a file in the output directory"), "{t}");
+        assert!(t.contains(&format!("(for --timings {bad})")), "{t}");
+        assert!(!t.contains("kernel evaluations per node"), "refused after the work:\n{t}");
+        assert_eq!(names(&dir.join("out")), set(&[]), "{t}");
+    }
+}
+
+#[test]
+fn sighup_to_a_run_without_mpirun_removes_the_temporaries() {
+    // one process started from a terminal that closes (a dropped ssh session): SIGHUP ended it
+    // at once, leaving the model's temporary file
+    let dir = temp_dir("sighup");
+    let input = dir.join("s.xyz");
+    sphere(&input, 1.0);
+    let log = dir.join("stderr.txt");
+    std::fs::create_dir(dir.join("out")).unwrap();
+    let out = dir.join("out/a");
+    let mut c = Command::new(BIN);
+    c.args(["fit", input.to_str().unwrap(), "--out", out.to_str().unwrap(), "--grid", "400"])
+        .env("RAYON_NUM_THREADS", "1")
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(&log).unwrap());
+    let mut child = c.spawn().unwrap();
+    let start = Instant::now();
+    while !std::fs::read_to_string(&log).unwrap_or_default().contains("kernel evaluations per node") {
+        assert!(start.elapsed() < run_limit(), "the run never reached the evaluation");
+        assert!(child.try_wait().unwrap().is_none(), "the run ended early");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    std::thread::sleep(Duration::from_millis(300));
+    // SAFETY: a signal to the child process this test started
+    unsafe { libc::kill(child.id() as i32, libc::SIGHUP) };
+    let status = child.wait().unwrap();
+    let t = std::fs::read_to_string(&log).unwrap();
+    assert_eq!(status.code(), Some(129), "{status:?}: {t}");
+    assert!(t.contains("volspline: interrupted by SIGHUP; removed 1 temporary file(s)"), "{t}");
     assert_eq!(names(&dir.join("out")), set(&[]), "{t}");
 }
 
@@ -193,18 +428,20 @@ fn failing_rerun_leaves_the_previous_set_untouched() {
             .iter()
             .map(|n| std::fs::read(dir.join("out").join(n)).unwrap())
             .collect();
-        // the rerun fails at its very end (the timings file cannot be created: /proc takes no new
-        // files, even from root), after the model, the volume and the mesh were written under
-        // their temporary names
-        let bad = std::path::PathBuf::from(format!("/proc/volspline-{}-t.csv", std::process::id()));
+        // the rerun fails at its very end (the timings file, a link to a file of /proc that takes
+        // no writes, is written directly, as links to special files are), after the model, the
+        // volume and the mesh were written under their temporary names
+        let bad = dir.join("t.csv");
+        let _ = std::fs::remove_file(&bad);
+        std::os::unix::fs::symlink("/proc/version", &bad).unwrap();
         let done = run(
             ranks,
             &["fit", input.to_str().unwrap(), "--out", o, "--grid", "30", "--timings", bad.to_str().unwrap()],
         );
         let t = text(&done);
         assert_eq!(done.status.code(), Some(1), "{t}");
-        // the error names the file as the user gave it, the temporary name only in the reason
-        assert!(t.contains(&format!("volspline: error: {}: cannot be written", bad.display())), "{t}");
+        assert!(t.contains(&format!("volspline: error: {}: ", bad.display())), "{t}");
+        assert!(t.contains("kernel evaluations per node"), "not at the end:\n{t}");
         assert_eq!(names(&dir.join("out")), set(&["a.hdf", "a.model.h5", "a.ply", "a.png"]), "{t}");
         let after: Vec<Vec<u8>> = ["a.hdf", "a.model.h5", "a.ply", "a.png"]
             .iter()
@@ -237,6 +474,19 @@ fn timings_to_stdout_prints_the_csv() {
     let stdout = String::from_utf8_lossy(&done.stdout);
     assert!(done.status.success(), "{}", text(&done));
     assert!(stdout.contains("key,value\n") && stdout.contains("\npoints,300\n"), "{stdout}");
+    // the stage table's total is there, the stages' sum without the wait inside the solve
+    let figure = |key: &str| -> f64 {
+        let line =
+            stdout.lines().find(|l| l.starts_with(&format!("{key},"))).unwrap_or_else(|| panic!("{key}"));
+        line[key.len() + 1..].parse().unwrap()
+    };
+    let stages: f64 = stdout
+        .lines()
+        .filter(|l| l.starts_with("stage_") && !l.starts_with("stage_comm_wait"))
+        .filter_map(|l| l.split_once("_max_s,").map(|(_, v)| v.parse::<f64>().unwrap()))
+        .sum();
+    assert!((figure("total_max_s") - stages).abs() < 1e-5, "{stdout}");
+    assert!(figure("total_min_s") <= figure("total_max_s"), "{stdout}");
     assert_eq!(names(&dir.join("out")), set(&["a.hdf", "a.model.h5", "a.ply", "a.png"]));
     // the link itself is untouched (never renamed over)
     assert!(std::fs::symlink_metadata("/dev/stdout").is_ok_and(|m| m.file_type().is_symlink()));
@@ -277,4 +527,63 @@ fn ranks_started_with_different_arguments_are_refused_without_a_hang() {
         "{out}"
     );
     assert_eq!(names(&dir), set(&["s.xyz", "each-its-own.sh"]), "nothing written");
+}
+
+#[test]
+fn ranks_in_different_directories_with_relative_paths_are_refused_without_a_hang() {
+    // a wrapper that starts each rank in its own directory, as a launcher that does not carry the
+    // working directory over to other nodes does: `out/a` is a different file on each rank, and
+    // the parallel create of the volume waited for ever
+    let dir = temp_dir("different-directories");
+    for rank in 0..2 {
+        std::fs::create_dir_all(dir.join(format!("wd{rank}/out"))).unwrap();
+        sphere(&dir.join(format!("wd{rank}/s.xyz")), 1.0);
+    }
+    let wrapper = dir.join("each-its-own-directory.sh");
+    let script = format!("#!/bin/sh\ncd {}/wd$OMPI_COMM_WORLD_RANK && exec {BIN} \"$@\"\n", dir.display());
+    std::fs::write(&wrapper, script).unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&wrapper, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let job = |args: &[&str]| {
+        let mut c = Command::new("mpirun");
+        c.args(["-n", "2", "--oversubscribe"])
+            .arg(&wrapper)
+            .args(args)
+            .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+            .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+            .env("RAYON_NUM_THREADS", "1");
+        output_within(c, Duration::from_secs(120))
+    };
+    let done = job(&["fit", "s.xyz", "--out", "out/a", "--grid", "16", "--no-preview"]);
+    let t = text(&done.output);
+    assert!(!done.timed_out, "the job hung:\n{t}");
+    assert_eq!(done.output.status.code(), Some(2), "{t}");
+    // the directories as the ranks see them (a temporary directory may be reached through a link)
+    let real = std::fs::canonicalize(&dir).unwrap();
+    assert!(
+        t.contains(&format!(
+            "error on rank 1: invalid argument: rank 1 runs in the directory {}/wd1, rank 0 in {}/wd0",
+            real.display(),
+            real.display()
+        )) && t.contains("mpirun --wdir DIR"),
+        "{t}"
+    );
+    for rank in 0..2 {
+        assert_eq!(names(&dir.join(format!("wd{rank}/out"))), set(&[]), "{t}");
+    }
+    // absolute paths name one file whatever the directory
+    let input = dir.join("wd0/s.xyz");
+    let out = dir.join("wd0/out/a");
+    let done = job(&[
+        "fit",
+        input.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--grid",
+        "16",
+        "--no-preview",
+    ]);
+    let t = text(&done.output);
+    assert!(!done.timed_out && done.output.status.success(), "{t}");
+    assert_eq!(names(&dir.join("wd0/out")), set(&["a.hdf", "a.model.h5", "a.ply"]), "{t}");
 }

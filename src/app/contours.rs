@@ -206,7 +206,7 @@ pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     check_grid(comm, &grid, a.grid.curvature)?;
     check_slice_systems(comm, &sections, &a.kernel)?;
     if comm.rank() == 0 {
-        eprintln!(
+        crate::note!(
             "volspline contours: {} slices, {contours} contours, {points_read} points from {}; kernel {}, carrier {}",
             sections.len(),
             a.input.display(),
@@ -216,10 +216,10 @@ pub fn run(a: &ContoursArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     }
     let (crossings, warning) = contour_crossings(&a.input, &sections);
     if let (0, Some(w)) = (comm.rank(), warning) {
-        eprintln!("volspline: warning: {w}");
+        crate::note!("volspline: warning: {w}");
     }
     if let (0, Some(w)) = (comm.rank(), collapsed_contours(&a.input, &sections, a.merge_tol)) {
-        eprintln!("volspline: warning: {w}");
+        crate::note!("volspline: warning: {w}");
     }
     let fits = stages.time(Stage::Solve, || {
         solve_sections(comm, &a.input, &sections, &a.kernel, a.carrier, a.merge_tol)

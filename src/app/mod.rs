@@ -47,6 +47,56 @@ pub fn same_arguments(comm: &dyn Comm, args: Vec<String>) -> Result<()> {
     agree(comm, local)
 }
 
+/// The warning about outputs an earlier run left under the prefix of `command` that this run did
+/// not write (`PREFIX.png` after a rerun with `--no-preview`, `PREFIX.trimmed.ply` after one
+/// without `--trim`): beside this run's outputs they would pass for them, but may show another
+/// solid. They are the user's files and are left alone. (`morph` names its own, the frames of an
+/// earlier longer morph.)
+fn left_from_earlier(command: &Command) -> Option<String> {
+    let (prefix, writes) = match command {
+        Command::Fit(a) => (&a.out, preflight::MODEL_OUTPUTS),
+        Command::Contours(a) => (&a.out, preflight::MODEL_OUTPUTS),
+        Command::Eval(a) => (&a.out, preflight::VOLUME_OUTPUTS),
+        Command::Morph(_) | Command::Slice(_) | Command::Render(_) => return None,
+    };
+    let candidates: Vec<_> = writes.iter().map(|ext| volume::output_path(prefix, ext)).collect();
+    let left = staging::left_from_earlier(&candidates);
+    if left.is_empty() {
+        return None;
+    }
+    let names: Vec<String> = left.iter().map(|p| p.display().to_string()).collect();
+    let (verb, they, them) =
+        if left.len() == 1 { ("remains", "it", "it") } else { ("remain", "they", "them") };
+    Some(format!(
+        "{} {verb} from an earlier run under this prefix; this run did not write {them}, so beside its \
+         outputs {they} may show another solid: remove {them} or choose another prefix",
+        names.join(", ")
+    ))
+}
+
+/// Refuses a job whose ranks run in different working directories while the command line names
+/// a file by a relative path: each rank would resolve it in its own directory and read or write
+/// another file (the ranks then waited on each other for ever in the parallel create of the
+/// volume, each opening its own file; a model read by every rank could differ between them).
+/// With absolute paths alone the directories do not matter. Collective.
+pub fn same_directory(comm: &dyn Comm, command: &Command) -> Result<()> {
+    let here = std::env::current_dir().map(|d| d.display().to_string()).unwrap_or_default();
+    let first: String = comm.broadcast_value(0, (comm.rank() == 0).then(|| here.clone()));
+    let paths = command.paths();
+    let relative = paths.iter().find(|p| p.is_relative());
+    let local = match relative {
+        Some(p) if here != first => Err(Error::Usage(format!(
+            "rank {} runs in the directory {here}, rank 0 in {first}, so the relative path {} names \
+             another file on each; start every rank in one directory (mpirun --wdir DIR) or give \
+             absolute paths",
+            comm.rank(),
+            p.display()
+        ))),
+        _ => Ok(()),
+    };
+    agree(comm, local)
+}
+
 /// Runs a parsed command on `comm` with `threads` threads per rank. Collective.
 ///
 /// Every output is written under a temporary name unique to this run (chosen by rank 0, the same on
@@ -67,6 +117,11 @@ pub fn run(command: &Command, comm: &dyn Comm, threads: usize) -> Result<()> {
         Ok(()) => {
             let committed = on_root(comm, staging::commit_all);
             staging::forget_all();
+            if committed.is_ok() && comm.rank() == 0 {
+                if let Some(w) = left_from_earlier(command) {
+                    crate::note!("volspline: warning: {w}");
+                }
+            }
             committed
         }
         Err(e) => {

@@ -168,10 +168,13 @@ pub fn run(a: &MorphArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     r.figure("folded_frames", folded_frames(&folds));
     if comm.rank() == 0 {
         if let Some(w) = stale_frames(&a.out, k) {
-            eprintln!("volspline: warning: {w}");
+            crate::note!("volspline: warning: {w}");
         }
         if let Some(w) = fold_warning(&folds, k, &lines) {
-            eprintln!("volspline: warning: {}: {w}", a.pairs.as_deref().unwrap_or(Path::new("")).display());
+            crate::note!(
+                "volspline: warning: {}: {w}",
+                a.pairs.as_deref().unwrap_or(Path::new("")).display()
+            );
         }
     }
     r.line(format!(

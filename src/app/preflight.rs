@@ -18,7 +18,7 @@ use std::sync::OnceLock;
 use crate::cli::ranks_on_this_node;
 use crate::error::{Error, Result};
 use crate::grid::Grid;
-use crate::io::staging::{parent_dir, same_file};
+use crate::io::staging::{is_special, output_target, parent_dir, same_file};
 use crate::linalg::dist::{Precision, KEPT_SHARE};
 use crate::par::{agree, Comm};
 
@@ -239,6 +239,12 @@ pub fn check_prefixes(
         let spared = |p: &Path| inputs.iter().try_for_each(|i| spares_input(p, writes, i));
         writable_prefix(prefix)
             .and_then(|()| {
+                // the last of `more` has the longest names (the frames' numbers widen)
+                std::iter::once(prefix)
+                    .chain(more.last().map(PathBuf::as_path))
+                    .try_for_each(|p| prefix_outputs(p, writes).try_for_each(|o| temporary_name_fits(&o)))
+            })
+            .and_then(|()| {
                 std::iter::once(prefix).chain(more.iter().map(PathBuf::as_path)).try_for_each(spared)
             })
             .and_then(|()| timings.map_or(Ok(()), timings_apart))
@@ -264,6 +270,28 @@ fn prefix_outputs<'a>(prefix: &'a Path, writes: &'a [&str]) -> impl Iterator<Ite
         name.push(ext);
         PathBuf::from(name)
     })
+}
+
+/// Refuses an output whose temporary name (`.NAME.RUNID.partial`, some 30 characters longer than
+/// its name) is too long for its directory's file system, before any work: a prefix of 220
+/// characters or more failed at the first write, after the solve, with 'File name too long'.
+/// Probed by creating that file and removing it at once.
+fn temporary_name_fits(output: &Path) -> Result<()> {
+    let tmp = crate::io::staging::temp_path(&output_target(output));
+    match std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp) {
+        Ok(_) => {
+            let _ = std::fs::remove_file(&tmp);
+            Ok(())
+        }
+        Err(e) if e.raw_os_error() == Some(libc::ENAMETOOLONG) => Err(Error::Usage(format!(
+            "--out: the output {} has a name too long for its temporary file {} ({} bytes); choose a shorter prefix",
+            output.display(),
+            tmp.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(),
+            tmp.file_name().map_or(0, |n| n.len())
+        ))),
+        // other failures (the directory's own) are the directory check's to name
+        Err(_) => Ok(()),
+    }
 }
 
 /// Refuses a prefix one of whose outputs is the input (`fit scan.ply --out scan`).
@@ -297,8 +325,24 @@ fn separate_timings(timings: &Path, prefix: &Path, writes: &[&str], inputs: &[&P
     }
     match prefix_outputs(prefix, writes).find(|o| same_file(timings, o)) {
         Some(o) => clash(format!("the output {}", o.display())),
-        None => Ok(()),
+        None => timings_dir_takes_files(timings),
     }
+}
+
+/// Refuses a `--timings` file whose directory takes no new file (a read-only file system, say),
+/// before any work: the file is written last, and the whole run's outputs would be lost with it.
+/// A special target (`/dev/stdout`, a pipe) is written directly, without a file of its own in
+/// the directory, and is not probed.
+fn timings_dir_takes_files(timings: &Path) -> Result<()> {
+    if is_special(&output_target(timings)) {
+        return Ok(());
+    }
+    writable_dir(&parent_dir(timings)).map_err(|e| match e {
+        Error::Io { path, reason } => {
+            Error::Io { path, reason: format!("{reason} (for --timings {})", timings.display()) }
+        }
+        e => e,
+    })
 }
 
 /// Refuses an output file path (`what` it should name, for the message) that is a directory or
@@ -329,7 +373,7 @@ pub fn writable_file(path: &Path, what: &str, timings: Option<&Path>, inputs: &[
                 input.display()
             )));
         }
-        writable_dir(&parent_dir(t))?;
+        timings_dir_takes_files(t)?;
     }
     writable_dir(&parent_dir(path))
 }

@@ -268,7 +268,7 @@ pub fn run(a: &RenderArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let hits = write_picture(comm, solid.as_ref(), &view, a.view.color, &a.out, &mut stages)?;
     if comm.rank() == 0 {
         if let Some(w) = view_warning(solid.as_ref(), &view, hits) {
-            eprintln!("volspline: warning: {w}");
+            crate::note!("volspline: warning: {w}");
         }
     }
     let mut r = Report::new("render", Path::new(&a.model));

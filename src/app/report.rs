@@ -87,6 +87,11 @@ impl Report {
             self.figure(&format!("stage_{}_min_s", t.stage.name()), format!("{:.6}", t.min));
             self.figure(&format!("stage_{}_max_s", t.stage.name()), format!("{:.6}", t.max));
         }
+        // the table's total row (not named stage_..., so that scripts summing the stages' figures
+        // do not count it twice; their sum counts the wait of the solve twice)
+        let (total_min, total_max) = times.total();
+        self.figure("total_min_s", format!("{total_min:.6}"));
+        self.figure("total_max_s", format!("{total_max:.6}"));
         if let Some(path) = timings {
             on_root(comm, || {
                 io::write_atomically(path, |tmp| {
@@ -117,9 +122,26 @@ impl Report {
                     out.push_str(&format!("    {}\n", o.display()));
                 }
             }
-            print!("{out}");
+            print_report(&out);
         }
         Ok(times)
+    }
+}
+
+/// Prints the report `text` on standard output. A standard output whose reader has gone (`fit
+/// ... | head -1`, or a launcher that stopped forwarding it) loses the report, not the run: the
+/// outputs are still renamed into place, and a warning on standard error says why the report is
+/// missing. (`print!` would panic there, and the panic would abort the job with its outputs
+/// left under their temporary names.)
+fn print_report(text: &str) {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    if let Err(e) = out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        let _ = writeln!(
+            std::io::stderr(),
+            "volspline: warning: the report could not be printed on standard output ({e}); the outputs are \
+             written all the same"
+        );
     }
 }
 

@@ -35,7 +35,7 @@ pub fn run(a: &SliceArgs, comm: &dyn Comm) -> Result<()> {
         on_root(comm, || {
             let set = points::read_mesh(&a.mesh)?;
             if let Some(note) = &set.note {
-                eprintln!("volspline slice: {}: {note}", a.mesh.display());
+                crate::note!("volspline slice: {}: {note}", a.mesh.display());
             }
             let read = TriMesh {
                 vertices: set.points.clone(),
@@ -115,7 +115,7 @@ pub fn run(a: &SliceArgs, comm: &dyn Comm) -> Result<()> {
         ));
     }
     if s.gaps > 0 && comm.rank() == 0 {
-        eprintln!(
+        crate::note!(
             "volspline: warning: {}: {} of the planes between the first and the last slice meet no mesh (the \
              first is plane {} of {}): the mesh has parts apart along the planes, and `volspline contours` \
              joins the slices on either side of such a gap into one solid; cut each part by planes of its own",
@@ -126,7 +126,7 @@ pub fn run(a: &SliceArgs, comm: &dyn Comm) -> Result<()> {
         );
     }
     if s.crossings > 0 && comm.rank() == 0 {
-        eprintln!(
+        crate::note!(
             "volspline: warning: {}: the contours cross {} time(s), where the mesh intersects itself (or \
              where chains ending on its holes could not be joined without crossing); `volspline \
              contours` names the places",

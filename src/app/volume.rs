@@ -279,7 +279,7 @@ fn evaluate_growing(
         }
         if comm.rank() == 0 {
             let sides: Vec<&str> = (0..6).filter(|&f| touched[f]).map(|f| FACE_NAMES[f]).collect();
-            eprintln!(
+            crate::note!(
                 "volspline: the solid reaches the grid's {} face(s) ({} nodes): growing the grid by {cells} \
                  cells there (--margin auto)",
                 sides.join(", "),
@@ -320,7 +320,7 @@ fn evaluate(
         static SAID: std::sync::Mutex<String> = std::sync::Mutex::new(String::new());
         let mut said = SAID.lock().unwrap_or_else(|e| e.into_inner());
         if *said != line {
-            eprintln!("{line}");
+            crate::note!("{line}");
             *said = line;
         }
     }
@@ -387,7 +387,7 @@ pub fn write_volume(comm: &dyn Comm, v: Volume<'_>, stages: &mut Stages) -> Resu
         let why =
             nothing_to_mesh(inside, nodes).or_else(|| cut_open(on_faces, faces, grow.then_some(grown_steps)));
         if let Some(w) = why {
-            eprintln!("volspline: warning: {}: {w}", ply_path.display());
+            crate::note!("volspline: warning: {}: {w}", ply_path.display());
         }
     }
 

@@ -8,7 +8,9 @@
 //! read ([`note_input`]), however the names are spelled; a refused set leaves every file as it was.
 //!
 //! The registry of pending temporaries is process-wide so that the signal handler of the binary can
-//! remove them when the job is interrupted ([`pending_temps`]). A target that exists and is not a
+//! remove them when the job is interrupted ([`discard_all`]), and its panic hook when a rank fails
+//! inside ([`discard_after_panic`]). After the commit it tells the outputs an earlier run left
+//! under a prefix from this run's ([`left_from_earlier`]). A target that exists and is not a
 //! regular file (a symbolic link such as `/dev/stdout`, a pipe, a device node) is never renamed
 //! over: it is written directly; a symbolic link to a regular file is followed, and its target is
 //! replaced atomically like any other output ([`output_target`]).
@@ -25,14 +27,18 @@ struct Registry {
     /// (final name, temporary name) of every output written so far and not yet committed.
     pending: Vec<(PathBuf, PathBuf)>,
     /// Outputs renamed into place by this run (a signal after the commit must not claim that
-    /// nothing was replaced).
-    renamed: usize,
+    /// nothing was replaced), by their final names.
+    renamed: Vec<PathBuf>,
     /// The files this run has read, as named, which no output may replace.
     inputs: Vec<PathBuf>,
 }
 
-static REGISTRY: Mutex<Registry> =
-    Mutex::new(Registry { run_id: String::new(), pending: Vec::new(), renamed: 0, inputs: Vec::new() });
+static REGISTRY: Mutex<Registry> = Mutex::new(Registry {
+    run_id: String::new(),
+    pending: Vec::new(),
+    renamed: Vec::new(),
+    inputs: Vec::new(),
+});
 
 fn registry() -> std::sync::MutexGuard<'static, Registry> {
     REGISTRY.lock().unwrap_or_else(|p| p.into_inner())
@@ -59,7 +65,7 @@ pub fn begin(run_id: &str) {
     let mut r = registry();
     r.run_id = run_id.to_string();
     r.pending.clear();
-    r.renamed = 0;
+    r.renamed.clear();
     r.inputs.clear();
 }
 
@@ -140,25 +146,54 @@ pub fn named_as_output(e: Error, path: &Path, tmp: &Path) -> Error {
     }
 }
 
-/// The temporary files of this run not yet renamed into place.
-pub fn pending_temps() -> Vec<PathBuf> {
-    registry().pending.iter().map(|(_, t)| t.clone()).collect()
+/// Removes the temporary files of this run (errors ignored: a file may already be gone, removed
+/// by another rank of the job that wrote it too) and forgets them. Returns the files this
+/// process removed and how many outputs this run had already renamed into place. Waits for a
+/// commit in progress ([`commit_all`] holds the registry throughout its renames), so the answer
+/// describes a whole set: either no output was replaced, or all were.
+pub fn discard_all() -> (Vec<PathBuf>, usize) {
+    let mut r = registry();
+    let removed =
+        r.pending.iter().filter(|(_, t)| std::fs::remove_file(t).is_ok()).map(|(_, t)| t.clone()).collect();
+    r.pending.clear();
+    (removed, r.renamed.len())
 }
 
-/// Removes the temporary files of this run (errors ignored: a file may already be gone) and
-/// forgets them. Returns how many were removed and how many outputs this run had already renamed
-/// into place. Waits for a commit in progress ([`commit_all`] holds the registry throughout its
-/// renames), so the answer describes a whole set: either no output was replaced, or all were.
-pub fn discard_all() -> (usize, usize) {
-    let mut r = registry();
+/// [`discard_all`] for a panic hook: removes the temporary files of this run unless the registry
+/// is held at the moment (by the panicking thread itself, in [`commit_all`], where waiting for it
+/// would never end; or by another thread, which is discarding or committing the set already).
+/// Returns how many were removed. A panic therefore leaves no `.NAME.RUNID.partial` file behind
+/// but in that rare case.
+pub fn discard_after_panic() -> usize {
+    let mut r = match REGISTRY.try_lock() {
+        Ok(r) => r,
+        Err(std::sync::TryLockError::Poisoned(p)) => p.into_inner(),
+        Err(std::sync::TryLockError::WouldBlock) => return 0,
+    };
     let removed = r.pending.iter().filter(|(_, t)| std::fs::remove_file(t).is_ok()).count();
     r.pending.clear();
-    (removed, r.renamed)
+    removed
 }
 
 /// Forgets the pending outputs without touching them (the ranks that do not rename).
 pub fn forget_all() {
     registry().pending.clear();
+}
+
+/// Of the files `candidates` (the names a command may write under its prefix), those that exist
+/// and were not renamed into place by this run: outputs of an earlier run under the same prefix
+/// that this one did not write (`PREFIX.png` after a rerun with `--no-preview`, a
+/// `PREFIX.trimmed.ply` after one without `--trim`). They are left alone; the caller names them.
+/// Meaningful after [`commit_all`] on the rank that committed.
+pub fn left_from_earlier(candidates: &[PathBuf]) -> Vec<PathBuf> {
+    let r = registry();
+    candidates
+        .iter()
+        // a special file is the user's own target, written directly by a run that names it
+        .filter(|c| c.is_file() && !is_special(&output_target(c)))
+        .filter(|c| !r.renamed.iter().any(|o| same_file(c, o)))
+        .cloned()
+        .collect()
 }
 
 /// Renames every pending output of this run into place, as a set: under an exclusive lock on each
@@ -180,7 +215,7 @@ pub fn commit_all() -> Result<()> {
         if result.is_ok() {
             result = std::fs::rename(tmp, path).map_err(|e| Error::io(path, &e));
             if result.is_ok() {
-                r.renamed += 1;
+                r.renamed.push(path.clone());
             }
         }
         if result.is_err() {
@@ -284,11 +319,11 @@ mod tests {
         let out = dir.join("a.txt");
         begin("r2");
         stage(&out, |tmp| std::fs::write(tmp, "new").map_err(|e| Error::io(tmp, &e))).unwrap();
-        assert_eq!(discard_all(), (1, 0), "before the commit: removed, nothing replaced");
+        assert_eq!(discard_all(), (vec![temp_path(&out)], 0), "before the commit: removed, nothing replaced");
         assert!(!out.exists());
         stage(&out, |tmp| std::fs::write(tmp, "new").map_err(|e| Error::io(tmp, &e))).unwrap();
         commit_all().unwrap();
-        assert_eq!(discard_all(), (0, 1), "after the commit: nothing to remove, one output replaced");
+        assert_eq!(discard_all(), (vec![], 1), "after the commit: nothing to remove, one output replaced");
         assert_eq!(std::fs::read_to_string(&out).unwrap(), "new");
 
         // an output that is a link to a regular file: the target is replaced, the link stays

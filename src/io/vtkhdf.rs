@@ -62,7 +62,9 @@ pub fn write_image_arrays(
     for (_, values) in arrays {
         assert_eq!(values.len(), nx * ny * layers);
     }
-    on_root(comm, || check_space(path, (nx * ny * nz * 8 * arrays.len()) as u64))?;
+    let bytes = (nx * ny * nz * 8 * arrays.len()) as u64;
+    on_root(comm, || check_space(path, bytes))?;
+    agree(comm, check_file_size_limit(path, bytes))?;
     let created = match comm.raw() {
         Some(world) => hdf5::File::with_options().with_fapl(|p| p.mpio(world, None)).create(path),
         None => hdf5::File::create(path),
@@ -157,6 +159,32 @@ fn check_space(path: &Path, bytes: u64) -> Result<()> {
                 "not enough free space for the volume: it needs {:.1} MB, {:.1} MB are free (use a coarser --grid or another --out directory)",
                 mb(need),
                 mb(free)
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// Refuses to start a write of a file of `bytes` of data (plus 1 MiB of metadata) at `path` when
+/// this process may not write a file that large (`ulimit -f`, a batch system's file-size limit),
+/// before any collective write can fail: a file past the limit fails its metadata flush at the
+/// close too, however it is truncated, and HDF5's shutdown then crashes on the file left half
+/// closed. Checked on every rank: the launcher may give the ranks different limits.
+fn check_file_size_limit(path: &Path, bytes: u64) -> Result<()> {
+    // SAFETY: getrlimit fills the zeroed struct it is given
+    let mut lim: libc::rlimit = unsafe { std::mem::zeroed() };
+    if unsafe { libc::getrlimit(libc::RLIMIT_FSIZE, &mut lim) } != 0 || lim.rlim_cur == libc::RLIM_INFINITY {
+        return Ok(());
+    }
+    let (limit, need) = (lim.rlim_cur as u64, bytes + (1 << 20));
+    if need > limit {
+        let mb = |b: u64| b as f64 / 1048576.0;
+        return Err(Error::Io {
+            path: path.into(),
+            reason: format!(
+                "the volume needs {:.1} MB, but this process may write files of at most {:.1} MB (the file-size limit, `ulimit -f`); use a coarser --grid or a larger limit",
+                mb(need),
+                mb(limit)
             ),
         });
     }

@@ -28,7 +28,7 @@ impl World {
         let default_hook = std::panic::take_hook();
         std::panic::set_hook(Box::new(move |info| {
             default_hook(info);
-            eprintln!("volspline: internal error (panic); aborting all ranks");
+            crate::note!("volspline: internal error (panic); aborting all ranks");
             abort_all(70);
         }));
         Some(World { universe })

@@ -439,7 +439,7 @@ mod tests {
                     median.abs_diff(target) <= target / 5 + 1,
                     "{what}: target {target}, median {median}"
                 );
-                eprintln!("{what}: target {target}: R = {r:.4}, median {median} neighbours");
+                crate::note!("{what}: target {target}: R = {r:.4}, median {median} neighbours");
             }
         }
         assert_eq!(default_support(&[0.0, 0.0, 0.0], 30), 2.0);
@@ -460,7 +460,7 @@ mod tests {
         assert_eq!(a.nnz(), b.nnz());
         assert_eq!(stats, stats_b);
         let (before, after) = (envelope(&a), envelope(&b));
-        eprintln!(
+        crate::note!(
             "bunny, {}: nonzeros per row mean {:.1}, max {}; lower triangle {} stored; envelope {before} -> {after}",
             kernel.name(),
             stats.mean,

@@ -593,7 +593,7 @@ pub(crate) mod tests {
         for k in [1, 10, 100] {
             let tree = Octree::new(&pts, k);
             let s = tree.stats();
-            eprintln!("bunny, K = {k}: {s:?}");
+            crate::note!("bunny, K = {k}: {s:?}");
             assert!(s.largest_leaf <= k, "{s:?}");
             let leaves: Vec<&Node> = tree.nodes.iter().filter(|n| n.children == 0).collect();
             assert_eq!(leaves.len(), s.leaves);
@@ -674,7 +674,7 @@ pub(crate) mod tests {
             let (before, after) = (envelope(&tree, r, &input), envelope(&tree, r, &perm));
             let rev: Vec<usize> = perm.iter().rev().copied().collect();
             let reversed = envelope(&tree, r, &rev);
-            eprintln!("r = {r}: envelope {before} in input order, {after} ordered, {reversed} reversed");
+            crate::note!("r = {r}: envelope {before} in input order, {after} ordered, {reversed} reversed");
             assert!(2 * after < before, "r = {r}: {after} vs {before}");
         }
         // random points in input order have no locality at all
@@ -682,7 +682,7 @@ pub(crate) mod tests {
         let tree = Octree::new(&pts, 10);
         let input: Vec<usize> = (0..2000).collect();
         let (before, after) = (envelope(&tree, 0.2, &input), envelope(&tree, 0.2, &tree.order(0.2)));
-        eprintln!("random points, r = 0.2: envelope {before} in input order, {after} ordered");
+        crate::note!("random points, r = 0.2: envelope {before} in input order, {after} ordered");
         assert!(2 * after < before, "{after} vs {before}");
     }
 }

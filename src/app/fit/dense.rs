@@ -260,7 +260,7 @@ pub fn refit(
         match fit_bordered(run, kernel, prep, first, stages) {
             Err(e) if e.is_not_definite() => {
                 if run.comm.rank() == 0 {
-                    eprintln!("volspline: bordered second fit: {}; factoring the whole system", e.root());
+                    crate::note!("volspline: bordered second fit: {}; factoring the whole system", e.root());
                 }
             }
             outcome => return outcome,
@@ -486,7 +486,7 @@ fn copy_fits(comm: &dyn Comm, rows: usize) -> bool {
         return true;
     }
     if comm.rank() == 0 {
-        eprintln!(
+        crate::note!(
             "volspline: the 2D factor is not kept for later fits: its row-cyclic copy needs about {:.2} GB more per rank, {:.2} GB are free; those fits factor their systems anew",
             copy / 1e9,
             room / 1e9
@@ -514,10 +514,10 @@ fn finish(
     let mut by_kind: Vec<f64> = CallKind::ALL.iter().map(|&k| timed.seconds_in(k)).collect();
     comm.max_f64(&mut by_kind);
     if let (Some(why), 0) = (&solved.mixed_fallback, comm.rank()) {
-        eprintln!("volspline: precision mixed: {why}; solved in f64 with {}", solved.used.name());
+        crate::note!("volspline: precision mixed: {why}; solved in f64 with {}", solved.used.name());
     }
     if let (Some(why), 0) = (&solved.fallback, comm.rank()) {
-        eprintln!("volspline: cholesky: {}; fell back to LU", why.root());
+        crate::note!("volspline: cholesky: {}; fell back to LU", why.root());
     }
     let residual = stages.time(Stage::Check, || {
         let globals: Vec<usize> = (0..layout.local_count()).map(|l| layout.global(l)).collect();

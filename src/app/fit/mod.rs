@@ -99,7 +99,7 @@ fn read_points_everywhere(comm: &dyn Comm, path: &Path) -> Result<Vec<f64>> {
     let local = if comm.rank() == 0 {
         points::read_points(path).map(|set| {
             if let Some(note) = &set.note {
-                eprintln!("volspline fit: {}: {note}", path.display());
+                crate::note!("volspline fit: {}: {note}", path.display());
             }
             Some(set.points.iter().flatten().copied().collect::<Vec<f64>>())
         })
@@ -243,7 +243,7 @@ fn idle_options(a: &FitArgs, off: bool, method: Method, two_levels: bool) -> Vec
 fn warn_idle_options(comm: &dyn Comm, a: &FitArgs, off: bool, method: Method, two_levels: bool) {
     if comm.rank() == 0 {
         for w in idle_options(a, off, method, two_levels) {
-            eprintln!("volspline: warning: {w}");
+            crate::note!("volspline: warning: {w}");
         }
     }
 }
@@ -261,9 +261,9 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     if comm.rank() == 0 && !isolated.is_empty() {
         let line = isolated_line(&raw, &isolated, a.drop_isolated);
         if a.drop_isolated {
-            eprintln!("volspline fit: {line}");
+            crate::note!("volspline fit: {line}");
         } else {
-            eprintln!("volspline: warning: {line}");
+            crate::note!("volspline: warning: {line}");
         }
     }
     let raw = if a.drop_isolated && !isolated.is_empty() {
@@ -353,7 +353,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             d.max_move * scale
         );
         if comm.rank() == 0 {
-            eprintln!("volspline fit: {line}");
+            crate::note!("volspline fit: {line}");
         }
         (moved, Some((line, d.moved, d.noise * scale, d.max_move * scale)))
     } else {
@@ -365,7 +365,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         // level 0 takes as many points as its dense fit has room for, up to --coarse-points
         let coarse = levels::level0_points(a, n, machine)?;
         if comm.rank() == 0 {
-            eprintln!(
+            crate::note!(
                 "volspline fit: {points_read} points read from {}, {} duplicates merged, N = {n}, two levels: \
                  dense r on up to {coarse} of them{}, then kernel {}, carrier {}",
                 a.input.display(),
@@ -396,7 +396,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         let (method, kernel, why) = choose(a, rows, machine, &fit_prep.centres)?;
         warn_idle_options(comm, a, off, method, false);
         if comm.rank() == 0 {
-            eprintln!(
+            crate::note!(
                 "volspline fit: {points_read} points read from {}, {} duplicates merged, N = {n}{}, kernel {}, carrier {}",
                 a.input.display(),
                 prep.merged,
@@ -457,7 +457,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     };
     let unbounded = super::finite::check_bounded(&model);
     if let (Some(w), 0) = (&unbounded, comm.rank()) {
-        eprintln!("volspline: warning: {w}");
+        crate::note!("volspline: warning: {w}");
     }
     super::finite::check_grid_field(comm, &model, &grid)?;
     let model_path = output_path(&a.out, ".model.h5");

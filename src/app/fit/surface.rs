@@ -366,7 +366,7 @@ pub fn check_first_fit(
         fit
     };
     if let (Some(l), 0) = (c.summary.memory_limit, run.comm.rank()) {
-        eprintln!(
+        crate::note!(
             "volspline: warning: the ranks' memory leaves room for {} centres appended to the first fit, \
              {} wanted: the constraint points against spurious blobs were thinned or the solid lost to \
              them was not given back, so spurious sheets may remain; use more ranks or nodes{}",
