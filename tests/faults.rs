@@ -36,6 +36,22 @@ fn set(items: &[&str]) -> BTreeSet<String> {
     items.iter().map(|s| s.to_string()).collect()
 }
 
+/// The processes whose parent is `pid` (the ranks mpirun started on this node).
+fn children_of(pid: u32) -> Vec<i32> {
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(child) = entry.file_name().to_string_lossy().parse::<i32>() else { continue };
+        let Ok(stat) = std::fs::read_to_string(entry.path().join("stat")) else { continue };
+        // pid (comm) state ppid ...: the name may hold blanks and parentheses, so after the last ')'
+        let ppid =
+            stat.rsplit_once(')').and_then(|(_, rest)| rest.split_whitespace().nth(1)?.parse::<u32>().ok());
+        if ppid == Some(pid) {
+            out.push(child);
+        }
+    }
+    out
+}
+
 fn mpirun(ranks: usize, args: &[&str]) -> Command {
     let mut c = Command::new("mpirun");
     c.args(["-n", &ranks.to_string(), "--oversubscribe", BIN])
@@ -178,8 +194,14 @@ fn sigterm_mid_run_removes_the_temporaries_and_says_so() {
         std::thread::sleep(Duration::from_millis(50));
     }
     std::thread::sleep(Duration::from_millis(500));
-    // SAFETY: a signal to the child process this test started
-    unsafe { libc::kill(child.id() as i32, libc::SIGTERM) };
+    // to every rank, as a batch system ends a job step (scancel signals all its tasks): signalled
+    // itself, mpirun tears the job down and often drops the ranks' last lines
+    let ranks = children_of(child.id());
+    assert_eq!(ranks.len(), 2, "the ranks of mpirun {}: {ranks:?}", child.id());
+    for pid in ranks {
+        // SAFETY: a signal to a rank of the job this test started
+        unsafe { libc::kill(pid, libc::SIGTERM) };
+    }
     let status = loop {
         if let Some(s) = child.try_wait().unwrap() {
             break s;
