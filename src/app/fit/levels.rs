@@ -181,7 +181,8 @@ pub fn fit(
         dense::check(run.comm, &r, constrained.prep.values.len(), run.args)?;
         let first = dense::fit(run, r, &constrained.prep, true, &mut inner)?;
         let rows = constrained.prep.values.len();
-        let room = dense::appendable(run, r, rows, first.factor.as_ref(), rows);
+        let most = super::surface::most_appended(&sub, run.args.grid.margin.fraction);
+        let room = dense::appendable(run, r, rows, first.factor.as_ref(), most);
         // level 0 decides the sign away from the data: its spurious blobs are cleared like a
         // single-level fit's
         check_first_fit(run, &sub, &mut constrained, first, &mut inner, &mut refit, room)

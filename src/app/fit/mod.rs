@@ -424,7 +424,8 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             // the second fits append at most as many centres as the ranks have room for
             let room = match method {
                 Method::Dense | Method::Auto => {
-                    dense::appendable(&run, kernel, rows, fitted.factor.as_ref(), rows)
+                    let most = surface::most_appended(&prep, a.grid.margin.fraction);
+                    dense::appendable(&run, kernel, rows, fitted.factor.as_ref(), most)
                 }
                 Method::Csrbf => usize::MAX,
             };

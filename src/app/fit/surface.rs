@@ -378,6 +378,16 @@ pub fn check_first_fit(
     Ok(fit)
 }
 
+/// The most centres the second fits of [`check_first_fit`] on `data` can ask to append, the
+/// bound of the room [`super::dense::appendable`] looks for: every centre they append (a blob
+/// point, a second round's, a node of the solid given back) is a node of the blob search's
+/// lattice. Not the first fit's own row count: a small scan (a few hundred rows, or a small
+/// level 0) wants up to [`crate::surface::blobs::MIN_CAP`] blob points whatever its size, and a
+/// bound below that was reported as the ranks' memory leaving no room for them.
+pub fn most_appended(data: &Prepared, margin: f64) -> usize {
+    Lattice::of_fit(&data.box_lo, &data.box_hi, margin, &data.norm).len()
+}
+
 /// `blobs` thinned to the `room` the second fits have for appended centres, the limit recorded
 /// in `summary` where it thins them.
 fn within_room(blobs: Blobs, room: usize, summary: &mut SurfaceSummary) -> Blobs {
