@@ -253,6 +253,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
     crate::linalg::gemm::choose_agreed(comm, a.gemm);
     dense::check_layout(a, comm.size())?;
+    compact::check_solver(a, comm.size())?;
     check_prefix(comm, &a.out, MODEL_OUTPUTS, a.grid.timings.as_deref(), &[&a.input])?;
     let raw = stages.time(Stage::Read, || read_points_everywhere(comm, &a.input))?;
     let points_read = raw.len() / 3;
