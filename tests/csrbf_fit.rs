@@ -225,3 +225,38 @@ fn a_sparse_solver_of_one_rank_under_several_is_refused_before_the_input_is_read
         assert!(!err.contains("missing.xyz"), "{err}");
     }
 }
+
+#[test]
+fn the_sparse_factorisation_ticks_where_progress_is_drawn() {
+    // faer and MUMPS report nothing while they factor (minutes at a million points), and no bar
+    // was drawn between level 0's solve and the evaluation: under --progress on a line with the
+    // time spent ticks on standard error and stays with the time the factor took; off, and auto
+    // under mpirun (standard error a pipe), draw none
+    let dir = common::temp_dir("csrbf-progress");
+    let input = dir.join("bunny.xyz");
+    common::write_xyz(&input, &common::bunny_subset(8, 0));
+    let prefix = dir.join("o");
+    for (ranks, mode, drawn) in [(2, "on", true), (0, "on", true), (2, "off", false), (2, "auto", false)] {
+        let args = [
+            "fit",
+            input.to_str().unwrap(),
+            "--out",
+            prefix.to_str().unwrap(),
+            "--method",
+            "csrbf",
+            "--surface",
+            "carrier",
+            "--grid",
+            "16",
+            "--no-preview",
+            "--progress",
+            mode,
+        ];
+        let out = common::run(ranks, &args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{err}");
+        let ticked = err.lines().any(|l| l.contains("factor") && l.contains("elapsed, the sparse factor of"));
+        assert_eq!(ticked, drawn, "--progress {mode} on {ranks} ranks:\n{err}");
+        assert!(!String::from_utf8_lossy(&out.stdout).contains("elapsed"), "a line on standard output");
+    }
+}

@@ -10,6 +10,7 @@ use rayon::prelude::*;
 
 use super::{Fitted, Run};
 use crate::app::preflight::check_memory;
+use crate::app::progress::Progress;
 use crate::app::stages::{Stage, Stages};
 use crate::cli::{FitArgs, KernelChoice, Method, SparseSolver};
 use crate::error::{Error, Result};
@@ -230,7 +231,14 @@ pub fn fit(
         return Err(lonely_refusal(a, support, n, lonely(comm, &tree, centres, range, support)));
     }
 
+    // MUMPS and faer do not report their progress: a line ticks while they work
+    let ticking = Progress::ticking(
+        "factor",
+        format!("the sparse factor of {n} rows ({}, {nnz_row_mean:.0} neighbours per row)", name(solver)),
+        comm,
+    );
     let factored = stages.time(Stage::Factor, || factor(comm, solver, &lower, &tree, support, threads))?;
+    ticking.done();
     drop(lower);
     let k = kernel.poly_count();
     let all: Vec<usize> = (0..n).collect();
