@@ -205,14 +205,18 @@ pub fn fit(
     figures.push(("coarse_rows".into(), rows.to_string()));
     figures.push(("coarse_residual".into(), format!("{:e}", level0.residual)));
     figures.push(("coarse_seconds".into(), format!("{coarse_seconds:.3}")));
+    // the rows beyond the subsample and its off points are the blob search's constraint points
+    // (the pins, the solid given back), which the surface line itemises
+    let pins = rows.saturating_sub(keep.len() + summary.off_points);
     let line = format!(
         "two levels: level 0 dense (kernel r, {}) on {} of the points chosen evenly over space + {} \
-         off-surface points ({rows} rows, residual {:.3e}) in {coarse_seconds:.3} s; level 1 compactly \
+         off-surface points{} ({rows} rows, residual {:.3e}) in {coarse_seconds:.3} s; level 1 compactly \
          supported through all points on top of it (support about {DEFAULT_NEIGHBOURS} neighbours unless \
          --support): {}",
         level0.solver,
         keep.len(),
         summary.off_points,
+        if pins > 0 { format!(" + {pins} constraint points of the blob search") } else { String::new() },
         level0.residual,
         level1.line
     );
