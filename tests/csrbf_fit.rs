@@ -152,3 +152,111 @@ fn the_default_support_gives_every_point_of_an_unevenly_sampled_mesh_a_neighbour
     assert!(figure(t, "rms_at_points").parse::<f64>().unwrap() < 1e-9);
     assert_eq!(run.model.spline.weights.len(), figure(t, "points").parse::<usize>().unwrap());
 }
+
+#[test]
+fn a_scan_the_default_support_cannot_connect_is_refused_with_the_support_that_does() {
+    // 2000 samples of the cow and one stray point 0.4 of the diagonal off its back, kept by
+    // --drop-isolated off: the default support stops at 4 times the median radius, short of the
+    // stray. The refusal came after level 0 of the two levels had been solved, as a usage error
+    // of a --support never given, with no value to try; it now comes before level 0, names the
+    // scan as the cause and the support that reaches every point, and that support fits
+    let dir = common::temp_dir("csrbf-lonely");
+    let input = dir.join("cow-stray.xyz");
+    let text =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/cow-2000-seed3.xyz"))
+            .unwrap();
+    let mut pts: Vec<f64> = text.split_whitespace().map(|v| v.parse::<f64>().unwrap()).collect::<Vec<_>>();
+    assert_eq!(pts.len(), 6000);
+    let (lo, hi) = volspline::spline::hygiene::bounding_box(&pts, 3);
+    let diag = volspline::spline::hygiene::diagonal(&lo, &hi);
+    pts.extend_from_slice(&[0.5 * (lo[0] + hi[0]), hi[1] + 0.4 * diag, 0.5 * (lo[2] + hi[2])]);
+    common::write_xyz(&input, &pts);
+    let prefix = dir.join("o");
+    let head = ["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--method", "csrbf"];
+    let tail = ["--drop-isolated", "off", "--grid", "16", "--coarse-points", "300", "--no-preview"];
+    let mut suggested = Vec::new();
+    for ranks in [0, 2] {
+        let out = common::run(ranks, &[&head[..], &tail].concat());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{err}");
+        assert!(err.contains("the default support") && err.contains("is too small for this scan"), "{err}");
+        assert!(err.contains("1 of the 2001 points has no other point within it"), "{err}");
+        let value = err.split("use --support ").nth(1).and_then(|t| t.split(' ').next()).unwrap();
+        suggested.push(value.to_string());
+        assert!(!err.contains("panic"), "{err}");
+    }
+    assert_eq!(suggested[0], suggested[1], "the same support on one and two ranks");
+    let names: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(names.len(), 1, "refused runs leave no output: {names:?}");
+    // the support named reaches the stray: the fit runs
+    let text = common::run_ok(0, &[&head[..], &tail, &["--support", &suggested[0]]].concat());
+    assert!(text.contains(&format!("kernel wendland2 (support {})", suggested[0])), "{text}");
+    // a support the user gave that leaves the stray alone is a usage error naming the same fix
+    let short = format!("{}", 0.9 * suggested[0].parse::<f64>().unwrap());
+    let out = common::run(0, &[&head[..], &tail, &["--support", &short]].concat());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains(&format!("support {short} is too small: 1 of the 2001 points")), "{err}");
+    assert!(err.contains(&format!("use --support {} or larger", suggested[0])), "{err}");
+}
+
+#[test]
+fn a_sparse_solver_of_one_rank_under_several_is_refused_before_the_input_is_read() {
+    // with --method csrbf the method does not depend on the data: the refusal needs no input
+    // (here a file that does not exist), where it came after reading and after level 0's solve
+    let dir = common::temp_dir("csrbf-solver-ranks");
+    let prefix = dir.join("o");
+    let missing = dir.join("missing.xyz");
+    for solver in ["cholesky", "envelope"] {
+        let args = [
+            "fit",
+            missing.to_str().unwrap(),
+            "--out",
+            prefix.to_str().unwrap(),
+            "--method",
+            "csrbf",
+            "--sparse-solver",
+            solver,
+        ];
+        let out = common::run(2, &args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(err.contains(&format!("--sparse-solver {solver} runs on one rank")), "{err}");
+        assert!(!err.contains("missing.xyz"), "{err}");
+    }
+}
+
+#[test]
+fn the_sparse_factorisation_ticks_where_progress_is_drawn() {
+    // faer and MUMPS report nothing while they factor (minutes at a million points), and no bar
+    // was drawn between level 0's solve and the evaluation: under --progress on a line with the
+    // time spent ticks on standard error and stays with the time the factor took; off, and auto
+    // under mpirun (standard error a pipe), draw none
+    let dir = common::temp_dir("csrbf-progress");
+    let input = dir.join("bunny.xyz");
+    common::write_xyz(&input, &common::bunny_subset(8, 0));
+    let prefix = dir.join("o");
+    for (ranks, mode, drawn) in [(2, "on", true), (0, "on", true), (2, "off", false), (2, "auto", false)] {
+        let args = [
+            "fit",
+            input.to_str().unwrap(),
+            "--out",
+            prefix.to_str().unwrap(),
+            "--method",
+            "csrbf",
+            "--surface",
+            "carrier",
+            "--grid",
+            "16",
+            "--no-preview",
+            "--progress",
+            mode,
+        ];
+        let out = common::run(ranks, &args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{err}");
+        let ticked = err.lines().any(|l| l.contains("factor") && l.contains("elapsed, the sparse factor of"));
+        assert_eq!(ticked, drawn, "--progress {mode} on {ranks} ranks:\n{err}");
+        assert!(!String::from_utf8_lossy(&out.stdout).contains("elapsed"), "a line on standard output");
+    }
+}

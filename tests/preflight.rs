@@ -490,6 +490,38 @@ fn second_fits_without_room_for_every_blob_point_thin_them_and_finish() {
 }
 
 #[test]
+fn a_small_scan_s_blob_points_are_not_limited_as_if_by_memory() {
+    // 80 points of the cow: the first fit has 80 + 40 rows, and the blob search pins up to 200
+    // nodes whatever the scan's size. The room for appended centres was bounded by the first
+    // fit's rows, so every such fit thinned its pins to 120 and warned that the ranks' memory
+    // left no room, with gigabytes free
+    let dir = common::temp_dir("preflight-small-pins");
+    let input = dir.join("cow80.xyz");
+    let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/cow-400.xyz"))
+        .unwrap();
+    let pts: Vec<f64> = text
+        .lines()
+        .step_by(5)
+        .flat_map(|l| l.split_whitespace().map(|v| v.parse::<f64>().unwrap()).collect::<Vec<_>>())
+        .collect();
+    assert_eq!(pts.len(), 240);
+    common::write_xyz(&input, &pts);
+    let (p, csv) = (dir.join("o"), dir.join("t.csv"));
+    let args = ["fit", input.to_str().unwrap(), "--out", p.to_str().unwrap(), "--grid", "24", "--no-preview"];
+    let text = common::run_ok(0, &[&args[..], &["--timings", csv.to_str().unwrap()]].concat());
+    assert!(!text.contains("leaves room for"), "{text}");
+    assert!(!text.contains("memory: room for"), "{text}");
+    let figures = std::fs::read_to_string(&csv).unwrap();
+    let figure = |k: &str| -> usize {
+        figures.lines().find_map(|l| l.strip_prefix(&format!("{k},"))).unwrap().parse().unwrap()
+    };
+    assert!(figures.lines().all(|l| !l.starts_with("second_fit_room,")), "{figures}");
+    let rows = figure("points") + figure("off_points");
+    let pinned = figure("choice_wide_points").max(figure("choice_narrow_points")).max(figure("blob_points"));
+    assert!(pinned > rows, "{pinned} blob points at most, {rows} rows: {figures}");
+}
+
+#[test]
 fn level_0_takes_as_many_points_as_its_dense_fit_has_room_for() {
     // the cow with a hole, 896 points: where the dense off-surface fit of all of them (at most
     // 896 + 448 + 4 rows) does not fit, `auto` takes the two levels, and level 0, which would be

@@ -1,5 +1,6 @@
-//! The progress bar of a long stage (the dense solve, the grid evaluation, the ray casting), drawn
-//! by rank 0 on its standard error for a person watching.
+//! The progress bar of a long stage (the dense solve, the grid evaluation, the ray casting), or
+//! the ticking line of one whose work cannot be counted (the sparse factorisation), drawn by
+//! rank 0 on its standard error for a person watching.
 //!
 //! When to draw is `--progress` ([`set_mode`]): `auto` draws where rank 0's standard error is a
 //! terminal, so that output redirected to files holds the report alone. Open MPI's `mpirun`
@@ -79,6 +80,34 @@ impl Progress {
         let mut p = Self::new(label, comm);
         p.columns = true;
         p
+    }
+
+    /// A stage whose work cannot be counted from outside (a sparse factorisation inside faer or
+    /// MUMPS, which can take minutes at a million points): a line with a spinner, the time spent
+    /// and `what`, redrawn twice a second from now until [`Progress::done`], where it stays with
+    /// the time the stage took. Drawn on rank 0 as the mode says. Not collective.
+    pub fn ticking(label: &'static str, what: String, comm: &dyn Comm) -> Self {
+        let p = Self::new(label, comm);
+        if p.draw {
+            let style = ProgressStyle::with_template("  {prefix:<8} {spinner} {elapsed} elapsed, {msg}")
+                .expect("a valid template")
+                .tick_chars("-\\|/ ");
+            let target = ProgressDrawTarget::term_like_with_hz(Box::new(Stderr), 10);
+            let bar = ProgressBar::with_draw_target(None, target).with_prefix(label).with_message(what);
+            bar.set_style(style);
+            bar.tick();
+            bar.enable_steady_tick(std::time::Duration::from_millis(500));
+            let _ = p.bar.set(bar);
+        }
+        p
+    }
+
+    /// Ends a [`Progress::ticking`] stage: its line stays, with the time it took.
+    pub fn done(&self) {
+        if let Some(bar) = self.bar.get().filter(|b| !b.is_finished()) {
+            bar.finish();
+            let _ = writeln!(std::io::stderr());
+        }
     }
 
     fn bar(&self, total: u64) -> ProgressBar {

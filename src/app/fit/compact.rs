@@ -10,8 +10,9 @@ use rayon::prelude::*;
 
 use super::{Fitted, Run};
 use crate::app::preflight::check_memory;
+use crate::app::progress::Progress;
 use crate::app::stages::{Stage, Stages};
-use crate::cli::SparseSolver;
+use crate::cli::{FitArgs, KernelChoice, Method, SparseSolver};
 use crate::error::{Error, Result};
 use crate::linalg::mumps::MumpsSpd;
 use crate::linalg::sparse::{bordered_solve, EnvelopeCholesky, SparseCholesky, SpdSolve, SymCsr};
@@ -46,6 +47,17 @@ fn resolve(asked: SparseSolver, ranks: usize) -> Result<SparseSolver> {
     }
 }
 
+/// Refuses, before the input is read, a `--sparse-solver` of one rank under several where the
+/// fit is compactly supported whatever the data (`--method csrbf`, or `auto` with a Wendland
+/// kernel); otherwise [`check_before`] and [`fit`] refuse it once the method is chosen, before
+/// any solve.
+pub fn check_solver(a: &FitArgs, ranks: usize) -> Result<()> {
+    if matches!((a.method, a.kernel), (Method::Csrbf, _) | (Method::Auto, KernelChoice::Wendland(_))) {
+        resolve(a.sparse_solver, ranks)?;
+    }
+    Ok(())
+}
+
 fn name(s: SparseSolver) -> &'static str {
     match s {
         SparseSolver::Auto => "auto",
@@ -61,17 +73,87 @@ fn factor_bytes(nnz: f64) -> f64 {
     nnz * (12.0 + 8.0 * FILL_ALLOWANCE) + 100e6
 }
 
+/// The points of `rows` with no other centre closer than `support` (where the spline is a spike,
+/// useless between points), counted over all ranks, and the largest distance from such a point
+/// to its nearest other one (0 where there is none). Collective.
+fn lonely(
+    comm: &dyn Comm,
+    tree: &Octree,
+    centres: &[f64],
+    rows: std::ops::Range<usize>,
+    support: f64,
+) -> (usize, f64) {
+    let (count, farthest) = rows
+        .into_par_iter()
+        .map(|i| tree.kth_distance([centres[3 * i], centres[3 * i + 1], centres[3 * i + 2]], 2))
+        .filter(|&d| d >= support)
+        .fold(|| (0u64, 0.0f64), |(c, m), d| (c + 1, m.max(d)))
+        .reduce(|| (0, 0.0), |x, y| (x.0 + y.0, x.1.max(y.1)));
+    let (mut count, mut farthest) = ([count], [farthest]);
+    comm.sum_u64(&mut count);
+    comm.max_f64(&mut farthest);
+    (count[0] as usize, farthest[0])
+}
+
+/// `x` rounded up to three significant digits, strictly above it, as text: a support that
+/// reaches a point `x` away.
+fn just_above(x: f64) -> String {
+    if !(x > 0.0 && x.is_finite()) {
+        return format!("{x}");
+    }
+    let digits = x.log10().floor() as i32 - 2;
+    let step = 10f64.powi(digits);
+    format!("{:.*}", (-digits).max(0) as usize, ((x / step).floor() + 1.0) * step)
+}
+
+/// The refusal of a support that leaves `count` of the `n` points alone (no other point closer,
+/// the farthest of them `farthest` from its nearest one), with the support that reaches them.
+/// A support the user gave is a usage error; the default one is the scan's spacing varying
+/// more than the default follows, which the message says, with the same fix.
+fn lonely_refusal(a: &FitArgs, support: f64, n: usize, (count, farthest): (usize, f64)) -> Error {
+    let alone = format!(
+        "{count} of the {n} points {} no other point within it (the farthest {farthest:.3e} from its \
+         nearest one), where the spline would be a spike useless between points",
+        if count == 1 { "has" } else { "have" }
+    );
+    let fix = format!("use --support {} or larger", just_above(farthest));
+    if a.support.is_some() {
+        Error::Usage(format!(
+            "support {support} is too small: {alone}; {fix} (the default aims at about {} neighbours)",
+            crate::spline::compact::DEFAULT_NEIGHBOURS
+        ))
+    } else {
+        Error::input(
+            &a.input,
+            "",
+            format!(
+                "the default support {support} is too small for this scan: {alone}. The default, the median \
+                 distance to the {}th nearest neighbour, grows at most {} times to give every point a \
+                 neighbour, and the spacing of these points varies more than that; {fix} (in the internal \
+                 coordinates, where the data's box has diagonal 2: the densest parts get more neighbours, \
+                 so a larger factor) or thin the densest parts of the scan",
+                crate::spline::compact::DEFAULT_NEIGHBOURS,
+                crate::spline::compact::MAX_SUPPORT_GROWTH
+            ),
+        )
+    }
+}
+
 /// Rows sampled per rank by [`check_before`].
 pub const SAMPLED_ROWS: usize = 4096;
 
-/// Refuses, before any other work, a compactly supported fit of `prep`'s points whose sparse
-/// factor would not fit the ranks' memory, by the check [`fit`] makes after its assembly, with the
+/// Refuses, before any other work, a compactly supported fit of `prep`'s points with a sparse
+/// solver of one rank under several, or with a support that leaves some point with no other
+/// within it (as [`fit`] would after its assembly, and after level 0 of the two levels had been
+/// solved), or whose sparse factor would not fit the ranks' memory, by the check [`fit`] makes
+/// after its assembly, with the
 /// stored entries of each rank's rows estimated from at most [`SAMPLED_ROWS`] of them evenly
 /// spread (the entries of a row are its neighbours within the support that come before it in the
 /// order, so they depend on the rank's place in the order). `what` names the fit in the message.
 /// Returns the octree of the centres, for [`fit`] to take. Collective.
 pub fn check_before(run: &Run<'_>, kernel: &Kernel, prep: &Prepared, what: &str) -> Result<Octree> {
     let Run { args: a, comm, .. } = *run;
+    resolve(a.sparse_solver, comm.size())?;
     let support = kernel.is_compact().expect("a compactly supported kernel");
     let centres = &prep.centres;
     let n = centres.len() / 3;
@@ -99,6 +181,10 @@ pub fn check_before(run: &Run<'_>, kernel: &Kernel, prep: &Prepared, what: &str)
         ),
         "use a smaller --support, more ranks (with mumps) or fewer points",
     )?;
+    let alone = lonely(comm, &tree, centres, rows, support);
+    if alone.0 > 0 {
+        return Err(lonely_refusal(a, support, n, alone));
+    }
     Ok(tree)
 }
 
@@ -138,20 +224,21 @@ pub fn fit(
         "use a smaller --support, more ranks (with mumps) or fewer points",
     )?;
     // a point alone in its support is interpolated by a spike: the spline is useless between points
-    let lonely = row_stats.rows > 0 && row_stats.min <= 1 && n > 1;
-    agree(
-        comm,
-        if lonely {
-            Err(Error::Usage(format!(
-                "support {support} is too small: some point has no neighbour within it; use a larger --support (the default aims at about {} neighbours)",
-                crate::spline::compact::DEFAULT_NEIGHBOURS
-            )))
-        } else {
-            Ok(())
-        },
-    )?;
+    let mut any = [f64::from(u8::from(row_stats.rows > 0 && row_stats.min <= 1 && n > 1))];
+    comm.max_f64(&mut any);
+    if any[0] > 0.0 {
+        let range = block_rows(n, comm.size(), comm.rank());
+        return Err(lonely_refusal(a, support, n, lonely(comm, &tree, centres, range, support)));
+    }
 
+    // MUMPS and faer do not report their progress: a line ticks while they work
+    let ticking = Progress::ticking(
+        "factor",
+        format!("the sparse factor of {n} rows ({}, {nnz_row_mean:.0} neighbours per row)", name(solver)),
+        comm,
+    );
     let factored = stages.time(Stage::Factor, || factor(comm, solver, &lower, &tree, support, threads))?;
+    ticking.done();
     drop(lower);
     let k = kernel.poly_count();
     let all: Vec<usize> = (0..n).collect();

@@ -181,7 +181,8 @@ pub fn fit(
         dense::check(run.comm, &r, constrained.prep.values.len(), run.args)?;
         let first = dense::fit(run, r, &constrained.prep, true, &mut inner)?;
         let rows = constrained.prep.values.len();
-        let room = dense::appendable(run, r, rows, first.factor.as_ref(), rows);
+        let most = super::surface::most_appended(&sub, run.args.grid.margin.fraction);
+        let room = dense::appendable(run, r, rows, first.factor.as_ref(), most);
         // level 0 decides the sign away from the data: its spurious blobs are cleared like a
         // single-level fit's
         check_first_fit(run, &sub, &mut constrained, first, &mut inner, &mut refit, room)
@@ -204,14 +205,18 @@ pub fn fit(
     figures.push(("coarse_rows".into(), rows.to_string()));
     figures.push(("coarse_residual".into(), format!("{:e}", level0.residual)));
     figures.push(("coarse_seconds".into(), format!("{coarse_seconds:.3}")));
+    // the rows beyond the subsample and its off points are the blob search's constraint points
+    // (the pins, the solid given back), which the surface line itemises
+    let pins = rows.saturating_sub(keep.len() + summary.off_points);
     let line = format!(
         "two levels: level 0 dense (kernel r, {}) on {} of the points chosen evenly over space + {} \
-         off-surface points ({rows} rows, residual {:.3e}) in {coarse_seconds:.3} s; level 1 compactly \
+         off-surface points{} ({rows} rows, residual {:.3e}) in {coarse_seconds:.3} s; level 1 compactly \
          supported through all points on top of it (support about {DEFAULT_NEIGHBOURS} neighbours unless \
          --support): {}",
         level0.solver,
         keep.len(),
         summary.off_points,
+        if pins > 0 { format!(" + {pins} constraint points of the blob search") } else { String::new() },
         level0.residual,
         level1.line
     );

@@ -253,6 +253,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut stages = Stages::default();
     crate::linalg::gemm::choose_agreed(comm, a.gemm);
     dense::check_layout(a, comm.size())?;
+    compact::check_solver(a, comm.size())?;
     check_prefix(comm, &a.out, MODEL_OUTPUTS, a.grid.timings.as_deref(), &[&a.input])?;
     let raw = stages.time(Stage::Read, || read_points_everywhere(comm, &a.input))?;
     let points_read = raw.len() / 3;
@@ -424,7 +425,8 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             // the second fits append at most as many centres as the ranks have room for
             let room = match method {
                 Method::Dense | Method::Auto => {
-                    dense::appendable(&run, kernel, rows, fitted.factor.as_ref(), rows)
+                    let most = surface::most_appended(&prep, a.grid.margin.fraction);
+                    dense::appendable(&run, kernel, rows, fitted.factor.as_ref(), most)
                 }
                 Method::Csrbf => usize::MAX,
             };

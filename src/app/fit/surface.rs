@@ -378,6 +378,16 @@ pub fn check_first_fit(
     Ok(fit)
 }
 
+/// The most centres the second fits of [`check_first_fit`] on `data` can ask to append, the
+/// bound of the room [`super::dense::appendable`] looks for: every centre they append (a blob
+/// point, a second round's, a node of the solid given back) is a node of the blob search's
+/// lattice. Not the first fit's own row count: a small scan (a few hundred rows, or a small
+/// level 0) wants up to [`crate::surface::blobs::MIN_CAP`] blob points whatever its size, and a
+/// bound below that was reported as the ranks' memory leaving no room for them.
+pub fn most_appended(data: &Prepared, margin: f64) -> usize {
+    Lattice::of_fit(&data.box_lo, &data.box_hi, margin, &data.norm).len()
+}
+
 /// `blobs` thinned to the `room` the second fits have for appended centres, the limit recorded
 /// in `summary` where it thins them.
 fn within_room(blobs: Blobs, room: usize, summary: &mut SurfaceSummary) -> Blobs {
@@ -568,6 +578,11 @@ fn restore_solid(
     let inside = if nodes.len() >= RESTORE_FROM { nodes } else { Vec::new() };
     let along =
         if lost > 0 { paths_to_solid(lattice, &first_values, &values, &data.centres) } else { Vec::new() };
+    // a node on the way back through the first fit's solid may be one the search pinned (its
+    // spurious nodes lie in that solid): a second centre there, with another value, made the
+    // system singular (a level 0 of 300 cow points with a hole: residual 0.2 on one rank, a
+    // singular LU on two). The pin stays
+    let (inside, along) = (unpinned(&c.prep, lattice, inside), unpinned(&c.prep, lattice, along));
     let mut nodes: Vec<usize> = inside.iter().chain(&along).copied().collect();
     nodes.sort_unstable();
     nodes.dedup();
@@ -615,6 +630,14 @@ fn restore_solid(
     }
     c.prep = prep;
     Ok((new, Some(new_values)))
+}
+
+/// The lattice nodes of `nodes` that are not already centres of `prep` (the search's pins are
+/// lattice nodes, bit for bit).
+fn unpinned(prep: &Prepared, lattice: &Lattice, nodes: Vec<usize>) -> Vec<usize> {
+    let key = |q: &[f64]| [q[0].to_bits(), q[1].to_bits(), q[2].to_bits()];
+    let taken: std::collections::HashSet<[u64; 3]> = prep.centres.chunks_exact(3).map(key).collect();
+    nodes.into_iter().filter(|&i| !taken.contains(&key(&lattice.node(i)))).collect()
 }
 
 /// A fit of the blob search with its values on the lattice, the share of its surface that no
