@@ -52,6 +52,18 @@ fn children_of(pid: u32) -> Vec<i32> {
     out
 }
 
+/// Waits until the run `child`, whose standard error goes to `log`, has begun to evaluate its
+/// grid; returns when it started waiting.
+fn evaluating(child: &mut std::process::Child, log: &Path) -> Instant {
+    let start = Instant::now();
+    while !std::fs::read_to_string(log).unwrap_or_default().contains("kernel evaluations per node") {
+        assert!(start.elapsed() < run_limit(), "the run never reached the evaluation");
+        assert!(child.try_wait().unwrap().is_none(), "the run ended early");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    start
+}
+
 fn mpirun(ranks: usize, args: &[&str]) -> Command {
     let mut c = Command::new("mpirun");
     c.args(["-n", &ranks.to_string(), "--oversubscribe", BIN])
@@ -186,13 +198,7 @@ fn sigterm_mid_run_removes_the_temporaries_and_says_so() {
     let mut c = mpirun(2, &["fit", input.to_str().unwrap(), "--out", out.to_str().unwrap(), "--grid", "400"]);
     c.stdin(Stdio::null()).stdout(Stdio::null()).stderr(std::fs::File::create(&log).unwrap());
     let mut child = c.spawn().unwrap();
-    // wait until the evaluation of the big grid has begun
-    let start = Instant::now();
-    while !std::fs::read_to_string(&log).unwrap_or_default().contains("kernel evaluations per node") {
-        assert!(start.elapsed() < run_limit(), "the run never reached the evaluation");
-        assert!(child.try_wait().unwrap().is_none(), "the run ended early");
-        std::thread::sleep(Duration::from_millis(50));
-    }
+    let start = evaluating(&mut child, &log);
     std::thread::sleep(Duration::from_millis(500));
     // to every rank, as a batch system ends a job step (scancel signals all its tasks): signalled
     // itself, mpirun tears the job down and often drops the ranks' last lines
@@ -377,12 +383,7 @@ fn sighup_to_a_run_without_mpirun_removes_the_temporaries() {
         .stdout(Stdio::null())
         .stderr(std::fs::File::create(&log).unwrap());
     let mut child = c.spawn().unwrap();
-    let start = Instant::now();
-    while !std::fs::read_to_string(&log).unwrap_or_default().contains("kernel evaluations per node") {
-        assert!(start.elapsed() < run_limit(), "the run never reached the evaluation");
-        assert!(child.try_wait().unwrap().is_none(), "the run ended early");
-        std::thread::sleep(Duration::from_millis(50));
-    }
+    evaluating(&mut child, &log);
     std::thread::sleep(Duration::from_millis(300));
     // SAFETY: a signal to the child process this test started
     unsafe { libc::kill(child.id() as i32, libc::SIGHUP) };
