@@ -11,8 +11,9 @@
 
 use std::io::{IsTerminal, Write};
 use std::sync::OnceLock;
+use std::time::Duration;
 
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle, TermLike};
+use indicatif::{HumanDuration, ProgressBar, ProgressDrawTarget, ProgressState, ProgressStyle, TermLike};
 
 use crate::par::Comm;
 
@@ -115,6 +116,9 @@ impl Progress {
             "  {prefix:<8} [{bar:32}] {percent:>3}%  {elapsed} elapsed, about {eta} left",
         )
         .expect("a valid template")
+        .with_key("eta", |s: &ProgressState, w: &mut dyn std::fmt::Write| {
+            let _ = w.write_str(&time_left(s.pos(), s.eta()));
+        })
         .progress_chars("=> ");
         let target = ProgressDrawTarget::term_like_with_hz(Box::new(Stderr), 10);
         let bar = ProgressBar::with_draw_target(Some(total), target);
@@ -219,10 +223,31 @@ impl TermLike for Stderr {
     }
 }
 
+/// The time left as a bar shows it: unknown (`?`) while none of the work is done, where the rate
+/// is nothing to go by yet (the library's own estimate says 0 s there), else the estimate.
+fn time_left(done: u64, estimate: Duration) -> String {
+    if done == 0 {
+        "?".to_string()
+    } else {
+        format!("{:#}", HumanDuration(estimate))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::par::Solo;
+
+    #[test]
+    fn the_time_left_is_unknown_until_some_work_is_done() {
+        assert_eq!(time_left(0, Duration::ZERO), "?");
+        assert_eq!(time_left(0, Duration::from_secs(7)), "?");
+        assert_eq!(
+            time_left(5, Duration::from_secs(7)),
+            format!("{:#}", HumanDuration(Duration::from_secs(7)))
+        );
+        assert_ne!(time_left(5, Duration::from_secs(90)), "?");
+    }
 
     #[test]
     fn a_factorisation_bar_counts_flops_and_ends_with_the_last_column() {
