@@ -13,7 +13,7 @@
 //! area and is left out. Vertices that only nearly coincide are left apart: joining them would
 //! need a tolerance, and the cut's own merging of near points handles what they leave.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 use super::TriMesh;
 
@@ -46,7 +46,7 @@ pub fn indexed(mesh: &TriMesh) -> (TriMesh, Indexing) {
         })
         .collect();
     let joined = mesh.vertices.len() - vertices.len();
-    let mut seen: HashMap<[u32; 3], ()> = HashMap::with_capacity(mesh.triangles.len());
+    let mut seen: HashSet<[u32; 3]> = HashSet::with_capacity(mesh.triangles.len());
     let mut out = Indexing { joined_vertices: joined, ..Default::default() };
     let mut triangles = Vec::with_capacity(mesh.triangles.len());
     for t in &mesh.triangles {
@@ -57,7 +57,7 @@ pub fn indexed(mesh: &TriMesh) -> (TriMesh, Indexing) {
         }
         let mut key = t;
         key.sort_unstable();
-        if seen.insert(key, ()).is_some() {
+        if !seen.insert(key) {
             out.repeated_faces += 1;
             continue;
         }
