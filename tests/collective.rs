@@ -937,7 +937,8 @@ fn mixed_cholesky_falls_back_to_f64(comm: &dyn Comm, log: &mut Log) {
 fn vtkhdf_slabs_read_back(comm: &dyn Comm, log: &mut Log) {
     let (p, r) = (comm.size(), comm.rank());
     // one folder, named by rank 0, for all ranks
-    let dir: PathBuf = comm.broadcast_value(0, (r == 0).then(|| common::temp_dir("collective-vtkhdf")));
+    let dir: PathBuf =
+        comm.broadcast_value(0, (r == 0).then(|| common::temp_dir("collective-vtkhdf").into_path()));
     // 7 layers over 2 or 3 ranks (uneven slabs); 2 layers leave the third rank without any
     for dims in [[5, 4, 7], [3, 2, 2]] {
         let grid = Grid { dims, origin: [-1.0, 0.5, 2.0], spacing: [0.25, 0.5, 0.125] };

@@ -9,11 +9,11 @@
 mod common;
 
 use std::collections::BTreeSet;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{output_within, run, run_limit, temp_dir, BIN};
+use common::{output_within, run, run_limit, temp_dir, TempDir, BIN};
 
 /// 300 points on the sphere of radius `r` about the origin.
 fn sphere(path: &Path, r: f64) {
@@ -79,7 +79,7 @@ fn text(out: &std::process::Output) -> String {
 }
 
 /// A 2 MB tmpfs, unmounted on drop; None (with a message) where mounting is not permitted.
-struct Tmpfs(PathBuf);
+struct Tmpfs(TempDir);
 
 impl Tmpfs {
     fn mount(name: &str) -> Option<Tmpfs> {
@@ -107,7 +107,8 @@ impl Drop for Tmpfs {
 #[test]
 fn disk_full_ends_the_job_with_a_message_on_1_and_2_ranks() {
     let Some(fs) = Tmpfs::mount("diskfull") else { return };
-    let input = temp_dir("diskfull-in").join("s.xyz");
+    let input_dir = temp_dir("diskfull-in");
+    let input = input_dir.join("s.xyz");
     sphere(&input, 1.0);
     let out = fs.0.join("a");
     let args = ["fit", input.to_str().unwrap(), "--out", out.to_str().unwrap(), "--grid", "100"];

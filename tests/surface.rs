@@ -385,7 +385,7 @@ fn default_fits_match_the_oracle(dir: &Path, input: &Path, oracle: &Model, off_c
 
 /// `n` area-uniform samples (seed `seed` of the tests' sampler) of the mesh at `mesh`, written to
 /// `file` in a new temporary folder `name`: the folder and the file.
-fn sampled_input(name: &str, file: &str, mesh: &str, (n, seed): (usize, u64)) -> (PathBuf, PathBuf) {
+fn sampled_input(name: &str, file: &str, mesh: &str, (n, seed): (usize, u64)) -> (common::TempDir, PathBuf) {
     let dir = common::temp_dir(name);
     let input = dir.join(file);
     common::write_xyz(&input, &area_samples(&common::load_mesh(Path::new(mesh)), n, seed));
