@@ -1150,9 +1150,10 @@ fn side_vote_and_energy_orientation_give_the_same_signs_on_one_two_and_three_ran
 #[test]
 fn trimming_leaves_out_the_unsupported_surface_of_the_cow_and_keeps_the_rest() {
     // the cow set of the blob test above: its closed solid keeps bulges and webs no data
-    // supports; `--trim` writes the surface without the triangles farther than twice the median
-    // spacing from every data point beside the closed one. Measured (grid 64, 2 ranks): mesh ->
-    // cow rms 0.478 -> 0.364 % of the diagonal, vertices beyond 2 % 1.43 -> 0.41 %
+    // supports; `--trim` writes beside the closed surface one without the regions of triangles
+    // farther than twice the median spacing from every data point that reach twice as far.
+    // Measured (grid 64, 2 ranks): one region, 0.75 % of the area, left out; mesh -> cow rms
+    // 0.416 -> 0.342 % of the diagonal, vertices beyond 2 % 0.95 -> 0.32 %
     let truth = common::load_mesh(Path::new(common::COW));
     let pts = area_samples(&truth, 1000, 7);
     let dir = common::temp_dir("cow-trim");
@@ -1179,7 +1180,7 @@ fn trimming_leaves_out_the_unsupported_surface_of_the_cow_and_keeps_the_rest() {
         text.lines().find(|l| l.contains("trimmed surface")).unwrap_or("")
     );
     assert!(text.contains("trimmed surface (--trim 2:"), "{text}");
-    assert!(removed > 0.01 && removed < 0.25, "{removed} of the area left out");
+    assert!(removed > 0.003 && removed < 0.25, "{removed} of the area left out");
     // the steps of the off-surface method have stages of their own in the table and the timings
     let timings = std::fs::read_to_string(&t).unwrap();
     for stage in ["normals", "orient", "rays", "blobs"] {
@@ -1190,11 +1191,13 @@ fn trimming_leaves_out_the_unsupported_surface_of_the_cow_and_keeps_the_rest() {
         assert!(text.lines().any(|l| l.trim_start().starts_with(stage)), "no {stage} row:\n{text}");
     }
     assert!(
-        rms_trimmed < 0.8 * rms_closed && far_trimmed < 0.35 * far_closed,
+        rms_trimmed < 0.9 * rms_closed && far_trimmed < 0.5 * far_closed,
         "mesh -> cow rms {rms_closed} -> {rms_trimmed}, far {far_closed} -> {far_trimmed}"
     );
-    // every kept triangle is supported, every triangle left out is not: checked against all
-    // the data points by brute force, with the radius from the median spacing computed here
+    // exactly the unsupported regions that reach deep are left out: each triangle of the closed
+    // surface judged against all the data points by brute force, with the radius from the median
+    // spacing computed here, its region made of the unsupported triangles joined through shared
+    // vertices
     let data: Vec<[f64; 3]> = pts.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect();
     let d2 = |a: &[f64; 3], b: &[f64; 3]| (0..3).map(|d| (a[d] - b[d]).powi(2)).sum::<f64>();
     let mut nearest: Vec<f64> = data
@@ -1211,16 +1214,56 @@ fn trimming_leaves_out_the_unsupported_surface_of_the_cow_and_keeps_the_rest() {
         .collect();
     nearest.sort_by(f64::total_cmp);
     let radius = 2.0 * nearest[nearest.len() / 2];
-    let supported = |c: &[f64; 3]| data.iter().any(|p| d2(p, c) <= radius * radius);
+    // per triangle: 0 supported, 1 unsupported, 2 unsupported beyond twice the radius
+    let class: Vec<u8> = closed
+        .triangles
+        .iter()
+        .map(|t| {
+            let c = volspline::mesh::trim::centroid(&closed, t);
+            let d = data.iter().map(|p| d2(p, &c)).fold(f64::INFINITY, f64::min).sqrt();
+            u8::from(d > radius) + u8::from(d > 2.0 * radius)
+        })
+        .collect();
+    let mut region: Vec<usize> = (0..closed.vertices.len()).collect();
+    fn root(region: &mut [usize], v: usize) -> usize {
+        if region[v] == v {
+            v
+        } else {
+            let r = root(region, region[v]);
+            region[v] = r;
+            r
+        }
+    }
+    for (t, c) in closed.triangles.iter().zip(&class) {
+        if *c > 0 {
+            for v in &t[1..] {
+                let (a, b) = (root(&mut region, t[0] as usize), root(&mut region, *v as usize));
+                region[b] = a;
+            }
+        }
+    }
+    let mut deep = std::collections::HashSet::new();
+    for (t, c) in closed.triangles.iter().zip(&class) {
+        if *c == 2 {
+            deep.insert(root(&mut region, t[0] as usize));
+        }
+    }
     let key = |m: &volspline::mesh::TriMesh, t: &[u32; 3]| {
         volspline::mesh::trim::centroid(m, t).map(|x| (x * 1e9).round() as i64)
     };
     let kept: std::collections::HashSet<[i64; 3]> =
         trimmed.triangles.iter().map(|t| key(&trimmed, t)).collect();
-    for t in &closed.triangles {
-        let c = volspline::mesh::trim::centroid(&closed, t);
-        assert_eq!(kept.contains(&key(&closed, t)), supported(&c), "triangle at {c:?}");
+    let mut shallow = 0;
+    for (t, c) in closed.triangles.iter().zip(&class) {
+        let goes = *c > 0 && deep.contains(&root(&mut region, t[0] as usize));
+        shallow += usize::from(*c == 1 && !goes);
+        let at = volspline::mesh::trim::centroid(&closed, t);
+        assert_eq!(kept.contains(&key(&closed, t)), !goes, "triangle at {at:?}, class {c}");
     }
+    println!("{} deep regions left out, {shallow} unsupported triangles kept in shallow regions", deep.len());
+    assert!(!deep.is_empty() && shallow > 0, "the test exercises neither rule");
+    let regions = format!("{} region{}", deep.len(), if deep.len() == 1 { "," } else { "s," });
+    assert!(text.contains(&regions), "{text}");
     // eval trims the saved model alike: the model records its data points
     let model = dir.join("s.model.h5");
     let again = dir.join("again");
@@ -1237,6 +1280,87 @@ fn trimming_leaves_out_the_unsupported_surface_of_the_cow_and_keeps_the_rest() {
     let expr = format!("offset({m}, 0.1)");
     let bad = common::run(1, &["eval", &expr, "--out", o, "--grid", "16", "--trim"]);
     assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("not an expression"));
+}
+
+/// The boundary loops of `mesh`: closed chains of the edges that only one triangle uses.
+fn boundary_loops(mesh: &volspline::mesh::TriMesh) -> usize {
+    let mut uses = std::collections::HashMap::new();
+    for t in &mesh.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]));
+            *uses.entry((a, b)).or_insert(0) += 1;
+        }
+    }
+    let mut joined: Vec<usize> = (0..mesh.vertices.len()).collect();
+    fn root(joined: &mut [usize], mut v: usize) -> usize {
+        while joined[v] != v {
+            joined[v] = joined[joined[v]];
+            v = joined[v];
+        }
+        v
+    }
+    let mut on_boundary = std::collections::HashSet::new();
+    for (&(a, b), _) in uses.iter().filter(|(_, n)| **n == 1) {
+        let (ra, rb) = (root(&mut joined, a as usize), root(&mut joined, b as usize));
+        joined[rb] = ra;
+        on_boundary.extend([a as usize, b as usize]);
+    }
+    on_boundary.iter().map(|&v| root(&mut joined, v)).collect::<std::collections::HashSet<_>>().len()
+}
+
+#[test]
+fn trimming_a_fully_sampled_scan_opens_only_the_holes_of_the_scan() {
+    // 20,000 area-uniform samples of the bunny, whose mesh has five holes in its base: random
+    // sampling leaves about 6 % of a surface farther than twice the median spacing from every
+    // sample, which a single threshold cut out as 1018 small holes over 7.3 % of the area
+    // (grid 100, 2 ranks); only regions that reach twice as far go, the caps over the base's
+    // holes: 6 loops, 1.6 % of the area
+    let truth = common::load_mesh(Path::new(common::BUNNY));
+    assert_eq!(boundary_loops(&truth), 5, "the bunny's own holes");
+    let pts = area_samples(&truth, 20_000, 1);
+    let dir = common::temp_dir("bunny-trim-full");
+    let input = dir.join("p.xyz");
+    common::write_xyz(&input, &pts);
+    let prefix = dir.join("s");
+    let text = common::run_ok(
+        2,
+        &["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--grid", "100", "--trim"],
+    );
+    let line = text.lines().find(|l| l.contains("trimmed surface")).expect("a trimmed surface line");
+    let trimmed = common::load_mesh(&dir.join("s.trimmed.ply"));
+    let loops = boundary_loops(&trimmed);
+    let left_out = 1.0
+        - volspline::mesh::trim::area(&trimmed)
+            / volspline::mesh::trim::area(&common::load_mesh(&dir.join("s.ply")));
+    println!("{line}\n{loops} boundary loops, {:.2} % of the area left out", 100.0 * left_out);
+    assert!((5..=10).contains(&loops), "{loops} holes in the trimmed bunny");
+    assert!(left_out > 0.002 && left_out < 0.03, "{left_out} of the area left out");
+    // every hole of the bunny is opened: each of its boundary loops lies near a loop of the
+    // trimmed surface (within the 4 % of the diagonal that a cap's cut takes at most)
+    let diag = {
+        let (lo, hi) = truth.vertices.iter().fold(([f64::MAX; 3], [f64::MIN; 3]), |(lo, hi), v| {
+            ([0, 1, 2].map(|d| lo[d].min(v[d])), [0, 1, 2].map(|d| hi[d].max(v[d])))
+        });
+        (0..3).map(|d| (hi[d] - lo[d]).powi(2)).sum::<f64>().sqrt()
+    };
+    let rim = |m: &volspline::mesh::TriMesh| -> Vec<[f64; 3]> {
+        let mut uses = std::collections::HashMap::new();
+        for t in &m.triangles {
+            for k in 0..3 {
+                *uses.entry((t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]))).or_insert(0) += 1;
+            }
+        }
+        uses.iter().filter(|(_, n)| **n == 1).map(|(&(a, _), _)| m.vertices[a as usize]).collect()
+    };
+    let (holes, cuts) = (rim(&truth), rim(&trimmed));
+    let far = holes
+        .iter()
+        .map(|h| {
+            cuts.iter().map(|c| (0..3).map(|d| (h[d] - c[d]).powi(2)).sum::<f64>()).fold(f64::MAX, f64::min)
+        })
+        .fold(0.0, f64::max)
+        .sqrt();
+    assert!(far < 0.04 * diag, "a hole of the bunny {far} from every cut");
 }
 
 #[test]

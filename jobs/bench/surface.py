@@ -46,7 +46,8 @@ bounding-box diagonal, exact point-to-triangle distances (jobs/bench/distance.py
   adaptive octree makes them over a hole's cap, weighs that surface less per vertex than a mesh of
   a uniform grid; by area both weigh it alike);
 - far2_pct: the percentage of mesh vertices farther than 2 % of the diagonal from the truth;
-- components: connected components of the reconstructed mesh;
+- components: connected components of the reconstructed mesh; holes: its boundary loops (closed
+  chains of edges that only one triangle uses: 0 for a closed surface);
 - fit_s: volspline's own stage times (--timings, the sum of each stage's maximum over ranks; the
   communication wait, which lies inside the solve, is not added again),
   solve_s, evaluate_s, render_s (the preview picture, a stage of every fit unless --no-preview),
@@ -81,7 +82,7 @@ FAR_PCT = 2.0
 FIELDS = ["set", "mesh", "n_requested", "variant", "points", "method", "flags", "status", "ranks", "grid",
           "t2m_rms_pct", "t2m_mean_pct", "t2m_p95_pct", "t2m_max_pct",
           "m2t_rms_pct", "m2t_mean_pct", "m2t_p95_pct", "m2t_max_pct", "m2t_area_rms_pct", "far2_pct",
-          "components", "vertices", "triangles", "fit_s", "solve_s", "evaluate_s", "render_s", "solid_s", "wall_s", "note"]
+          "components", "holes", "vertices", "triangles", "fit_s", "solve_s", "evaluate_s", "render_s", "solid_s", "wall_s", "note"]
 # Sets drawn as slices when they are run (else the first set and the first open one): the headline
 # scan, open scans, the noisiest cow
 PICTURED = ["bunny-2000-clean", "bunny-2000-open", "bunny-1000-open", "cow-2000-noise0.5", "cow-1000-clean"]
@@ -169,7 +170,15 @@ def mesh_stats(rv, rf, truth_pts, tv, tf, diag):
     e = np.concatenate([rf[:, [0, 1]], rf[:, [1, 2]], rf[:, [2, 0]]])
     g = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(len(rv), len(rv)))
     _, label = connected_components(g, directed=False)
-    out = {"components": len(np.unique(label[used])), "vertices": len(used), "triangles": len(rf),
+    # boundary loops: components of the graph of the edges that one triangle alone uses
+    u, count = np.unique(np.sort(e, axis=1), axis=0, return_counts=True)
+    b = u[count == 1]
+    loops = 0
+    if len(b):
+        g = coo_matrix((np.ones(len(b)), (b[:, 0], b[:, 1])), shape=(len(rv), len(rv)))
+        _, blabel = connected_components(g, directed=False)
+        loops = len(np.unique(blabel[np.unique(b)]))
+    out = {"components": len(np.unique(label[used])), "holes": loops, "vertices": len(used), "triangles": len(rf),
            "far2_pct": f"{100 * (m2t > FAR_PCT).mean():.4g}",
            "m2t_area_rms_pct": f"{np.sqrt((m2t_area * m2t_area).mean()):.4g}"}
     for key, d in (("t2m", t2m), ("m2t", m2t)):

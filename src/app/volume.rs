@@ -16,11 +16,11 @@ use crate::frep::curvature::{curvature, Curvature};
 use crate::frep::Implicit;
 use crate::grid::{padded_box, Grid, GridSize, FACE_NAMES, GROW_NODES, GROW_STEPS};
 use crate::io::{self, vtkhdf};
-use crate::mesh::trim::{area, keep_triangles_indexed};
+use crate::mesh::trim::{area, trim_regions};
 use crate::mesh::{self, MeshPiece, SlabGrid, TriMesh};
 use crate::par::{on_root, Comm};
 use crate::spline::{Field, Provenance};
-use crate::surface::support::DataSupport;
+use crate::surface::support::{DataSupport, DEPTH};
 
 /// What writing the volume and the mesh produced.
 #[derive(Debug, Clone)]
@@ -83,14 +83,18 @@ impl VolumeSummary {
         report.output(&self.ply_path);
         if let Some(t) = &self.trimmed {
             report.line(format!(
-                "trimmed surface (--trim {}: triangles farther than {:.4e} from every data point left out): {} \
-                 triangles, {:.2} % of the area left out",
+                "trimmed surface (--trim {}: the regions of triangles farther than {:.4e} from every data \
+                 point that reach {:.4e} left out): {} region{}, {:.2} % of the area left out, {} triangles kept",
                 t.factor,
                 t.radius,
+                DEPTH * t.radius,
+                t.regions,
+                if t.regions == 1 { "" } else { "s" },
+                100.0 * t.area_removed,
                 t.triangles,
-                100.0 * t.area_removed
             ));
             report.figure("trimmed_triangles", t.triangles);
+            report.figure("trimmed_regions", t.regions);
             report.figure("trimmed_area_removed", format!("{:e}", t.area_removed));
             report.output(&t.path);
         }
@@ -193,6 +197,8 @@ pub struct Trimmed {
     pub triangles: usize,
     /// The share of the surface's area left out.
     pub area_removed: f64,
+    /// The unsupported regions left out.
+    pub regions: usize,
     pub path: PathBuf,
 }
 
@@ -412,7 +418,7 @@ pub fn write_volume(comm: &dyn Comm, v: Volume<'_>, stages: &mut Stages) -> Resu
 
     let trimmed_path = output_path(prefix, ".trimmed.ply");
     // triangles kept and share of the area left out, on rank 0
-    let mut trim_figures = [0.0f64; 2];
+    let mut trim_figures = [0.0f64; 3];
     let mut counts = [0u64; 2];
     stages.time(Stage::Mesh, || -> Result<()> {
         let piece = mesh::polygonise(
@@ -433,7 +439,7 @@ pub fn write_volume(comm: &dyn Comm, v: Volume<'_>, stages: &mut Stages) -> Resu
                 mesh::write_ply_with(tmp, &mesh, &props).map_err(|e| Error::io(tmp, &e))
             })?;
             if let Some(support) = trim {
-                let (kept, from) = keep_triangles_indexed(&mesh, |c| support.supports(c));
+                let (kept, from, regions) = trim_regions(&mesh, |c| support.judge(c));
                 // the kept vertices' curvatures
                 let kept_props: Vec<Vec<f64>> =
                     props.iter().map(|(_, v)| from.iter().map(|&i| v[i]).collect()).collect();
@@ -441,7 +447,7 @@ pub fn write_volume(comm: &dyn Comm, v: Volume<'_>, stages: &mut Stages) -> Resu
                     props.iter().zip(&kept_props).map(|((name, _), v)| (*name, v.as_slice())).collect();
                 let whole = area(&mesh);
                 let removed = if whole > 0.0 { 1.0 - area(&kept) / whole } else { 0.0 };
-                trim_figures = [kept.triangles.len() as f64, removed];
+                trim_figures = [kept.triangles.len() as f64, removed, regions as f64];
                 io::write_atomically(&trimmed_path, |tmp| {
                     mesh::write_ply_with(tmp, &kept, &kept_props).map_err(|e| Error::io(tmp, &e))
                 })?;
@@ -458,6 +464,7 @@ pub fn write_volume(comm: &dyn Comm, v: Volume<'_>, stages: &mut Stages) -> Resu
             radius: support.radius,
             triangles: trim_figures[0] as usize,
             area_removed: trim_figures[1],
+            regions: trim_figures[2] as usize,
             path: trimmed_path,
         }
     });

@@ -6,7 +6,7 @@
 //! ([`write_ply`]), exact point-to-mesh distances ([`point_mesh_distances`]) and
 //! topological checks ([`connected_components`], [`is_closed_manifold_edges`],
 //! [`signed_volume`]), plane cuts into polylines ([`cut_by_plane`]) of meshes as files hold them
-//! ([`clean::indexed`]) and trimming ([`trim::keep_triangles`]).
+//! ([`clean::indexed`]) and trimming ([`trim::trim_regions`]).
 //!
 //! Conventions shared by all submodules:
 //! - grid values are stored x fastest: `index = i + nx * (j + ny * k)`, node

@@ -1,10 +1,74 @@
 //! Trimming: the part of a mesh whose triangles pass a test at their centroids, with the vertices
 //! no kept triangle uses left out and the rest renumbered in their order. Used to open a
 //! reconstructed solid where no data supports its surface (see `crate::surface::support`).
+//!
+//! A surface sampled at random has gaps: in a uniform random sample a point of the surface is
+//! farther than F times the median spacing from every sample with probability 2^(-F^2), so one
+//! threshold alone either punches small holes all over a fully sampled scan or keeps the surface
+//! the spline invented near the data. [`trim_regions`] therefore leaves out a connected region
+//! of unsupported triangles only where it is deep: where some triangle of it is farther than a
+//! second, larger distance from the data.
 
 use rayon::prelude::*;
 
 use super::TriMesh;
+
+/// Whether the centroid of a triangle is supported by the data, and if not, whether it lies
+/// deep in unsupported surface.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Support {
+    Near,
+    Shallow,
+    Deep,
+}
+
+/// The triangles of `mesh` without the unsupported regions that reach deep: `judge` classes each
+/// triangle's centroid, regions are the triangles not [`Support::Near`] joined by shared vertices,
+/// and a region goes when one of its triangles is [`Support::Deep`]. Also returns, for each
+/// vertex kept, its index in `mesh`, and the number of regions left out.
+pub fn trim_regions(
+    mesh: &TriMesh,
+    judge: impl Fn(&[f64; 3]) -> Support + Sync,
+) -> (TriMesh, Vec<usize>, usize) {
+    let class: Vec<Support> = mesh.triangles.par_iter().map(|t| judge(&centroid(mesh, t))).collect();
+    // regions: union-find over the vertices of the unsupported triangles
+    let mut parent: Vec<u32> = (0..mesh.vertices.len() as u32).collect();
+    fn root(parent: &mut [u32], mut v: u32) -> u32 {
+        while parent[v as usize] != v {
+            let up = parent[parent[v as usize] as usize];
+            parent[v as usize] = up;
+            v = up;
+        }
+        v
+    }
+    for (t, c) in mesh.triangles.iter().zip(&class) {
+        if *c != Support::Near {
+            let a = root(&mut parent, t[0]);
+            for &v in &t[1..] {
+                let b = root(&mut parent, v);
+                if a != b {
+                    parent[b as usize] = a;
+                }
+            }
+        }
+    }
+    let mut deep = vec![false; mesh.vertices.len()];
+    for (t, c) in mesh.triangles.iter().zip(&class) {
+        if *c == Support::Deep {
+            let r = root(&mut parent, t[0]) as usize;
+            deep[r] = true;
+        }
+    }
+    let regions = deep.iter().enumerate().filter(|&(v, d)| *d && parent[v] == v as u32).count();
+    let keep: Vec<bool> = mesh
+        .triangles
+        .iter()
+        .zip(&class)
+        .map(|(t, c)| *c == Support::Near || !deep[root(&mut parent, t[0]) as usize])
+        .collect();
+    let (kept, from) = keep_mask(mesh, &keep);
+    (kept, from, regions)
+}
 
 /// The triangles of `mesh` whose centroid `keep` accepts, and their vertices.
 pub fn keep_triangles(mesh: &TriMesh, keep: impl Fn(&[f64; 3]) -> bool + Sync) -> TriMesh {
@@ -17,8 +81,14 @@ pub fn keep_triangles_indexed(
     mesh: &TriMesh,
     keep: impl Fn(&[f64; 3]) -> bool + Sync,
 ) -> (TriMesh, Vec<usize>) {
-    let kept: Vec<[u32; 3]> =
-        mesh.triangles.par_iter().filter(|t| keep(&centroid(mesh, t))).copied().collect();
+    let keep: Vec<bool> = mesh.triangles.par_iter().map(|t| keep(&centroid(mesh, t))).collect();
+    keep_mask(mesh, &keep)
+}
+
+/// The triangles of `mesh` where `keep` is true, their vertices, and for each vertex kept its
+/// index in `mesh`.
+fn keep_mask(mesh: &TriMesh, keep: &[bool]) -> (TriMesh, Vec<usize>) {
+    let kept: Vec<[u32; 3]> = mesh.triangles.iter().zip(keep).filter(|(_, k)| **k).map(|(t, _)| *t).collect();
     let mut new_index = vec![u32::MAX; mesh.vertices.len()];
     for t in &kept {
         for &v in t {
@@ -92,5 +162,38 @@ mod tests {
         assert!((area(&one) - 0.5).abs() < 1e-15);
         assert_eq!(keep_triangles(&m, |_| false), TriMesh::default());
         assert_eq!(keep_triangles(&m, |_| true), m);
+    }
+
+    /// A strip of ten unit squares along x, two triangles each, sharing their vertices.
+    fn strip() -> TriMesh {
+        let vertices = (0..=10).flat_map(|i| [[i as f64, 0.0, 0.0], [i as f64, 1.0, 0.0]]).collect();
+        let triangles =
+            (0..10u32).flat_map(|i| [[2 * i, 2 * i + 2, 2 * i + 1], [2 * i + 2, 2 * i + 3, 2 * i + 1]]);
+        TriMesh { vertices, triangles: triangles.collect() }
+    }
+
+    #[test]
+    fn unsupported_regions_go_whole_where_they_reach_deep_and_stay_where_they_do_not() {
+        let m = strip();
+        // squares 3-4 and 6-9 unsupported, split by the supported square 5; one triangle of
+        // square 7 deep
+        let judge = |c: &[f64; 3]| match c[0] {
+            x if x < 3.0 || (5.0..6.0).contains(&x) => Support::Near,
+            x if (7.6..7.7).contains(&x) => Support::Deep,
+            _ => Support::Shallow,
+        };
+        let (kept, from, regions) = trim_regions(&m, judge);
+        assert_eq!(regions, 1);
+        assert_eq!(kept.triangles, m.triangles[..12].to_vec(), "squares 0-5 kept");
+        assert_eq!(from, (0..14).collect::<Vec<_>>());
+        assert!((area(&kept) - 6.0).abs() < 1e-15);
+        // nothing deep: nothing goes
+        let (all, _, none) = trim_regions(&m, |c| if c[0] < 3.0 { Support::Near } else { Support::Shallow });
+        assert_eq!((all, none), (m.clone(), 0));
+        // every unsupported triangle deep: exactly the supported ones stay, as keep_triangles
+        let deep = |c: &[f64; 3]| if c[0] < 3.0 { Support::Near } else { Support::Deep };
+        let (near, _, two) = trim_regions(&m, deep);
+        assert_eq!(near, keep_triangles(&m, |c| c[0] < 3.0));
+        assert_eq!(two, 1, "squares 3-9 are one region");
     }
 }
