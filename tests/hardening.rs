@@ -901,6 +901,16 @@ fn progress_bars_show_on_a_terminal_or_when_asked() {
             assert_eq!(full(&err, stage), drawn, "--progress {mode} on {ranks} ranks, {stage}:\n{t}");
         }
         assert!(!String::from_utf8_lossy(&out.stdout).contains("elapsed"), "a bar on standard output:\n{t}");
+        // each update draws the bar once: a frame the same as the one before it is rare (two
+        // counts that look alike), not every other frame
+        let frames: Vec<&str> =
+            err.split("\r\x1b[2K").map(str::trim_end).filter(|f| f.contains("elapsed")).collect();
+        let repeated = frames.windows(2).filter(|w| w[0] == w[1]).count();
+        assert!(
+            4 * repeated < frames.len().max(1),
+            "{repeated} of {} frames drawn twice:\n{err:?}",
+            frames.len()
+        );
     }
     // the ray casting of `render`, rank 0's rows
     let model = dir.join("m.model.h5");

@@ -140,13 +140,26 @@ impl Progress {
         } else {
             (done.min(total) as u64, total as u64)
         };
-        let bar = self.bar.get_or_init(|| self.bar(total));
+        let mut fresh = false;
+        let bar = self.bar.get_or_init(|| {
+            fresh = true;
+            self.bar(total)
+        });
         if bar.is_finished() {
             return;
         }
-        bar.set_length(total);
-        // threads may report out of order: the bar never goes back
-        bar.set_position(done.max(bar.position()));
+        // each of these draws the bar: only what changed, so that an update draws it once
+        if bar.length() != Some(total) {
+            bar.set_length(total);
+        }
+        // threads may report out of order, or the same count again: the bar never goes back
+        if done >= total {
+            // drawn once more, full, by finish()
+        } else if done > bar.position() {
+            bar.set_position(done);
+        } else if fresh {
+            bar.tick();
+        }
         if done >= total {
             bar.finish();
             // the bar leaves the cursor at its end, where the next message would go on
