@@ -512,6 +512,17 @@ fn timings_to_stdout_prints_the_csv() {
     assert!((figure("total_max_s") - stages).abs() < 1e-5, "{stdout}");
     assert!(figure("total_min_s") <= figure("total_max_s"), "{stdout}");
     assert_eq!(names(&dir.join("out")), set(&["a.hdf", "a.model.h5", "a.ply", "a.png"]));
+    // `eval` of the model counts its points as the fit did, and its centres (with the
+    // off-surface points) apart
+    let model = dir.join("out/a.model.h5");
+    let again = dir.join("again");
+    let (m, o) = (model.to_str().unwrap(), again.to_str().unwrap());
+    let done = run(1, &["eval", m, "--out", o, "--grid", "20", "--timings", "/dev/stdout"]);
+    let stdout = String::from_utf8_lossy(&done.stdout);
+    assert!(done.status.success(), "{}", text(&done));
+    let centres: usize =
+        stdout.lines().find_map(|l| l.strip_prefix("centres,")).expect("centres").parse().unwrap();
+    assert!(stdout.contains("\npoints,300\n") && centres > 300, "{stdout}");
     // the link itself is untouched (never renamed over)
     assert!(std::fs::symlink_metadata("/dev/stdout").is_ok_and(|m| m.file_type().is_symlink()));
 }

@@ -90,7 +90,10 @@ pub fn run(a: &EvalArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             model.spline.kernel.name(),
             model.carrier
         ));
-        r.figure("points", n);
+        // the model's data points where it records them (as `fit` counted them), and its centres
+        let data = model.provenance.data_points;
+        r.figure("points", if data > 0 { data } else { n });
+        r.figure("centres", n);
         per_node = volume.evals_per_node;
         r.figure("kernel_evals", volume.nodes_evaluated as f64 * per_node as f64);
         volume
