@@ -61,7 +61,10 @@ pub fn cut_by_plane(mesh: &TriMesh, origin: [f64; 3], normal: [f64; 3]) -> Plane
             at_edge.entry(*e).or_default().push(i);
         }
     }
+    // measured from the end in front of the plane, so that the crossing depends on the edge's
+    // two points alone, not on how the file numbers them (a triangle soup cuts as its surface)
     let point = |(a, b): (u32, u32)| -> [f64; 3] {
+        let (a, b) = if ahead(a) { (a, b) } else { (b, a) };
         let (pa, pb) = (mesh.vertices[a as usize], mesh.vertices[b as usize]);
         let t = s[a as usize] / (s[a as usize] - s[b as usize]);
         [pa[0] + t * (pb[0] - pa[0]), pa[1] + t * (pb[1] - pa[1]), pa[2] + t * (pb[2] - pa[2])]
