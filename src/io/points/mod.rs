@@ -141,6 +141,17 @@ fn no_return_note(count: usize, first: &str) -> String {
     )
 }
 
+/// The whole number a text value of an integer field stands for: an integer (`-12`), or a decimal
+/// that is exactly one (`12.0`, `1.2e1`, as writers that format every value as a float give
+/// them) within 2^53, where doubles hold every integer. Not `12.5`, `inf` or `1e300`.
+fn whole_number(s: &str) -> Option<i64> {
+    const EXACT: f64 = 9_007_199_254_740_992.0; // 2^53
+    s.parse::<i64>().ok().or_else(|| {
+        let v = s.parse::<f64>().ok()?;
+        (v.is_finite() && v.fract() == 0.0 && v.abs() <= EXACT).then_some(v as i64)
+    })
+}
+
 fn check_finite(p: [f64; 3]) -> std::result::Result<[f64; 3], String> {
     if p.iter().all(|c| c.is_finite()) {
         Ok(p)

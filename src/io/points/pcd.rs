@@ -21,7 +21,7 @@
 //! (compressed, uncompressed) and an LZF stream that expands to all points' first field, then all
 //! points' second, and so on. Data beyond the points the header declares is refused, as are ascii
 //! values that are no number of their field's type (an integer type's values must be whole numbers
-//! in its range). Organised clouds mark pixels without a return with NaN coordinates: those points
+//! in its range, written as integers or as decimals that are exactly one, `12.0`). Organised clouds mark pixels without a return with NaN coordinates: those points
 //! are left out, with the other readers' note.
 
 use std::path::Path;
@@ -51,11 +51,12 @@ impl Field {
             b'F' => (tok.parse::<f64>().ok(), String::new()),
             b'U' => {
                 let hi = u64::MAX >> (64 - bits);
-                (tok.parse::<u64>().ok().filter(|&v| v <= hi).map(|v| v as f64), format!("from 0 to {hi}"))
+                let v = tok.parse::<u64>().ok().or_else(|| super::whole_number(tok)?.try_into().ok());
+                (v.filter(|&v| v <= hi).map(|v| v as f64), format!("from 0 to {hi}"))
             }
             _ => {
                 let (lo, hi) = (i64::MIN >> (64 - bits), i64::MAX >> (64 - bits));
-                let v = tok.parse::<i64>().ok().filter(|v| (lo..=hi).contains(v));
+                let v = super::whole_number(tok).filter(|v| (lo..=hi).contains(v));
                 (v.map(|v| v as f64), format!("from {lo} to {hi}"))
             }
         };
@@ -531,7 +532,13 @@ mod tests {
         let set =
             read_points(&dir.file("g.pcd", format!("{h}{good}0 0 1 0 -9223372036854775808 0\n"))).unwrap();
         assert_eq!(set.points[1], [-128.0, 65535.0, -2147483648.0]);
+        // whole numbers written as decimals, as writers that format every value as a float do
+        let decimals =
+            read_points(&dir.file("d.pcd", format!("{h}{good}-1.0 2.000 3e2 7.0 -0.0 0\n"))).unwrap();
+        assert_eq!(decimals.points[3], [-1.0, 2.0, 300.0]);
         let cases = [
+            ("0 0 1 0 0 1e300", "field 'n' (TYPE I, SIZE 8): '1e300' is not"),
+            ("0 255.0 1 -1.0 0 0", "field 'rgb' (TYPE U, SIZE 4): '-1.0' is not"),
             ("-300 0 1 0 0 0", "field 'x' (TYPE I, SIZE 1): '-300' is not a whole number from -128 to 127"),
             ("0 65536 1 0 0 0", "field 'y' (TYPE U, SIZE 2): '65536' is not a whole number from 0 to 65535"),
             ("0 -1 1 0 0 0", "field 'y' (TYPE U, SIZE 2): '-1' is not"),

@@ -119,7 +119,7 @@ impl<'a> AsciiSource<'a> {
         let text = std::str::from_utf8(tok).ok();
         let (lo, hi) = ty.range();
         let parsed = if ty.is_int() {
-            text.and_then(|s| s.parse::<i64>().ok()).filter(|v| (lo..=hi).contains(v)).map(Ok)
+            text.and_then(super::super::whole_number).filter(|v| (lo..=hi).contains(v)).map(Ok)
         } else {
             text.and_then(|s| s.parse::<f64>().ok()).map(Err)
         };
@@ -663,12 +663,17 @@ mod tests {
         };
         let set = read_points(&dir.file("g.ply", file(row("0", "0", "1", "1", "2")))).unwrap();
         assert_eq!(set.points[1], [1.0, -128.0, 0.0]);
+        // whole numbers written as decimals, as writers that format every value as a float do
+        let set = read_points(&dir.file("d.ply", file(row("-3.0", "0", "1.2e1", "254.000", "2.0")))).unwrap();
+        assert_eq!(set.points[3], [-3.0, 0.0, 12.0]);
         let cases = [
             (
                 row("0", "-300", "1", "1", "2"),
                 "property 'y': '-300' is not a valid I8 value (a whole number from -128 to 127)",
             ),
             (row("0", "0", "12.345", "1", "2"), "property 'z': '12.345' is not a valid I32 value"),
+            (row("0", "0", "1", "256.0", "2"), "property 'red': '256.0' is not a valid U8 value"),
+            (row("0", "0", "1", "1", "inf"), "property 'extra': 'inf' is not a valid U8 value"),
             (row("40000", "0", "1", "1", "2"), "property 'x': '40000' is not a valid I16 value"),
             (
                 row("0", "0", "1", "399", "2"),
