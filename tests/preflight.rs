@@ -755,7 +755,7 @@ fn a_limit_below_the_fixed_part_is_said_to_be_so() {
             assert!(err.contains("this rank can have 150 MB (--memory-per-rank)"), "{what}: {err}");
             assert!(
                 err.contains(
-                    "the limit is below the 200 MB a rank needs for the program's fixed part whatever the work"
+                    "the limit leaves a rank less than the 200 MB it needs for the program's fixed part whatever the work"
                 ),
                 "{what}: {err}"
             );
