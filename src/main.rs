@@ -50,21 +50,26 @@ fn main() {
             volspline::note!("volspline: error: cannot start {threads} threads: {e}");
             1
         }
-        Ok(()) => match volspline::app::same_arguments(&comm, std::env::args().skip(1).collect())
-            .and_then(|()| volspline::app::same_directory(&comm, &cli.command))
-            .and_then(|()| volspline::app::run(&cli.command, &comm, threads))
-        {
-            Ok(()) => 0,
-            Err(e) => {
-                if comm.rank() == 0 {
-                    match e.remote_rank() {
-                        Some(rank) => volspline::note!("volspline: error on rank {rank}: {e}"),
-                        None => volspline::note!("volspline: error: {e}"),
+        Ok(()) => {
+            // the address space mapped by now (the binary, MPI, HDF5, the threads' stacks) is the
+            // baseline the address-space limit's checks count the work's memory on top of
+            volspline::app::preflight::note_start();
+            match volspline::app::same_arguments(&comm, std::env::args().skip(1).collect())
+                .and_then(|()| volspline::app::same_directory(&comm, &cli.command))
+                .and_then(|()| volspline::app::run(&cli.command, &comm, threads))
+            {
+                Ok(()) => 0,
+                Err(e) => {
+                    if comm.rank() == 0 {
+                        match e.remote_rank() {
+                            Some(rank) => volspline::note!("volspline: error on rank {rank}: {e}"),
+                            None => volspline::note!("volspline: error: {e}"),
+                        }
                     }
+                    e.exit_code()
                 }
-                e.exit_code()
             }
-        },
+        }
     };
     interrupts::finished(code);
     drop(comm);

@@ -119,8 +119,8 @@ fn the_memory_per_rank_the_user_sets_decides_the_checks_and_the_method() {
     let o = p.to_str().unwrap();
     for ranks in [1, 2] {
         // too little for the dense system: refused before the assembly, saying whose limit it is
-        // and what the need is made of; `auto` takes the two levels for it, whose level 0 does
-        // not fit either (not even on 50 points: the fixed part alone is more)
+        // and what the need is made of; `auto` takes the two levels for it, whose grid does not
+        // fit either (the fixed part alone is more)
         let mb = |b: f64| (b / 1e6).round();
         let parts = format!(
             "not enough memory: the dense system of 1235 rows (1231 points; per rank its rows {} MB, the \
@@ -133,10 +133,8 @@ fn the_memory_per_rank_the_user_sets_decides_the_checks_and_the_method() {
             )),
             mb(volspline::app::preflight::panel_bytes(1235, ranks, 256)),
         );
-        let cases: [(&[&str], &str); 2] = [
-            (&["--method", "dense"], &parts),
-            (&[], "not enough memory: level 0 of the two-level fit (a dense off-surface fit of 896 of the points)"),
-        ];
+        let cases: [(&[&str], &str); 2] =
+            [(&["--method", "dense"], &parts), (&[], "not enough memory: the grid of")];
         for (extra, message) in cases {
             let args = [&["fit", i, "--out", o, "--memory-per-rank", "150MB"][..], extra].concat();
             let out = common::run(ranks, &args);
@@ -601,17 +599,169 @@ fn level_1_of_the_two_levels_is_checked_before_level_0() {
 
 #[test]
 fn the_curvature_arrays_count_in_the_grid_s_memory() {
-    // a grid of 100^3 nodes: its values, ghost layer and mesh fit 24 MB on one rank, with the
-    // mean and Gaussian curvature at every node as well they do not (32 MB), and the run is
-    // refused before the evaluation
+    // a grid of 100^3 nodes: its values, ghost layer and mesh fit 220 MB on one rank beside the
+    // fixed 200 MB, with the mean and Gaussian curvature at every node as well they do not (32 MB),
+    // and the run is refused before the evaluation
     let dir = common::temp_dir("preflight-curvature");
     let p = dir.join("e");
     let args =
         ["eval", "ball:0,0,0,1", "--bounds", "-1.5,-1.5,-1.5,1.5,1.5,1.5", "--out", p.to_str().unwrap()];
-    let limit = ["--grid", "100", "--memory-per-rank", "24MB"];
+    let limit = ["--grid", "100", "--memory-per-rank", "220MB"];
     common::run_ok(1, &[&args[..], &limit].concat());
     let out = common::run(1, &[&args[..], &limit, &["--curvature"]].concat());
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
-    assert!(err.contains("the grid of 100 x 100 x 100 nodes needs about 32 MB per rank"), "{err}");
+    assert!(
+        err.contains(
+            "the grid of 100 x 100 x 100 nodes (per rank its slab 32 MB and 200 MB for the libraries and MPI's \
+             buffers) needs about 232 MB per rank"
+        ),
+        "{err}"
+    );
+}
+
+/// Runs the binary on `ranks` ranks under the address-space limit `ulimit -v kb` (KiB), set on
+/// `mpirun`, whose ranks inherit it; panics where it runs past [`common::run_limit`] (OpenBLAS
+/// retries for ever where its buffer cannot be allocated).
+fn run_under_ulimit(ranks: usize, kb: u64, args: &[&str]) -> std::process::Output {
+    let mut cmd = std::process::Command::new("bash");
+    cmd.arg("-c")
+        .arg(format!("ulimit -v {kb} && exec mpirun -n {ranks} --oversubscribe \"$@\""))
+        .arg("bash")
+        .arg(common::BIN)
+        .args(args)
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .env("OMPI_MCA_rmaps_base_oversubscribe", "1")
+        .env("RAYON_NUM_THREADS", "1");
+    let done = common::output_within(cmd, common::run_limit());
+    assert!(
+        !done.timed_out,
+        "{args:?} on {ranks} ranks under ulimit -v {kb} did not finish (a hang?): {}",
+        String::from_utf8_lossy(&done.output.stderr)
+    );
+    done.output
+}
+
+#[test]
+fn an_address_space_limit_is_refused_like_a_memory_limit() {
+    // `ulimit -v` (a batch system's h_vmem): a rank over it fails an allocation, which aborts it
+    // without a word and leaves its temporary files. The checks count the limit less the address
+    // space a rank maps at its start (some 400 MB with Open MPI) and what the libraries map later
+    // (192 MB with one thread), so a run that cannot fit is refused like one over
+    // --memory-per-rank: exit 1, the limit named, nothing left. 600 MB leaves less than the fixed
+    // part (refused at the start); 950 MB leaves about 380 MB, less than the bunny's dense system
+    // (450 MB a rank on two ranks, 660 MB on one, the whole matrix counted: the limit counts the
+    // untouched upper triangle too); 3 GB takes the same fit
+    let dir = common::temp_dir("preflight-ulimit");
+    let p = dir.join("o");
+    let o = p.to_str().unwrap();
+    let cow = ["fit", common::COW, "--out", o, "--grid", "32", "--no-preview"];
+    let bunny = ["fit", common::BUNNY, "--out", o, "--grid", "32", "--no-preview", "--method", "dense"];
+    let cases: [(&[&str], u64, &str); 2] = [
+        (
+            &cow,
+            600_000,
+            "not enough memory: the program's fixed part (libraries, MPI's and HDF5's buffers) needs",
+        ),
+        (&bunny, 950_000, "not enough memory: the dense system of 6900 rows"),
+    ];
+    for ranks in [1, 2] {
+        for (args, kb, message) in cases {
+            let out = run_under_ulimit(ranks, kb, args);
+            let err = String::from_utf8_lossy(&out.stderr);
+            let what = format!("{ranks} ranks, ulimit -v {kb}");
+            assert_eq!(out.status.code(), Some(1), "{what}: {err}");
+            assert!(err.contains(message), "{what}: {err}");
+            let limit =
+                format!("(the address-space limit (ulimit -v) of {:.0} MB, less the ", kb as f64 * 1.024e-3);
+            assert!(err.contains(&limit), "{what}: {err}");
+            assert!(err.contains("the rank had mapped at its start"), "{what}: {err}");
+            assert!(!err.contains("panic") && !err.contains("memory allocation"), "{what}: {err}");
+            // neither outputs nor temporary files
+            assert_eq!(files_in(&dir), Vec::<String>::new(), "{what}");
+        }
+        // the baseline and the libraries' mappings leave a generous limit room for the work
+        let out = run_under_ulimit(ranks, 3_000_000, &bunny);
+        let said =
+            format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+        assert!(out.status.success(), "{ranks} ranks, ulimit -v 3000000: {said}");
+        assert_eq!(files_in(&dir), ["o.hdf", "o.model.h5", "o.ply"], "{ranks} ranks");
+        for f in files_in(&dir) {
+            std::fs::remove_file(dir.join(f)).unwrap();
+        }
+    }
+}
+
+#[test]
+fn eval_counts_the_fixed_part_in_its_memory_estimate() {
+    // eval's check counted the grid's slab alone: its "memory checks counted" figure lay below the
+    // peak it reported beside it (131 MB against 148 MB on two ranks). It counts the fixed part
+    // the fit's checks count, and lies above the peak
+    let dir = common::temp_dir("preflight-eval-estimate");
+    let model = dir.join("cow");
+    common::run_ok(
+        2,
+        &["fit", common::COW, "--out", model.to_str().unwrap(), "--grid", "24", "--no-preview"],
+    );
+    let m = model.with_extension("model.h5");
+    for ranks in [1, 2] {
+        let (e, csv) = (dir.join(format!("e{ranks}")), dir.join(format!("t{ranks}.csv")));
+        let args = [
+            "eval",
+            m.to_str().unwrap(),
+            "--out",
+            e.to_str().unwrap(),
+            "--grid",
+            "120",
+            "--timings",
+            csv.to_str().unwrap(),
+        ];
+        let text = common::run_ok(ranks, &args);
+        let figures = std::fs::read_to_string(&csv).unwrap();
+        let get = |k: &str| -> f64 {
+            figures
+                .lines()
+                .find_map(|l| l.strip_prefix(&format!("{k},")))
+                .unwrap_or_else(|| panic!("{k}"))
+                .parse()
+                .unwrap()
+        };
+        let (estimate, peak) = (get("memory_estimate_bytes_max"), get("peak_rss_bytes_max"));
+        let what = format!("{ranks} ranks: estimate {estimate}, peak {peak}");
+        assert!(estimate >= volspline::app::preflight::FIXED_BYTES && estimate > peak, "{what}");
+        assert!(
+            text.contains(&format!("(the memory checks counted up to {:.1} MB)", estimate / 1e6)),
+            "{text}"
+        );
+    }
+}
+
+#[test]
+fn a_limit_below_the_fixed_part_is_said_to_be_so() {
+    // 150 MB a rank is less than the fixed 200 MB every rank needs, whatever the work: the
+    // refusal says so and names that figure, instead of advising a smaller --coarse-points for
+    // level 0 of the two-level fit (which `auto` takes for the cow), more ranks or fewer points
+    let dir = common::temp_dir("preflight-below-fixed");
+    let p = dir.join("o");
+    let args =
+        ["fit", common::COW, "--out", p.to_str().unwrap(), "--grid", "32", "--memory-per-rank", "150MB"];
+    for ranks in [1, 2] {
+        for extra in [&[][..], &["--method", "dense"], &["--method", "csrbf"]] {
+            let out = common::run(ranks, &[&args[..], extra].concat());
+            let err = String::from_utf8_lossy(&out.stderr);
+            let what = format!("{ranks} ranks, {extra:?}");
+            assert_eq!(out.status.code(), Some(1), "{what}: {err}");
+            assert!(err.contains("this rank can have 150 MB (--memory-per-rank)"), "{what}: {err}");
+            assert!(
+                err.contains(
+                    "the limit leaves a rank less than the 200 MB it needs for the program's fixed part whatever the work"
+                ),
+                "{what}: {err}"
+            );
+            assert!(!err.contains("--coarse-points"), "{what}: {err}");
+            assert!(!err.contains("use --method csrbf"), "{what}: {err}");
+            assert_eq!(files_in(&dir), Vec::<String>::new(), "{what}");
+        }
+    }
 }

@@ -102,7 +102,11 @@ pub fn same_directory(comm: &dyn Comm, command: &Command) -> Result<()> {
 /// Every output is written under a temporary name unique to this run (chosen by rank 0, the same on
 /// every rank) and all of them are renamed into place together at the end, once every rank has
 /// succeeded; after a failure they are removed and the previous outputs stay as they were.
+///
+/// A rank whose address-space limit leaves less than the program's fixed part is refused first
+/// ([`preflight::check_address_space`]).
 pub fn run(command: &Command, comm: &dyn Comm, threads: usize) -> Result<()> {
+    preflight::check_address_space(comm)?;
     let id: String = comm.broadcast_value(0, (comm.rank() == 0).then(staging::new_run_id));
     staging::begin(&id);
     let result = match command {

@@ -3,13 +3,24 @@
 //! `--timings` file) would replace the input or another output, and the memory a rank will need
 //! (the dense system's rows, the solver's panels, the grid slab) fits in what this rank can have.
 //!
-//! What a rank can have is the smaller of the node's available memory (`MemAvailable`) and the
+//! What a rank can have is the smallest of the node's available memory (`MemAvailable`) and the
 //! cgroup limit of the job (v2 `memory.max`, v1 `memory.limit_in_bytes`), shared equally by the
-//! ranks on the node (`OMPI_COMM_WORLD_LOCAL_SIZE` and its equivalents), and at most the limit
+//! ranks on the node (`OMPI_COMM_WORLD_LOCAL_SIZE` and its equivalents), the address-space limit
+//! of the process (`RLIMIT_AS`: `ulimit -v`, SGE's `h_vmem`, some Slurm setups), and the limit
 //! the user set (`--memory-per-rank`, [`limit_memory`]). The system's figures are read at the
 //! moment of the check, so they already leave out what the rank holds by then; the user's limit
 //! is on everything the rank holds, so a check made while the rank holds something
 //! ([`check_memory_beside`]) compares with the limit less that.
+//!
+//! The address-space limit is on virtual memory, which is larger than the resident memory the
+//! estimates count: the binary, MPI (its shared-memory segments among them), HDF5, the C
+//! library's allocator arenas and the threads' stacks are mapped before any work, some 300-1000
+//! MB a rank with Open MPI. So the limit counts like the user's, on everything the rank holds,
+//! less the address space the rank had mapped at its start ([`note_start`], `VmSize` of
+//! `/proc/self/status`). A rank over that limit would not be refused: its allocation would fail,
+//! which aborts the process without removing its temporary files. So a run whose address-space
+//! limit leaves less than the program's fixed part ([`FIXED_BYTES`]) is refused at the start
+//! ([`check_address_space`]), before the first stages (reading, orienting the normals) allocate.
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -33,8 +44,10 @@ pub fn dense_fit_bytes(system: usize, ranks: usize, precision: Precision, lower:
 /// precision the f64 rows stay for the residuals of the refinement while an f32 copy is
 /// factored: 12 bytes an entry instead of 8. With `lower` (the projected Cholesky, which reads
 /// and writes the lower triangle alone) half the entries are touched, and a page of each column
-/// of each copy for its first rows.
+/// of each copy for its first rows; but the whole matrix is allocated, so under an address-space
+/// limit ([`address_space_limit`]), which counts the pages never touched as well, all of it.
 pub fn dense_matrix_bytes(system: usize, ranks: usize, precision: Precision, lower: bool) -> f64 {
+    let lower = lower && address_space_limit().is_none();
     let rows = system.div_ceil(ranks.max(1)) as f64;
     let cols = (system + 1) as f64;
     let (bytes, copies) = match precision {
@@ -128,14 +141,107 @@ pub fn user_limit() -> Option<f64> {
 }
 
 /// Bytes this rank can take on top of the `held` bytes it holds now, and where the figure comes
-/// from, when the system or the user says: the system's figure now, or the user's limit less
-/// `held`, the smaller.
+/// from, when the system or the user says: the smallest of the system's figure now, the user's
+/// limit less `held` and the address-space limit ([`address_space_limit`]) less `held`, the
+/// address space mapped at the start ([`note_start`]) and the libraries' later mappings
+/// ([`late_mappings`]).
 pub fn available_beside(held: f64) -> Option<(f64, String)> {
     let capped = LIMIT.get().map(|&limit| ((limit - held).max(0.0), "--memory-per-rank".to_string()));
-    match (system_per_rank(), capped) {
-        (Some(system), Some(capped)) => Some(if capped.0 < system.0 { capped } else { system }),
-        (system, capped) => system.or(capped),
+    [system_per_rank(), capped, address_space_beside(held)].into_iter().flatten().reduce(|least, next| {
+        if next.0 < least.0 {
+            next
+        } else {
+            least
+        }
+    })
+}
+
+/// The address space this rank had mapped at its start, in bytes (`VmSize`), as first read.
+static START_MAPPED: OnceLock<Option<f64>> = OnceLock::new();
+
+/// Reads the address space this rank has mapped now as the baseline of the address-space limit,
+/// unless it was read before, and returns the baseline (None where `/proc/self/status` does not
+/// say). The binary calls it once MPI and the thread pool have started, before any work; without
+/// that call the first check reads it.
+pub fn note_start() -> Option<f64> {
+    *START_MAPPED.get_or_init(mapped_now)
+}
+
+/// The address space this process has mapped now, in bytes (`VmSize` of `/proc/self/status`).
+pub fn mapped_now() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmSize:"))?;
+    Some(line.split_whitespace().nth(1)?.parse::<f64>().ok()? * 1024.0)
+}
+
+/// The soft address-space limit of this process (`RLIMIT_AS`), in bytes, where there is one.
+pub fn address_space_limit() -> Option<f64> {
+    // SAFETY: getrlimit fills the zeroed struct it is given
+    let mut lim: libc::rlimit = unsafe { std::mem::zeroed() };
+    if unsafe { libc::getrlimit(libc::RLIMIT_AS, &mut lim) } != 0 || lim.rlim_cur == libc::RLIM_INFINITY {
+        return None;
     }
+    Some(lim.rlim_cur as f64)
+}
+
+/// Address space the libraries map after the start for buffers of their own, beside the resident
+/// memory the estimates count: OpenBLAS's buffer (128 MB, on its first product) and the matrix
+/// kernels' scratch of each thread (64 MB, faer's `private-gemm`), mostly never touched. Measured
+/// with `ulimit -v` on the bunny and the cow, 1 and 2 ranks: without it, runs that the checks let
+/// through failed an allocation in the orientation of the normals or the solve (and OpenBLAS,
+/// whose buffer could not be allocated, retried for ever); with it, every limit from 750 to 1300
+/// MB (in steps of 50) either ran or was refused.
+pub fn late_mappings(threads: usize) -> f64 {
+    128e6 + 64e6 * threads as f64
+}
+
+/// Bytes the address-space limit lets this rank take on top of the `held` bytes it holds now, and
+/// where the figure comes from, where there is a limit: the limit less the address space mapped
+/// at the start ([`note_start`]), the libraries' later mappings ([`late_mappings`]) and `held`.
+fn address_space_beside(held: f64) -> Option<(f64, String)> {
+    let limit = address_space_limit()?;
+    let start = note_start().unwrap_or(0.0);
+    let late = late_mappings(rayon::current_num_threads());
+    Some((
+        (limit - start - late - held).max(0.0),
+        format!(
+            "the address-space limit (ulimit -v) of {}, less the {} the rank had mapped at its start and {} \
+             the libraries map later",
+            gigabytes(limit),
+            gigabytes(start),
+            gigabytes(late)
+        ),
+    ))
+}
+
+/// Refuses a run whose address-space limit (`ulimit -v`) leaves a rank less than the program's
+/// fixed part ([`FIXED_BYTES`]) beside what it had mapped at its start: the allocations of the
+/// first stages, made before the work's own checks, would fail and abort the rank. The user's
+/// limit (`--memory-per-rank`), on which nothing fails, is left to the work's checks, which name
+/// the part of the work that does not fit. Collective.
+pub fn check_address_space(comm: &dyn Comm) -> Result<()> {
+    let local = match address_space_beside(0.0) {
+        Some((have, source)) if have < FIXED_BYTES => Err(Error::Memory(format!(
+            "the program's fixed part (libraries, MPI's and HDF5's buffers) needs about {} per rank, but this \
+             rank can have {} ({source}); {}",
+            gigabytes(FIXED_BYTES),
+            gigabytes(have),
+            below_fixed_advice()
+        ))),
+        _ => Ok(()),
+    };
+    agree(comm, local)
+}
+
+/// The advice of a refusal whose limit is below the program's fixed part: fewer points, a coarser
+/// grid or more ranks do not make a rank need less than that.
+fn below_fixed_advice() -> String {
+    format!(
+        "the limit leaves a rank less than the {} it needs for the program's fixed part whatever the work \
+         (libraries, MPI's and HDF5's buffers), so fewer points or more ranks cannot help: give each rank more \
+         (a larger --memory-per-rank or ulimit -v, fewer ranks per node)",
+        gigabytes(FIXED_BYTES)
+    )
 }
 
 /// Bytes this rank can use by the system's figures, and where they come from, when it says.
@@ -184,6 +290,12 @@ pub fn check_memory_beside(comm: &dyn Comm, held: f64, need: f64, what: &str, ad
     }
     let local = match available_beside(held) {
         Some((have, source)) if need > have => {
+            // no advice on the work helps where the whole limit is below the fixed part
+            let advice = if need >= FIXED_BYTES && have + held < FIXED_BYTES {
+                below_fixed_advice()
+            } else {
+                advice.to_string()
+            };
             let beside =
                 if held > 0.0 { format!(" beside the {} it holds", gigabytes(held)) } else { String::new() };
             // figures that would print alike are printed to more digits, which tell them apart

@@ -7,7 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::preflight::{check_memory, grid_bytes};
+use super::preflight::{check_memory, grid_bytes, FIXED_BYTES};
 use super::progress::Progress;
 use super::report::Report;
 use super::stages::{Stage, Stages};
@@ -124,13 +124,20 @@ pub fn model_grid(
 }
 
 /// Refuses a grid whose slab (with the curvature arrays where asked) would not fit in a rank's
-/// memory. Collective.
+/// memory beside the program's fixed part ([`FIXED_BYTES`], which the dense checks count too).
+/// Collective.
 pub fn check_grid(comm: &dyn Comm, grid: &Grid, curvature: bool) -> Result<()> {
     let [nx, ny, nz] = grid.dims;
+    let slab = grid_bytes(grid, comm.size(), curvature);
     check_memory(
         comm,
-        grid_bytes(grid, comm.size(), curvature),
-        &format!("the grid of {nx} x {ny} x {nz} nodes"),
+        slab + FIXED_BYTES,
+        &format!(
+            "the grid of {nx} x {ny} x {nz} nodes (per rank its slab {:.0} MB and {:.0} MB for the libraries \
+             and MPI's buffers)",
+            slab / 1e6,
+            FIXED_BYTES / 1e6
+        ),
         "use a coarser --grid or more ranks (the grid is split in z-slabs over them)",
     )
 }
