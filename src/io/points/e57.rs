@@ -49,7 +49,7 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
         return Err(err("", format!("{} bytes: shorter than an E57 header ({HEADER} bytes)", bytes.len())));
     }
     let mut file = e57::E57Reader::new(Cursor::new(bytes))
-        .map_err(|e| err("", format!("not a readable E57 file (corrupt or truncated?): {e}")))?;
+        .map_err(|e| err("", format!("not a readable E57 file ({}): {e}", damage(&e))))?;
     let clouds = file.pointclouds();
     if clouds.is_empty() {
         let images = file.images().len();
@@ -82,8 +82,9 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
         // the crate's raw reader: its simple one stops at a data packet that leaves a field's values
         // for the next packet (as the crate's writer does for the 2-bit invalid state of a scan of
         // fewer than 4 points), which the raw one reads on past
-        let points =
-            file.pointcloud_raw(pc).map_err(|e| err(&scan, format!("cannot read the points: {e}")))?;
+        let points = file
+            .pointcloud_raw(pc)
+            .map_err(|e| err(&scan, format!("cannot read the points ({}): {e}", damage(&e))))?;
         for (i, values) in points.enumerate() {
             let at = || format!("{scan}, point {i}");
             let local = values
@@ -94,7 +95,7 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<PointSet> {
                     let rae = spherical.as_ref().map(|c| c.of(pc, &values)).transpose()?.flatten();
                     Ok(rae.map(|[r, a, e]| [r * e.cos() * a.cos(), r * e.cos() * a.sin(), r * e.sin()]))
                 })
-                .map_err(|e| err(&at(), format!("unreadable: {e}")))?;
+                .map_err(|e| err(&at(), format!("unreadable ({}): {e}", damage(&e))))?;
             match local {
                 Some(p) if !no_return(&p) => {
                     set.points.push(check_finite(pose.apply(p)).map_err(|why| err(&at(), why))?)
@@ -157,6 +158,18 @@ impl Coordinates {
         }
         let [a, b, c] = self.fields.map(|i| values[i].to_f64(&proto[i].data_type));
         Ok(Some([a?, b?, c?]))
+    }
+}
+
+/// What an error of the `e57` crate most likely means, in a few words before its own message.
+fn damage(e: &e57::Error) -> &'static str {
+    let text = e.to_string();
+    if text.contains("checksum") {
+        "corrupt: a page fails its CRC checksum"
+    } else if text.contains("truncated") || text.contains("end of file") {
+        "truncated?"
+    } else {
+        "corrupt?"
     }
 }
 
@@ -392,6 +405,38 @@ mod tests {
     }
 
     #[test]
+    fn xml_that_does_not_fit_the_data_is_an_error() {
+        let dir = TempDir::new();
+        let scans = [cartesian(&SQUARE, Some(([1.0, 0.0, 0.0, 0.0], [1.0, 2.0, 3.0])))];
+        // the XML the writer makes, then edited: each edit must give an error, never a panic
+        let made = std::cell::RefCell::new(String::new());
+        write(&dir, "probe.e57", &scans, |s| {
+            made.replace(s.clone());
+            s
+        });
+        let text = made.into_inner();
+        let edited = |s: String| write(&dir, "x.e57", &scans, move |_| s.clone());
+        for (from, to, why) in [
+            ("recordCount=\"4\"", "recordCount=\"4000\"", "scan 1 ('station 1'), point 4"),
+            ("recordCount=\"4\"", "recordCount=\"-4\"", "not a readable E57 file"),
+            ("fileOffset=\"", "fileOffset=\"9", "scan 1 ('station 1'): cannot read the points"),
+            ("<w type=\"Float\">1</w>", "<w type=\"Float\">one</w>", "not a readable E57 file"),
+            ("</e57Root>", "", "not a readable E57 file"),
+        ] {
+            assert!(text.contains(from), "{from} not in {text}");
+            let path = edited(text.replacen(from, to, 1));
+            match read_points(&path) {
+                Err(crate::error::Error::Input { location, reason, .. }) => {
+                    let shown =
+                        if location.is_empty() { reason.clone() } else { format!("{location}: {reason}") };
+                    assert!(shown.contains(why), "{from} -> {to}: '{why}' not in '{shown}'");
+                }
+                other => panic!("{from} -> {to}: {other:?}"),
+            }
+        }
+    }
+
+    #[test]
     fn broken_files_are_errors_not_panics() {
         let dir = TempDir::new();
         let good = std::fs::read(write(&dir, "good.e57", &[cartesian(&SQUARE, None)], |s| s)).unwrap();
@@ -412,22 +457,27 @@ mod tests {
             ("empty", vec![], "an empty file; not an E57 file"),
             ("random", random, "no 'ASTM-E57' signature at the start; not an E57 file"),
             ("short", good[..20].to_vec(), "20 bytes: shorter than an E57 header (48 bytes)"),
-            ("truncated", good[..good.len() - 100].to_vec(), "truncated"),
+            ("truncated", good[..good.len() - 100].to_vec(), "not a readable E57 file (truncated?)"),
             ("half", good[..1024].to_vec(), "not a readable E57 file"),
-            ("flipped", flipped, "checksum"),
+            ("flipped", flipped, "(corrupt: a page fails its CRC checksum)"),
             ("signed_random", signed_random, "not a readable E57 file"),
         ];
         for (name, bytes, why) in cases {
             fails_with(&dir.file(&format!("{name}.e57"), bytes), "", why);
         }
-        // every prefix at a page boundary, and every page with a byte changed
+        // every prefix at a page boundary, and every page with a bit changed (the checksum finds it)
         for end in (1024..good.len()).step_by(1024) {
             assert!(read_points(&dir.file("cut.e57", &good[..end])).is_err(), "{end}");
         }
         for at in (0..good.len()).step_by(1024).map(|p| p + 100) {
             let mut b = good.clone();
             b[at] ^= 1;
-            assert!(read_points(&dir.file("bit.e57", &b)).is_err(), "{at}");
+            match read_points(&dir.file("bit.e57", &b)) {
+                Err(crate::error::Error::Input { reason, .. }) => {
+                    assert!(reason.contains("a page fails its CRC checksum"), "{at}: {reason}")
+                }
+                other => panic!("{at}: {other:?}"),
+            }
         }
     }
 }
