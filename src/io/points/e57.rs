@@ -4,7 +4,8 @@
 //! coordinates and the translation then moves them, world = R(q) local + t. A scan without a pose
 //! is in the common coordinates already. A scan's coordinates are Cartesian (x, y, z) or
 //! spherical (range r, azimuth a, elevation e, turned into x = r cos e cos a, y = r cos e sin a,
-//! z = r sin e before the pose); where a scan holds both, the Cartesian ones are taken.
+//! z = r sin e before the pose); where a scan holds both, a point's Cartesian coordinates are taken,
+//! or its spherical ones where the Cartesian are invalid.
 //!
 //! A point whose invalid state is not 0 (`cartesianInvalidState` or `sphericalInvalidState` 1: a
 //! direction without a range, 2: no coordinates), or whose x, y and z are all NaN, is a pulse
@@ -328,6 +329,52 @@ mod tests {
              without a return (invalid state 1 or 2, or x, y and z all NaN) left out, the first at scan 1 \
              ('station 1'), point 1"
         );
+    }
+
+    #[test]
+    fn cartesian_coordinates_are_taken_before_spherical_ones() {
+        let dir = TempDir::new();
+        let path = dir.0.join("both.e57");
+        let mut w = E57Writer::from_file(&path, "file-guid").unwrap();
+        let prototype = vec![
+            Record::CARTESIAN_X_F64,
+            Record::CARTESIAN_Y_F64,
+            Record::CARTESIAN_Z_F64,
+            Record::CARTESIAN_INVALID_STATE,
+            Record::SPHERICAL_RANGE_F64,
+            Record::SPHERICAL_AZIMUTH_F64,
+            Record::SPHERICAL_ELEVATION_F64,
+            Record::SPHERICAL_INVALID_STATE,
+        ];
+        let mut pc = w.add_pointcloud("scan-guid", prototype).unwrap();
+        // (Cartesian, its state, spherical, its state): the spherical coordinates are used only
+        // where the Cartesian ones are invalid
+        let rows: [([f64; 3], i64, [f64; 3], i64); 6] = [
+            ([1.0, 2.0, 3.0], 0, [50.0, 0.0, 0.0], 0),
+            ([9.0, 9.0, 9.0], 2, [4.0, 0.0, 0.0], 0),
+            ([9.0, 9.0, 9.0], 1, [5.0, 0.0, 0.0], 0),
+            ([9.0, 9.0, 9.0], 2, [6.0, 0.0, 0.0], 2),
+            ([0.5, 0.25, 0.0], 0, [0.0, 0.0, 0.0], 2),
+            ([-1.0, 0.0, 2.0], 0, [0.0, 0.0, 0.0], 0),
+        ];
+        for (c, cs, sph, ss) in rows {
+            let mut values: Vec<RecordValue> = c.iter().map(|&v| RecordValue::Double(v)).collect();
+            values.push(RecordValue::Integer(cs));
+            values.extend(sph.iter().map(|&v| RecordValue::Double(v)));
+            values.push(RecordValue::Integer(ss));
+            pc.add_point(values).unwrap();
+        }
+        pc.finalize().unwrap();
+        w.finalize().unwrap();
+        let set = read_points(&path).unwrap();
+        let want = [[1.0, 2.0, 3.0], [4.0, 0.0, 0.0], [5.0, 0.0, 0.0], [0.5, 0.25, 0.0], [-1.0, 0.0, 2.0]];
+        assert_eq!(set.points, want);
+        let note = set.note.unwrap();
+        assert!(
+            note.starts_with("E57, 1 scan(s) read, each placed by its pose: 5 points; 1 point(s)"),
+            "{note}"
+        );
+        assert!(note.ends_with("the first at scan 1, point 3"), "{note}");
     }
 
     #[test]
