@@ -2,8 +2,8 @@
 # Installs what volspline needs on a fresh Debian 12 machine: OpenMPI, parallel HDF5 (OpenMPI
 # flavour), MUMPS (libmumps-dev: the OpenMPI build, with ScaLAPACK for OpenMPI), libclang and
 # pkg-config for the -sys crates and build.rs, hdf5-tools, bsdutils (script(1), with which a test
-# gives the binary a terminal), and the Python packages the tests use (vtk, numpy). Idempotent
-# and quiet when everything is present. A shell that sources it keeps its own options (errexit,
+# gives the binary a terminal), and the Python packages the tests use (vtk, numpy, pye57).
+# Idempotent and quiet when everything is present. A shell that sources it keeps its own options (errexit,
 # nounset, pipefail) afterwards; the jobs set theirs before sourcing it.
 _volspline_caller_opts=$(set +o)
 # (a command substitution does not see errexit: take it from $-)
@@ -32,9 +32,9 @@ fi
 
 if [ "${VOLSPLINE_SKIP_PYTHON:-0}" != 1 ]; then
     PY=${PYTHON:-python3}
-    if ! "$PY" -c 'import vtk, numpy' 2>/dev/null; then
-        echo "setup: installing Python packages vtk, numpy"
-        "$PY" -m pip install -q --disable-pip-version-check vtk numpy
+    if ! "$PY" -c 'import vtk, numpy, pye57' 2>/dev/null; then
+        echo "setup: installing Python packages vtk, numpy, pye57"
+        "$PY" -m pip install -q --disable-pip-version-check vtk numpy pye57
     fi
 fi
 

@@ -61,7 +61,8 @@ pub enum Command {
 pub struct FitArgs {
     /// Points: .obj (vertices), .ply (ascii or binary; vertex x, y, z), .stl (ascii or binary; the facets'
     /// corners, shared ones once), .pcd (ascii, binary or binary_compressed; fields x, y, z), .las (LAS
-    /// 1.0-1.4, scaled and offset), .xyz/.txt/.csv (x y z per line).
+    /// 1.0-1.4, scaled and offset), .e57 (every scan, placed by its pose), .xyz/.txt/.csv (x y z per
+    /// line).
     pub input: PathBuf,
     /// Output prefix: writes PREFIX.model.h5, PREFIX.hdf, PREFIX.ply.
     #[arg(long, value_name = "PREFIX")]

@@ -1,7 +1,8 @@
 //! Reading speed of the point readers on large inputs: the same synthetic points as a text list
-//! (.xyz), an ascii PLY, a binary little-endian PLY, a binary PCD and a binary STL (a strip of
+//! (.xyz), an ascii PLY, a binary little-endian PLY, a binary PCD, a binary STL (a strip of
 //! facets through consecutive points, so each point is the corner of three facets and the reader
-//! merges them), and the bunny OBJ shipped with the tests.
+//! merges them) and an E57 file (one scan of single-precision Cartesian coordinates under a pose,
+//! as scanners write them, written by the `e57` crate), and the bunny OBJ shipped with the tests.
 //!
 //! Usage: `bench_io WORKDIR POINTS REPEAT`. Writes the files into WORKDIR (which must exist),
 //! reads each REPEAT times through `volspline::io::points::read_points` and prints one CSV row
@@ -62,6 +63,9 @@ fn write_inputs(dir: &Path, n: usize) -> std::io::Result<Vec<(&'static str, Path
         ("stl_binary", "strip.stl", stl),
     ];
     let mut out = Vec::new();
+    let e57 = dir.join("scan.e57");
+    write_e57(&e57, n).map_err(std::io::Error::other)?;
+    out.push(("e57", e57));
     for (format, name, bytes) in files {
         let path = dir.join(name);
         std::fs::write(&path, bytes)?;
@@ -69,6 +73,25 @@ fn write_inputs(dir: &Path, n: usize) -> std::io::Result<Vec<(&'static str, Path
     }
     out.push(("obj_bunny", PathBuf::from(BUNNY)));
     Ok(out)
+}
+
+/// The points as one E57 scan of single-precision Cartesian coordinates, posed by a turn about z
+/// and a shift.
+fn write_e57(path: &Path, n: usize) -> e57::Result<()> {
+    use e57::{Quaternion, Record, RecordValue, Transform, Translation};
+    let mut file = e57::E57Writer::from_file(path, "bench-file")?;
+    let prototype = vec![Record::CARTESIAN_X_F32, Record::CARTESIAN_Y_F32, Record::CARTESIAN_Z_F32];
+    let mut scan = file.add_pointcloud("bench-scan", prototype)?;
+    let half = 0.3f64;
+    scan.set_transform(Some(Transform {
+        rotation: Quaternion { w: half.cos(), x: 0.0, y: 0.0, z: half.sin() },
+        translation: Translation { x: 10.0, y: -5.0, z: 1.5 },
+    }));
+    for i in 0..n {
+        scan.add_point(point(i).iter().map(|&c| RecordValue::Single(c as f32)).collect())?;
+    }
+    scan.finalize()?;
+    file.finalize()
 }
 
 fn run(dir: &Path, n: usize, repeat: usize) -> Result<(), String> {

@@ -290,7 +290,8 @@ elif mode == "io":
         pts, mb = int(group[0]["points"]), int(group[0]["file_bytes"]) / 1e6
         lines.append(f"| {fmt} | {pts} | {mb:.1f} | {t:.4f} | {med:.4f} | {pts / t:.3e} | {mb / t:.0f} | {len(times)} |")
     lines.append("\nxyz: text list; ply_ascii / ply_binary / pcd_binary: float32 x, y, z; stl_binary: POINTS - 2 facets through "
-                 "consecutive points, float32 corners merged into POINTS points; obj_bunny: tests/data/bunny10k.obj. "
+                 "consecutive points, float32 corners merged into POINTS points; e57: one scan of float32 x, y, z under a "
+                 "pose (a turn about z and a shift), written by the e57 crate; obj_bunny: tests/data/bunny10k.obj. "
                  "Each file is read whole through io::points::read_points; the files were just written, so they come "
                  "from the page cache: this measures parsing, not the disk.")
 

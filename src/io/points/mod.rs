@@ -3,12 +3,14 @@
 //! This module owns the input file formats: plain-text point lists (.xyz/.txt/.csv, `text`),
 //! Wavefront OBJ (`obj`), PLY, ascii and both binary byte orders (`ply`), and STL, ascii and
 //! binary (`stl`, its corners merged into indexed points), and the Point Cloud Library's PCD
-//! (`pcd`, ascii, binary and LZF-compressed), and lidar's LAS (`las`). It picks the
-//! parser by extension and holds what they share. Everything is returned in the file's own
-//! coordinates; normalisation belongs to the caller. The files come from users, so every parser
+//! (`pcd`, ascii, binary and LZF-compressed), lidar's LAS (`las`), and the laser scanners' E57
+//! (`e57`). It picks the parser by extension and holds what they share. Everything is returned in
+//! the file's own coordinates (an E57 file's common ones, where its scans' poses place them);
+//! normalisation belongs to the caller. The files come from users, so every parser
 //! validates as it goes and reports the line, vertex or byte offset at fault instead of
 //! panicking or guessing.
 
+mod e57;
 mod las;
 mod obj;
 mod pcd;
@@ -23,7 +25,7 @@ use crate::error::{Error, Result};
 /// Fewer points than this cannot define a volume.
 const MIN_POINTS: usize = 4;
 
-const SUPPORTED: &str = ".obj, .ply, .stl, .pcd, .las, .xyz, .txt, .csv";
+const SUPPORTED: &str = ".obj, .ply, .stl, .pcd, .las, .e57, .xyz, .txt, .csv";
 
 /// Points and (optional) triangles read from a file, in the file's coordinates.
 #[derive(Debug, Clone, Default)]
@@ -35,7 +37,7 @@ pub struct PointSet {
     pub note: Option<String>,
 }
 
-/// Read scattered points by extension: .obj, .ply, .stl, .pcd, .las, .xyz/.txt/.csv
+/// Read scattered points by extension: .obj, .ply, .stl, .pcd, .las, .e57, .xyz/.txt/.csv
 /// (case-insensitive).
 /// Triangles are filled for .obj/.ply when faces exist (polygons fan-triangulated) and for .stl,
 /// empty for text.
@@ -53,6 +55,12 @@ pub struct PointSet {
 /// dropped), or else the first three; further columns (normals, colours, intensities) are
 /// ignored, and [`PointSet::note`] says so.
 ///
+/// E57 files give the points of all their scans, each placed in the file's common coordinates by
+/// its pose (rotation quaternion, then translation); spherical coordinates are turned into
+/// Cartesian ones first. Points without a return (a `cartesianInvalidState` or
+/// `sphericalInvalidState` other than 0, or x, y and z all NaN) are left out, and [`PointSet::note`] counts them and the
+/// scans.
+///
 /// Every coordinate must be finite, except that a line (or PLY vertex, where the file has no
 /// faces) whose x, y and z are all NaN is a scanner's pixel without a return: such points are left
 /// out and [`PointSet::note`] counts them. The file must hold at least 4 points.
@@ -67,6 +75,7 @@ pub fn read_points(path: &Path) -> Result<PointSet> {
         "stl" => stl::parse,
         "pcd" => pcd::parse,
         "las" => las::parse,
+        "e57" => e57::parse,
         "laz" => return Err(Error::input(path, "", las::LAZ)),
         "xyz" | "txt" | "csv" => text::parse,
         _ => {
@@ -257,7 +266,7 @@ mod tests {
     fn faults_before_and_after_parsing() {
         let dir = TempDir::new();
         let elf = [0x7f, b'E', b'L', b'F', 2, 1, 1, 0, 0xc3];
-        let supported = ".obj, .ply, .stl, .pcd, .las, .xyz, .txt, .csv";
+        let supported = ".obj, .ply, .stl, .pcd, .las, .e57, .xyz, .txt, .csv";
         let cases: [(&str, &[u8], &str, &str); 8] = [
             ("few.xyz", b"0 0 0\n1 0 0\n0 1 0\n", "", "at least 4"),
             ("le.xyz", b"\xff\xfe0\x00 \x000\x00", "line 1", "UTF-16 text"),
@@ -265,7 +274,7 @@ mod tests {
             ("empty.xyz", b"", "", "no points"),
             ("binary.xyz", b"0 0 0\n1 0 0\n\x00\x01\xff\x80 junk", "line 3", "binary"),
             ("elf.obj", &elf, "line 1", "not a text OBJ"),
-            ("p.e57", b"0 0 0\n", "", supported),
+            ("p.e58", b"0 0 0\n", "", supported),
             ("noext", b"0 0 0\n", "", supported),
         ];
         for (name, contents, at, why) in cases {
