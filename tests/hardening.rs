@@ -198,7 +198,7 @@ fn too_many_planes_are_refused() {
 }
 
 /// A model fitted to a unit sphere, in its own folder.
-fn fitted_model(name: &str) -> (PathBuf, PathBuf) {
+fn fitted_model(name: &str) -> (common::TempDir, PathBuf) {
     let dir = temp_dir(name);
     let input = dir.join("points.xyz");
     write_xyz(&input, &scaled_bunny(1.0));
@@ -207,7 +207,8 @@ fn fitted_model(name: &str) -> (PathBuf, PathBuf) {
     for ext in ["hdf", "ply"] {
         std::fs::remove_file(dir.join(format!("m.{ext}"))).unwrap();
     }
-    (dir.clone(), dir.join("m.model.h5"))
+    let model = dir.join("m.model.h5");
+    (dir, model)
 }
 
 #[test]
