@@ -31,58 +31,22 @@ pub fn trim_regions(
     judge: impl Fn(&[f64; 3]) -> Support + Sync,
 ) -> (TriMesh, Vec<usize>, usize) {
     let class: Vec<Support> = mesh.triangles.par_iter().map(|t| judge(&centroid(mesh, t))).collect();
-    // regions: union-find over the vertices of the unsupported triangles
-    let mut parent: Vec<u32> = (0..mesh.vertices.len() as u32).collect();
-    fn root(parent: &mut [u32], mut v: u32) -> u32 {
-        while parent[v as usize] != v {
-            let up = parent[parent[v as usize] as usize];
-            parent[v as usize] = up;
-            v = up;
-        }
-        v
-    }
-    for (t, c) in mesh.triangles.iter().zip(&class) {
-        if *c != Support::Near {
-            let a = root(&mut parent, t[0]);
-            for &v in &t[1..] {
-                let b = root(&mut parent, v);
-                if a != b {
-                    parent[b as usize] = a;
-                }
-            }
-        }
-    }
-    let mut deep = vec![false; mesh.vertices.len()];
+    // regions: the components of the unsupported triangles' edges, labelled by vertex
+    let unsupported = mesh.triangles.iter().zip(&class).filter(|(_, c)| **c != Support::Near);
+    let edges =
+        unsupported.flat_map(|(t, _)| [(t[0] as usize, t[1] as usize), (t[0] as usize, t[2] as usize)]);
+    let (label, count) = crate::graph::components(mesh.vertices.len(), edges);
+    let region = |t: &[u32; 3]| label[t[0] as usize];
+    let mut deep = vec![false; count];
     for (t, c) in mesh.triangles.iter().zip(&class) {
         if *c == Support::Deep {
-            let r = root(&mut parent, t[0]) as usize;
-            deep[r] = true;
+            deep[region(t)] = true;
         }
     }
-    let regions = deep.iter().enumerate().filter(|&(v, d)| *d && parent[v] == v as u32).count();
-    let keep: Vec<bool> = mesh
-        .triangles
-        .iter()
-        .zip(&class)
-        .map(|(t, c)| *c == Support::Near || !deep[root(&mut parent, t[0]) as usize])
-        .collect();
+    let keep: Vec<bool> =
+        mesh.triangles.iter().zip(&class).map(|(t, c)| *c == Support::Near || !deep[region(t)]).collect();
     let (kept, from) = keep_mask(mesh, &keep);
-    (kept, from, regions)
-}
-
-/// The triangles of `mesh` whose centroid `keep` accepts, and their vertices.
-pub fn keep_triangles(mesh: &TriMesh, keep: impl Fn(&[f64; 3]) -> bool + Sync) -> TriMesh {
-    keep_triangles_indexed(mesh, keep).0
-}
-
-/// [`keep_triangles`], and for each vertex kept its index in `mesh` (to carry vertex properties
-/// over).
-pub fn keep_triangles_indexed(
-    mesh: &TriMesh,
-    keep: impl Fn(&[f64; 3]) -> bool + Sync,
-) -> (TriMesh, Vec<usize>) {
-    let keep: Vec<bool> = mesh.triangles.par_iter().map(|t| keep(&centroid(mesh, t))).collect();
-    keep_mask(mesh, &keep)
+    (kept, from, deep.iter().filter(|d| **d).count())
 }
 
 /// The triangles of `mesh` where `keep` is true, their vertices, and for each vertex kept its
@@ -129,6 +93,20 @@ pub fn area(mesh: &TriMesh) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The triangles of `mesh` whose centroid `keep` accepts (every other one deep, so that it
+    /// goes whatever its region), and for each vertex kept its index in `mesh`.
+    fn keep_triangles_indexed(
+        mesh: &TriMesh,
+        keep: impl Fn(&[f64; 3]) -> bool + Sync,
+    ) -> (TriMesh, Vec<usize>) {
+        let (kept, from, _) = trim_regions(mesh, |c| if keep(c) { Support::Near } else { Support::Deep });
+        (kept, from)
+    }
+
+    fn keep_triangles(mesh: &TriMesh, keep: impl Fn(&[f64; 3]) -> bool + Sync) -> TriMesh {
+        keep_triangles_indexed(mesh, keep).0
+    }
 
     /// Two unit right triangles side by side in the plane z = 0, sharing the edge (1,0)-(0,1),
     /// and a third far away at x = 10.
@@ -190,7 +168,7 @@ mod tests {
         // nothing deep: nothing goes
         let (all, _, none) = trim_regions(&m, |c| if c[0] < 3.0 { Support::Near } else { Support::Shallow });
         assert_eq!((all, none), (m.clone(), 0));
-        // every unsupported triangle deep: exactly the supported ones stay, as keep_triangles
+        // every unsupported triangle deep: exactly the supported ones stay
         let deep = |c: &[f64; 3]| if c[0] < 3.0 { Support::Near } else { Support::Deep };
         let (near, _, two) = trim_regions(&m, deep);
         assert_eq!(near, keep_triangles(&m, |c| c[0] < 3.0));

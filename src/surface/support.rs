@@ -23,13 +23,12 @@ use rayon::prelude::*;
 
 use crate::mesh::trim::Support;
 use crate::spline::octree::{Octree, DEFAULT_LEAF_CAPACITY};
+use crate::spline::Model;
 
 /// How deep an unsupported region of a surface must reach to be left out, in multiples of the
 /// radius: a random sample leaves a point of its surface this far (4 median spacings at F = 2)
 /// from every sample with probability 2^(-16).
 pub const DEPTH: f64 = 2.0;
-
-use crate::spline::Model;
 
 /// The data points and the radius within which they support a surface.
 pub struct DataSupport {
