@@ -97,7 +97,7 @@ impl Progress {
             let bar = ProgressBar::with_draw_target(None, target).with_prefix(label).with_message(what);
             bar.set_style(style);
             bar.tick();
-            bar.enable_steady_tick(std::time::Duration::from_millis(500));
+            bar.enable_steady_tick(Duration::from_millis(500));
             let _ = p.bar.set(bar);
         }
         p
@@ -154,16 +154,14 @@ impl Progress {
         }
         // threads may report out of order, or the same count again: the bar never goes back
         if done >= total {
-            // drawn once more, full, by finish()
+            // drawn once more, full
+            bar.finish();
+            // the bar leaves the cursor at its end, where the next message would go on
+            let _ = writeln!(std::io::stderr());
         } else if done > bar.position() {
             bar.set_position(done);
         } else if fresh {
             bar.tick();
-        }
-        if done >= total {
-            bar.finish();
-            // the bar leaves the cursor at its end, where the next message would go on
-            let _ = writeln!(std::io::stderr());
         }
     }
 }
