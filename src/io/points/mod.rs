@@ -58,8 +58,8 @@ pub struct PointSet {
 /// E57 files give the points of all their scans, each placed in the file's common coordinates by
 /// its pose (rotation quaternion, then translation); spherical coordinates are turned into
 /// Cartesian ones first. Points without a return (a `cartesianInvalidState` or
-/// `sphericalInvalidState` other than 0, or x, y and z all NaN) are left out, and [`PointSet::note`] counts them and the
-/// scans.
+/// `sphericalInvalidState` other than 0, or x, y and z all NaN) are left out, and
+/// [`PointSet::note`] counts them and the scans.
 ///
 /// Every coordinate must be finite, except that a line (or PLY vertex, where the file has no
 /// faces) whose x, y and z are all NaN is a scanner's pixel without a return: such points are left
