@@ -16,11 +16,11 @@ use crate::frep::curvature::{curvature, Curvature};
 use crate::frep::Implicit;
 use crate::grid::{padded_box, Grid, GridSize, FACE_NAMES, GROW_NODES, GROW_STEPS};
 use crate::io::{self, vtkhdf};
-use crate::mesh::trim::{area, trim_regions};
+use crate::mesh::trim::{area, trim_regions, Regions};
 use crate::mesh::{self, MeshPiece, SlabGrid, TriMesh};
 use crate::par::{on_root, Comm};
 use crate::spline::{Field, Provenance};
-use crate::surface::support::{DataSupport, DEPTH};
+use crate::surface::support::{DataSupport, DEPTH, OFF_PLANE};
 
 /// What writing the volume and the mesh produced.
 #[derive(Debug, Clone)]
@@ -84,17 +84,23 @@ impl VolumeSummary {
         if let Some(t) = &self.trimmed {
             report.line(format!(
                 "trimmed surface (--trim {}: the regions of triangles farther than {:.4e} from every data \
-                 point that reach {:.4e} left out): {} region{}, {:.2} % of the area left out, {} triangles kept",
+                 point that reach {:.4e} or stand {:.4e} off the plane of the nearest data left out): {} \
+                 region{} ({} reaching deep, {} standing off), {:.2} % of the area left out, {} triangles kept",
                 t.factor,
                 t.radius,
                 DEPTH * t.radius,
-                t.regions,
-                if t.regions == 1 { "" } else { "s" },
+                OFF_PLANE * t.radius,
+                t.regions.total(),
+                if t.regions.total() == 1 { "" } else { "s" },
+                t.regions.deep,
+                t.regions.off,
                 100.0 * t.area_removed,
                 t.triangles,
             ));
             report.figure("trimmed_triangles", t.triangles);
-            report.figure("trimmed_regions", t.regions);
+            report.figure("trimmed_regions", t.regions.total());
+            report.figure("trimmed_regions_deep", t.regions.deep);
+            report.figure("trimmed_regions_off", t.regions.off);
             report.figure("trimmed_area_removed", format!("{:e}", t.area_removed));
             report.output(&t.path);
         }
@@ -205,7 +211,7 @@ pub struct Trimmed {
     /// The share of the surface's area left out.
     pub area_removed: f64,
     /// The unsupported regions left out.
-    pub regions: usize,
+    pub regions: Regions,
     pub path: PathBuf,
 }
 
@@ -425,7 +431,7 @@ pub fn write_volume(comm: &dyn Comm, v: Volume<'_>, stages: &mut Stages) -> Resu
 
     let trimmed_path = output_path(prefix, ".trimmed.ply");
     // triangles kept and share of the area left out, on rank 0
-    let mut trim_figures = [0.0f64; 3];
+    let mut trim_figures = [0.0f64; 4];
     let mut counts = [0u64; 2];
     stages.time(Stage::Mesh, || -> Result<()> {
         let piece = mesh::polygonise(
@@ -454,7 +460,8 @@ pub fn write_volume(comm: &dyn Comm, v: Volume<'_>, stages: &mut Stages) -> Resu
                     props.iter().zip(&kept_props).map(|((name, _), v)| (*name, v.as_slice())).collect();
                 let whole = area(&mesh);
                 let removed = if whole > 0.0 { 1.0 - area(&kept) / whole } else { 0.0 };
-                trim_figures = [kept.triangles.len() as f64, removed, regions as f64];
+                trim_figures =
+                    [kept.triangles.len() as f64, removed, regions.deep as f64, regions.off as f64];
                 io::write_atomically(&trimmed_path, |tmp| {
                     mesh::write_ply_with(tmp, &kept, &kept_props).map_err(|e| Error::io(tmp, &e))
                 })?;
@@ -471,7 +478,7 @@ pub fn write_volume(comm: &dyn Comm, v: Volume<'_>, stages: &mut Stages) -> Resu
             radius: support.radius,
             triangles: trim_figures[0] as usize,
             area_removed: trim_figures[1],
-            regions: trim_figures[2] as usize,
+            regions: Regions { deep: trim_figures[2] as usize, off: trim_figures[3] as usize },
             path: trimmed_path,
         }
     });

@@ -13,23 +13,41 @@ use rayon::prelude::*;
 
 use super::TriMesh;
 
-/// Whether the centroid of a triangle is supported by the data, and if not, whether it lies
-/// deep in unsupported surface.
+/// Whether the centroid of a triangle is supported by the data, and if not, whether it marks its
+/// region as one to leave out: because it lies deep in unsupported surface, or because it stands
+/// off the surface the data describe.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Support {
     Near,
     Shallow,
     Deep,
+    Off,
 }
 
-/// The triangles of `mesh` without the unsupported regions that reach deep: `judge` classes each
-/// triangle's centroid, regions are the triangles not [`Support::Near`] joined by shared vertices,
-/// and a region goes when one of its triangles is [`Support::Deep`]. Also returns, for each
-/// vertex kept, its index in `mesh`, and the number of regions left out.
+/// The unsupported regions [`trim_regions`] left out: those with a [`Support::Deep`] triangle,
+/// and those with a [`Support::Off`] one but none deep.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Regions {
+    pub deep: usize,
+    pub off: usize,
+}
+
+impl Regions {
+    /// All regions left out.
+    pub fn total(&self) -> usize {
+        self.deep + self.off
+    }
+}
+
+/// The triangles of `mesh` without the unsupported regions that reach deep or stand off the data:
+/// `judge` classes each triangle's centroid, regions are the triangles not [`Support::Near`]
+/// joined by shared vertices, and a region goes when one of its triangles is [`Support::Deep`]
+/// or [`Support::Off`]. Also returns, for each vertex kept, its index in `mesh`, and the regions
+/// left out.
 pub fn trim_regions(
     mesh: &TriMesh,
     judge: impl Fn(&[f64; 3]) -> Support + Sync,
-) -> (TriMesh, Vec<usize>, usize) {
+) -> (TriMesh, Vec<usize>, Regions) {
     let class: Vec<Support> = mesh.triangles.par_iter().map(|t| judge(&centroid(mesh, t))).collect();
     // regions: the components of the unsupported triangles' edges, labelled by vertex
     let unsupported = mesh.triangles.iter().zip(&class).filter(|(_, c)| **c != Support::Near);
@@ -37,16 +55,24 @@ pub fn trim_regions(
         unsupported.flat_map(|(t, _)| [(t[0] as usize, t[1] as usize), (t[0] as usize, t[2] as usize)]);
     let (label, count) = crate::graph::components(mesh.vertices.len(), edges);
     let region = |t: &[u32; 3]| label[t[0] as usize];
-    let mut deep = vec![false; count];
+    // per region: 0 stays, 1 stands off the data, 2 reaches deep
+    let mut goes = vec![0u8; count];
     for (t, c) in mesh.triangles.iter().zip(&class) {
-        if *c == Support::Deep {
-            deep[region(t)] = true;
-        }
+        let g = &mut goes[region(t)];
+        *g = (*g).max(match c {
+            Support::Deep => 2,
+            Support::Off => 1,
+            _ => 0,
+        });
     }
     let keep: Vec<bool> =
-        mesh.triangles.iter().zip(&class).map(|(t, c)| *c == Support::Near || !deep[region(t)]).collect();
+        mesh.triangles.iter().zip(&class).map(|(t, c)| *c == Support::Near || goes[region(t)] == 0).collect();
     let (kept, from) = keep_mask(mesh, &keep);
-    (kept, from, deep.iter().filter(|d| **d).count())
+    let regions = Regions {
+        deep: goes.iter().filter(|g| **g == 2).count(),
+        off: goes.iter().filter(|g| **g == 1).count(),
+    };
+    (kept, from, regions)
 }
 
 /// The triangles of `mesh` where `keep` is true, their vertices, and for each vertex kept its
@@ -151,7 +177,7 @@ mod tests {
     }
 
     #[test]
-    fn unsupported_regions_go_whole_where_they_reach_deep_and_stay_where_they_do_not() {
+    fn unsupported_regions_go_whole_where_they_reach_deep_or_stand_off_and_stay_elsewhere() {
         let m = strip();
         // squares 3-4 and 6-9 unsupported, split by the supported square 5; one triangle of
         // square 7 deep
@@ -161,17 +187,31 @@ mod tests {
             _ => Support::Shallow,
         };
         let (kept, from, regions) = trim_regions(&m, judge);
-        assert_eq!(regions, 1);
+        assert_eq!(regions, Regions { deep: 1, off: 0 });
         assert_eq!(kept.triangles, m.triangles[..12].to_vec(), "squares 0-5 kept");
         assert_eq!(from, (0..14).collect::<Vec<_>>());
         assert!((area(&kept) - 6.0).abs() < 1e-15);
         // nothing deep: nothing goes
         let (all, _, none) = trim_regions(&m, |c| if c[0] < 3.0 { Support::Near } else { Support::Shallow });
-        assert_eq!((all, none), (m.clone(), 0));
+        assert_eq!((all, none), (m.clone(), Regions::default()));
         // every unsupported triangle deep: exactly the supported ones stay
         let deep = |c: &[f64; 3]| if c[0] < 3.0 { Support::Near } else { Support::Deep };
         let (near, _, two) = trim_regions(&m, deep);
         assert_eq!(near, keep_triangles(&m, |c| c[0] < 3.0));
-        assert_eq!(two, 1, "squares 3-9 are one region");
+        assert_eq!(two.total(), 1, "squares 3-9 are one region");
+        // a triangle standing off the data takes its region (squares 3-4) with it, and a region
+        // with both a deep triangle and one standing off (squares 6-9) counts as deep
+        let off = |c: &[f64; 3]| match c[0] {
+            x if x < 3.0 || (5.0..6.0).contains(&x) => Support::Near,
+            x if (3.6..3.7).contains(&x) || (8.3..8.4).contains(&x) => Support::Off,
+            x if (7.6..7.7).contains(&x) => Support::Deep,
+            _ => Support::Shallow,
+        };
+        let (kept, from, regions) = trim_regions(&m, off);
+        assert_eq!(regions, Regions { deep: 1, off: 1 });
+        let original: Vec<[u32; 3]> =
+            kept.triangles.iter().map(|t| t.map(|v| from[v as usize] as u32)).collect();
+        assert_eq!(original, [&m.triangles[..6], &m.triangles[10..12]].concat(), "squares 0-2 and 5 kept");
+        assert!((area(&kept) - 4.0).abs() < 1e-15);
     }
 }
