@@ -6,8 +6,8 @@
 //! farther than F times the median spacing from every sample with probability 2^(-F^2), so one
 //! threshold alone either punches small holes all over a fully sampled scan or keeps the surface
 //! the spline invented near the data. [`trim_regions`] therefore leaves out a connected region
-//! of unsupported triangles only where it is deep: where some triangle of it is farther than a
-//! second, larger distance from the data.
+//! of unsupported triangles only where the judge marks one of its triangles: deep (farther than
+//! a second, larger distance from the data) or standing off the data's surface.
 
 use rayon::prelude::*;
 
