@@ -153,6 +153,25 @@ fn level_0_s_solid_given_back_never_doubles_a_pinned_node() {
         let residual: f64 =
             figures.lines().find_map(|l| l.strip_prefix("coarse_residual,")).unwrap().parse().unwrap();
         assert!(residual < 1e-10, "level 0's residual {residual:e} on {ranks} ranks:\n{text}");
+        // level 0's own stages are itemised under `coarse`, in the table and in the timings
+        // (`coarse_stage_NAME_...`, not `stage_...`, which sum to the run's total), within its time
+        let figure = |key: &str| -> f64 {
+            let key = format!("{key},");
+            figures.lines().find_map(|l| l.strip_prefix(key.as_str())).expect(&key).parse().unwrap()
+        };
+        let mut parts_min = 0.0;
+        for stage in ["normals", "orient", "solve", "blobs"] {
+            assert!(figure(&format!("coarse_stage_{stage}_max_s")) > 0.0, "{stage}");
+            parts_min += figure(&format!("coarse_stage_{stage}_min_s"));
+            let row = format!("\n    {stage} ");
+            let table = &text[text.find("  coarse ").expect("a coarse row")..];
+            assert!(
+                table[..table.find("\n  tree").unwrap()].contains(&row),
+                "no {stage} under coarse:\n{text}"
+            );
+        }
+        assert!(!figures.contains("stage_coarse_solve"), "level 0's stages among the run's");
+        assert!(parts_min <= figure("stage_coarse_min_s"), "level 0's stages outlast it:\n{text}");
         let model = read_model(&p.with_extension("model.h5")).unwrap();
         let centres = &model.coarse[0].centres;
         let mut keys: Vec<[u64; 3]> =

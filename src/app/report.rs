@@ -83,9 +83,18 @@ impl Report {
         if estimate > 0.0 {
             self.figure("memory_estimate_bytes_max", format!("{estimate:.0}"));
         }
-        for t in &times.0 {
+        for t in &times.stages {
             self.figure(&format!("stage_{}_min_s", t.stage.name()), format!("{:.6}", t.min));
             self.figure(&format!("stage_{}_max_s", t.stage.name()), format!("{:.6}", t.max));
+        }
+        // a part's stages (level 0's within `coarse`) as `coarse_stage_factor_max_s` and so on:
+        // not named stage_..., so that scripts summing the stages' figures do not count them twice
+        if let Some((parent, part)) = &times.part {
+            for t in part {
+                let key = format!("{}_stage_{}", parent.name(), t.stage.name());
+                self.figure(&format!("{key}_min_s"), format!("{:.6}", t.min));
+                self.figure(&format!("{key}_max_s"), format!("{:.6}", t.max));
+            }
         }
         // the table's total row (not named stage_..., so that scripts summing the stages' figures
         // do not count it twice; their sum counts the wait of the solve twice)

@@ -169,7 +169,8 @@ pub fn fit(
         super::compact::check_before(run, &kernel, prep, "level 1 of the two-level fit")
     })?;
     let t0 = Instant::now();
-    // level 0 has its own stage table: its stages would otherwise count twice in the run's
+    // level 0 has its own stage table, itemised under `coarse` in the report: its stages would
+    // otherwise count twice in the run's
     let mut inner = Stages::default();
     let keep = even_subsample(&prep.centres, coarse_points);
     let sub = restrict(prep, &keep);
@@ -198,6 +199,7 @@ pub fn fit(
     }
     let coarse_seconds = t0.elapsed().as_secs_f64();
     stages.add(Stage::Coarse, coarse_seconds);
+    stages.add_part(Stage::Coarse, inner);
     // the same centres as `prep`'s (only the values differ): the octree is theirs
     let level1 = super::compact::fit(run, kernel, &top, Some(tree), stages)?;
     let mut figures = level1.figures;
