@@ -22,14 +22,16 @@ use std::time::Duration;
 
 use faer::{Mat, MatRef};
 use volspline::app::contours::solve_sections;
-use volspline::app::fit::{assemble, assemble_blocks, assemble_blocks_lower, assemble_lower, solve_extended};
+use volspline::app::fit::{self, solve_extended};
 use volspline::contour::planes::{slice_mesh, PlaneFamily};
 use volspline::contour::SectionCarrier;
 use volspline::error::{Error, Result};
 use volspline::grid::Grid;
 use volspline::io::vtkhdf::{read_image, write_image};
 use volspline::linalg::dense::{householder_solve, lu_solve};
-use volspline::linalg::dist::{self, Job, LocalRows, Precision, RowCyclic, SolverKind};
+use volspline::linalg::dist::{
+    self, Job, LocalBlocks, LocalRows, Precision, ProcessGrid, RowCyclic, SolverKind,
+};
 use volspline::par::mpi::World;
 use volspline::par::{self, Comm, Solo};
 use volspline::spline::hygiene::{prepare, Prepared};
@@ -39,6 +41,38 @@ use volspline::surface::denoise::{scale_ratio, scale_ratio_on};
 use volspline::surface::{neighbourhoods, neighbourhoods_on, orient};
 
 use common::mpijob::{self, must, same_on_every_rank, Case, Check, Expect, Log};
+
+/// The rows of the bordered system of `k` (this rank's), which these small systems always fit.
+fn assemble(k: &Kernel, centres: &[f64], values: &[f64], layout: RowCyclic) -> LocalRows {
+    fit::assemble(k, centres, values, layout).expect("the rows fit in memory")
+}
+
+/// [`assemble`] of the lower triangle and the border alone.
+fn assemble_lower(k: &Kernel, centres: &[f64], values: &[f64], layout: RowCyclic) -> LocalRows {
+    fit::assemble_lower(k, centres, values, layout).expect("the rows fit in memory")
+}
+
+/// This rank's blocks of the bordered system of `k` on `grid`.
+fn assemble_blocks(
+    k: &Kernel,
+    centres: &[f64],
+    values: &[f64],
+    grid: &ProcessGrid<'_>,
+    nb: usize,
+) -> LocalBlocks {
+    fit::assemble_blocks(k, centres, values, grid, nb).expect("the blocks fit in memory")
+}
+
+/// [`assemble_blocks`] of the lower triangle and the border alone.
+fn assemble_blocks_lower(
+    k: &Kernel,
+    centres: &[f64],
+    values: &[f64],
+    grid: &ProcessGrid<'_>,
+    nb: usize,
+) -> LocalBlocks {
+    fit::assemble_blocks_lower(k, centres, values, grid, nb).expect("the blocks fit in memory")
+}
 
 const BREAK: &str = "VOLSPLINE_COLLECTIVE_BREAK";
 /// Set: the job runs only the checks of the 2D block-cyclic solvers (on 1 and 4 ranks), and on

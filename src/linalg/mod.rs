@@ -52,3 +52,30 @@ pub mod gemm;
 pub mod mumps;
 pub mod reflector;
 pub mod sparse;
+
+/// `len` zeros, or [`Error::Memory`] naming `what` where the system refuses the allocation, in
+/// place of the abort a failed allocation is: an address-space limit (`ulimit -v`, a batch
+/// system's `h_vmem`) or strict overcommit accounting can refuse memory the checks before a
+/// stage found. The allocation is tried first and given back, then made zeroed, so that the
+/// pages a solver never writes (the upper triangle the projected Cholesky leaves alone) are
+/// never touched.
+pub fn try_zeros<T: Copy>(
+    len: usize,
+    zero: T,
+    what: impl FnOnce() -> String,
+) -> crate::error::Result<Vec<T>> {
+    let mut probe: Vec<T> = Vec::new();
+    if probe.try_reserve_exact(len).is_err() {
+        let bytes = len as f64 * std::mem::size_of::<T>() as f64;
+        return Err(crate::error::Error::Memory(format!(
+            "the system refused {:.0} MB for {} although the memory checks found room for it: an \
+             address-space limit (ulimit -v, a batch system's h_vmem) or strict overcommit accounting \
+             (vm.overcommit_memory = 2) counts memory the checks cannot see; use more ranks or nodes, or \
+             raise that limit",
+            bytes / 1e6,
+            what()
+        )));
+    }
+    drop(probe);
+    Ok(vec![zero; len])
+}

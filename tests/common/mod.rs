@@ -233,6 +233,7 @@ pub fn assemble_one(
         values,
         volspline::linalg::dist::RowCyclic::new(n, 1, 0),
     )
+    .expect("the rows fit in memory")
 }
 
 /// A small deterministic generator: uniform in [0, 1) and standard normal (Box-Muller).

@@ -26,14 +26,19 @@ use crate::spline::hygiene::Prepared;
 use crate::spline::{fill_block, fill_block_lower, fill_rows_lower, residual_parts, Kernel, Spline};
 
 /// This rank's rows of the bordered system of `kernel` through `values` at `centres`.
-pub fn assemble(kernel: &Kernel, centres: &[f64], values: &[f64], layout: RowCyclic) -> LocalRows {
+pub fn assemble(kernel: &Kernel, centres: &[f64], values: &[f64], layout: RowCyclic) -> Result<LocalRows> {
     assemble_from(kernel, centres, values, layout, usize::MAX)
 }
 
 /// [`assemble`] for the projected Cholesky, which reads the lower triangle of A and its first k
 /// rows alone (k the polynomial count; see `crate::linalg::dist::cholesky`): the rest of A's upper
 /// triangle stays zero, and the assembly takes about half the kernel evaluations.
-pub fn assemble_lower(kernel: &Kernel, centres: &[f64], values: &[f64], layout: RowCyclic) -> LocalRows {
+pub fn assemble_lower(
+    kernel: &Kernel,
+    centres: &[f64],
+    values: &[f64],
+    layout: RowCyclic,
+) -> Result<LocalRows> {
     assemble_from(kernel, centres, values, layout, kernel.poly_count())
 }
 
@@ -44,11 +49,11 @@ fn assemble_from(
     values: &[f64],
     layout: RowCyclic,
     whole: usize,
-) -> LocalRows {
-    let mut rows = LocalRows::zeros(layout, layout.n + 1, kernel.poly_count());
+) -> Result<LocalRows> {
+    let mut rows = LocalRows::try_zeros(layout, layout.n + 1, kernel.poly_count())?;
     let globals: Vec<usize> = (0..layout.local_count()).map(|l| layout.global(l)).collect();
     fill_rows_lower(kernel, centres, values, &globals, whole, &mut rows.data);
-    rows
+    Ok(rows)
 }
 
 /// The solution of the bordered system of `kernel` through `values` at `centres`, whose first
@@ -106,7 +111,7 @@ pub fn assemble_blocks(
     values: &[f64],
     grid: &ProcessGrid<'_>,
     nb: usize,
-) -> LocalBlocks {
+) -> Result<LocalBlocks> {
     assemble_blocks_from(kernel, centres, values, (grid, nb), usize::MAX)
 }
 
@@ -118,7 +123,7 @@ pub fn assemble_blocks_lower(
     values: &[f64],
     grid: &ProcessGrid<'_>,
     nb: usize,
-) -> LocalBlocks {
+) -> Result<LocalBlocks> {
     assemble_blocks_from(kernel, centres, values, (grid, nb), kernel.poly_count())
 }
 
@@ -129,12 +134,12 @@ fn assemble_blocks_from(
     values: &[f64],
     (grid, nb): (&ProcessGrid<'_>, usize),
     whole: usize,
-) -> LocalBlocks {
+) -> Result<LocalBlocks> {
     let n = values.len() + kernel.poly_count();
-    let mut a = LocalBlocks::zeros(grid, n, nb);
+    let mut a = LocalBlocks::try_zeros(grid, n, nb)?;
     let (rows, cols) = (a.rows.globals(), a.cols.globals());
     fill_block_lower(kernel, centres, values, (&rows, &cols), whole, &mut a.data);
-    a
+    Ok(a)
 }
 
 /// Refuses, before any work, a `--layout` the rest of the arguments or the rank count cannot
@@ -408,18 +413,19 @@ pub fn fit(
     };
     let solved = match dense_layout {
         Layout::RowCyclic | Layout::Auto => {
-            // the stage ends when every rank has assembled its rows: the solve starts together,
-            // and a rank's late arrival is not timed as the others' wait in the solve
+            // the stage ends when every rank has assembled its rows (the ranks agree on whether
+            // each could hold them): the solve starts together, and a rank's late arrival is not
+            // timed as the others' wait in the solve
             let rows = stages.time(Stage::Assemble, || {
                 let rows = if lower {
                     assemble_lower(&kernel, centres, values, layout)
                 } else {
                     assemble(&kernel, centres, values, layout)
                 };
-                comm.barrier();
-                rows
-            });
-            let reassemble = || fallback_fits().map(|()| assemble(&kernel, centres, values, layout));
+                agree(comm, rows)
+            })?;
+            let reassemble =
+                || fallback_fits().and_then(|()| agree(comm, assemble(&kernel, centres, values, layout)));
             stages.time(Stage::Solve, || {
                 if !(keep && a.precision == Precision::F64) {
                     return dist::solve_in(&job, a.solver, a.precision, rows, reassemble).map(|s| (s, None));
@@ -441,11 +447,12 @@ pub fn fit(
                 } else {
                     assemble_blocks(&kernel, centres, values, &grid, nb)
                 };
-                comm.barrier();
-                blocks
-            });
-            let reassemble =
-                || fallback_fits().map(|()| assemble_blocks(&kernel, centres, values, &grid, nb));
+                agree(comm, blocks)
+            })?;
+            let reassemble = || {
+                fallback_fits()
+                    .and_then(|()| agree(comm, assemble_blocks(&kernel, centres, values, &grid, nb)))
+            };
             let k = kernel.poly_count();
             let keep = keep && lower && copy_fits(comm, rows);
             stages.time(Stage::Solve, || {
@@ -626,7 +633,7 @@ mod tests {
         let n = 150;
         let layout = RowCyclic::new(n + 4, 1, 0);
         let job = Job::on(&Solo).panel(16);
-        let rows = assemble(&kernel, &centres[..3 * n], &values[..n], layout);
+        let rows = assemble(&kernel, &centres[..3 * n], &values[..n], layout).unwrap();
         let (_, first) =
             dist::solve_keeping(&job, SolverKind::Cholesky, rows, || unreachable!(), true).unwrap();
         let first = first.expect("the projected Cholesky keeps its factor");

@@ -246,6 +246,17 @@ impl LocalBlocks {
         LocalBlocks { rows, cols, data }
     }
 
+    /// [`LocalBlocks::zeros`], or [`crate::error::Error::Memory`] where the system refuses the
+    /// allocation (see [`crate::linalg::try_zeros`]).
+    pub fn try_zeros(grid: &ProcessGrid<'_>, n: usize, nb: usize) -> crate::error::Result<Self> {
+        let rows = BlockCyclic::new(n, nb, grid.pr, grid.myrow);
+        let cols = BlockCyclic::new(n + 1, nb, grid.pc, grid.mycol);
+        let data = crate::linalg::try_zeros(rows.local_count() * cols.local_count(), 0.0, || {
+            format!("this rank's blocks of the dense {n} x {} system", n + 1)
+        })?;
+        Ok(LocalBlocks { rows, cols, data })
+    }
+
     /// Global order n of the system.
     pub fn n(&self) -> usize {
         self.rows.n

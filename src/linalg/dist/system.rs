@@ -27,6 +27,15 @@ impl<T: Scalar> LocalRows<T> {
         LocalRows { layout, cols, border, data: vec![T::of(0.0); layout.local_count() * cols] }
     }
 
+    /// [`LocalRows::zeros`], or [`crate::error::Error::Memory`] where the system refuses the
+    /// allocation (see [`crate::linalg::try_zeros`]).
+    pub fn try_zeros(layout: RowCyclic, cols: usize, border: usize) -> crate::error::Result<Self> {
+        let data = crate::linalg::try_zeros(layout.local_count() * cols, T::of(0.0), || {
+            format!("this rank's {} rows of the dense {} x {} system", layout.local_count(), layout.n, cols)
+        })?;
+        Ok(LocalRows { layout, cols, border, data })
+    }
+
     /// The same rows rounded to another precision.
     pub fn convert<U: Scalar>(&self) -> LocalRows<U> {
         let data = self.data.iter().map(|v| U::of(v.f64())).collect();
