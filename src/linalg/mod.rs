@@ -53,7 +53,7 @@ pub mod mumps;
 pub mod reflector;
 pub mod sparse;
 
-/// `len` zeros, or [`Error::Memory`] naming `what` where the system refuses the allocation, in
+/// `len` zeros, or [`crate::error::Error::Memory`] naming `what` where the system refuses the allocation, in
 /// place of the abort a failed allocation is: an address-space limit (`ulimit -v`, a batch
 /// system's `h_vmem`) or strict overcommit accounting can refuse memory the checks before a
 /// stage found. The allocation is tried first and given back, then made zeroed, so that the
