@@ -144,7 +144,8 @@ pub fn user_limit() -> Option<f64> {
 /// from, when the system or the user says: the smallest of the system's figure now, the user's
 /// limit less `held` and the address-space limit ([`address_space_limit`]) less `held`, the
 /// address space mapped at the start ([`note_start`]) and the libraries' later mappings
-/// ([`late_mappings`]). None where [`checks_skipped`].
+/// ([`late_mappings`]). None where the fault-injection tests turned the checks off
+/// (`VOLSPLINE_TEST_SKIP_MEMORY_CHECKS`).
 pub fn available_beside(held: f64) -> Option<(f64, String)> {
     if checks_skipped() {
         return None;
