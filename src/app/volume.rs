@@ -84,7 +84,8 @@ impl VolumeSummary {
         if let Some(t) = &self.trimmed {
             report.line(format!(
                 "trimmed surface (--trim {}: the regions of triangles farther than {:.4e} from every data \
-                 point that reach {:.4e} or stand {:.4e} off the plane of the nearest data left out): {} \
+                 point that reach {:.4e} (or twice the local radius where the data are sparser) or stand {:.4e} \
+                 off the plane of the nearest data left out): {} \
                  region{} ({} reaching deep, {} standing off), {:.2} % of the area left out, {} triangles kept",
                 t.factor,
                 t.radius,

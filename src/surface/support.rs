@@ -52,6 +52,8 @@ pub const PLANE_POINTS: usize = 10;
 /// The data points and the radius within which they support a surface.
 pub struct DataSupport {
     tree: Octree,
+    /// Each data point's distance to its nearest other data point (input order).
+    nearest: Vec<f64>,
     /// The median distance from a data point to its nearest other data point.
     pub spacing: f64,
     /// F, the multiple of the spacing.
@@ -66,18 +68,12 @@ impl DataSupport {
     pub fn new(points: &[f64], factor: f64) -> Self {
         let tree = Octree::new(points, DEFAULT_LEAF_CAPACITY);
         let n = points.len() / 3;
-        let mut nearest: Vec<f64> = (0..n)
+        let nearest: Vec<f64> = (0..n)
             .into_par_iter()
             .map(|i| tree.kth_distance([points[3 * i], points[3 * i + 1], points[3 * i + 2]], 2))
-            .filter(|d| *d > 0.0 && d.is_finite())
             .collect();
-        let spacing = if nearest.is_empty() {
-            0.0
-        } else {
-            let mid = nearest.len() / 2;
-            *nearest.select_nth_unstable_by(mid, f64::total_cmp).1
-        };
-        DataSupport { tree, spacing, factor, radius: factor * spacing }
+        let spacing = median(nearest.iter().copied().filter(|d| *d > 0.0 && d.is_finite()).collect());
+        DataSupport { tree, nearest, spacing, factor, radius: factor * spacing }
     }
 
     /// The support of the data points `model` records (the first `data_points` centres of its
@@ -105,10 +101,24 @@ impl DataSupport {
     /// Whether `x` is supported, and where not, whether it lies deep (farther than [`DEPTH`]
     /// times the radius from every data point) or stands off the data's surface (farther than
     /// [`OFF_PLANE`] times the radius from the plane of its [`PLANE_POINTS`] nearest data points).
+    ///
+    /// The depth is measured in the local radius where the data around `x` are sparser than the
+    /// median: F times the median spacing of its [`PLANE_POINTS`] nearest data points, where that
+    /// is more than the radius. A scan of uneven density (a scanner's own vertices, dense on the
+    /// detailed parts and sparse on the flat ones) has gaps as wide as its sparse spacing, which
+    /// the median spacing of the dense parts made deep: 7-10 % of the surface of the cow's
+    /// strided vertices went as deep regions. The support and the plane's test keep the
+    /// radius: a bulge beside a thin part has sparse data nearest to it, and a local radius
+    /// there kept it.
     pub fn judge(&self, x: &[f64; 3]) -> Support {
         if self.supports(x) {
-            Support::Near
-        } else if !self.tree.any_within(*x, DEPTH * self.radius) {
+            return Support::Near;
+        }
+        let mut near = Vec::with_capacity(PLANE_POINTS);
+        self.tree.nearest_k(*x, PLANE_POINTS, &mut near);
+        let local = self.factor * median(near.iter().map(|&(_, i)| self.nearest[i]).collect());
+        let deep = DEPTH * self.radius.max(local);
+        if near.first().is_none_or(|&(d2, _)| d2 > deep * deep) {
             Support::Deep
         } else if self.off_plane(x) > OFF_PLANE * self.radius {
             Support::Off
@@ -137,6 +147,15 @@ impl DataSupport {
         let (_, vecs) = symmetric_eigen3(scatter);
         (0..3).map(|d| vecs[d][0] * (x[d] - mean[d])).sum::<f64>().abs()
     }
+}
+
+/// The median of `v` (the upper of the two middle values of an even count; 0 for none).
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let mid = v.len() / 2;
+    *v.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
 #[cfg(test)]
@@ -175,5 +194,22 @@ mod tests {
         assert_eq!(s.judge(&[0.0, 0.0, 1.5]), Support::Off, "beside the grid's corner");
         assert_eq!(s.judge(&[4.5, 4.5, 2.0]), Support::Deep, "2.5 from the data");
         assert_eq!(s.judge(&[4.5, 3.0, 0.5]), Support::Near);
+    }
+
+    #[test]
+    fn a_gap_as_wide_as_the_sparse_data_around_it_is_not_deep() {
+        // a 20 x 20 grid of spacing 0.5 beside a 4 x 20 grid of spacing 3 in the plane z = 0:
+        // radius 1 (the median spacing is the dense part's); the centre of a sparse cell lies
+        // 2.12 from the data, beyond twice the radius, but within twice the local radius (6)
+        let dense = (0..400).map(|i| [0.5 * (i % 20) as f64, 0.5 * (i / 20) as f64, 0.0]);
+        let sparse = (0..80).map(|i| [12.0 + 3.0 * (i % 4) as f64, 3.0 * (i / 4) as f64 - 27.0, 0.0]);
+        let pts: Vec<f64> = dense.chain(sparse).flatten().collect();
+        let s = DataSupport::new(&pts, 2.0);
+        assert_eq!(s.radius, 1.0);
+        assert_eq!(s.judge(&[16.5, -10.5, 0.0]), Support::Shallow, "a gap of the sparse part");
+        assert_eq!(s.judge(&[16.5, -10.5, 1.5]), Support::Off, "standing off the sparse part");
+        assert_eq!(s.judge(&[16.5, -10.5, 13.0]), Support::Deep, "beyond twice the local radius");
+        // between the parts the nearest data are dense: the radius decides
+        assert_eq!(s.judge(&[4.75, 4.75, 2.5]), Support::Deep);
     }
 }
