@@ -182,10 +182,11 @@ pub struct FitArgs {
     pub smooth: f64,
     /// Also write PREFIX.trimmed.ply: the surface without the regions of triangles farther than F
     /// times the data's median spacing from every data point that reach twice as far somewhere,
-    /// or stand that far off the plane of the nearest data somewhere (F = 2 when no value is
-    /// given). An open surface, as density trimming gives screened
-    /// Poisson: it removes what no data supports (bulges, webs) and opens the holes of the scan,
-    /// but not the small gaps of random sampling. The volume and PREFIX.ply stay the closed solid.
+    /// or stand that far off the plane of the nearest data somewhere with 15 % of their area at
+    /// least half as far off it (F = 2 when no value is given). An open surface, as density
+    /// trimming gives screened Poisson: it removes what no data supports (bulges, webs) and opens
+    /// the holes of the scan, but not the small gaps of random sampling. The volume and
+    /// PREFIX.ply stay the closed solid.
     #[arg(long, value_name = "F", num_args = 0..=1, default_missing_value = "2", value_parser = trim_factor)]
     pub trim: Option<f64>,
     /// Move every data point onto a quadric fitted to its 19 nearest neighbours on the same sheet

@@ -1196,6 +1196,118 @@ fn trimming_leaves_out_the_unsupported_surface_of_the_cow_and_keeps_the_rest() {
         rms_trimmed < 0.9 * rms_closed && far_trimmed < 0.5 * far_closed,
         "mesh -> cow rms {rms_closed} -> {rms_trimmed}, far {far_closed} -> {far_trimmed}"
     );
+    let judged = trim_oracle(&pts, &closed, &trimmed, &text);
+    // the region that reaches twice the radius lies within twice the local radius (the cow's
+    // sparse samples around it) and goes as one that stands off; the deep rule is exercised on
+    // the fully sampled bunny below
+    assert!(judged.off > 0 && judged.shallow > 0 && judged.deep == 0, "the test exercises neither rule");
+    // eval trims the saved model alike: the model records its data points
+    let model = dir.join("s.model.h5");
+    let again = dir.join("again");
+    let (m, o) = (model.to_str().unwrap(), again.to_str().unwrap());
+    common::run_ok(1, &["eval", m, "--out", o, "--grid", "64", "--trim"]);
+    assert_eq!(
+        common::load_mesh(&dir.join("again.trimmed.ply")),
+        trimmed,
+        "eval --trim differs from fit --trim"
+    );
+    // a factor that is not a positive number is refused before any work, and so is an expression
+    let bad = common::run(1, &[&args[..], &["--trim", "0"]].concat());
+    assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("not a trimming factor"));
+    let expr = format!("offset({m}, 0.1)");
+    let bad = common::run(1, &["eval", &expr, "--out", o, "--grid", "16", "--trim"]);
+    assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("not an expression"));
+}
+
+#[test]
+fn trimming_a_sparsely_scanned_flank_keeps_its_gaps_and_leaves_out_the_bulges() {
+    // the cow's own vertices strided to 2000 (its mesh has few vertices on the flanks and many
+    // on the head and legs) with Gaussian noise of 0.5 % of the diagonal, denoised by the
+    // default: the flank's unsupported surface is one large region lying on the data's surface,
+    // with a few triangles off the plane that ten sparse, curved points fit poorly; it stays
+    // (too little of it raised), while the bulges beside the legs and head go. Measured (grid
+    // 100, 2 ranks): 7 regions left out (1 deep, 6 standing off), 1.74 % of the area; 1 region
+    // with a triangle off kept, 18 % of the area, its vertices 0.34 % of the diagonal from the
+    // cow (rms), where the trimmed surface's are 0.44 % and the closed one's 0.51 %. Among the
+    // noise streams 1-9, 5 spare a region, 0.4-19 % of the area
+    let truth = common::load_mesh(Path::new(common::COW));
+    let all: Vec<f64> = truth.vertices.iter().flatten().copied().collect();
+    let (lo, hi) = volspline::spline::hygiene::bounding_box(&all, 3);
+    let sigma = 0.005 * volspline::spline::hygiene::diagonal(&lo, &hi);
+    let stride = truth.vertices.len() as f64 / 2000.0;
+    let mut r = Rng(9);
+    let pts: Vec<f64> = (0..2000)
+        .flat_map(|i| truth.vertices[(i as f64 * stride) as usize])
+        .map(|x| x + sigma * r.normal())
+        .collect();
+    let dir = common::temp_dir("cow-trim-strided");
+    let input = dir.join("p.xyz");
+    common::write_xyz(&input, &pts);
+    let prefix = dir.join("s");
+    let t = dir.join("s.csv");
+    let args = ["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--grid", "100"];
+    let text = common::run_ok(2, &[&args[..], &["--trim", "--timings", t.to_str().unwrap()]].concat());
+    let figure = |key: &str| -> f64 {
+        let timings = std::fs::read_to_string(&t).unwrap();
+        timings.lines().find_map(|l| l.strip_prefix(key)?.strip_prefix(',')).unwrap().parse().unwrap()
+    };
+    let (removed, spared) = (figure("trimmed_area_removed"), figure("trimmed_regions_spared"));
+    println!("{}", text.lines().find(|l| l.contains("trimmed surface")).unwrap_or(""));
+    assert!(text.contains("points moved onto quadrics"), "the noisy scan is denoised: {text}");
+    // the data the trimming measures against are the denoised points the model records
+    let model = read_model(&dir.join("s.model.h5")).unwrap();
+    let norm = model.spline.norm;
+    let data: Vec<f64> = model.spline.centres[..3 * model.provenance.data_points]
+        .chunks_exact(3)
+        .flat_map(|c| (0..3).map(move |d| c[d] * norm.scale + norm.centre[d]))
+        .collect();
+    let closed = common::load_mesh(&dir.join("s.ply"));
+    let trimmed = common::load_mesh(&dir.join("s.trimmed.ply"));
+    let judged = trim_oracle(&data, &closed, &trimmed, &text);
+    assert_eq!(judged.declined as f64, spared);
+    assert!(judged.declined > 0 && judged.off > 0, "the test exercises neither rule");
+    assert!(removed < 0.05, "{removed} of the area left out");
+    // what stays with the region spared lies on the cow, what goes stands off it
+    let (rms_closed, _) = mesh_to_truth(&truth, &closed);
+    let (rms_trimmed, _) = mesh_to_truth(&truth, &trimmed);
+    let used: std::collections::BTreeSet<u32> = judged.spared.triangles.iter().flatten().copied().collect();
+    let spared = volspline::mesh::TriMesh {
+        vertices: used.iter().map(|&v| judged.spared.vertices[v as usize]).collect(),
+        triangles: Vec::new(),
+    };
+    let (rms_spared, _) = mesh_to_truth(&truth, &spared);
+    let spared_area = volspline::mesh::trim::area(&judged.spared) / volspline::mesh::trim::area(&closed);
+    println!(
+        "mesh -> cow rms {rms_closed:.5} closed, {rms_trimmed:.5} trimmed, {rms_spared:.5} in the regions \
+         spared ({spared_area:.4} of the area)"
+    );
+    assert!(rms_trimmed < rms_closed, "mesh -> cow rms {rms_closed} -> {rms_trimmed}");
+    assert!(
+        spared_area > 0.1 && rms_spared < rms_trimmed,
+        "{spared_area} of the area spared at {rms_spared}"
+    );
+}
+
+/// What [`trim_oracle`] found: the regions left out (deep, standing off), those with a triangle
+/// off that stay (too little of their area raised), the unsupported triangles kept, and the
+/// triangles of the regions that stay with a triangle off (with all the closed surface's
+/// vertices).
+struct TrimJudged {
+    deep: usize,
+    off: usize,
+    declined: usize,
+    shallow: usize,
+    spared: volspline::mesh::TriMesh,
+}
+
+/// Checks that `trimmed` is `closed` without exactly the unsupported regions that reach deep or
+/// stand off the data points `pts`, and that `text` (the fit's report) counts them so.
+fn trim_oracle(
+    pts: &[f64],
+    closed: &volspline::mesh::TriMesh,
+    trimmed: &volspline::mesh::TriMesh,
+    text: &str,
+) -> TrimJudged {
     // exactly the unsupported regions that reach deep or stand off the data are left out: each
     // triangle of the closed surface judged against all the data points by brute force (the
     // plane of its 10 nearest through their mean and the smallest eigenvector of their scatter),
@@ -1243,18 +1355,22 @@ fn trimming_leaves_out_the_unsupported_surface_of_the_cow_and_keeps_the_rest() {
         (0..3).map(|d| v[d][0] * (c[d] - mean[d])).sum::<f64>().abs()
     };
     // per triangle: 0 supported, 1 unsupported, 2 unsupported and off the data's plane by more
-    // than the radius, 3 unsupported beyond twice the radius (or the local radius)
+    // than the radius, 3 unsupported beyond twice the radius (or the local radius), 4
+    // unsupported and off the plane by more than half the radius (raised)
     let class: Vec<u8> = closed
         .triangles
         .iter()
         .map(|t| {
-            let c = volspline::mesh::trim::centroid(&closed, t);
+            let c = volspline::mesh::trim::centroid(closed, t);
             let d = data.iter().map(|p| d2(p, &c)).fold(f64::INFINITY, f64::min).sqrt();
             match d {
                 d if d <= radius => 0,
                 d if d > deep(&c) => 3,
-                _ if off_plane(&c) > radius => 2,
-                _ => 1,
+                _ => match off_plane(&c) {
+                    o if o > radius => 2,
+                    o if o > 0.5 * radius => 4,
+                    _ => 1,
+                },
             }
         })
         .collect();
@@ -1277,59 +1393,77 @@ fn trimming_leaves_out_the_unsupported_surface_of_the_cow_and_keeps_the_rest() {
         }
     }
     let (mut deep, mut off) = (std::collections::HashSet::new(), std::collections::HashSet::new());
+    // per region: its area and the area raised or off the plane
+    let mut areas = std::collections::HashMap::<usize, [f64; 2]>::new();
+    let mut declined = std::collections::HashSet::new();
     for (t, c) in closed.triangles.iter().zip(&class) {
+        let r = root(&mut region, t[0] as usize);
         match c {
-            3 => deep.insert(root(&mut region, t[0] as usize)),
-            2 => off.insert(root(&mut region, t[0] as usize)),
+            3 => deep.insert(r),
+            2 => off.insert(r),
             _ => false,
         };
+        if *c > 0 {
+            let [a, b, d] = t.map(|v| closed.vertices[v as usize]);
+            let (u, w) = ([0, 1, 2].map(|k| b[k] - a[k]), [0, 1, 2].map(|k| d[k] - a[k]));
+            let x = [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]];
+            let area = 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
+            let e = areas.entry(r).or_default();
+            e[0] += area;
+            e[1] += if *c == 2 || *c == 4 { area } else { 0.0 };
+        }
     }
-    let off: std::collections::HashSet<usize> = off.difference(&deep).copied().collect();
+    // a region with a triangle off goes when at least the raised share of its area is raised
+    let off: std::collections::HashSet<usize> = off
+        .difference(&deep)
+        .copied()
+        .filter(|r| {
+            let [all, raised] = areas[r];
+            let goes = raised >= volspline::mesh::trim::RAISED_SHARE * all;
+            if !goes {
+                declined.insert(*r);
+            }
+            goes
+        })
+        .collect();
+    // the triangles of the regions spared
+    let spared = volspline::mesh::TriMesh {
+        vertices: closed.vertices.clone(),
+        triangles: closed
+            .triangles
+            .iter()
+            .filter(|t| declined.contains(&root(&mut region, t[0] as usize)))
+            .copied()
+            .collect(),
+    };
+    let declined = declined.len();
     let key = |m: &volspline::mesh::TriMesh, t: &[u32; 3]| {
         volspline::mesh::trim::centroid(m, t).map(|x| (x * 1e9).round() as i64)
     };
     let kept: std::collections::HashSet<[i64; 3]> =
-        trimmed.triangles.iter().map(|t| key(&trimmed, t)).collect();
+        trimmed.triangles.iter().map(|t| key(trimmed, t)).collect();
     let mut shallow = 0;
     for (t, c) in closed.triangles.iter().zip(&class) {
         let r = root(&mut region, t[0] as usize);
         let goes = *c > 0 && (deep.contains(&r) || off.contains(&r));
-        shallow += usize::from(*c == 1 && !goes);
-        let at = volspline::mesh::trim::centroid(&closed, t);
-        assert_eq!(kept.contains(&key(&closed, t)), !goes, "triangle at {at:?}, class {c}");
+        shallow += usize::from((*c == 1 || *c == 4) && !goes);
+        let at = volspline::mesh::trim::centroid(closed, t);
+        assert_eq!(kept.contains(&key(closed, t)), !goes, "triangle at {at:?}, class {c}");
     }
     println!(
-        "{} deep regions and {} standing off left out, {shallow} unsupported triangles kept in shallow regions",
+        "{} deep regions and {} standing off left out, {shallow} unsupported triangles kept in shallow regions, \
+         {declined} regions with a triangle off kept (too little of them raised)",
         deep.len(),
         off.len()
     );
-    // the region that reaches twice the radius lies within twice the local radius (the cow's
-    // sparse samples around it) and goes as one that stands off; the deep rule is exercised on
-    // the fully sampled bunny below
-    assert!(!off.is_empty() && shallow > 0, "the test exercises neither rule");
     let regions = format!(
-        "{} regions ({} reaching deep, {} standing off)",
+        "{} regions ({} reaching deep, {} standing off; {declined} standing off with less of their area raised kept)",
         deep.len() + off.len(),
         deep.len(),
         off.len()
     );
     assert!(text.contains(&regions), "{regions}: {text}");
-    // eval trims the saved model alike: the model records its data points
-    let model = dir.join("s.model.h5");
-    let again = dir.join("again");
-    let (m, o) = (model.to_str().unwrap(), again.to_str().unwrap());
-    common::run_ok(1, &["eval", m, "--out", o, "--grid", "64", "--trim"]);
-    assert_eq!(
-        common::load_mesh(&dir.join("again.trimmed.ply")),
-        trimmed,
-        "eval --trim differs from fit --trim"
-    );
-    // a factor that is not a positive number is refused before any work, and so is an expression
-    let bad = common::run(1, &[&args[..], &["--trim", "0"]].concat());
-    assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("not a trimming factor"));
-    let expr = format!("offset({m}, 0.1)");
-    let bad = common::run(1, &["eval", &expr, "--out", o, "--grid", "16", "--trim"]);
-    assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("not an expression"));
+    TrimJudged { deep: deep.len(), off: off.len(), declined, shallow, spared }
 }
 
 /// The boundary loops of `mesh`: closed chains of the edges that only one triangle uses.

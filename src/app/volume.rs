@@ -16,11 +16,11 @@ use crate::frep::curvature::{curvature, Curvature};
 use crate::frep::Implicit;
 use crate::grid::{padded_box, Grid, GridSize, FACE_NAMES, GROW_NODES, GROW_STEPS};
 use crate::io::{self, vtkhdf};
-use crate::mesh::trim::{area, trim_regions, Regions};
+use crate::mesh::trim::{area, trim_regions, Regions, RAISED_SHARE};
 use crate::mesh::{self, MeshPiece, SlabGrid, TriMesh};
 use crate::par::{on_root, Comm};
 use crate::spline::{Field, Provenance};
-use crate::surface::support::{DataSupport, DEPTH, OFF_PLANE};
+use crate::surface::support::{DataSupport, DEPTH, OFF_PLANE, RAISED};
 
 /// What writing the volume and the mesh produced.
 #[derive(Debug, Clone)]
@@ -85,16 +85,20 @@ impl VolumeSummary {
             report.line(format!(
                 "trimmed surface (--trim {}: the regions of triangles farther than {:.4e} from every data \
                  point that reach {:.4e} (or twice the local radius where the data are sparser) or stand {:.4e} \
-                 off the plane of the nearest data left out): {} \
-                 region{} ({} reaching deep, {} standing off), {:.2} % of the area left out, {} triangles kept",
+                 off the plane of the nearest data, with {:.0} % of their area {:.4e} off it, left out): {} \
+                 region{} ({} reaching deep, {} standing off; {} standing off with less of their area raised \
+                 kept), {:.2} % of the area left out, {} triangles kept",
                 t.factor,
                 t.radius,
                 DEPTH * t.radius,
                 OFF_PLANE * t.radius,
+                100.0 * RAISED_SHARE,
+                RAISED * t.radius,
                 t.regions.total(),
                 if t.regions.total() == 1 { "" } else { "s" },
                 t.regions.deep,
                 t.regions.off,
+                t.regions.spared,
                 100.0 * t.area_removed,
                 t.triangles,
             ));
@@ -102,6 +106,7 @@ impl VolumeSummary {
             report.figure("trimmed_regions", t.regions.total());
             report.figure("trimmed_regions_deep", t.regions.deep);
             report.figure("trimmed_regions_off", t.regions.off);
+            report.figure("trimmed_regions_spared", t.regions.spared);
             report.figure("trimmed_area_removed", format!("{:e}", t.area_removed));
             report.output(&t.path);
         }
@@ -432,7 +437,7 @@ pub fn write_volume(comm: &dyn Comm, v: Volume<'_>, stages: &mut Stages) -> Resu
 
     let trimmed_path = output_path(prefix, ".trimmed.ply");
     // triangles kept and share of the area left out, on rank 0
-    let mut trim_figures = [0.0f64; 4];
+    let mut trim_figures = [0.0f64; 5];
     let mut counts = [0u64; 2];
     stages.time(Stage::Mesh, || -> Result<()> {
         let piece = mesh::polygonise(
@@ -461,8 +466,13 @@ pub fn write_volume(comm: &dyn Comm, v: Volume<'_>, stages: &mut Stages) -> Resu
                     props.iter().zip(&kept_props).map(|((name, _), v)| (*name, v.as_slice())).collect();
                 let whole = area(&mesh);
                 let removed = if whole > 0.0 { 1.0 - area(&kept) / whole } else { 0.0 };
-                trim_figures =
-                    [kept.triangles.len() as f64, removed, regions.deep as f64, regions.off as f64];
+                trim_figures = [
+                    kept.triangles.len() as f64,
+                    removed,
+                    regions.deep as f64,
+                    regions.off as f64,
+                    regions.spared as f64,
+                ];
                 io::write_atomically(&trimmed_path, |tmp| {
                     mesh::write_ply_with(tmp, &kept, &kept_props).map_err(|e| Error::io(tmp, &e))
                 })?;
@@ -479,7 +489,11 @@ pub fn write_volume(comm: &dyn Comm, v: Volume<'_>, stages: &mut Stages) -> Resu
             radius: support.radius,
             triangles: trim_figures[0] as usize,
             area_removed: trim_figures[1],
-            regions: Regions { deep: trim_figures[2] as usize, off: trim_figures[3] as usize },
+            regions: Regions {
+                deep: trim_figures[2] as usize,
+                off: trim_figures[3] as usize,
+                spared: trim_figures[4] as usize,
+            },
             path: trimmed_path,
         }
     });
