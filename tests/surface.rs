@@ -1404,10 +1404,7 @@ fn trim_oracle(
             _ => false,
         };
         if *c > 0 {
-            let [a, b, d] = t.map(|v| closed.vertices[v as usize]);
-            let (u, w) = ([0, 1, 2].map(|k| b[k] - a[k]), [0, 1, 2].map(|k| d[k] - a[k]));
-            let x = [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]];
-            let area = 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
+            let area = volspline::mesh::trim::triangle_area(closed, t);
             let e = areas.entry(r).or_default();
             e[0] += area;
             e[1] += if *c == 2 || *c == 4 { area } else { 0.0 };

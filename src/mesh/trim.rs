@@ -60,8 +60,8 @@ impl Regions {
 /// `judge` classes each triangle's centroid, regions are the triangles not [`Support::Near`]
 /// joined by shared vertices, and a region goes when one of its triangles is [`Support::Deep`],
 /// or one is [`Support::Off`] and at least [`RAISED_SHARE`] of its area is raised
-/// ([`Support::Raised`] or [`Support::Off`]). Also returns, for each vertex kept, its index in `mesh`, and the regions
-/// left out.
+/// ([`Support::Raised`] or [`Support::Off`]). Also returns, for each vertex kept, its index in
+/// `mesh`, and the regions left out.
 pub fn trim_regions(
     mesh: &TriMesh,
     judge: impl Fn(&[f64; 3]) -> Support + Sync,
@@ -140,7 +140,7 @@ pub fn centroid(mesh: &TriMesh, t: &[u32; 3]) -> [f64; 3] {
 }
 
 /// The area of triangle `t` of `mesh`.
-fn triangle_area(mesh: &TriMesh, t: &[u32; 3]) -> f64 {
+pub fn triangle_area(mesh: &TriMesh, t: &[u32; 3]) -> f64 {
     let [a, b, c] = t.map(|v| mesh.vertices[v as usize]);
     let (u, w) = ([0, 1, 2].map(|d| b[d] - a[d]), [0, 1, 2].map(|d| c[d] - a[d]));
     let x = [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]];
