@@ -1147,6 +1147,27 @@ fn side_vote_and_energy_orientation_give_the_same_signs_on_one_two_and_three_ran
     }
 }
 
+/// `fit DIR/p.xyz --out DIR/s --grid GRID`, the arguments of [`fit_trimmed`]'s fit.
+fn fit_args(dir: &Path, grid: &str) -> Vec<String> {
+    let (input, prefix) = (dir.join("p.xyz"), dir.join("s"));
+    ["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--grid", grid]
+        .map(String::from)
+        .to_vec()
+}
+
+/// Fits `pts` (written to DIR/p.xyz) on 2 ranks with `--trim` and the timings in DIR/s.csv:
+/// the folder and the report.
+fn fit_trimmed(name: &str, pts: &[f64], grid: &str) -> (common::TempDir, String) {
+    let dir = common::temp_dir(name);
+    common::write_xyz(&dir.join("p.xyz"), pts);
+    let t = dir.join("s.csv");
+    let args = fit_args(&dir, grid);
+    let args: Vec<&str> =
+        args.iter().map(String::as_str).chain(["--trim", "--timings", t.to_str().unwrap()]).collect();
+    let text = common::run_ok(2, &args);
+    (dir, text)
+}
+
 #[test]
 fn trimming_leaves_out_the_unsupported_surface_of_the_cow_and_keeps_the_rest() {
     // the cow set of the blob test above: its closed solid keeps bulges and webs no data
@@ -1158,13 +1179,9 @@ fn trimming_leaves_out_the_unsupported_surface_of_the_cow_and_keeps_the_rest() {
     // alone: 0.342 and 0.32 %)
     let truth = common::load_mesh(Path::new(common::COW));
     let pts = area_samples(&truth, 1000, 7);
-    let dir = common::temp_dir("cow-trim");
-    let input = dir.join("p.xyz");
-    common::write_xyz(&input, &pts);
-    let prefix = dir.join("s");
-    let t = dir.join("s.csv");
-    let args = ["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--grid", "64"];
-    let text = common::run_ok(2, &[&args[..], &["--trim", "--timings", t.to_str().unwrap()]].concat());
+    let (dir, text) = fit_trimmed("cow-trim", &pts, "64");
+    let (t, args) = (dir.join("s.csv"), fit_args(&dir, "64"));
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
     let closed = common::load_mesh(&dir.join("s.ply"));
     let trimmed = common::load_mesh(&dir.join("s.trimmed.ply"));
     let removed: f64 = std::fs::read_to_string(&t)
@@ -1240,13 +1257,8 @@ fn trimming_a_sparsely_scanned_flank_keeps_its_gaps_and_leaves_out_the_bulges() 
         .flat_map(|i| truth.vertices[(i as f64 * stride) as usize])
         .map(|x| x + sigma * r.normal())
         .collect();
-    let dir = common::temp_dir("cow-trim-strided");
-    let input = dir.join("p.xyz");
-    common::write_xyz(&input, &pts);
-    let prefix = dir.join("s");
+    let (dir, text) = fit_trimmed("cow-trim-strided", &pts, "100");
     let t = dir.join("s.csv");
-    let args = ["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--grid", "100"];
-    let text = common::run_ok(2, &[&args[..], &["--trim", "--timings", t.to_str().unwrap()]].concat());
     let figure = |key: &str| -> f64 {
         let timings = std::fs::read_to_string(&t).unwrap();
         timings.lines().find_map(|l| l.strip_prefix(key)?.strip_prefix(',')).unwrap().parse().unwrap()
@@ -1256,11 +1268,8 @@ fn trimming_a_sparsely_scanned_flank_keeps_its_gaps_and_leaves_out_the_bulges() 
     assert!(text.contains("points moved onto quadrics"), "the noisy scan is denoised: {text}");
     // the data the trimming measures against are the denoised points the model records
     let model = read_model(&dir.join("s.model.h5")).unwrap();
-    let norm = model.spline.norm;
-    let data: Vec<f64> = model.spline.centres[..3 * model.provenance.data_points]
-        .chunks_exact(3)
-        .flat_map(|c| (0..3).map(move |d| c[d] * norm.scale + norm.centre[d]))
-        .collect();
+    let data = volspline::surface::support::data_points(&model).unwrap();
+    assert_eq!(data.len(), pts.len());
     let closed = common::load_mesh(&dir.join("s.ply"));
     let trimmed = common::load_mesh(&dir.join("s.trimmed.ply"));
     let judged = trim_oracle(&data, &closed, &trimmed, &text);
