@@ -115,29 +115,57 @@ pub fn symmetric_eigen3(mut a: [[f64; 3]; 3]) -> ([f64; 3], [[f64; 3]; 3]) {
     (vals, vecs)
 }
 
-/// The normal (unit, sign arbitrary) and planarity of point `i` with the neighbours `near`.
-fn pca(points: &[f64], i: usize, near: &[usize]) -> ([f64; 3], f64) {
-    let ids = || std::iter::once(i).chain(near.iter().copied());
-    let count = (near.len() + 1) as f64;
-    let mut m = [0.0; 3];
-    for j in ids() {
-        for d in 0..3 {
-            m[d] += points[3 * j + d] / count;
-        }
-    }
-    let mut c = [[0.0; 3]; 3];
-    for j in ids() {
-        let x = [points[3 * j] - m[0], points[3 * j + 1] - m[1], points[3 * j + 2] - m[2]];
-        for r in 0..3 {
-            for s in 0..3 {
-                c[r][s] += x[r] * x[s] / count;
+/// The least-squares plane of a few points: their mean, and the eigenvalues (ascending) and unit
+/// eigenvectors (columns) of their covariance, the first the plane's normal (sign arbitrary).
+pub struct Plane {
+    pub mean: [f64; 3],
+    pub values: [f64; 3],
+    pub vectors: [[f64; 3]; 3],
+}
+
+impl Plane {
+    /// The plane of `points` (given twice over as a function of nothing, since both passes read
+    /// them): the mean, then the covariance about it, each term divided by the count as it is
+    /// added.
+    pub fn of<I: Iterator<Item = [f64; 3]>>(points: impl Fn() -> I) -> Plane {
+        let count = points().count() as f64;
+        let mut mean = [0.0; 3];
+        for p in points() {
+            for d in 0..3 {
+                mean[d] += p[d] / count;
             }
         }
+        let mut c = [[0.0; 3]; 3];
+        for p in points() {
+            let x = [p[0] - mean[0], p[1] - mean[1], p[2] - mean[2]];
+            for r in 0..3 {
+                for s in 0..3 {
+                    c[r][s] += x[r] * x[s] / count;
+                }
+            }
+        }
+        let (values, vectors) = symmetric_eigen3(c);
+        Plane { mean, values, vectors }
     }
-    let (vals, vecs) = symmetric_eigen3(c);
-    let sum = vals.iter().map(|v| v.max(0.0)).sum::<f64>();
-    let planarity = if sum > 0.0 { vals[0].max(0.0) / sum } else { 1.0 };
-    ([vecs[0][0], vecs[1][0], vecs[2][0]], planarity)
+
+    /// The unit normal (sign arbitrary).
+    pub fn normal(&self) -> [f64; 3] {
+        [self.vectors[0][0], self.vectors[1][0], self.vectors[2][0]]
+    }
+
+    /// The distance of `x` from the plane.
+    pub fn distance(&self, x: &[f64; 3]) -> f64 {
+        (0..3).map(|d| self.vectors[d][0] * (x[d] - self.mean[d])).sum::<f64>().abs()
+    }
+}
+
+/// The normal (unit, sign arbitrary) and planarity of point `i` with the neighbours `near`.
+fn pca(points: &[f64], i: usize, near: &[usize]) -> ([f64; 3], f64) {
+    let at = |j: usize| [points[3 * j], points[3 * j + 1], points[3 * j + 2]];
+    let plane = Plane::of(|| std::iter::once(i).chain(near.iter().copied()).map(at));
+    let sum = plane.values.iter().map(|v| v.max(0.0)).sum::<f64>();
+    let planarity = if sum > 0.0 { plane.values[0].max(0.0) / sum } else { 1.0 };
+    (plane.normal(), planarity)
 }
 
 /// Unoriented unit normals and their planarity for every point, given the

@@ -42,7 +42,7 @@ use rayon::prelude::*;
 use crate::mesh::trim::Support;
 use crate::spline::octree::{Octree, DEFAULT_LEAF_CAPACITY};
 use crate::spline::Model;
-use crate::surface::normals::symmetric_eigen3;
+use crate::surface::normals::Plane;
 
 /// How deep an unsupported region of a surface must reach to be left out, in multiples of the
 /// radius: a random sample leaves a point of its surface this far (4 median spacings at F = 2)
@@ -145,20 +145,7 @@ impl DataSupport {
     /// The distance from `x` to the least-squares plane of the data points `near` (as
     /// [`Octree::nearest_k`] lists them).
     fn plane_distance(&self, x: &[f64; 3], near: &[(f64, usize)]) -> f64 {
-        let q: Vec<[f64; 3]> = near.iter().map(|&(_, i)| self.tree.point(i)).collect();
-        let count = q.len() as f64;
-        let mean: [f64; 3] = std::array::from_fn(|d| q.iter().map(|p| p[d]).sum::<f64>() / count);
-        let mut scatter = [[0.0; 3]; 3];
-        for p in &q {
-            let y: [f64; 3] = std::array::from_fn(|d| p[d] - mean[d]);
-            for r in 0..3 {
-                for s in 0..3 {
-                    scatter[r][s] += y[r] * y[s];
-                }
-            }
-        }
-        let (_, vecs) = symmetric_eigen3(scatter);
-        (0..3).map(|d| vecs[d][0] * (x[d] - mean[d])).sum::<f64>().abs()
+        Plane::of(|| near.iter().map(|&(_, i)| self.tree.point(i))).distance(x)
     }
 }
 
