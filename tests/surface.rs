@@ -1743,3 +1743,44 @@ fn denoise_is_refused_where_it_does_not_apply() {
     );
     assert!(!prefix.with_extension("ply").exists());
 }
+
+/// `n` points of the closed ellipsoid with semi-axes 1, 0.5 and `c` (thin for small `c`): its two
+/// faces area-uniform in their projection on the plane of the long axes, each point on either.
+fn thin_ellipsoid(n: usize, c: f64, seed: u64) -> Vec<f64> {
+    noisy(n, 0.0, seed, |u, v| {
+        let (side, v) = if v < 0.5 { (1.0, 2.0 * v) } else { (-1.0, 2.0 * v - 1.0) };
+        let (s, t) = (u.sqrt(), std::f64::consts::TAU * v);
+        [s * t.cos(), 0.5 * s * t.sin(), side * c * (1.0 - u).max(0.0).sqrt()]
+    })
+}
+
+#[test]
+fn a_solid_that_fills_the_space_beside_a_sheet_thinner_than_the_sampling_is_named_with_its_cause() {
+    // 1000 points on an ellipsoid 0.04 thick: a spacing of about 1.4 times the thickness, at
+    // which the orientation cannot tell the two sides apart and the solid fills the space on one
+    // side, far beyond the grid's growth; 0.1 thick, the same sampling makes a closed solid
+    let warned = |c: f64, extra: &[&str]| {
+        let dir = common::temp_dir("thin-sheet");
+        let input = dir.join("p.xyz");
+        common::write_xyz(&input, &thin_ellipsoid(1000, c, 5));
+        let prefix = dir.join("s");
+        let mut args =
+            vec!["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--grid", "48"];
+        args.extend_from_slice(&["--no-preview"]);
+        args.extend_from_slice(extra);
+        let text = common::run_ok(1, &args);
+        let mesh = common::load_mesh(&dir.join("s.ply"));
+        let far = mesh.vertices.iter().filter(|p| p[2].abs() > 0.25).count();
+        (text, far)
+    };
+    let (text, far) = warned(0.02, &[]);
+    assert!(text.contains("stopped at its limit"), "{text}");
+    assert!(text.contains(volspline::app::fit::surface::UNBOUNDED_CAUSE), "{text}");
+    assert!(far > 0, "the solid reaches far off the sheet ({far} vertices beyond 0.25)");
+    let (text, far) = warned(0.05, &[]);
+    assert!(!text.contains("warning"), "{text}");
+    assert_eq!(far, 0, "the thicker sheet's surface stays near it");
+    // the plain carrier method's warning, where it has one, does not name the orientation
+    let (text, _) = warned(0.02, &["--surface", "carrier"]);
+    assert!(!text.contains(volspline::app::fit::surface::UNBOUNDED_CAUSE), "{text}");
+}

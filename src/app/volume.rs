@@ -233,12 +233,15 @@ pub struct Volume<'a> {
     pub grow: bool,
     pub prefix: &'a Path,
     pub trim: Option<&'a DataSupport>,
+    /// What the warning adds where the solid reaches the grid's faces after all the growth
+    /// allowed: the likely cause for the kind of fit that made the field.
+    pub unbounded_cause: Option<&'static str>,
 }
 
 impl<'a> Volume<'a> {
     /// `field` on `grid` as `prefix`: no curvature, a fixed grid, no trimmed surface.
     pub fn new(field: &'a dyn Field, grid: Grid, prefix: &'a Path) -> Self {
-        Volume { field, curvature: None, grid, grow: false, prefix, trim: None }
+        Volume { field, curvature: None, grid, grow: false, prefix, trim: None, unbounded_cause: None }
     }
 
     pub fn curvature(self, curvature: Option<&'a dyn Implicit>) -> Self {
@@ -251,6 +254,10 @@ impl<'a> Volume<'a> {
 
     pub fn trim(self, trim: Option<&'a DataSupport>) -> Self {
         Volume { trim, ..self }
+    }
+
+    pub fn unbounded_cause(self, unbounded_cause: Option<&'static str>) -> Self {
+        Volume { unbounded_cause, ..self }
     }
 }
 
@@ -396,7 +403,7 @@ fn evaluate(
 /// writes `PREFIX.hdf` in parallel and `PREFIX.ply` (and `PREFIX.trimmed.ply`) from rank 0, all
 /// under this run's temporary names (see [`io::staging`]). Collective.
 pub fn write_volume(comm: &dyn Comm, v: Volume<'_>, stages: &mut Stages) -> Result<VolumeSummary> {
-    let Volume { field, curvature, grid, grow, prefix, trim } = v;
+    let Volume { field, curvature, grid, grow, prefix, trim, unbounded_cause } = v;
     let grid = &grid;
     // measured once (a compact model samples its neighbour counts through an octree)
     let evals_per_node = field.kernel_evals_per_node();
@@ -409,8 +416,8 @@ pub fn write_volume(comm: &dyn Comm, v: Volume<'_>, stages: &mut Stages) -> Resu
     let ply_path = output_path(prefix, ".ply");
     if comm.rank() == 0 {
         let nodes = grid.node_count() as u64;
-        let why =
-            nothing_to_mesh(inside, nodes).or_else(|| cut_open(on_faces, faces, grow.then_some(grown_steps)));
+        let why = nothing_to_mesh(inside, nodes)
+            .or_else(|| cut_open(on_faces, faces, grow.then_some(grown_steps), unbounded_cause));
         if let Some(w) = why {
             crate::note!("volspline: warning: {}: {w}", ply_path.display());
         }
@@ -563,13 +570,15 @@ fn face_node_count(dims: [usize; 3]) -> u64 {
 /// at f >= 0 (counted once per face a node lies on) of the `faces` nodes on them; `grown`: the
 /// steps of growth `--margin auto` took (None when the margin was fixed or the box given).
 /// Marching cubes closes no surface at the grid's faces, so the mesh then has holes there, and
-/// the volume shows a solid cut off by the box.
-fn cut_open(on_faces: u64, faces: u64, grown: Option<usize>) -> Option<String> {
+/// the volume shows a solid cut off by the box. `cause`: the likely cause of a solid that the
+/// growth did not take in, for the kind of fit that made it.
+fn cut_open(on_faces: u64, faces: u64, grown: Option<usize>, cause: Option<&str>) -> Option<String> {
     (on_faces > 0).then(|| {
         let advice = match grown {
             Some(steps) => format!(
                 "the grid grew {steps} step(s) (--margin auto) and stopped at its limit: the solid reaches \
-                 far from the data or is unbounded; a fixed --margin (with eval, or --bounds) sets the box"
+                 far from the data or is unbounded{}; a fixed --margin (with eval, or --bounds) sets the box",
+                cause.map(|c| format!(" ({c})")).unwrap_or_default()
             ),
             None => "a larger --margin (with eval, or --bounds) takes in the whole solid".to_string(),
         };
@@ -652,9 +661,14 @@ mod tests {
         let high = inside_on_each_face(&values[24..], dims, 2);
         assert_eq!(low, [1, 0, 1, 0, 1, 0]);
         assert_eq!(high, [1, 1, 0, 1, 0, 2]);
-        assert!(cut_open(0, 54, None).is_none());
-        assert!(cut_open(1, 54, None).is_some_and(|w| w.contains("f >= 0 at 1 places on the 54 nodes")));
-        assert!(cut_open(3, 54, Some(6)).is_some_and(|w| w.contains("grew 6 step(s)")));
+        assert!(cut_open(0, 54, None, None).is_none());
+        assert!(cut_open(1, 54, None, None).is_some_and(|w| w.contains("f >= 0 at 1 places on the 54 nodes")));
+        assert!(cut_open(3, 54, Some(6), None).is_some_and(|w| w.contains("grew 6 step(s)")));
+        assert!(
+            cut_open(3, 54, Some(6), Some("a cause")).is_some_and(|w| w.contains("is unbounded (a cause);"))
+        );
+        // without growth the cause is not the point: the margin was the user's
+        assert!(cut_open(3, 54, None, Some("a cause")).is_some_and(|w| !w.contains("a cause")));
     }
 
     #[test]

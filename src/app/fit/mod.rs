@@ -473,7 +473,11 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     // the grid grows where the solid reaches it (--margin auto), unless it is unbounded or the
     // node counts were given
     let grow = a.grid.may_grow() && unbounded.is_none();
-    let job = Volume::new(&model, grid, &a.out).curvature(curvature).grow(grow).trim(support.as_ref());
+    let job = Volume::new(&model, grid, &a.out)
+        .curvature(curvature)
+        .grow(grow)
+        .trim(support.as_ref())
+        .unbounded_cause(off.then_some(surface::UNBOUNDED_CAUSE));
     let volume = write_volume(comm, job, &mut stages)?;
     let preview = output_path(&a.out, ".png");
     if let Some(s) = solid.as_ref().filter(|_| !a.no_preview) {
