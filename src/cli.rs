@@ -217,6 +217,13 @@ pub struct FitArgs {
     /// src/surface/rays.rs).
     #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub orient_rays: bool,
+    /// Where the first fit's solid spills far beyond the data (positive on the faces of the
+    /// data's box grown by a quarter of its longest side: the two sides of a part thinner than
+    /// the spacing of the points oriented alike), turn every normal away from the plane of its
+    /// point's neighbourhood, fit again and keep that fit when it spills less (on, or off; see
+    /// src/surface/sheets.rs). A dense fit of the same size again, where the first spilled
+    #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
+    pub orient_by_side: bool,
     /// Where the blob search after the first fit pins different nodes with its wide clearance
     /// (5 % of the diagonal) and a narrow one (2 median spacings of the data), make both second
     /// fits and keep the one with less surface far from every data point, not counting surface

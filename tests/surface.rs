@@ -1754,33 +1754,68 @@ fn thin_ellipsoid(n: usize, c: f64, seed: u64) -> Vec<f64> {
     })
 }
 
+/// Fits the thin ellipsoid of semi-axes 1, 0.5 and `c` at 1000 points (seed 5) on `ranks` ranks
+/// with the options `extra`, grid 48: the report, the mesh's vertices and the model.
+fn fit_thin_sheet(name: &str, c: f64, ranks: usize, extra: &[&str]) -> (String, Vec<[f64; 3]>, Model) {
+    let dir = common::temp_dir(name);
+    let input = dir.join("p.xyz");
+    common::write_xyz(&input, &thin_ellipsoid(1000, c, 5));
+    let prefix = dir.join("s");
+    let args =
+        ["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--grid", "48", "--no-preview"];
+    let text = common::run_ok(ranks, &[&args[..], extra].concat());
+    let mesh = common::load_mesh(&dir.join("s.ply"));
+    let model = read_model(&dir.join("s.model.h5")).unwrap();
+    (text, mesh.vertices, model)
+}
+
+/// The vertices farther than `off` from the plane of the thin ellipsoid's long axes.
+fn off_the_sheet(vertices: &[[f64; 3]], off: f64) -> usize {
+    vertices.iter().filter(|p| p[2].abs() > off).count()
+}
+
 #[test]
-fn a_solid_that_fills_the_space_beside_a_sheet_thinner_than_the_sampling_is_named_with_its_cause() {
-    // 1000 points on an ellipsoid 0.04 thick: a spacing of about 1.4 times the thickness, at
-    // which the orientation cannot tell the two sides apart and the solid fills the space on one
-    // side, far beyond the grid's growth; 0.1 thick, the same sampling makes a closed solid
-    let warned = |c: f64, extra: &[&str]| {
-        let dir = common::temp_dir("thin-sheet");
-        let input = dir.join("p.xyz");
-        common::write_xyz(&input, &thin_ellipsoid(1000, c, 5));
-        let prefix = dir.join("s");
-        let mut args =
-            vec!["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--grid", "48"];
-        args.extend_from_slice(&["--no-preview"]);
-        args.extend_from_slice(extra);
-        let text = common::run_ok(1, &args);
-        let mesh = common::load_mesh(&dir.join("s.ply"));
-        let far = mesh.vertices.iter().filter(|p| p[2].abs() > 0.25).count();
-        (text, far)
-    };
-    let (text, far) = warned(0.02, &[]);
+fn a_sheet_thinner_than_the_sampling_gets_its_normals_by_side_and_stays_a_sheet() {
+    // 1000 points on an ellipsoid 0.04 thick, about 0.06 apart: every neighbourhood holds both
+    // sides, the orientation turns both sides alike, and the first fit's solid fills the space
+    // on one side of the sheet
+    let (text, vertices, _) = fit_thin_sheet("thin-sheet-sides", 0.02, 1, &[]);
+    assert!(text.contains("solid spilled far beyond the data"), "{text}");
+    assert!(text.contains("normals turned by side") && text.contains("nodes: kept"), "{text}");
+    assert!(!text.contains("stopped at its limit"), "{text}");
+    // the solid made again hugs the sheet: no vertex a quarter of the long side off it, and
+    // nearly all within 0.1 (2.5 times its thickness)
+    assert_eq!(off_the_sheet(&vertices, 0.25), 0);
+    let near = vertices.len() - off_the_sheet(&vertices, 0.1);
+    assert!(
+        near as f64 >= 0.95 * vertices.len() as f64,
+        "{near} of {} vertices near the sheet",
+        vertices.len()
+    );
+    // without the orientation by side, the solid spills past the grid's growth and the warning
+    // names the cause
+    let (text, vertices, _) = fit_thin_sheet("thin-sheet-spills", 0.02, 1, &["--orient-by-side", "off"]);
     assert!(text.contains("stopped at its limit"), "{text}");
     assert!(text.contains(volspline::app::fit::surface::UNBOUNDED_CAUSE), "{text}");
-    assert!(far > 0, "the solid reaches far off the sheet ({far} vertices beyond 0.25)");
-    let (text, far) = warned(0.05, &[]);
-    assert!(!text.contains("warning"), "{text}");
-    assert_eq!(far, 0, "the thicker sheet's surface stays near it");
+    assert!(off_the_sheet(&vertices, 0.25) > 0, "the solid reaches far off the sheet");
+    // 0.1 thick, the same sampling orients both sides apart and nothing spills
+    let (text, vertices, _) = fit_thin_sheet("thin-sheet-thick", 0.05, 1, &[]);
+    assert!(!text.contains("solid spilled") && !text.contains("warning"), "{text}");
+    assert_eq!(off_the_sheet(&vertices, 0.25), 0);
     // the plain carrier method's warning, where it has one, does not name the orientation
-    let (text, _) = warned(0.02, &["--surface", "carrier"]);
+    let (text, _, _) = fit_thin_sheet("thin-sheet-carrier", 0.02, 1, &["--surface", "carrier"]);
     assert!(!text.contains(volspline::app::fit::surface::UNBOUNDED_CAUSE), "{text}");
+}
+
+#[test]
+fn the_normals_by_side_are_the_same_on_one_two_and_three_ranks() {
+    let (text, _, one) = fit_thin_sheet("thin-sheet-r1", 0.02, 1, &[]);
+    assert!(text.contains("nodes: kept"), "{text}");
+    for ranks in [2, 3] {
+        let (text, _, model) = fit_thin_sheet(&format!("thin-sheet-r{ranks}"), 0.02, ranks, &[]);
+        assert!(text.contains("nodes: kept"), "{ranks} ranks: {text}");
+        assert_eq!(model.spline.centres, one.spline.centres, "{ranks} ranks: other constraint points");
+        let dw = common::rel_diff(&model.spline.weights, &one.spline.weights);
+        assert!(dw < 1e-9, "{ranks} ranks: weights differ by {dw:e}");
+    }
 }

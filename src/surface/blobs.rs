@@ -226,11 +226,16 @@ impl Lattice {
     /// times its longest side, in the normalised coordinates of `norm`, [`NODES`] along the
     /// longest side.
     pub fn of_fit(lo: &[f64], hi: &[f64], margin: f64, norm: &Normalisation) -> Lattice {
+        Lattice::of_fit_with(lo, hi, margin, norm, NODES)
+    }
+
+    /// [`Lattice::of_fit`] with `nodes` nodes along the longest side.
+    pub fn of_fit_with(lo: &[f64], hi: &[f64], margin: f64, norm: &Normalisation, nodes: usize) -> Lattice {
         let (plo, phi) = padded_box(lo, hi, margin);
         let (mut a, mut b) = ([0.0; 3], [0.0; 3]);
         norm.apply(&plo, &mut a);
         norm.apply(&phi, &mut b);
-        Lattice::new(a, b, NODES)
+        Lattice::new(a, b, nodes)
     }
 
     /// The lattice over lo..hi with `nodes` nodes along the longest side (at least 2).

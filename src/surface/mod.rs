@@ -21,6 +21,8 @@
 //! - [`choice`]: of two second fits (a wide and a narrow clearance of the blob search), the one
 //!   with less surface that no data supports;
 //! - [`turns`]: last, the small patches of normals whose turn shrinks that surface, turned;
+//! - [`sheets`]: where a first fit's solid spills far beyond the data (both sides of a sheet
+//!   thinner than the sampling oriented alike), the normals oriented again by side;
 //! - [`support`]: where the data support the reconstructed surface, for trimming it.
 //!
 //! Everything works in the normalised coordinates of the spline's centres (the data's box
@@ -38,6 +40,7 @@ pub mod normals;
 pub mod offsurface;
 pub mod orient;
 pub mod rays;
+pub mod sheets;
 pub mod support;
 pub mod turns;
 

@@ -28,7 +28,7 @@
 use std::collections::HashMap;
 use std::time::Instant;
 
-use super::surface::{check_first_fit, constrain, SurfaceSummary};
+use super::surface::{check_first_fit, constrain, spilling, SurfaceSummary};
 use super::{dense, Fitted, Run};
 use crate::app::preflight::{dense_fit_bytes, largest_fitting};
 use crate::app::stages::{Stage, Stages};
@@ -180,9 +180,16 @@ pub fn fit(
         |p: &Prepared, first: Option<&dense::KeptFactor>, st: &mut Stages| dense::refit(run, r, p, first, st);
     let level0 = (|| {
         dense::check(run.comm, &r, constrained.prep.values.len(), run.args)?;
-        let first = dense::fit(run, r, &constrained.prep, true, &mut inner)?;
+        let mut first = dense::fit(run, r, &constrained.prep, true, &mut inner)?;
+        let fresh = |p: &Prepared, st: &mut Stages| {
+            dense::check(run.comm, &r, p.values.len(), run.args)?;
+            dense::fit(run, r, p, true, st)
+        };
+        if let Some(again) = spilling(run, &sub, &mut constrained, &mut first, &mut inner, fresh)? {
+            first = again;
+        }
         let rows = constrained.prep.values.len();
-        let most = super::surface::most_appended(&sub, run.args.grid.margin.fraction);
+        let most = super::surface::most_appended(&sub, &constrained, run.args.grid.margin.fraction);
         let room = dense::appendable(run, r, rows, first.factor.as_ref(), most);
         // level 0 decides the sign away from the data: its spurious blobs are cleared like a
         // single-level fit's

@@ -422,10 +422,21 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             Method::Csrbf => compact::fit(&run, kernel, fit_prep, None, &mut stages)?,
         };
         if let Some(c) = constrained.as_mut() {
+            // a sheet thinner than the sampling oriented alike on both sides: normals by side
+            if matches!(method, Method::Dense | Method::Auto) {
+                let fresh = |p: &Prepared, st: &mut Stages| {
+                    dense::check(comm, &kernel, p.values.len(), a)?;
+                    dense::fit(&run, kernel, p, true, st)
+                };
+                if let Some(again) = surface::spilling(&run, &prep, c, &mut fitted, &mut stages, fresh)? {
+                    fitted = again;
+                }
+            }
+            let rows = c.prep.values.len();
             // the second fits append at most as many centres as the ranks have room for
             let room = match method {
                 Method::Dense | Method::Auto => {
-                    let most = surface::most_appended(&prep, a.grid.margin.fraction);
+                    let most = surface::most_appended(&prep, c, a.grid.margin.fraction);
                     dense::appendable(&run, kernel, rows, fitted.factor.as_ref(), most)
                 }
                 Method::Csrbf => usize::MAX,
@@ -570,6 +581,12 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             r.figure("restored_along", k.along);
             r.figure("restored_kept", k.kept);
         }
+        if let Some(k) = &s.sides {
+            r.figure("sides_spilled", k.spilled.0);
+            r.figure("sides_turned", k.turned);
+            r.figure("sides_spilled_after", k.spilled.1);
+            r.figure("sides_kept", k.kept);
+        }
         if let Some(k) = &s.rays {
             r.figure("rays_doubtful", k.doubtful);
             r.figure("rays_enclosed", k.enclosed);
@@ -643,6 +660,17 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
             },
         ) + &match s.side_turned {
             Some(k) => format!(", {k} turned by the side vote"),
+            None => String::new(),
+        } + &match &s.sides {
+            Some(k) => format!(
+                "; solid spilled far beyond the data ({} nodes of the box grown by {} of its longest side): \
+                 {} normals turned by side, {} nodes: {}",
+                k.spilled.0,
+                crate::surface::sheets::SPILL,
+                k.turned,
+                k.spilled.1,
+                if k.kept { "kept" } else { "dropped" }
+            ),
             None => String::new(),
         } + &match &s.energy {
             None => String::new(),

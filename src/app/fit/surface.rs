@@ -13,6 +13,7 @@ use crate::cli::{FitArgs, Surface};
 use crate::error::Result;
 use crate::par::{agree, Comm};
 use crate::spline::hygiene::Prepared;
+use crate::spline::Spline;
 use crate::surface::blobs::{
     blob_values, data_cells, lost_solid, paths_to_solid, points_without_solid, sample, sample_nodes,
     sample_window, winding_numbers, Blobs, Lattice, Search, CLEARANCE, INSIDE, RESTORE_FROM,
@@ -22,6 +23,7 @@ use crate::surface::choice::{self, unsupported_share};
 use crate::surface::denoise::Denoised;
 use crate::surface::energy::{flip_by_energy, EnergyFlips};
 use crate::surface::rays::{self, RayCheck};
+use crate::surface::sheets;
 use crate::surface::support::DataSupport;
 use crate::surface::turns::{self, TurnCheck};
 use crate::surface::{
@@ -78,6 +80,9 @@ pub struct SurfaceSummary {
     /// Whether the turns were asked for but skipped: the system was too large to refit afresh
     /// for each try and kept no factor.
     pub turns_skipped: bool,
+    /// The normals oriented again by side where the first fit's solid spilled far beyond the
+    /// data (None: it did not).
+    pub sides: Option<SideCheck>,
     /// Where the ranks' memory allowed the second fits fewer appended centres than the steps
     /// wanted (None: never).
     pub memory_limit: Option<MemoryLimit>,
@@ -179,6 +184,64 @@ pub struct Constrained {
     hoods: Neighbourhoods,
     normals: Vec<[f64; 3]>,
     off: OffPoints,
+}
+
+/// What the orientation by side did where a first fit spilled (see [`crate::surface::sheets`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SideCheck {
+    /// Positive nodes on the faces of the grown box, with the first fit and with the fit made
+    /// again.
+    pub spilled: (usize, usize),
+    /// Normals turned by side.
+    pub turned: usize,
+    /// Whether the fit made again was kept (it spilled less).
+    pub kept: bool,
+}
+
+/// Where the first fit `first` of `c.prep` spills solid far beyond the data (see
+/// [`crate::surface::sheets`]): the normals oriented again by side, the off points made again
+/// from them and the system fitted afresh by `fresh`; that fit is returned, and `c` updated, when
+/// it spills less. `first`'s factor is dropped before the fresh fit (the two are not held at
+/// once), so a first fit kept after all goes on without one. Collective.
+pub fn spilling(
+    run: &Run<'_>,
+    data: &Prepared,
+    c: &mut Constrained,
+    first: &mut Fitted,
+    stages: &mut Stages,
+    mut fresh: impl FnMut(&Prepared, &mut Stages) -> Result<Fitted>,
+) -> Result<Option<Fitted>> {
+    if !run.args.orient_by_side {
+        return Ok(None);
+    }
+    let lattice = sheets::spill_lattice(&data.box_lo, &data.box_hi, &data.norm);
+    let spilled = |spline: &Spline| sheets::spilled(run.comm, &lattice, &data.carrier, spline);
+    let before = stages.time(Stage::Blobs, || spilled(&first.spline));
+    if before == 0 {
+        return Ok(None);
+    }
+    let mut normals = c.normals.clone();
+    let (turned, off, doubt, prep) = stages.time(Stage::Orient, || {
+        let turned = sheets::orient_by_side(&data.centres, &mut normals, &c.hoods.knn, c.hoods.kmax);
+        let (off, doubt) = by_trust(data, &c.hoods, &normals, run.args);
+        let prep = with_off_points(data, &off);
+        (turned, off, doubt, prep)
+    });
+    drop(first.factor.take());
+    let fit = fresh(&prep, stages)?;
+    let after = stages.time(Stage::Blobs, || spilled(&fit.spline));
+    let kept = after < before;
+    c.summary.sides = Some(SideCheck { spilled: (before, after), turned, kept });
+    if !kept {
+        return Ok(None);
+    }
+    c.summary.off_points = off.side.len();
+    c.summary.dropped = off.dropped;
+    c.summary.doubtful = doubt.count;
+    c.summary.doubtful_share = doubt.share;
+    c.summary.delta = delta_range(&off, data.norm.scale);
+    (c.normals, c.off, c.prep) = (normals, off, prep);
+    Ok(Some(fit))
 }
 
 /// The likely cause of an off-surface fit's solid that reaches the grid's faces however far the
@@ -287,6 +350,7 @@ pub fn constrain(
         restored: None,
         turns: None,
         turns_skipped: false,
+        sides: None,
         memory_limit: None,
     };
     Ok(Constrained { prep: with_off_points(prep, &off), summary, hoods, normals: orientation.normals, off })
@@ -356,7 +420,7 @@ pub fn check_first_fit(
     room: usize,
 ) -> Result<Fitted> {
     let factor = first.factor.take();
-    let lattice = Lattice::of_fit(&data.box_lo, &data.box_hi, run.args.grid.margin.fraction, &data.norm);
+    let lattice = search_lattice(data, c, run.args.grid.margin.fraction);
     let at = (factor.as_ref(), &lattice, room);
     let searched = rays_and_blobs(run, data, c, first, stages, refit, at)?;
     // the data points' shares of the surface, for the turns' winding numbers
@@ -397,8 +461,17 @@ pub fn check_first_fit(
 /// lattice. Not the first fit's own row count: a small scan (a few hundred rows, or a small
 /// level 0) wants up to [`crate::surface::blobs::MIN_CAP`] blob points whatever its size, and a
 /// bound below that was reported as the ranks' memory leaving no room for them.
-pub fn most_appended(data: &Prepared, margin: f64) -> usize {
-    Lattice::of_fit(&data.box_lo, &data.box_hi, margin, &data.norm).len()
+pub fn most_appended(data: &Prepared, c: &Constrained, margin: f64) -> usize {
+    search_lattice(data, c, margin).len()
+}
+
+/// The lattice of the blob search and the steps after it: over the data's box grown by the
+/// grid's `margin`, or, where the normals were oriented again by side (a sheet thinner than the
+/// sampling, whose first fit spilled), by [`sheets::SPILL`] of its longest side, so that it
+/// reaches the solid a fit may still leave beside the sheet, beyond the flat box of the data.
+fn search_lattice(data: &Prepared, c: &Constrained, margin: f64) -> Lattice {
+    let grow = if c.summary.sides.is_some_and(|s| s.kept) { sheets::SPILL.max(margin) } else { margin };
+    Lattice::of_fit(&data.box_lo, &data.box_hi, grow, &data.norm)
 }
 
 /// `blobs` thinned to the `room` the second fits have for appended centres, the limit recorded
