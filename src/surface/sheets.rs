@@ -29,7 +29,10 @@
 //! normal is turned to point away from the plane, n . (p - m) > 0 with m the mean of the
 //! neighbourhood. The rule also holds where the surface is convex (the point lies outside the
 //! chord plane of its neighbours) and fails where it is concave, so it is used only where a fit
-//! spilled: there, the fit made again with these normals is kept when it spills less, and the
+//! spilled: there, the fit made again with these normals is kept when it spills at most a fifth as
+//! much (a first fit of a long thin scan, the bunny stretched 25 times along one axis, leaves the
+//! carrier's solid all round it at that distance, which the blob search clears; the side rule
+//! only shrinks it, 187 -> 56 nodes, and breaks the fit), and the
 //! blob search after it takes its lattice over the grown box (the flat box of a sheet's data
 //! would leave the space beside the sheet out). On the ellipsoid above the rule agrees with the
 //! true normals on 98-99.7 % of the points from 1000 to 4000 points and thicknesses 0.04-0.1.

@@ -198,6 +198,7 @@ fn idle_options(a: &FitArgs, off: bool, method: Method, two_levels: bool) -> Vec
         "orient_side",
         "orient_energy",
         "orient_rays",
+        "orient_by_side",
         "blob_choice",
         "restore_solid",
         "orient_turns",
