@@ -205,8 +205,9 @@ pub struct SideCheck {
 /// Where the first fit `first` of `c.prep` spills solid far beyond the data (see
 /// [`crate::surface::sheets`]): the normals oriented again by side, the off points made again
 /// from them and the system fitted afresh by `fresh`; that fit is returned, and `c` updated, when
-/// it spills at most a [`SPILL_FALL`]-th as much. `first`'s factor is dropped before the fresh fit (the two are not held at
-/// once), so a first fit kept after all goes on without one. Collective.
+/// it spills at most a [`SPILL_FALL`]-th as much. `first`'s factor is dropped before the fresh
+/// fit (the two are not held at once), so a first fit kept after all goes on without one.
+/// Collective.
 pub fn spilling(
     run: &Run<'_>,
     data: &Prepared,
@@ -259,7 +260,8 @@ pub fn spilling(
 /// Measured on a closed thin ellipsoid (semi-axes 1, 0.5 and C, area-uniform samples,
 /// `jobs/bench-thin-sheet`): the four samplings whose spacing was 0.70 of the thickness or more
 /// grew such a solid (mesh -> truth 18-23 % of the diagonal), the five at 0.66 or less gave a
-/// closed solid near the sheet (0.14-0.72 %).
+/// closed solid near the sheet (0.14-0.72 %). The orientation by side ([`spilling`]) mends such
+/// fits where it can; the warning is for those it does not.
 pub const UNBOUNDED_CAUSE: &str = "with normals estimated from the points, a likely cause is a part thinner \
      than the spacing of the points whose two sides were oriented alike, so that the solid fills the \
      space beside it: a denser sampling of that part is the remedy";
