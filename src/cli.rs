@@ -220,8 +220,9 @@ pub struct FitArgs {
     /// Where the first fit's solid spills far beyond the data (positive on the faces of the
     /// data's box grown by a quarter of its longest side: the two sides of a part thinner than
     /// the spacing of the points oriented alike), turn every normal away from the plane of its
-    /// point's neighbourhood, fit again and keep that fit when it spills less (on, or off; see
-    /// src/surface/sheets.rs). A dense fit of the same size again, where the first spilled
+    /// point's neighbourhood, fit again and keep that fit when it spills at most a fifth as much
+    /// (on, or off; see src/surface/sheets.rs). It costs a second dense fit of the same size, only
+    /// where the first spilled.
     #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub orient_by_side: bool,
     /// Where the blob search after the first fit pins different nodes with its wide clearance

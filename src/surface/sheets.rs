@@ -51,7 +51,6 @@
 use rayon::prelude::*;
 
 use super::blobs::{sample_nodes, Lattice};
-use super::normals::Plane;
 use crate::par::Comm;
 use crate::spline::carrier::Carrier;
 use crate::spline::{Normalisation, Spline};
@@ -91,17 +90,21 @@ pub fn spilled(
 }
 
 /// Turns every normal of `normals` (unit, at the normalised `points`) to point away from the
-/// least-squares plane of its point and that point's `kmax` nearest neighbours (`knn`), see the
-/// module doc; a point on the plane keeps its normal. Returns how many were turned.
+/// mean of its point and that point's `kmax` nearest neighbours (`knn`): on a thin sheet the
+/// least-squares plane of that neighbourhood passes through the mean between the two sides, and
+/// the point's normal is nearly the plane's (see the module doc). A point at the mean keeps its
+/// normal. Returns how many were turned.
 pub fn orient_by_side(points: &[f64], normals: &mut [[f64; 3]], knn: &[usize], kmax: usize) -> usize {
-    let at = |j: usize| [points[3 * j], points[3 * j + 1], points[3 * j + 2]];
     let turn: Vec<bool> = (0..normals.len())
         .into_par_iter()
         .map(|i| {
-            let row = &knn[i * kmax..(i + 1) * kmax];
-            let plane = Plane::of(|| std::iter::once(i).chain(row.iter().copied()).map(at));
-            let p = at(i);
-            let off: f64 = (0..3).map(|d| (p[d] - plane.mean[d]) * normals[i][d]).sum();
+            let hood = std::iter::once(i).chain(knn[i * kmax..(i + 1) * kmax].iter().copied());
+            let count = (kmax + 1) as f64;
+            let mut mean = [0.0; 3];
+            for j in hood {
+                (0..3).for_each(|d| mean[d] += points[3 * j + d] / count);
+            }
+            let off: f64 = (0..3).map(|d| (points[3 * i + d] - mean[d]) * normals[i][d]).sum();
             off < 0.0
         })
         .collect();

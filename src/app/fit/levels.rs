@@ -181,11 +181,7 @@ pub fn fit(
     let level0 = (|| {
         dense::check(run.comm, &r, constrained.prep.values.len(), run.args)?;
         let mut first = dense::fit(run, r, &constrained.prep, true, &mut inner)?;
-        let fresh = |p: &Prepared, st: &mut Stages| {
-            dense::check(run.comm, &r, p.values.len(), run.args)?;
-            dense::fit(run, r, p, true, st)
-        };
-        if let Some(again) = spilling(run, &sub, &mut constrained, &mut first, &mut inner, fresh)? {
+        if let Some(again) = spilling(run, r, &sub, &mut constrained, &mut first, &mut inner)? {
             first = again;
         }
         let rows = constrained.prep.values.len();

@@ -425,11 +425,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         if let Some(c) = constrained.as_mut() {
             // a sheet thinner than the sampling oriented alike on both sides: normals by side
             if matches!(method, Method::Dense | Method::Auto) {
-                let fresh = |p: &Prepared, st: &mut Stages| {
-                    dense::check(comm, &kernel, p.values.len(), a)?;
-                    dense::fit(&run, kernel, p, true, st)
-                };
-                if let Some(again) = surface::spilling(&run, &prep, c, &mut fitted, &mut stages, fresh)? {
+                if let Some(again) = surface::spilling(&run, kernel, &prep, c, &mut fitted, &mut stages)? {
                     fitted = again;
                 }
             }

@@ -13,7 +13,7 @@ use crate::cli::{FitArgs, Surface};
 use crate::error::Result;
 use crate::par::{agree, Comm};
 use crate::spline::hygiene::Prepared;
-use crate::spline::Spline;
+use crate::spline::{Kernel, Spline};
 use crate::surface::blobs::{
     blob_values, data_cells, lost_solid, paths_to_solid, points_without_solid, sample, sample_nodes,
     sample_window, winding_numbers, Blobs, Lattice, Search, CLEARANCE, INSIDE, RESTORE_FROM,
@@ -204,17 +204,18 @@ pub struct SideCheck {
 
 /// Where the first fit `first` of `c.prep` spills solid far beyond the data (see
 /// [`crate::surface::sheets`]): the normals oriented again by side, the off points made again
-/// from them and the system fitted afresh by `fresh`; that fit is returned, and `c` updated, when
+/// from them and the system fitted afresh, densely with `kernel` (checked for memory first,
+/// keeping its factor for the second fits); that fit is returned, and `c` updated, when
 /// it spills at most a [`SPILL_FALL`]-th as much. `first`'s factor is dropped before the fresh
 /// fit (the two are not held at once), so a first fit kept after all goes on without one.
 /// Collective.
 pub fn spilling(
     run: &Run<'_>,
+    kernel: Kernel,
     data: &Prepared,
     c: &mut Constrained,
     first: &mut Fitted,
     stages: &mut Stages,
-    mut fresh: impl FnMut(&Prepared, &mut Stages) -> Result<Fitted>,
 ) -> Result<Option<Fitted>> {
     if !run.args.orient_by_side {
         return Ok(None);
@@ -233,7 +234,8 @@ pub fn spilling(
         (turned, off, doubt, prep)
     });
     drop(first.factor.take());
-    let fit = fresh(&prep, stages)?;
+    super::dense::check(run.comm, &kernel, prep.values.len(), run.args)?;
+    let fit = super::dense::fit(run, kernel, &prep, true, stages)?;
     let after = stages.time(Stage::Blobs, || spilled(&fit.spline));
     // a decisive fall: a sheet's solid spilling on one side is gone, or nearly (0-33 of 327-339
     // nodes left on the thin ellipsoids measured), while the carrier's solid that a first fit
