@@ -3,6 +3,7 @@
   python3 surface.py OUT [--check] [--quick] [--meshes bunny,cow] [--sizes 400,1000,2000,4000]
                          [--variant-sizes 1000,2000] [--methods default,trimmed,carrier,poisson]
                          [--ranks 2] [--grid 100] [--poisson-depth 8] [--sampling area|strided] [--time-runs 2]
+                         [--permute SEED]
 
 Point sets. For each mesh (tests/data/bunny10k.obj, tests/data/cow.obj) and each size N: N
 points on the surface (`area`: uniform over the area, jobs/bench/sample_surface.py; `strided`:
@@ -69,6 +70,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import zlib
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
@@ -149,7 +151,10 @@ def make_sets(args):
                 keep = np.linalg.norm(pts - centre, axis=1) > 0.15 * diag
                 variants.append(("open", pts[keep], centre))
             for variant, p, focus in variants:
-                sets.append((f"{mesh}-{n}-{variant}", mesh, n, variant, p, truth, v, f, diag, focus))
+                name = f"{mesh}-{n}-{variant}"
+                if args.permute:
+                    p = p[np.random.default_rng([args.permute, zlib.crc32(name.encode())]).permutation(len(p))]
+                sets.append((name, mesh, n, variant, p, truth, v, f, diag, focus))
     return sets
 
 
@@ -271,6 +276,8 @@ def parse(argv):
     ap.add_argument("--poisson-depth", type=int, default=8)
     ap.add_argument("--sampling", choices=["area", "strided"], default="area")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--permute", type=int, default=0,
+                    help="hand the methods each set's points in a random order drawn from this seed (0: as drawn)")
     ap.add_argument("--timeout", type=float, default=600, help="seconds allowed to one fit")
     ap.add_argument("--time-runs", type=int, default=2,
                     help="runs of each volspline method; the fastest one's times are reported")
@@ -313,7 +320,8 @@ def main(argv):
             notes.write(note + "\n")
         notes.write(f"volspline fit times: the fastest of {args.time_runs} runs of each method\n")
         notes.write(f"ranks {args.ranks}, grid {args.grid}, poisson depth {args.poisson_depth}, "
-                    f"sampling {args.sampling}, seed {args.seed}, truth {'held-out vertices' if args.sampling == 'strided' else f'{TRUTH_SAMPLES} samples'}\n")
+                    f"sampling {args.sampling}, seed {args.seed}, "
+                    f"{f'points permuted (seed {args.permute}), ' if args.permute else ''}truth {'held-out vertices' if args.sampling == 'strided' else f'{TRUTH_SAMPLES} samples'}\n")
     rows = open(os.path.join(args.out, "raw.csv"), "w", newline="")
     writer = csv.DictWriter(rows, fieldnames=FIELDS)
     writer.writeheader()

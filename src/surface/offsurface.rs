@@ -15,6 +15,14 @@
 //! 2 gives both sides for every point (a system of 3N rows), 1 one side per point alternating
 //! outside and inside (2N rows), less than 1 one side on an evenly strided subset.
 //!
+//! The stride and the alternation run over the points' indices, so which points get off points,
+//! and on which side, follows the order of the input: the same cloud in another order gives
+//! another subset and another solid. Over 219 benchmark sets (the bunny and the cow, 400-4000
+//! points, clean, noisy and open) a random reordering moved the mesh -> truth distance by a median
+//! of 8 % and by up to 2x where a spurious piece appeared or went. Spreading the off points
+//! evenly in space instead (a stride along a space-filling curve through the points, which makes
+//! the fit independent of the order) did no better on those sets than an arbitrary order.
+//!
 //! The fit spends its off points where the normals can be trusted ([`off_points_by_trust`]): a
 //! data point whose oriented normal agrees (cosine above [`AGREE`]) with those of its
 //! [`AGREE_NEIGHBOURS`] nearest neighbours gets the full rate, any other [`DOUBTFUL_SHARE`] of
