@@ -19,7 +19,7 @@
 //! and on which side, follows the order of the input: the same cloud in another order gives
 //! another subset and another solid. Over 219 benchmark sets (the bunny and the cow, 400-4000
 //! points, clean, noisy and open) a random reordering moved the mesh -> truth distance by a median
-//! of 8 % and by up to 2x where a spurious piece appeared or went. Spreading the off points
+//! of 8 % and by up to 4x where a spurious piece appeared or went. Spreading the off points
 //! evenly in space instead (a stride along a space-filling curve through the points, which makes
 //! the fit independent of the order) did no better on those sets than an arbitrary order.
 //!
