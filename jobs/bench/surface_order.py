@@ -1,15 +1,18 @@
-"""Summary of jobs/bench-surface-order: the default method on the same points in another order.
+"""Summary of jobs/bench-surface-order: the methods on the same points in another order.
 
-  python3 surface_order.py OUT
+  python3 surface_order.py OUT [--with OTHER]
 
-OUT/SAMPLING/raw.csv holds the default method's rows on permuted points (jobs/bench/surface.py
---permute), OUT/SAMPLING/baseline.txt the folder of the recorded run on the same sampling in the
-order drawn, whose raw.csv has the default and both peers (carrier, poisson). Per sampling and in
-all: the sets that meet the quality targets of jobs/bench/surface_report.py (both distances at or
-below the better peer, the far fraction on clean sets of at least 1000 points; the time target is
-left out, as the permuted runs are timed once) in the order drawn and in the permuted order, the
-sets whose figures moved, and each set whose outcome flipped, with both figures. Writes
-OUT/summary.md."""
+OUT/SAMPLING/raw.csv holds rows on permuted points (jobs/bench/surface.py --permute) of the
+default or of the peers or both; OTHER, another such folder of the same permutation, fills the
+methods OUT lacks (the default from one run and Poisson from another: both permuted). Every
+method not permuted is taken as recorded. OUT/SAMPLING/baseline.txt names the folder of the
+recorded run on the same sampling in the order drawn, whose raw.csv has the default and both
+peers (carrier, poisson). Per sampling and in all: the sets on which the default meets the
+quality targets of jobs/bench/surface_report.py (both distances at or below the better peer, the
+far fraction on clean sets of at least 1000 points; the time target is left out, as the permuted
+runs are timed once) in the order drawn and in the permuted order, the sets whose figures moved,
+and each set whose outcome flipped, with the figures. Writes OUT/summary.md, or with --with
+OUT/summary-with-NAME.md (NAME: OTHER's last component)."""
 import csv
 import os
 import statistics
@@ -43,62 +46,82 @@ def figures(row):
     return f"{row['t2m_rms_pct']} / {row['m2t_rms_pct']} / {row['far2_pct']} % / {row['components']}"
 
 
-def main(out):
+def best_peer(peers):
+    ok = [p for p in peers.values() if p["status"] == "ok"]
+    return " / ".join(f"{min(num(p, k) for p in ok):.3g}" for k in ("t2m_rms_pct", "m2t_rms_pct")) if ok else "-"
+
+
+def main(out, also=None):
     samplings = [d for d in sorted(os.listdir(out), key=lambda s: (s == "strided", len(s), s))
                  if os.path.exists(os.path.join(out, d, "raw.csv"))]
     if not samplings:
         sys.exit(f"surface_order: no OUT/SAMPLING/raw.csv under {out}")
-    lines = ["# The default method on permuted points", "",
-             "Quality targets only (both distances at or below the better peer's, far <= 2 % on clean sets of",
-             "at least 1000 points); peers and the order drawn from the recorded runs named per sampling.",
-             f"A figure has moved when it changed by more than {MOVED:.0%}.", "",
-             "| sampling | baseline | sets | met as drawn | met permuted | lost | gained | moved |",
-             "|---|---|---|---|---|---|---|---|"]
-    flips, deltas, total = [], {"t2m_rms_pct": [], "m2t_rms_pct": []}, [0, 0, 0, 0, 0, 0]
+    flips, deltas, total, permuted = [], OrderedDict(), [0, 0, 0, 0, 0, 0], set()
+    table = []
     for s in samplings:
         base_dir = open(os.path.join(out, s, "baseline.txt")).read().strip()
         base = load(os.path.join(base_dir, "raw.csv"))
         perm = load(os.path.join(out, s, "raw.csv"))
+        if also:
+            # rows of another run of the same permutation fill the methods this one lacks
+            for name, by in load(os.path.join(also, s, "raw.csv")).items():
+                for m, r in by.items():
+                    perm.setdefault(name, OrderedDict()).setdefault(m, r)
         n = met0 = met1 = lost = gained = moved = 0
         for name, by in perm.items():
-            if name not in base or "default" not in by:
+            if name not in base:
                 continue
             b = base[name]
-            peers = OrderedDict((m, r) for m, r in b.items() if m in PEERS)
-            ok0, why0 = quality(name, OrderedDict(peers, default=b.get("default")))
-            ok1, why1 = quality(name, OrderedDict(peers, default=by["default"]))
+            permuted |= set(by)
+            # each method permuted where this run has it, else as recorded
+            now = OrderedDict((m, by.get(m, r)) for m, r in b.items() if m in PEERS or m == "default")
+            ok0, _ = quality(name, OrderedDict((m, r) for m, r in b.items() if m in PEERS or m == "default"))
+            ok1, why1 = quality(name, now)
             n, met0, met1 = n + 1, met0 + ok0, met1 + ok1
-            d0, d1 = b.get("default"), by["default"]
             rel = []
-            for key in deltas:
-                x0, x1 = num(d0, key) if d0 else None, num(d1, key)
-                if x0 and x1 is not None:
-                    rel.append(abs(x1 / x0 - 1))
-                    deltas[key].append(x1 / x0 - 1)
+            for m, r in by.items():
+                for key in ("t2m_rms_pct", "m2t_rms_pct"):
+                    x0, x1 = num(b.get(m), key) if b.get(m) else None, num(r, key)
+                    if x0 and x1 is not None:
+                        rel.append(abs(x1 / x0 - 1))
+                        deltas.setdefault((m, key), []).append(x1 / x0 - 1)
             moved += any(r > MOVED for r in rel) or not rel
             if ok0 != ok1:
                 lost, gained = lost + ok0, gained + ok1
-                best = {k: min(num(p, k) for p in peers.values() if p["status"] == "ok")
-                        for k in ("t2m_rms_pct", "m2t_rms_pct")}
-                flips.append(f"| {s} | {name} | {figures(d0)} | {figures(d1)} | "
-                             f"{best['t2m_rms_pct']:.3g} / {best['m2t_rms_pct']:.3g} | "
+                peers0 = OrderedDict((m, r) for m, r in b.items() if m in PEERS)
+                peers1 = OrderedDict((m, r) for m, r in now.items() if m in PEERS)
+                flips.append(f"| {s} | {name} | {figures(b.get('default'))} | {figures(now.get('default'))} | "
+                             f"{best_peer(peers0)} | {best_peer(peers1)} | "
                              f"{'lost: ' + '; '.join(why1) if ok0 else 'gained'} |")
         total = [t + x for t, x in zip(total, (n, met0, met1, lost, gained, moved))]
-        lines.append(f"| {s} | {base_dir} | {n} | {met0} | {met1} | {lost} | {gained} | {moved} |")
+        table.append(f"| {s} | {base_dir} | {n} | {met0} | {met1} | {lost} | {gained} | {moved} |")
+    names = ", ".join(sorted(permuted))
+    lines = [f"# Methods on permuted points: {names}", "",
+             f"Permuted: {names}{f' (with the rows of {also})' if also else ''}; every other method as recorded.",
+             "Quality targets of the default only (both distances at or below the better peer's, far <= 2 % on",
+             "clean sets of at least 1000 points); the order drawn from the recorded runs named per sampling.",
+             f"A set has moved when a permuted method's figure changed by more than {MOVED:.0%}.", "",
+             "| sampling | baseline | sets | met as drawn | met permuted | lost | gained | moved |",
+             "|---|---|---|---|---|---|---|---|"] + table
     lines.append(f"| all | | {' | '.join(str(x) for x in total)} |")
-    lines += ["", "Relative change of the default's figures, permuted over as drawn (median of the absolute "
+    lines += ["", "Relative change of the permuted methods' figures over as drawn (median of the absolute "
               "value; range):", ""]
-    for key, vals in deltas.items():
-        if vals:
-            lines.append(f"- {key}: {statistics.median(abs(v) for v in vals):.1%} "
-                         f"({min(vals):+.1%} to {max(vals):+.1%}) over {len(vals)} sets")
-    lines += ["", "Sets whose outcome flipped (truth -> mesh rms / mesh -> truth rms / far / components):", "",
-              "| sampling | set | as drawn | permuted | better peer | |", "|---|---|---|---|---|---|"] + flips
-    open(os.path.join(out, "summary.md"), "w").write("\n".join(lines) + "\n")
+    for (m, key), vals in deltas.items():
+        lines.append(f"- {m} {key}: {statistics.median(abs(v) for v in vals):.1%} "
+                     f"({min(vals):+.1%} to {max(vals):+.1%}) over {len(vals)} sets")
+    lines += ["", "Sets whose outcome flipped (the default's truth -> mesh rms / mesh -> truth rms / far / "
+              "components; the better peer's two distances):", "",
+              "| sampling | set | default as drawn | default now | better peer as drawn | better peer now | |",
+              "|---|---|---|---|---|---|---|"] + flips
+    name = f"summary-with-{os.path.basename(os.path.normpath(also))}.md" if also else "summary.md"
+    open(os.path.join(out, name), "w").write("\n".join(lines) + "\n")
     print("\n".join(lines))
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 2:
+    if len(sys.argv) == 2:
+        main(sys.argv[1])
+    elif len(sys.argv) == 4 and sys.argv[2] == "--with":
+        main(sys.argv[1], sys.argv[3])
+    else:
         sys.exit(__doc__)
-    main(sys.argv[1])
