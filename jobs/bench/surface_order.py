@@ -13,7 +13,6 @@ far fraction on clean sets of at least 1000 points; the time target is left out,
 runs are timed once) in the order drawn and in the permuted order, the sets whose figures moved,
 and each set whose outcome flipped, with the figures. Writes OUT/summary.md, or with --with
 OUT/summary-with-NAME.md (NAME: OTHER's last component)."""
-import csv
 import os
 import statistics
 import sys
@@ -21,16 +20,10 @@ from collections import OrderedDict
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from surface_report import PEERS, num, targets  # noqa: E402
+from surface_robust import load  # noqa: E402
 
 # a figure is said to have moved when it changes by more than this fraction
 MOVED = 0.02
-
-
-def load(path):
-    sets = OrderedDict()
-    for r in csv.DictReader(open(path)):
-        sets.setdefault(r["set"], OrderedDict())[r["method"]] = r
-    return sets
 
 
 def quality(name, by_method):
@@ -46,8 +39,8 @@ def figures(row):
     return f"{row['t2m_rms_pct']} / {row['m2t_rms_pct']} / {row['far2_pct']} % / {row['components']}"
 
 
-def best_peer(peers):
-    ok = [p for p in peers.values() if p["status"] == "ok"]
+def best_peer(by_method):
+    ok = [r for m, r in by_method.items() if m in PEERS and r["status"] == "ok"]
     return " / ".join(f"{min(num(p, k) for p in ok):.3g}" for k in ("t2m_rms_pct", "m2t_rms_pct")) if ok else "-"
 
 
@@ -60,11 +53,11 @@ def main(out, also=None):
     table = []
     for s in samplings:
         base_dir = open(os.path.join(out, s, "baseline.txt")).read().strip()
-        base = load(os.path.join(base_dir, "raw.csv"))
-        perm = load(os.path.join(out, s, "raw.csv"))
+        base = load(base_dir)
+        perm = load(os.path.join(out, s))
         if also:
             # rows of another run of the same permutation fill the methods this one lacks
-            for name, by in load(os.path.join(also, s, "raw.csv")).items():
+            for name, by in load(os.path.join(also, s)).items():
                 for m, r in by.items():
                     perm.setdefault(name, OrderedDict()).setdefault(m, r)
         n = met0 = met1 = lost = gained = moved = 0
@@ -73,9 +66,10 @@ def main(out, also=None):
                 continue
             b = base[name]
             permuted |= set(by)
+            drawn = OrderedDict((m, r) for m, r in b.items() if m in PEERS or m == "default")
             # each method permuted where this run has it, else as recorded
-            now = OrderedDict((m, by.get(m, r)) for m, r in b.items() if m in PEERS or m == "default")
-            ok0, _ = quality(name, OrderedDict((m, r) for m, r in b.items() if m in PEERS or m == "default"))
+            now = OrderedDict((m, by.get(m, r)) for m, r in drawn.items())
+            ok0, _ = quality(name, drawn)
             ok1, why1 = quality(name, now)
             n, met0, met1 = n + 1, met0 + ok0, met1 + ok1
             rel = []
@@ -88,10 +82,8 @@ def main(out, also=None):
             moved += any(r > MOVED for r in rel) or not rel
             if ok0 != ok1:
                 lost, gained = lost + ok0, gained + ok1
-                peers0 = OrderedDict((m, r) for m, r in b.items() if m in PEERS)
-                peers1 = OrderedDict((m, r) for m, r in now.items() if m in PEERS)
                 flips.append(f"| {s} | {name} | {figures(b.get('default'))} | {figures(now.get('default'))} | "
-                             f"{best_peer(peers0)} | {best_peer(peers1)} | "
+                             f"{best_peer(drawn)} | {best_peer(now)} | "
                              f"{'lost: ' + '; '.join(why1) if ok0 else 'gained'} |")
         total = [t + x for t, x in zip(total, (n, met0, met1, lost, gained, moved))]
         table.append(f"| {s} | {base_dir} | {n} | {met0} | {met1} | {lost} | {gained} | {moved} |")
