@@ -94,27 +94,65 @@ pub struct OffPoints {
     pub dropped: usize,
 }
 
-/// The sides (+1 outside, -1 inside) of the off points of data point `i` at `per_point` off
-/// points per data point (see the module doc).
-fn sides(i: usize, per_point: f64) -> Vec<f64> {
-    let picked = |i: usize, f: f64| ((i + 1) as f64 * f).floor() > (i as f64 * f).floor();
-    if per_point >= 2.0 {
-        vec![1.0, -1.0]
-    } else if per_point >= 1.0 {
-        if picked(i, per_point - 1.0) {
-            vec![1.0, -1.0]
-        } else {
-            // the index of this point among those not picked: alternate the side
-            let k = i - (i as f64 * (per_point - 1.0)).floor() as usize;
-            vec![if k.is_multiple_of(2) { 1.0 } else { -1.0 }]
-        }
-    } else if picked(i, per_point) {
-        // the index of this point among those picked: alternate the side
-        let k = ((i + 1) as f64 * per_point).floor() as usize;
-        vec![if k.is_multiple_of(2) { -1.0 } else { 1.0 }]
-    } else {
-        vec![]
-    }
+/// How many nearest neighbours a data point's off points are dealt among (see the module doc).
+pub const DEAL_NEIGHBOURS: usize = 8;
+
+/// The splitmix64 finaliser: a bijection of 64-bit words that scatters every input bit.
+fn mix(z: u64) -> u64 {
+    let z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    let z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    let z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// A key drawn from the bits of a point's coordinates alone, so that whatever is decided by it
+/// does not depend on where the point stands in the input (-0 is taken as 0).
+pub fn coordinate_key(p: &[f64]) -> u64 {
+    p.iter().fold(0x243f_6a88_85a3_08d3, |h, &x| mix(h ^ (x + 0.0).to_bits()))
+}
+
+/// How far each oriented normal can be trusted: the least cosine between it and the normals of
+/// its [`AGREE_NEIGHBOURS`] nearest other points (`knn`, `kmax` per point, nearest first).
+pub fn agreement(normals: &[[f64; 3]], knn: &[usize], kmax: usize) -> Vec<f64> {
+    let k = AGREE_NEIGHBOURS.min(kmax);
+    (0..normals.len())
+        .map(|i| {
+            knn[i * kmax..i * kmax + k].iter().map(|&j| dot(&normals[i], &normals[j])).fold(1.0, f64::min)
+        })
+        .collect()
+}
+
+/// The sides (+1 outside, -1 inside) of the off points of each data point at its `rate`, dealt
+/// among neighbours (see the module doc): data `points` (3 per point), the trust `score` of each
+/// normal (higher first; equal scores leave the order to the coordinates), `knn` with `kmax` per
+/// point.
+pub fn deal(
+    points: &[f64],
+    score: &[f64],
+    (knn, kmax): (&[usize], usize),
+    rate: &dyn Fn(usize) -> f64,
+) -> Vec<Vec<f64>> {
+    let n = score.len();
+    let k = DEAL_NEIGHBOURS.min(kmax);
+    let keys: Vec<u64> = (0..n).map(|i| coordinate_key(&points[3 * i..3 * i + 3])).collect();
+    let ahead = |a: usize, b: usize| (score[a], keys[b], b) > (score[b], keys[a], a);
+    (0..n)
+        .map(|i| {
+            let rank = knn[i * kmax..i * kmax + k].iter().filter(|&&j| ahead(j, i)).count();
+            let draw = mix(keys[i]);
+            // the place among the neighbours, spread over [0, k + 1) by the point's own draw
+            let place = rank as f64 + (draw >> 11) as f64 / (1u64 << 53) as f64;
+            let r = rate(i).clamp(0.0, 2.0);
+            let side = if draw & 1 == 0 { 1.0 } else { -1.0 };
+            if place < (r - 1.0) * (k + 1) as f64 {
+                vec![1.0, -1.0]
+            } else if r >= 1.0 || place < r * (k + 1) as f64 {
+                vec![side]
+            } else {
+                vec![]
+            }
+        })
+        .collect()
 }
 
 /// delta and the place p + side delta n of the off point of data point `i` (normal `n`) on
@@ -143,9 +181,17 @@ pub(crate) fn place(
 }
 
 /// The off points of data `points` (normalised, 3 per point, the tree `tree` built over them)
-/// with outward unit `normals`, at `per_point` off points per data point.
-pub fn off_points(points: &[f64], normals: &[[f64; 3]], tree: &Octree, per_point: f64) -> OffPoints {
-    off_points_at(points, normals, tree, &|_| per_point)
+/// with outward unit `normals`, at `per_point` off points per data point, dealt among the
+/// neighbours `knn` (`kmax` per point) by trust.
+pub fn off_points(
+    points: &[f64],
+    normals: &[[f64; 3]],
+    tree: &Octree,
+    (knn, kmax): (&[usize], usize),
+    per_point: f64,
+) -> OffPoints {
+    let score = agreement(normals, knn, kmax);
+    off_points_at(points, normals, tree, &deal(points, &score, (knn, kmax), &|_| per_point))
 }
 
 /// The cosine above which the oriented normals of two neighbours agree.
@@ -178,10 +224,7 @@ pub fn doubtful_share_in_effect(share: f64, doubtful: usize, n: usize) -> f64 {
 /// Whether each oriented normal is trusted: it agrees (cosine above [`AGREE`]) with the normals
 /// of the [`AGREE_NEIGHBOURS`] nearest other points (`knn`, `kmax` per point, nearest first).
 pub fn trusted(normals: &[[f64; 3]], knn: &[usize], kmax: usize) -> Vec<bool> {
-    let k = AGREE_NEIGHBOURS.min(kmax);
-    (0..normals.len())
-        .map(|i| knn[i * kmax..i * kmax + k].iter().all(|&j| dot(&normals[i], &normals[j]) > AGREE))
-        .collect()
+    agreement(normals, knn, kmax).into_iter().map(|a| a > AGREE).collect()
 }
 
 /// The off points of the fit: `per_point` off points for each data point whose normal is
@@ -196,34 +239,35 @@ pub fn off_points_by_trust(
     per_point: f64,
     share: f64,
 ) -> (OffPoints, Doubt) {
-    let trust = trusted(normals, knn, kmax);
-    let count = trust.iter().filter(|&&t| !t).count();
-    let share = doubtful_share_in_effect(share, count, trust.len());
-    let rate = |i: usize| if trust[i] { per_point } else { share * per_point };
-    (off_points_at(points, normals, tree, &rate), Doubt { count, share })
+    let score = agreement(normals, knn, kmax);
+    let count = score.iter().filter(|&&a| a <= AGREE).count();
+    let share = doubtful_share_in_effect(share, count, score.len());
+    let rate = |i: usize| if score[i] > AGREE { per_point } else { share * per_point };
+    let sides = deal(points, &score, (knn, kmax), &rate);
+    (off_points_at(points, normals, tree, &sides), Doubt { count, share })
 }
 
-/// [`off_points`] with a rate of its own for each data point.
-pub fn off_points_at(
-    points: &[f64],
-    normals: &[[f64; 3]],
-    tree: &Octree,
-    rate: &(dyn Fn(usize) -> f64 + Sync),
-) -> OffPoints {
-    let placed: Vec<Vec<(f64, f64, [f64; 3])>> = (0..normals.len())
-        .into_par_iter()
-        .map_init(Vec::new, |found, i| {
-            sides(i, rate(i))
-                .into_iter()
-                .filter_map(|side| {
+/// The off points of data `points` (normalised, 3 per point, the tree `tree` built over them)
+/// with outward unit `normals` on the `sides` given for each point (see [`deal`]). They are
+/// listed in the order of their sources' [`coordinate_key`], so that which of two close ones is
+/// merged away does not depend on the input's order either.
+pub fn off_points_at(points: &[f64], normals: &[[f64; 3]], tree: &Octree, sides: &[Vec<f64>]) -> OffPoints {
+    let mut order: Vec<usize> = (0..normals.len()).collect();
+    order.sort_by_cached_key(|&i| (coordinate_key(&points[3 * i..3 * i + 3]), i));
+    let placed: Vec<Vec<(f64, f64, [f64; 3])>> = order
+        .par_iter()
+        .map_init(Vec::new, |found, &i| {
+            sides[i]
+                .iter()
+                .filter_map(|&side| {
                     place(points, &normals[i], tree, i, side, found).map(|(d, q)| (side, d, q))
                 })
                 .collect()
         })
         .collect();
     let mut all = OffPoints::default();
-    for (i, list) in placed.iter().enumerate() {
-        all.dropped += sides(i, rate(i)).len() - list.len();
+    for (&i, list) in order.iter().zip(&placed) {
+        all.dropped += sides[i].len() - list.len();
         for &(side, delta, q) in list {
             all.centres.extend_from_slice(&q);
             all.side.push(side);
@@ -301,14 +345,71 @@ mod tests {
         assert_eq!(doubtful_share_in_effect(0.4, 0, 0), 0.4);
     }
 
+    /// `n` points spread over the unit sphere (a Fibonacci lattice) with their outward normals.
+    fn sphere(n: usize) -> (Vec<f64>, Vec<[f64; 3]>) {
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        let normals: Vec<[f64; 3]> = (0..n)
+            .map(|i| {
+                let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+                let r = (1.0 - z * z).sqrt();
+                let t = golden * i as f64;
+                [r * t.cos(), r * t.sin(), z]
+            })
+            .collect();
+        (normals.iter().flatten().map(|x| 0.5 * x).collect(), normals)
+    }
+
+    /// The sides dealt to `points` at one `rate` and the trust `score`.
+    fn dealt(points: &[f64], score: &[f64], rate: f64) -> Vec<Vec<f64>> {
+        let tree = Octree::new(points, 10);
+        let knn = crate::surface::normals::nearest(&tree, points, DEAL_NEIGHBOURS);
+        deal(points, score, (&knn, DEAL_NEIGHBOURS), &|_| rate)
+    }
+
     #[test]
-    fn rates_give_the_asked_number_of_off_points() {
-        for (rate, want) in [(2.0, 2000), (1.0, 1000), (1.5, 1500), (0.5, 500), (0.25, 250)] {
-            let all: Vec<f64> = (0..1000).flat_map(|i| sides(i, rate)).collect();
-            assert_eq!(all.len(), want, "rate {rate}");
+    fn rates_give_the_asked_number_of_off_points_on_both_sides() {
+        let (pts, _) = sphere(2000);
+        for (rate, want) in [(2.0, 4000), (1.0, 2000), (1.5, 3000), (0.5, 1000), (0.2, 400)] {
+            let all: Vec<f64> = dealt(&pts, &[0.0; 2000], rate).into_iter().flatten().collect();
+            // the exact count for whole rates, within 10 % otherwise
+            let slack = if rate == rate.round() { 0 } else { want / 10 };
+            assert!(all.len().abs_diff(want) <= slack, "rate {rate}: {} off points", all.len());
             let outside = all.iter().filter(|&&s| s > 0.0).count();
-            assert!(outside.abs_diff(want / 2) <= 1, "rate {rate}: {outside} outside");
+            assert!(outside.abs_diff(all.len() / 2) <= all.len() / 20, "rate {rate}: {outside} outside");
         }
+    }
+
+    #[test]
+    fn the_off_points_go_to_the_most_trusted_of_each_neighbourhood() {
+        // a trust score rising with the height: at rate 0.2 a point gets an off point only when
+        // at most one or two of its eight neighbours are trusted more, that is, almost only
+        // where it is the highest of them: on the sphere's top cap, none below it
+        let (pts, _) = sphere(2000);
+        let score: Vec<f64> = pts.chunks_exact(3).map(|p| p[2]).collect();
+        let sides = dealt(&pts, &score, 0.2);
+        let got: Vec<f64> = (0..2000).filter(|&i| !sides[i].is_empty()).map(|i| score[i]).collect();
+        assert!(got.len() < 30 && got.iter().all(|&z| z > 0.45), "{got:?}");
+    }
+
+    #[test]
+    fn the_same_cloud_in_another_order_gets_the_same_off_points() {
+        let (pts, normals) = sphere(1500);
+        // a trust score with ties, so that the coordinates have to break them
+        let score: Vec<f64> = normals.iter().map(|n| (4.0 * n[0]).round()).collect();
+        // a permutation: i -> 7 i mod 1500 (7 and 1500 are coprime)
+        let perm: Vec<usize> = (0..1500).map(|i| 7 * i % 1500).collect();
+        let pts2: Vec<f64> = perm.iter().flat_map(|&i| pts[3 * i..3 * i + 3].to_vec()).collect();
+        let normals2: Vec<[f64; 3]> = perm.iter().map(|&i| normals[i]).collect();
+        let score2: Vec<f64> = perm.iter().map(|&i| score[i]).collect();
+        let list = |pts: &[f64], normals: &[[f64; 3]], score: &[f64]| {
+            let tree = Octree::new(pts, 10);
+            let sides = dealt(pts, score, 0.5);
+            let off = off_points_at(pts, normals, &tree, &sides);
+            (off.centres, off.side, off.dropped)
+        };
+        let (a, b) = (list(&pts, &normals, &score), list(&pts2, &normals2, &score2));
+        assert!(a.1.len() > 600 && a.1.len() < 900, "{} off points", a.1.len());
+        assert_eq!(a, b);
     }
 
     #[test]
@@ -326,7 +427,8 @@ mod tests {
             }
         }
         let tree = Octree::new(&pts, 10);
-        let off = off_points(&pts, &normals, &tree, 2.0);
+        let knn = crate::surface::normals::nearest(&tree, &pts, DEAL_NEIGHBOURS);
+        let off = off_points(&pts, &normals, &tree, (&knn, DEAL_NEIGHBOURS), 2.0);
         assert_eq!((off.dropped, off.side.len()), (0, 1600));
         for k in 0..off.side.len() {
             let want = if off.side[k] > 0.0 { DELTA } else { DELTA / 2.0 };
@@ -346,7 +448,8 @@ mod tests {
             normals.push([t.cos(), t.sin(), 0.0]);
         }
         let tree = Octree::new(&pts, 10);
-        let off = off_points(&pts, &normals, &tree, 2.0);
+        let knn = crate::surface::normals::nearest(&tree, &pts, DEAL_NEIGHBOURS);
+        let off = off_points(&pts, &normals, &tree, (&knn, DEAL_NEIGHBOURS), 2.0);
         let inside = off.side.iter().filter(|&&s| s < 0.0).count();
         assert_eq!((inside, off.side.len() - inside, off.dropped), (1, 12, 11));
     }
