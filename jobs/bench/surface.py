@@ -30,7 +30,9 @@ wide clearance of the blob search alone); `turns` and `noturns`: `--orient-turns
 turned where that shrinks the surface no data supports, src/surface/turns.rs); `denoise`: `--denoise on`
 (the points moved onto quadrics of their same-sheet neighbours first, src/surface/denoise.rs); `dense`:
 `--method dense` (the default's off-surface fit as one dense system where `auto` would take the two
-levels of src/app/fit/levels.rs, from about 11,700 points on 2 ranks). A binary whose `fit --help` has no `--surface` only has the plain method:
+levels of src/app/fit/levels.rs, from about 11,700 points on 2 ranks); `neighbours`: `--off-deal
+neighbours` (off points dealt among neighbours by draws from the coordinates, whatever the order
+of the points; src/surface/offsurface.rs). A binary whose `fit --help` has no `--surface` only has the plain method:
 then `carrier` runs it without the flag and `default`/`offsurface` are dropped with a note.
 `poisson`: screened Poisson (Kazhdan and Hoppe 2013, pymeshlab, octree depth --poisson-depth)
 on normals estimated by PCA of the 10 nearest neighbours and oriented by MeshLab's propagation.
@@ -249,7 +251,8 @@ def method_list(args, has_surface):
         flags = {"default": [], "poisson": [], "energy": ["--orient-energy", "on"], "side": ["--orient-side", "on"],
                  "trimmed": ["--trim"], "choice": ["--blob-choice", "on"], "wide": ["--blob-choice", "off"],
                  "turns": ["--orient-turns", "on"], "noturns": ["--orient-turns", "off"],
-                 "denoise": ["--denoise", "on"], "dense": ["--method", "dense"]}
+                 "denoise": ["--denoise", "on"], "dense": ["--method", "dense"],
+                 "neighbours": ["--off-deal", "neighbours"]}
         return [(m, "poisson" if m == "poisson" else "volspline",
                  flags.get(m, ["--surface", m])) for m in args.methods], ""
     # a binary without --surface has one method, the plain carrier method: run it once as `carrier`
@@ -289,9 +292,9 @@ def parse(argv):
             ap.error(f"unknown mesh {m} (one of {', '.join(MESHES)})")
     for m in args.methods:
         if m not in ("default", "carrier", "offsurface", "energy", "side", "trimmed", "choice", "wide", "turns",
-                     "noturns", "denoise", "dense", "poisson"):
+                     "noturns", "denoise", "dense", "neighbours", "poisson"):
             ap.error(f"unknown method {m} (default, carrier, offsurface, energy, side, trimmed, choice, wide, turns, "
-                     "noturns, denoise, dense, poisson)")
+                     "noturns, denoise, dense, neighbours, poisson)")
     if args.quick:
         args.sizes, args.variant_sizes, args.grid = [1000, 2000], [1000], 64
     return args

@@ -947,6 +947,7 @@ pub fn blob_values(blobs: &Blobs, raw: &[f64], carrier: &Carrier, norm: &Normali
 mod tests {
     use super::*;
     use crate::par::Solo;
+    use crate::surface::fibonacci_sphere;
 
     #[test]
     fn thinned_blobs_keep_an_even_share_of_their_points_in_order() {
@@ -967,21 +968,6 @@ mod tests {
         assert_eq!(four.centres, [0.0, 1.0, 2.0, 6.0, 7.0, 8.0, 15.0, 16.0, 17.0, 21.0, 22.0, 23.0]);
         assert_eq!((four.found, four.regions, four.spared.len()), (40, 1, 3));
         assert!(blobs.thinned(0).source.is_empty());
-    }
-
-    /// Points of the unit sphere (a Fibonacci spiral) and their outward normals.
-    fn sphere(n: usize) -> (Vec<f64>, Vec<[f64; 3]>) {
-        let (mut pts, mut normals) = (Vec::new(), Vec::new());
-        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-        for i in 0..n {
-            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-            let r = (1.0 - z * z).sqrt();
-            let t = golden * i as f64;
-            let p = [r * t.cos(), r * t.sin(), z];
-            pts.extend_from_slice(&p);
-            normals.push(p);
-        }
-        (pts, normals)
     }
 
     #[test]
@@ -1037,7 +1023,7 @@ mod tests {
     /// 400 points on the unit sphere with their normals and octree, and a lattice over [-2, 2]^3
     /// of 33 nodes a side (h = 0.125).
     fn sphere_and_lattice() -> (Vec<f64>, Vec<[f64; 3]>, Octree, Lattice) {
-        let (pts, normals) = sphere(400);
+        let (pts, normals) = fibonacci_sphere(400);
         let tree = Octree::new(&pts, 10);
         (pts, normals, tree, Lattice::new([-2.0; 3], [2.0; 3], 33))
     }
@@ -1121,7 +1107,7 @@ mod tests {
 
     #[test]
     fn points_on_a_solid_have_solid_at_their_cell_and_points_of_a_part_cut_away_have_none() {
-        let (pts, _) = sphere(400);
+        let (pts, _) = fibonacci_sphere(400);
         let lattice = Lattice::new([-2.0; 3], [2.0; 3], 33);
         let f = |cut: f64| cut_ball(&lattice, cut);
         assert_eq!(points_without_solid(&lattice, &f(2.0), &pts), 0);
@@ -1135,7 +1121,7 @@ mod tests {
 
     #[test]
     fn solid_lost_where_the_first_fit_had_it_is_found_at_the_corner_where_it_was_largest() {
-        let (pts, _) = sphere(400);
+        let (pts, _) = fibonacci_sphere(400);
         let lattice = Lattice::new([-2.0; 3], [2.0; 3], 33);
         let f = |cut: f64| cut_ball(&lattice, cut);
         let (first, now) = (f(2.0), f(0.5));
@@ -1167,7 +1153,7 @@ mod tests {
         // the unit ball with a leg along -z down to z = -1.6 (a square rod 0.25 across, on the
         // lattice's nodes x = y = 0), sampled on the ball and at the leg's end alone; the second
         // fit keeps the ball and loses the leg
-        let (mut pts, _) = sphere(400);
+        let (mut pts, _) = fibonacci_sphere(400);
         let lattice = Lattice::new([-2.0; 3], [2.0; 3], 33);
         let leg = |q: [f64; 3]| (0.125 - q[0].abs().max(q[1].abs())).min(q[2] + 1.6);
         let ball = |q: [f64; 3]| 1.0 - dist2(&q, &[0.0; 3]).sqrt();
@@ -1213,7 +1199,7 @@ mod tests {
     fn a_thin_web_between_two_balls_is_cut_and_the_cap_over_a_hole_is_kept() {
         // two balls of radius 0.4 at x = -+0.6, sampled (400 points each) except for a cap of the
         // right one (z > 0.24, its hole), joined by a web |y| < 0.05, |x| < 0.6, |z| < 0.2
-        let (unit, _) = sphere(400);
+        let (unit, _) = fibonacci_sphere(400);
         let mut pts = Vec::new();
         for (cx, hole) in [(-0.6, false), (0.6, true)] {
             for p in unit.chunks_exact(3).filter(|p| !(hole && p[2] > 0.6)) {
@@ -1368,7 +1354,7 @@ mod tests {
 
     #[test]
     fn sampling_on_one_rank_matches_the_model() {
-        let (pts, _) = sphere(60);
+        let (pts, _) = fibonacci_sphere(60);
         let norm = Normalisation { centre: [0.1, 0.2, 0.3], scale: 2.0 };
         let mut centres = vec![0.0; pts.len()];
         for (c, p) in centres.chunks_exact_mut(3).zip(pts.chunks_exact(3)) {

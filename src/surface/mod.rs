@@ -125,3 +125,19 @@ pub fn oriented_with(
 ) -> Result<Orientation> {
     orient(comm, points, &hoods.normals, &hoods.knn, hoods.kmax, side_vote)
 }
+
+/// Points of the unit sphere on a Fibonacci spiral (nearly even) and their outward normals: the
+/// test shape of the surface modules.
+#[cfg(test)]
+pub(crate) fn fibonacci_sphere(n: usize) -> (Vec<f64>, Vec<[f64; 3]>) {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    let normals: Vec<[f64; 3]> = (0..n)
+        .map(|i| {
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+            let r = (1.0 - z * z).sqrt();
+            let t = golden * i as f64;
+            [r * t.cos(), r * t.sin(), z]
+        })
+        .collect();
+    (normals.iter().flatten().copied().collect(), normals)
+}

@@ -367,7 +367,8 @@ pub fn constrain(
     Ok(Constrained { prep: with_off_points(prep, &off), summary, hoods, normals: orientation.normals, off })
 }
 
-/// The off points of `prep` at the rates of `args` (--off-points, --doubtful-share), how many of
+/// The off points of `prep` at the rates of `args` (--off-points, --doubtful-share) dealt as
+/// --off-deal says, how many of
 /// its points have doubtful normals and the share of the rate they got.
 fn by_trust(
     prep: &Prepared,
@@ -376,7 +377,8 @@ fn by_trust(
     args: &FitArgs,
 ) -> (OffPoints, Doubt) {
     let knn = (&hoods.knn[..], hoods.kmax);
-    off_points_by_trust(&prep.centres, normals, &hoods.tree, knn, args.off_points, args.doubtful_share)
+    let rates = (args.off_points, args.doubtful_share);
+    off_points_by_trust(&prep.centres, normals, &hoods.tree, knn, rates, args.off_deal)
 }
 
 /// `data` with the off points `off` and their values appended to its centres and values.
