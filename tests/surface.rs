@@ -611,17 +611,17 @@ fn fit_benchmark_sample(name: &str, n: usize, truth: &str) -> (f64, f64, String)
 }
 
 #[test]
-fn off_points_dealt_among_neighbours_give_the_same_solid_for_any_order_of_the_cloud() {
+fn off_points_dealt_among_neighbours_give_the_same_solid_for_any_order_of_the_cloud_and_ranks() {
     // the cow at 1000 points with a hole (tests/data/cow-1000-open.xyz, 896 points, a sample of
     // the surface benchmark), whose figures moved most with the order of its points under the
     // default dealing by index (mesh -> truth 0.50 -> 1.27 % of the diagonal): with
-    // --off-deal neighbours, read backwards and in a scrambled order it gives the same volume,
-    // to rounding; by index the scrambled order gives another
+    // --off-deal neighbours, read backwards on 2 ranks and in a scrambled order on 3 it gives
+    // the volume of the file order on 1, to rounding; by index the scrambled order gives another
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/cow-1000-open.xyz");
     let read = volspline::io::points::read_points(&path).unwrap().points;
     let n = read.len();
     assert_eq!(n, 896);
-    let volume = |name: &str, deal: &str, order: &dyn Fn(usize) -> usize| {
+    let volume = |name: &str, ranks: usize, deal: &str, order: &dyn Fn(usize) -> usize| {
         let pts: Vec<f64> = (0..n).flat_map(|i| read[order(i)]).collect();
         let dir = common::temp_dir(name);
         let input = dir.join("p.xyz");
@@ -629,15 +629,15 @@ fn off_points_dealt_among_neighbours_give_the_same_solid_for_any_order_of_the_cl
         let prefix = dir.join("s");
         let (input, prefix) = (input.to_str().unwrap(), prefix.to_str().unwrap());
         let args = ["fit", input, "--out", prefix, "--grid", "48", "--no-preview", "--off-deal", deal];
-        let text = common::run_ok(2, &args);
+        let text = common::run_ok(ranks, &args);
         let surface = text.lines().find(|l| l.contains("surface ")).unwrap_or("").to_string();
         (read_image(&dir.join("s.hdf"), "f").unwrap().1, surface)
     };
     // i -> 389 i mod 896 scrambles them (389 is prime to 896)
     let scrambled = |i: usize| 389 * i % n;
-    let (a, sa) = volume("order-file", "neighbours", &|i| i);
-    let (b, sb) = volume("order-backwards", "neighbours", &|i| n - 1 - i);
-    let (c, sc) = volume("order-scrambled", "neighbours", &scrambled);
+    let (a, sa) = volume("order-file", 1, "neighbours", &|i| i);
+    let (b, sb) = volume("order-backwards", 2, "neighbours", &|i| n - 1 - i);
+    let (c, sc) = volume("order-scrambled", 3, "neighbours", &scrambled);
     println!("file order: {sa}\nbackwards: {sb}\nscrambled: {sc}");
     let differ = |other: &[f64]| {
         let signs = a.iter().zip(other).filter(|(x, y)| (**x >= 0.0) != (**y >= 0.0)).count();
@@ -647,8 +647,8 @@ fn off_points_dealt_among_neighbours_give_the_same_solid_for_any_order_of_the_cl
         let (d, signs) = differ(other);
         assert!(d < 1e-6 && signs == 0, "{name}: volume differs by {d}, {signs} nodes change sign");
     }
-    let (x, _) = volume("order-index-file", "index", &|i| i);
-    let (y, _) = volume("order-index-scrambled", "index", &scrambled);
+    let (x, _) = volume("order-index-file", 2, "index", &|i| i);
+    let (y, _) = volume("order-index-scrambled", 2, "index", &scrambled);
     let d = common::rel_diff(&x, &y);
     assert!(d > 1e-3, "by index the scrambled order differs by only {d}");
 }
