@@ -129,6 +129,11 @@ pub fn coordinate_key(p: &[f64]) -> u64 {
     p.iter().fold(0x243f_6a88_85a3_08d3, |h, &x| mix(h ^ (x + 0.0).to_bits()))
 }
 
+/// The [`coordinate_key`] of each of `points` (3 per point).
+pub fn coordinate_keys(points: &[f64]) -> Vec<u64> {
+    points.chunks_exact(3).map(coordinate_key).collect()
+}
+
 /// How the off points are dealt to the data points (`--off-deal`, see the module doc).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Deal {
@@ -137,6 +142,16 @@ pub enum Deal {
     /// Among each point's nearest neighbours by draws from the coordinates: the same for any
     /// order of the input.
     Neighbours,
+}
+
+impl Deal {
+    /// The name `--off-deal` takes.
+    pub fn name(self) -> &'static str {
+        match self {
+            Deal::Index => "index",
+            Deal::Neighbours => "neighbours",
+        }
+    }
 }
 
 /// The sides (+1 outside, -1 inside) of the off points of data point `i` at `per_point` off
@@ -164,16 +179,14 @@ fn sides_by_index(i: usize, per_point: f64) -> Vec<f64> {
 
 /// The sides (+1 outside, -1 inside) of the off points of each data point at its `rate`, dealt
 /// among its [`DEAL_NEIGHBOURS`] nearest neighbours (`knn`, `kmax` per point) by draws from the
-/// coordinates of data `points` (3 per point; see the module doc).
+/// [`coordinate_keys`] `keys` of the data points (see the module doc).
 pub fn deal_among_neighbours(
-    points: &[f64],
+    keys: &[u64],
     (knn, kmax): (&[usize], usize),
     rate: &dyn Fn(usize) -> f64,
 ) -> Vec<Vec<f64>> {
-    let n = points.len() / 3;
     let k = DEAL_NEIGHBOURS.min(kmax);
-    let keys: Vec<u64> = (0..n).map(|i| coordinate_key(&points[3 * i..3 * i + 3])).collect();
-    (0..n)
+    (0..keys.len())
         .map(|i| {
             // the neighbours ahead of this point: smaller keys (the index breaks a tie, which
             // only points at one place can have)
@@ -223,7 +236,7 @@ pub(crate) fn place(
 /// with outward unit `normals`, at `per_point` off points per data point, dealt by index.
 pub fn off_points(points: &[f64], normals: &[[f64; 3]], tree: &Octree, per_point: f64) -> OffPoints {
     let sides: Vec<Vec<f64>> = (0..normals.len()).map(|i| sides_by_index(i, per_point)).collect();
-    off_points_at(points, normals, tree, &sides, Deal::Index)
+    off_points_at(points, normals, tree, &sides, None)
 }
 
 /// The cosine above which the oriented normals of two neighbours agree.
@@ -278,27 +291,35 @@ pub fn off_points_by_trust(
     let count = trust.iter().filter(|&&t| !t).count();
     let share = doubtful_share_in_effect(share, count, trust.len());
     let rate = |i: usize| if trust[i] { per_point } else { share * per_point };
-    let sides = match deal {
-        Deal::Index => (0..trust.len()).map(|i| sides_by_index(i, rate(i))).collect(),
-        Deal::Neighbours => deal_among_neighbours(points, (knn, kmax), &rate),
+    let off = match deal {
+        Deal::Index => {
+            let sides: Vec<Vec<f64>> = (0..trust.len()).map(|i| sides_by_index(i, rate(i))).collect();
+            off_points_at(points, normals, tree, &sides, None)
+        }
+        Deal::Neighbours => {
+            let keys = coordinate_keys(points);
+            let sides = deal_among_neighbours(&keys, (knn, kmax), &rate);
+            off_points_at(points, normals, tree, &sides, Some(&keys))
+        }
     };
-    (off_points_at(points, normals, tree, &sides, deal), Doubt { count, share })
+    (off, Doubt { count, share })
 }
 
 /// The off points of data `points` (normalised, 3 per point, the tree `tree` built over them)
 /// with outward unit `normals` on the `sides` given for each point. They are listed in the order
-/// of their sources, by index or, dealt among neighbours, by [`coordinate_key`], so that which of
-/// two close ones is merged away does not depend on the input's order either.
+/// of their sources, by index or, where the sources' [`coordinate_keys`] `keys` are given (dealt
+/// among neighbours), by key, so that which of two close ones is merged away does not depend on
+/// the input's order either.
 pub fn off_points_at(
     points: &[f64],
     normals: &[[f64; 3]],
     tree: &Octree,
     sides: &[Vec<f64>],
-    deal: Deal,
+    keys: Option<&[u64]>,
 ) -> OffPoints {
     let mut order: Vec<usize> = (0..normals.len()).collect();
-    if deal == Deal::Neighbours {
-        order.sort_by_cached_key(|&i| (coordinate_key(&points[3 * i..3 * i + 3]), i));
+    if let Some(keys) = keys {
+        order.sort_by_key(|&i| (keys[i], i));
     }
     let placed: Vec<Vec<(f64, f64, [f64; 3])>> = order
         .par_iter()
@@ -396,7 +417,7 @@ mod tests {
     fn dealt(points: &[f64], rate: f64) -> Vec<Vec<f64>> {
         let tree = Octree::new(points, 10);
         let knn = crate::surface::normals::nearest(&tree, points, DEAL_NEIGHBOURS);
-        deal_among_neighbours(points, (&knn, DEAL_NEIGHBOURS), &|_| rate)
+        deal_among_neighbours(&coordinate_keys(points), (&knn, DEAL_NEIGHBOURS), &|_| rate)
     }
 
     #[test]

@@ -32,7 +32,6 @@ use crate::spline::hygiene::{
 };
 use crate::spline::system::power_of_two_below_inverse;
 use crate::spline::{Evaluator, Kernel, Model, Provenance, Spline};
-use crate::surface::offsurface::Deal;
 use crate::surface::support::DataSupport;
 
 pub use dense::{assemble, assemble_blocks, assemble_blocks_lower, assemble_lower, solve_extended};
@@ -543,7 +542,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         r.figure("off_dropped", s.dropped);
         r.figure("off_doubtful_normals", s.doubtful);
         r.figure("off_doubtful_share", s.doubtful_share);
-        r.figure("off_deal", if a.off_deal == Deal::Index { "index" } else { "neighbours" });
+        r.figure("off_deal", a.off_deal.name());
         r.figure("delta_min", format!("{:e}", s.delta.0));
         r.figure("delta_max", format!("{:e}", s.delta.1));
         r.figure("orient_components", s.components);

@@ -368,8 +368,8 @@ pub fn constrain(
 }
 
 /// The off points of `prep` at the rates of `args` (--off-points, --doubtful-share) dealt as
-/// --off-deal says, how many of
-/// its points have doubtful normals and the share of the rate they got.
+/// --off-deal says, how many of its points have doubtful normals and the share of the rate they
+/// got.
 fn by_trust(
     prep: &Prepared,
     hoods: &Neighbourhoods,
