@@ -172,12 +172,13 @@ pub struct FitArgs {
     /// are doubtful (sparse or row-wise samples) the share rises linearly to 1 at 100 %.
     #[arg(long, allow_hyphen_values = true, default_value = "0.4", value_name = "S", value_parser = share)]
     pub doubtful_share: f64,
-    /// Which data points get the off-surface points, and on which side: index (a stride through
-    /// the input order, sides alternating) or neighbours (dealt among each point's 8 nearest
-    /// neighbours by draws from its coordinates: the same cloud in any order gives the same
-    /// solid, to rounding). Either meets the surface benchmark's quality targets equally often
-    /// on an arbitrary order of its clouds.
-    #[arg(long, default_value = "index", value_name = "index|neighbours", value_parser = off_deal)]
+    /// Which data points get the off-surface points, and on which side: neighbours (dealt among
+    /// each point's 8 nearest neighbours by draws from its coordinates: the same cloud in any
+    /// order, on any number of ranks, gives the same solid, to rounding) or index (a stride
+    /// through the input order, sides alternating: another order gives another solid). Both
+    /// meet the surface benchmark's quality targets equally often on an arbitrary order of its
+    /// clouds.
+    #[arg(long, default_value = "neighbours", value_name = "neighbours|index", value_parser = off_deal)]
     pub off_deal: Deal,
     /// Smoothing lambda for noisy scans (0: the spline interpolates). The spline minimises
     /// sum_i (U(P_i) - r_i)^2 + lambda E(U) instead of interpolating, as scipy's RBFInterpolator
@@ -934,16 +935,16 @@ mod tests {
         assert!(a.drop_isolated);
         assert_eq!(
             (a.surface, a.off_points, a.doubtful_share, a.off_deal),
-            (Surface::Auto, 0.5, 0.4, Deal::Index)
+            (Surface::Auto, 0.5, 0.4, Deal::Neighbours)
         );
         assert!(a.carrier.to_string().starts_with("ball:"));
         let cli =
             parse(&["fit", "a.xyz", "--out", "o", "--surface", "carrier", "--off-points", "2"]).unwrap();
         let Command::Fit(a) = cli.command else { panic!("fit") };
         assert_eq!((a.surface, a.off_points), (Surface::Carrier, 2.0));
-        let cli = parse(&["fit", "a.xyz", "--out", "o", "--off-deal", "neighbours"]).unwrap();
+        let cli = parse(&["fit", "a.xyz", "--out", "o", "--off-deal", "index"]).unwrap();
         let Command::Fit(a) = cli.command else { panic!("fit") };
-        assert_eq!(a.off_deal, Deal::Neighbours);
+        assert_eq!(a.off_deal, Deal::Index);
         let cli = parse(&["fit", "a.xyz", "--out", "o", "--margin", "0.2"]).unwrap();
         let Command::Fit(a) = cli.command else { panic!("fit") };
         assert_eq!(a.grid.margin, Margin { fraction: 0.2, grow: false });

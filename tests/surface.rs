@@ -45,6 +45,16 @@ const UNIFORM_RATE: (f64, f64) = (0.4, 1.0);
 /// The turns by unsupported surface (step 7) off: for the tests that measure an earlier step
 /// alone, as it was measured before the turns were on by default.
 const NO_TURNS: [&str; 2] = ["--orient-turns", "off"];
+/// The off points dealt by index. Whether a rule of the default fit fires on a sample depends on
+/// which points carry off points; the tests of a rule on a chosen sample pin the dealing on which
+/// it was measured there (the rules are the same for either dealing).
+const BY_INDEX: [&str; 2] = ["--off-deal", "index"];
+/// The oracle's off-point rates of [`UNIFORM`] and of the default options, dealt by index.
+const UNIFORM_BY_INDEX: OffRates = (UNIFORM_RATE, Deal::Index);
+const DEFAULT_BY_INDEX: OffRates = ((RATE, DOUBTFUL_SHARE), Deal::Index);
+/// Off-point options of the serial oracle: the rate for trusted normals and the share of it for
+/// doubtful ones, and the dealing.
+type OffRates = ((f64, f64), Deal);
 
 /// `n` points of a surface given by `at(u, v)` for u, v uniform in [0, 1) (area-uniform for the
 /// parametrisations below), with Gaussian noise of `sigma` on every coordinate.
@@ -162,20 +172,14 @@ struct FirstFit {
 }
 
 /// [`FirstFit`] of `read` (the kernel r, the default carrier), from the library's steps, with the
-/// off-point `rate` for trusted normals and the share of it for doubtful ones.
-fn first_fit(read: &[f64], rate: (f64, f64)) -> FirstFit {
+/// off-point `rate` for trusted normals, the share of it for doubtful ones and the dealing.
+fn first_fit(read: &[f64], (rate, deal): OffRates) -> FirstFit {
     let k = Kernel::new(3, 2).unwrap();
     let data = prepare(read, &k, &Carrier::AutoBall, 1e-6).unwrap();
     let hoods = neighbourhoods(&data.centres).unwrap();
     let mut normals = oriented(&Solo, &data.centres, &hoods).unwrap().normals;
-    let (mut off, _) = off_points_by_trust(
-        &data.centres,
-        &normals,
-        &hoods.tree,
-        (&hoods.knn, hoods.kmax),
-        rate,
-        Deal::Index,
-    );
+    let (mut off, _) =
+        off_points_by_trust(&data.centres, &normals, &hoods.tree, (&hoods.knn, hoods.kmax), rate, deal);
     let with_off = |off: &OffPoints| {
         let mut prep = data.clone();
         prep.centres.extend_from_slice(&off.centres);
@@ -214,7 +218,7 @@ fn first_fit(read: &[f64], rate: (f64, f64)) -> FirstFit {
 /// count, what the ray test turned, which clearance the choice kept and the turns' report.
 fn serial_offsurface(
     read: &[f64],
-    rate: (f64, f64),
+    rate: OffRates,
     choose: bool,
     turns: bool,
 ) -> (Model, usize, RayCheck, Option<bool>, TurnCheck) {
@@ -375,18 +379,11 @@ fn fits_match_the_oracle(
     }
 }
 
-/// [`fits_match_the_oracle`] with the default off-point rates and one clearance (the oracle makes
-/// no clearance choice), by the projected Cholesky.
-fn default_fits_match_the_oracle(dir: &Path, input: &Path, oracle: &Model, off_count: usize) {
-    fits_match_the_oracle(
-        dir,
-        input,
-        oracle,
-        off_count,
-        "cholesky",
-        &DEFAULT_RATES,
-        &["--blob-choice", "off"],
-    );
+/// [`fits_match_the_oracle`] with the default off-point rates dealt by index and one clearance
+/// (the oracle makes no clearance choice), by the projected Cholesky.
+fn by_index_fits_match_the_oracle(dir: &Path, input: &Path, oracle: &Model, off_count: usize) {
+    let extra = [&NO_CHOICE[..], &BY_INDEX].concat();
+    fits_match_the_oracle(dir, input, oracle, off_count, "cholesky", &DEFAULT_RATES, &extra);
 }
 
 /// `n` area-uniform samples (seed `seed` of the tests' sampler) of the mesh at `mesh`, written to
@@ -409,8 +406,9 @@ fn offsurface_fits_on_one_two_and_three_ranks_match_the_serial_oracle() {
     let input = dir.join("bunny506.xyz");
     common::write_xyz(&input, &common::bunny_subset(10, 0));
     // a system of about 700 rows, solved by Householder QR: the turns' tries are fresh fits
-    let (oracle, off_count, _, _, _) = serial_offsurface(&read_back(&input), UNIFORM_RATE, false, true);
-    assert_eq!(off_count, 202);
+    let (oracle, off_count, _, _, _) =
+        serial_offsurface(&read_back(&input), (UNIFORM_RATE, Deal::default()), false, true);
+    assert_eq!(off_count, 197);
     fits_match_the_oracle(
         &dir,
         &input,
@@ -431,13 +429,21 @@ const RAYS_COW: usize = 2000;
 fn patches_turned_by_the_ray_test_are_the_same_on_one_two_and_three_ranks() {
     let (dir, input) = sampled_input("rays-oracle", "cow.xyz", common::COW, (RAYS_COW, 7));
     let (oracle, off_count, turned, _, turns) =
-        serial_offsurface(&read_back(&input), UNIFORM_RATE, false, true);
+        serial_offsurface(&read_back(&input), UNIFORM_BY_INDEX, false, true);
     assert!(turned.turned > 0, "{turned:?}");
     // then the turns by unsupported surface turn patches too (measured: 2 of 3 tried, 408 -> 324
     // unsupported crossings), each try solved with the second fit's bordered factor
     assert!(turns.turned > 0 && turns.after < turns.before, "{turns:?}");
     // the second fit borders the first's factor (its off points changed side, blob points added)
-    fits_match_the_oracle(&dir, &input, &oracle, off_count, "cholesky", &UNIFORM, &["--blob-choice", "off"]);
+    fits_match_the_oracle(
+        &dir,
+        &input,
+        &oracle,
+        off_count,
+        "cholesky",
+        &UNIFORM,
+        &[&NO_CHOICE[..], &BY_INDEX].concat(),
+    );
 }
 
 /// Cow samples on which the wide and the narrow clearance of the blob search pin different nodes
@@ -448,10 +454,10 @@ const CHOICE_COW: (usize, u64) = (2000, 8);
 fn the_clearance_choice_is_the_same_on_one_two_and_three_ranks() {
     let (dir, input) = sampled_input("choice-oracle", "cow.xyz", common::COW, (CHOICE_COW.0, CHOICE_COW.1));
     let (oracle, off_count, _, kept_narrow, _) =
-        serial_offsurface(&read_back(&input), UNIFORM_RATE, true, true);
+        serial_offsurface(&read_back(&input), UNIFORM_BY_INDEX, true, true);
     assert_eq!(kept_narrow, Some(true));
     // the default: the choice on
-    fits_match_the_oracle(&dir, &input, &oracle, off_count, "cholesky", &UNIFORM, &[]);
+    fits_match_the_oracle(&dir, &input, &oracle, off_count, "cholesky", &UNIFORM, &BY_INDEX);
 }
 
 #[test]
@@ -470,9 +476,10 @@ fn the_clearance_choice_keeps_the_fit_nearer_the_cow() {
         "cow-choice-off",
         &pts,
         "64",
-        &[&UNIFORM[..], &["--blob-choice", "off"], &NO_TURNS].concat(),
+        &[&UNIFORM[..], &["--blob-choice", "off"], &NO_TURNS, &BY_INDEX].concat(),
     );
-    let (on, _, on_line) = fit_mesh("cow-choice-on", &pts, "64", &[&UNIFORM[..], &NO_TURNS].concat());
+    let (on, _, on_line) =
+        fit_mesh("cow-choice-on", &pts, "64", &[&UNIFORM[..], &NO_TURNS, &BY_INDEX].concat());
     let ((rms_off, far_off), (rms_on, far_on)) = (mesh_to_truth(&truth, &off), mesh_to_truth(&truth, &on));
     println!("off: {off_line}\n  rms {rms_off:.5}, far {far_off:.4}\non: {on_line}\n  rms {rms_on:.5}, far {far_on:.4}");
     assert!(!off_line.contains("clearance:"), "{off_line}");
@@ -519,10 +526,10 @@ fn compactly_supported_fits_take_the_off_surface_points_at_level_zero_on_one_and
         ];
         common::run_ok(ranks, &[&args[..], &UNIFORM].concat());
         let model = read_model(&dir.join(format!("c{ranks}.model.h5"))).unwrap();
-        // level 0: all 1263 data points (fewer than --coarse-points) and 505 off-surface points
-        // (0.4 per point, UNIFORM); level 1: the data points
+        // level 0: all 1263 data points (fewer than --coarse-points) and 499 off-surface points
+        // (0.4 per point in expectation, UNIFORM, dealt among neighbours); level 1: the data points
         assert_eq!(model.coarse.len(), 1);
-        assert_eq!(model.coarse[0].len(), 1263 + 505);
+        assert_eq!(model.coarse[0].len(), 1263 + 499);
         assert_eq!(model.spline.len(), 1263);
         let mesh = common::load_mesh(&dir.join(format!("c{ranks}.ply")));
         let (mean, p95, max) = common::distance_stats(point_mesh_distances(&truth, &mesh.vertices), diag);
@@ -598,13 +605,14 @@ fn the_cow_has_no_spurious_blobs() {
 
 /// Fits `tests/data/NAME.xyz` (`n` points, a sample of the surface benchmark) with the default
 /// method on grid 64 and returns the mesh -> truth rms and far fraction against the mesh at
-/// `truth` (see [`mesh_to_truth`]) and the surface line of the report, which it prints.
-fn fit_benchmark_sample(name: &str, n: usize, truth: &str) -> (f64, f64, String) {
+/// `truth` (see [`mesh_to_truth`]) and the surface line of the report, which it prints; `extra`
+/// are further options.
+fn fit_benchmark_sample(name: &str, n: usize, truth: &str, extra: &[&str]) -> (f64, f64, String) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(format!("{name}.xyz"));
     let pts: Vec<f64> =
         volspline::io::points::read_points(&path).unwrap().points.into_iter().flatten().collect();
     assert_eq!(pts.len(), 3 * n, "{}", path.display());
-    let (mesh, _, surface) = fit_mesh(name, &pts, "64", &[]);
+    let (mesh, _, surface) = fit_mesh(name, &pts, "64", extra);
     let (rms, far) = mesh_to_truth(&common::load_mesh(Path::new(truth)), &mesh);
     println!("{name}: {surface}\n  mesh -> truth rms {rms:.5}, far {far:.4}");
     (rms, far, surface)
@@ -660,7 +668,7 @@ fn a_small_scan_gets_enough_pins_for_the_bulge_under_the_cows_chest() {
     // front legs, and the blob search finds about 900 spurious nodes. N/4 = 100 pins, taken by
     // an even stride, leave most of it: measured (grid 64) mesh -> cow rms 1.51 % of the
     // diagonal, 8.9 % of the vertices beyond 2 %; the floor of 200 pins removes it: 0.91 %, 4.2 %
-    let (rms, far, surface) = fit_benchmark_sample("cow-400", 400, common::COW);
+    let (rms, far, surface) = fit_benchmark_sample("cow-400", 400, common::COW, &BY_INDEX);
     let pins = volspline::surface::blobs::MIN_CAP;
     assert!(surface.contains(&format!("blobs: {pins} constraint points")), "{surface}");
     assert!(rms < 0.0115 && far < 0.06, "mesh -> cow rms {rms}, far {far}");
@@ -682,7 +690,7 @@ fn the_dipole_correction_leaves_the_flat_base_of_a_sparse_bunny_alone() {
     // inside the body (its voters near the base saw them outside) and hollowed it out. Measured
     // (grid 64) mesh -> bunny rms 2.74 % of the diagonal, 25 % of the vertices beyond 2 %; with
     // only patches of at most 5 % of the points movable 1.27 %, 7.7 %
-    let (rms, far, _) = fit_benchmark_sample("bunny-400", 400, common::BUNNY);
+    let (rms, far, _) = fit_benchmark_sample("bunny-400", 400, common::BUNNY, &[]);
     assert!(rms < 0.018, "mesh -> bunny rms {rms}, far {far}");
 }
 
@@ -694,7 +702,7 @@ fn a_second_round_of_pins_removes_the_web_the_first_pushed_between_the_cows_fron
     // legs. The second round pins 79 nodes in open space and keeps its fit. Measured (grid 64)
     // mesh -> cow rms 1.13 % of the diagonal, 5.9 % of the vertices beyond 2 %, without
     // it; 0.38 % and 0.8 % with it
-    let (rms, far, surface) = fit_benchmark_sample("cow-1000-open", 896, common::COW);
+    let (rms, far, surface) = fit_benchmark_sample("cow-1000-open", 896, common::COW, &BY_INDEX);
     assert!(
         surface.contains("second round: 79 points in open space") && surface.contains(": kept"),
         "{surface}"
@@ -731,8 +739,9 @@ fn solid_the_pins_took_from_a_thinly_sampled_leg_is_given_back() {
     // truth 0.662 % and 0.677 %
     let (truth, pts, diag) = cow_sample("cow-400-seed6");
     let complete = |mesh: &volspline::mesh::TriMesh| truth_to_mesh(&truth, mesh, diag);
-    let (off, _, off_line) = fit_mesh("cow-restore-off", &pts, "64", &["--restore-solid", "off"]);
-    let (on, _, on_line) = fit_mesh("cow-restore-on", &pts, "64", &[]);
+    let (off, _, off_line) =
+        fit_mesh("cow-restore-off", &pts, "64", &[&["--restore-solid", "off"][..], &BY_INDEX].concat());
+    let (on, _, on_line) = fit_mesh("cow-restore-on", &pts, "64", &BY_INDEX);
     let (t_off, t_on) = (complete(&off), complete(&on));
     let ((m_off, _), (m_on, _)) = (mesh_to_truth(&truth, &off), mesh_to_truth(&truth, &on));
     println!("without: {off_line}\n  truth -> mesh {t_off:.5}, mesh -> truth {m_off:.5}");
@@ -748,11 +757,10 @@ fn solid_given_back_along_the_first_fits_solid_is_the_same_on_one_two_and_three_
     // the set of the test below: 22 nodes given back along the leg, kept
     let dir = common::temp_dir("hoof-oracle");
     let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/cow-400-seed8.xyz");
-    let (oracle, off_count, _, _, _) =
-        serial_offsurface(&read_back(&input), (RATE, DOUBTFUL_SHARE), false, true);
+    let (oracle, off_count, _, _, _) = serial_offsurface(&read_back(&input), DEFAULT_BY_INDEX, false, true);
     let given = oracle.spline.centres.len() / 3 - 400 - off_count - 200;
     assert_eq!(given, 22, "{given} nodes given back");
-    default_fits_match_the_oracle(&dir, &input, &oracle, off_count);
+    by_index_fits_match_the_oracle(&dir, &input, &oracle, off_count);
 }
 
 #[test]
@@ -785,8 +793,9 @@ fn a_leg_sampled_at_its_hoof_alone_is_given_back_along_the_first_fits_solid() {
             .fold(0.0, f64::max)
             / diag
     };
-    let (off, _, off_line) = fit_mesh("cow-hoof-off", &pts, "64", &["--restore-solid", "off"]);
-    let (on, _, on_line) = fit_mesh("cow-hoof-on", &pts, "64", &[]);
+    let (off, _, off_line) =
+        fit_mesh("cow-hoof-off", &pts, "64", &[&["--restore-solid", "off"][..], &BY_INDEX].concat());
+    let (on, _, on_line) = fit_mesh("cow-hoof-on", &pts, "64", &BY_INDEX);
     let (t_off, t_on) = (complete(&off), complete(&on));
     let ((m_off, _), (m_on, _)) = (mesh_to_truth(&truth, &off), mesh_to_truth(&truth, &on));
     let (h_off, h_on) = (nearest(&off), nearest(&on));
@@ -853,7 +862,7 @@ fn the_lattice_sampled_in_single_precision_has_the_signs_of_double_precision_on_
     // double-precision spline gives it, and its value to a few digits; were the bound too small
     // near zero, or the weights' scaling wrong, nodes would change sign
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bunny-400.xyz");
-    let f = first_fit(&read_back(&path), UNIFORM_RATE);
+    let f = first_fit(&read_back(&path), (UNIFORM_RATE, Deal::default()));
     let sampled = sample(&Solo, &f.lattice, &f.data.carrier, &f.first);
     let ev = volspline::spline::Evaluator::new(&f.first);
     let (norm, nx) = (&f.data.norm, f.lattice.dims[0]);
@@ -888,7 +897,7 @@ fn the_winding_number_spares_the_nodes_under_a_hole_in_the_bunny() {
     // number above 1/2); on seeds 1-16, 1-4 nodes were spared on 4 of them, 8 of 10 inside
     let truth = common::load_mesh(Path::new(common::BUNNY));
     let pts = with_hole(&truth, HOLE_BUNNY.0, HOLE_BUNNY.1);
-    let f = first_fit(&pts, UNIFORM_RATE);
+    let f = first_fit(&pts, (UNIFORM_RATE, Deal::default()));
     let blobs = f.search.blobs(&f.lattice, CLEARANCE);
     let norm = &f.data.norm;
     let inside = |q: &[f64]| {
@@ -927,7 +936,7 @@ fn the_clearance_choice_keeps_the_cap_over_a_hole_in_the_cow() {
     // inside outside any fit)
     let truth = common::load_mesh(Path::new(common::COW));
     let (pts, centre, r) = with_hole_centre(&truth, CAP_COW.0, CAP_COW.1);
-    let f = first_fit(&pts, UNIFORM_RATE);
+    let f = first_fit(&pts, UNIFORM_BY_INDEX);
     let support = DataSupport::new(&f.data.centres, choice::FACTOR);
     let wide = f.search.blobs(&f.lattice, CLEARANCE);
     let narrow = f.search.blobs(&f.lattice, choice::NARROW * support.spacing);
@@ -966,7 +975,7 @@ fn the_clearance_choice_keeps_the_cap_over_a_hole_in_the_cow() {
     assert!(kept_wide < kept_narrow, "with the mouth rule the wide candidate is not kept");
     assert!(under.len() > 200 && hollow_narrow > 2.0 * hollow_wide, "the narrow fit does not hollow the cap");
     // the binary makes the same choice
-    let (_, _, line) = fit_mesh("cow-cap", &pts, "32", &[&UNIFORM[..], &NO_TURNS].concat());
+    let (_, _, line) = fit_mesh("cow-cap", &pts, "32", &[&UNIFORM[..], &NO_TURNS, &BY_INDEX].concat());
     assert!(line.contains("wide kept") && line.contains("fitted three times"), "{line}");
 }
 
@@ -995,10 +1004,14 @@ fn the_ray_test_removes_the_false_shell_around_the_cows_legs() {
         "cow-rays-off",
         &pts,
         "64",
-        &[&UNIFORM[..], &["--orient-rays", "off", "--blob-choice", "off"], &NO_TURNS].concat(),
+        &[&UNIFORM[..], &["--orient-rays", "off", "--blob-choice", "off"], &NO_TURNS, &BY_INDEX].concat(),
     );
-    let (on, _, on_line) =
-        fit_mesh("cow-rays-on", &pts, "64", &[&UNIFORM[..], &["--blob-choice", "off"], &NO_TURNS].concat());
+    let (on, _, on_line) = fit_mesh(
+        "cow-rays-on",
+        &pts,
+        "64",
+        &[&UNIFORM[..], &["--blob-choice", "off"], &NO_TURNS, &BY_INDEX].concat(),
+    );
     let ((rms_off, far_off), (rms_on, far_on)) = (mesh_to_truth(&truth, &off), mesh_to_truth(&truth, &on));
     println!("without: {off_line}\n  rms {rms_off:.5}, far {far_off:.4}\nwith: {on_line}\n  rms {rms_on:.5}, far {far_on:.4}");
     assert!(
@@ -1090,7 +1103,7 @@ fn where_most_normals_are_doubtful_the_doubtful_points_get_more_of_the_rate() {
 /// The fit's off points at the default rates (`RATE`, [`DOUBTFUL_SHARE`]) from `normals`.
 fn default_off_points(prep: &Prepared, hoods: &Neighbourhoods, normals: &[[f64; 3]]) -> (OffPoints, Doubt) {
     let knn = (&hoods.knn[..], hoods.kmax);
-    off_points_by_trust(&prep.centres, normals, &hoods.tree, knn, (RATE, DOUBTFUL_SHARE), Deal::Index)
+    off_points_by_trust(&prep.centres, normals, &hoods.tree, knn, (RATE, DOUBTFUL_SHARE), Deal::default())
 }
 
 /// Whether `got` off points are the `want` a rate asks for: the rate is dealt by striding through
@@ -1199,9 +1212,18 @@ fn side_vote_and_energy_orientation_give_the_same_signs_on_one_two_and_three_ran
 /// `fit DIR/p.xyz --out DIR/s --grid GRID`, the arguments of [`fit_trimmed`]'s fit.
 fn fit_args(dir: &Path, grid: &str) -> Vec<String> {
     let (input, prefix) = (dir.join("p.xyz"), dir.join("s"));
-    ["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--grid", grid]
-        .map(String::from)
-        .to_vec()
+    [
+        "fit",
+        input.to_str().unwrap(),
+        "--out",
+        prefix.to_str().unwrap(),
+        "--grid",
+        grid,
+        BY_INDEX[0],
+        BY_INDEX[1],
+    ]
+    .map(String::from)
+    .to_vec()
 }
 
 /// Fits `pts` (written to DIR/p.xyz) on 2 ranks with `--trim` and the timings in DIR/s.csv:
@@ -1640,15 +1662,19 @@ fn the_turns_of_a_small_system_refit_afresh_alike_on_one_two_and_three_ranks() {
         common::BUNNY,
         (SMALL_TURNS_BUNNY.0, SMALL_TURNS_BUNNY.1),
     );
-    let (oracle, off_count, _, _, turns) = serial_offsurface(&read_back(&input), UNIFORM_RATE, true, true);
+    let (oracle, off_count, _, _, turns) =
+        serial_offsurface(&read_back(&input), UNIFORM_BY_INDEX, true, true);
     // measured: 1 of 3 patches (19 points) turned, unsupported crossings 467 -> 231
     assert!(turns.turned > 0 && turns.after < turns.before, "{turns:?}");
-    fits_match_the_oracle(&dir, &input, &oracle, off_count, "auto", &UNIFORM, &[]);
+    fits_match_the_oracle(&dir, &input, &oracle, off_count, "auto", &UNIFORM, &BY_INDEX);
 }
 
 /// 2000 area-uniform samples of the cow (seed 3 of the surface benchmark), on which a turn of
 /// step 7 is kept by the open-space rule alone (measured: see the tests below).
 const OPEN_SPACE_COW: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/cow-2000-seed3.xyz");
+
+/// The clearance choice off (the oracle's second fit takes one clearance).
+const NO_CHOICE: [&str; 2] = ["--blob-choice", "off"];
 
 /// The default off-point options, spelt out.
 const DEFAULT_RATES: [&str; 4] = ["--off-points", "0.5", "--doubtful-share", "0.4"];
@@ -1658,11 +1684,11 @@ fn a_turn_kept_by_open_space_is_the_same_on_one_two_and_three_ranks() {
     let dir = common::temp_dir("open-space-oracle");
     let input = Path::new(OPEN_SPACE_COW);
     let (oracle, off_count, _, _, turns) =
-        serial_offsurface(&read_back(input), (RATE, DOUBTFUL_SHARE), false, true);
+        serial_offsurface(&read_back(input), DEFAULT_BY_INDEX, false, true);
     // measured: 1 of 3 patches (12 points) turned, by the open-space rule, 261 -> 251 crossings
     assert_eq!((turns.turned, turns.by_open_space), (1, 1), "{turns:?}");
     assert!(!turns::gains(turns.before, turns.after), "{turns:?}");
-    default_fits_match_the_oracle(&dir, input, &oracle, off_count);
+    by_index_fits_match_the_oracle(&dir, input, &oracle, off_count);
 }
 
 #[test]
@@ -1674,7 +1700,7 @@ fn a_turn_kept_by_open_space_removes_false_solid_beside_the_cow() {
     // 0.07 % with it
     let truth = common::load_mesh(Path::new(common::COW));
     let pts = read_back(Path::new(OPEN_SPACE_COW));
-    let (mesh, _, line) = fit_mesh("cow-open-space-turn", &pts, "64", &[]);
+    let (mesh, _, line) = fit_mesh("cow-open-space-turn", &pts, "64", &BY_INDEX);
     let (rms, far) = mesh_to_truth(&truth, &mesh);
     println!("{line}\n  rms {rms:.5}, far {far:.4}");
     assert!(line.contains("turned (1 by open space)"), "{line}");
@@ -1688,8 +1714,9 @@ fn turning_a_patch_of_a_small_system_removes_unsupported_surface_on_the_bunny() 
     // 0.603 % of the diagonal, vertices beyond 2 % 2.44 -> 1.33 %
     let truth = common::load_mesh(Path::new(common::BUNNY));
     let pts = area_samples(&truth, SMALL_TURNS_BUNNY.0, SMALL_TURNS_BUNNY.1);
-    let (off, _, off_line) = fit_mesh("bunny-small-turns-off", &pts, "64", &NO_TURNS);
-    let (on, _, on_line) = fit_mesh("bunny-small-turns-on", &pts, "64", &[]);
+    let (off, _, off_line) =
+        fit_mesh("bunny-small-turns-off", &pts, "64", &[&NO_TURNS[..], &BY_INDEX].concat());
+    let (on, _, on_line) = fit_mesh("bunny-small-turns-on", &pts, "64", &BY_INDEX);
     let ((rms_off, far_off), (rms_on, far_on)) = (mesh_to_truth(&truth, &off), mesh_to_truth(&truth, &on));
     println!("without: {off_line}\n  rms {rms_off:.5}, far {far_off:.4}\nwith: {on_line}\n  rms {rms_on:.5}, far {far_on:.4}");
     assert!(!off_line.contains("turns:") && on_line.contains("turns: 1 of 3"), "{on_line}");

@@ -32,7 +32,8 @@ turned where that shrinks the surface no data supports, src/surface/turns.rs); `
 `--method dense` (the default's off-surface fit as one dense system where `auto` would take the two
 levels of src/app/fit/levels.rs, from about 11,700 points on 2 ranks); `neighbours`: `--off-deal
 neighbours` (off points dealt among neighbours by draws from the coordinates, whatever the order
-of the points; src/surface/offsurface.rs). A binary whose `fit --help` has no `--surface` only has the plain method:
+of the points; src/surface/offsurface.rs; the default since it was measured as an option); `index`:
+`--off-deal index` (off points dealt by a stride through the input order, the default before). A binary whose `fit --help` has no `--surface` only has the plain method:
 then `carrier` runs it without the flag and `default`/`offsurface` are dropped with a note.
 `poisson`: screened Poisson (Kazhdan and Hoppe 2013, pymeshlab, octree depth --poisson-depth)
 on normals estimated by PCA of the 10 nearest neighbours and oriented by MeshLab's propagation.
@@ -252,7 +253,7 @@ def method_list(args, has_surface):
                  "trimmed": ["--trim"], "choice": ["--blob-choice", "on"], "wide": ["--blob-choice", "off"],
                  "turns": ["--orient-turns", "on"], "noturns": ["--orient-turns", "off"],
                  "denoise": ["--denoise", "on"], "dense": ["--method", "dense"],
-                 "neighbours": ["--off-deal", "neighbours"]}
+                 "neighbours": ["--off-deal", "neighbours"], "index": ["--off-deal", "index"]}
         return [(m, "poisson" if m == "poisson" else "volspline",
                  flags.get(m, ["--surface", m])) for m in args.methods], ""
     # a binary without --surface has one method, the plain carrier method: run it once as `carrier`
@@ -292,9 +293,9 @@ def parse(argv):
             ap.error(f"unknown mesh {m} (one of {', '.join(MESHES)})")
     for m in args.methods:
         if m not in ("default", "carrier", "offsurface", "energy", "side", "trimmed", "choice", "wide", "turns",
-                     "noturns", "denoise", "dense", "neighbours", "poisson"):
+                     "noturns", "denoise", "dense", "neighbours", "index", "poisson"):
             ap.error(f"unknown method {m} (default, carrier, offsurface, energy, side, trimmed, choice, wide, turns, "
-                     "noturns, denoise, dense, neighbours, poisson)")
+                     "noturns, denoise, dense, neighbours, index, poisson)")
     if args.quick:
         args.sizes, args.variant_sizes, args.grid = [1000, 2000], [1000], 64
     return args

@@ -7,8 +7,9 @@ default or of the peers or both; OTHER, another such folder of the same permutat
 methods OUT lacks (the default from one run and Poisson from another: both permuted). Every
 method not permuted is taken as recorded. OUT/SAMPLING/baseline.txt names the folder of the
 recorded run on the same sampling in the order drawn, whose raw.csv has the default and both
-peers (carrier, poisson). Rows of the method `neighbours` (`--off-deal neighbours`, the same
-solid for any order) stand in the default's place where a run has no default rows. Per sampling and in all: the sets on which the default meets the
+peers (carrier, poisson). Rows of the method `neighbours` or `index` (`--off-deal neighbours`,
+the default's dealing, or `--off-deal index`, the dealing by the input order) stand in the
+default's place where a run has no default rows. Per sampling and in all: the sets on which the default meets the
 quality targets of jobs/bench/surface_report.py (both distances at or below the better peer, the
 far fraction on clean sets of at least 1000 points; the time target is left out, as the permuted
 runs are timed once) in the order drawn and in the permuted order, the sets whose figures moved,
@@ -51,17 +52,18 @@ def main(out, also=None):
     if not samplings:
         sys.exit(f"surface_order: no OUT/SAMPLING/baseline.txt under {out}")
     flips, deltas, total, permuted = [], OrderedDict(), [0, 0, 0, 0, 0, 0], set()
-    dealt_among_neighbours = False
+    dealt = None
     table = []
     for s in samplings:
         base_dir = open(os.path.join(out, s, "baseline.txt")).read().strip()
         base = load(base_dir)
         perm = load(os.path.join(out, s))
         for by in perm.values():
-            # a run of the option --off-deal neighbours is judged in the default's place
-            if "neighbours" in by and "default" not in by:
-                by["default"] = by.pop("neighbours")
-                dealt_among_neighbours = True
+            # a run of an --off-deal option is judged in the default's place
+            for deal in ("neighbours", "index"):
+                if deal in by and "default" not in by:
+                    by["default"] = by.pop(deal)
+                    dealt = deal
         if also:
             # rows of another run of the same permutation fill the methods this one lacks
             for name, by in load(os.path.join(also, s)).items():
@@ -95,8 +97,8 @@ def main(out, also=None):
         total = [t + x for t, x in zip(total, (n, met0, met1, lost, gained, moved))]
         table.append(f"| {s} | {base_dir} | {n} | {met0} | {met1} | {lost} | {gained} | {moved} |")
     names = ", ".join(sorted(permuted))
-    if dealt_among_neighbours:
-        names = names.replace("default", "default with --off-deal neighbours")
+    if dealt:
+        names = names.replace("default", f"default with --off-deal {dealt}")
     lines = [f"# Methods on permuted points: {names}", "",
              f"Permuted: {names}{f' (with the rows of {also})' if also else ''}; every other method as recorded.",
              "Quality targets of the default only (both distances at or below the better peer's, far <= 2 % on",
