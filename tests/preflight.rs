@@ -102,6 +102,10 @@ fn dense_bytes_with(rows: usize, ranks: usize, panel: usize) -> f64 {
     )
 }
 
+/// The off points dealt by index: the tests below count rows, which the dealing among neighbours
+/// (the default) draws only in expectation.
+const BY_INDEX: [&str; 2] = ["--off-deal", "index"];
+
 /// `--memory-per-rank` bytes, as the option takes them.
 fn megabytes(bytes: f64) -> String {
     format!("{:.1}MB", bytes / 1e6)
@@ -109,7 +113,8 @@ fn megabytes(bytes: f64) -> String {
 
 #[test]
 fn the_memory_per_rank_the_user_sets_decides_the_checks_and_the_method() {
-    // the cow with a hole: 896 points, 335 off points in the dense fit (1235 rows); the checks
+    // the cow with a hole: 896 points, 335 off points dealt by index (BY_INDEX) in the dense fit
+    // (1235 rows); the checks
     // count the lower triangle, the panels' buffers and 200 MB of fixed part per rank, so
     // 225 MB on one rank
     let dir = common::temp_dir("preflight-limit");
@@ -136,7 +141,7 @@ fn the_memory_per_rank_the_user_sets_decides_the_checks_and_the_method() {
         let cases: [(&[&str], &str); 2] =
             [(&["--method", "dense"], &parts), (&[], "not enough memory: the grid of")];
         for (extra, message) in cases {
-            let args = [&["fit", i, "--out", o, "--memory-per-rank", "150MB"][..], extra].concat();
+            let args = [&["fit", i, "--out", o, "--memory-per-rank", "150MB"][..], &BY_INDEX, extra].concat();
             let out = common::run(ranks, &args);
             let err = String::from_utf8_lossy(&out.stderr);
             assert_eq!(out.status.code(), Some(1), "{args:?} on {ranks}: {err}");
@@ -156,7 +161,19 @@ fn the_memory_per_rank_the_user_sets_decides_the_checks_and_the_method() {
     assert!(most - level0 > 8e6, "{most} vs {level0}");
     assert!((most - 228.0e6).abs() < 0.1e6, "{most}");
     let limit = megabytes(most - 2e6);
-    let args = ["fit", i, "--out", o, "--grid", "32", "--no-preview", "--coarse-points", "300"];
+    let args = [
+        "fit",
+        i,
+        "--out",
+        o,
+        "--grid",
+        "32",
+        "--no-preview",
+        "--coarse-points",
+        "300",
+        BY_INDEX[0],
+        BY_INDEX[1],
+    ];
     let text = common::run_ok(1, &[&args[..], &["--memory-per-rank", &limit]].concat());
     assert!(text.contains("method csrbf (auto: the dense system would need 0.2 GB per rank"), "{text}");
     assert!(
@@ -455,7 +472,7 @@ fn second_fits_without_room_for_every_blob_point_thin_them_and_finish() {
         let room = (0..303).take_while(|&m| bordered_fit_bytes(1231, m, 4, ranks) <= beside).last().unwrap();
         assert!((190..210).contains(&room), "room {room}");
         let (p, csv) = (dir.join(format!("o{ranks}")), dir.join(format!("t{ranks}.csv")));
-        let extra = ["--grid", "40", "--method", "dense", "--panel", "32"];
+        let extra = ["--grid", "40", "--method", "dense", "--panel", "32", BY_INDEX[0], BY_INDEX[1]];
         let text = fit_within(ranks, &input, (&p, &csv), &limit, &extra);
         let what = format!("{ranks} ranks, --memory-per-rank {limit}");
         assert!(text.contains("method dense (as asked)"), "{what}: {text}");
@@ -663,14 +680,18 @@ fn an_address_space_limit_is_refused_like_a_memory_limit() {
     let p = dir.join("o");
     let o = p.to_str().unwrap();
     let cow = ["fit", common::COW, "--out", o, "--grid", "32", "--no-preview"];
-    let bunny = ["fit", common::BUNNY, "--out", o, "--grid", "32", "--no-preview", "--method", "dense"];
+    let bunny = [
+        &["fit", common::BUNNY, "--out", o, "--grid", "32", "--no-preview", "--method", "dense"][..],
+        &BY_INDEX,
+    ]
+    .concat();
     let cases: [(&[&str], u64, &str); 2] = [
         (
             &cow,
             600_000,
             "not enough memory: the program's fixed part (libraries, MPI's and HDF5's buffers) needs",
         ),
-        (&bunny, 950_000, "not enough memory: the dense system of 6900 rows"),
+        (&bunny[..], 950_000, "not enough memory: the dense system of 6900 rows"),
     ];
     for ranks in [1, 2] {
         for (args, kb, message) in cases {
@@ -720,6 +741,8 @@ fn an_allocation_the_system_refuses_is_an_error_not_an_abort() {
         "--no-preview",
         "--method",
         "dense",
+        BY_INDEX[0],
+        BY_INDEX[1],
     ];
     for ranks in [1, 2] {
         let out = run_under_ulimit_with(ranks, 560_000, &args, &[("VOLSPLINE_TEST_SKIP_MEMORY_CHECKS", "1")]);
