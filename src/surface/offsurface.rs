@@ -220,41 +220,36 @@ pub fn deal_among_neighbours(
 ) -> Vec<Vec<f64>> {
     let k = DEAL_NEIGHBOURS.min(kmax);
     let slots = (k + 1) as f64;
+    // the side of a point's single off point: a bit of its draw
+    let side_of = |i: usize| if mix(keys[i]) & 1 == 0 { 1.0 } else { -1.0 };
     // per point its sides and how narrowly its last off point passed (place over threshold)
-    let dealt: Vec<(Vec<f64>, f64)> = (0..keys.len())
+    let (mut sides, narrowness): (Vec<Vec<f64>>, Vec<f64>) = (0..keys.len())
         .map(|i| {
             // the neighbours ahead of this point: smaller keys (the coordinates break a tie)
             let ahead = |j: usize| key_order(keys, points, j, i).is_lt();
             let rank = knn[i * kmax..i * kmax + k].iter().filter(|&&j| ahead(j)).count();
-            let draw = mix(keys[i]);
             // the place among the neighbours, spread over [0, k + 1) by the point's own draw
-            let place = rank as f64 + (draw >> 11) as f64 / (1u64 << 53) as f64;
+            let place = rank as f64 + (mix(keys[i]) >> 11) as f64 / (1u64 << 53) as f64;
             let r = rate(i).clamp(0.0, 2.0);
-            let side = if draw & 1 == 0 { 1.0 } else { -1.0 };
             if place < (r - 1.0) * slots {
                 (vec![1.0, -1.0], place / ((r - 1.0) * slots))
             } else if r >= 1.0 {
                 // one off point whatever the place: never taken back
-                (vec![side], f64::NEG_INFINITY)
+                (vec![side_of(i)], f64::NEG_INFINITY)
             } else if place < r * slots {
-                (vec![side], place / (r * slots))
+                (vec![side_of(i)], place / (r * slots))
             } else {
                 (vec![], f64::NEG_INFINITY)
             }
         })
-        .collect();
-    let total: usize = dealt.iter().map(|(s, _)| s.len()).sum();
-    let mut sides: Vec<Vec<f64>> = dealt.iter().map(|(s, _)| s.clone()).collect();
+        .unzip();
+    let total: usize = sides.iter().map(Vec::len).sum();
     if total > most {
-        let mut narrow: Vec<usize> = (0..keys.len()).filter(|&i| dealt[i].1 > f64::NEG_INFINITY).collect();
-        narrow.sort_by(|&a, &b| dealt[b].1.total_cmp(&dealt[a].1).then(key_order(keys, points, a, b)));
+        let mut narrow: Vec<usize> = (0..keys.len()).filter(|&i| narrowness[i] > f64::NEG_INFINITY).collect();
+        narrow.sort_by(|&a, &b| narrowness[b].total_cmp(&narrowness[a]).then(key_order(keys, points, a, b)));
         for &i in narrow.iter().take(total - most) {
-            if sides[i].len() == 2 {
-                // both sides become the one side the point's draw names
-                sides[i] = vec![if mix(keys[i]) & 1 == 0 { 1.0 } else { -1.0 }];
-            } else {
-                sides[i].clear();
-            }
+            // both sides become the one side the point's draw names; a single one goes
+            sides[i] = if sides[i].len() == 2 { vec![side_of(i)] } else { Vec::new() };
         }
     }
     sides
