@@ -177,7 +177,8 @@ pub struct FitArgs {
     /// order, on any number of ranks, gives the same solid, to rounding) or index (a stride
     /// through the input order, sides alternating: another order gives another solid). Both
     /// meet the surface benchmark's quality targets equally often on an arbitrary order of its
-    /// clouds.
+    /// clouds. Either way there are at most --off-points x N off points, the rows the memory
+    /// checks allow for.
     #[arg(long, default_value = "neighbours", value_name = "neighbours|index", value_parser = off_deal)]
     pub off_deal: Deal,
     /// Smoothing lambda for noisy scans (0: the spline interpolates). The spline minimises
