@@ -21,10 +21,11 @@
 //! parts it decides whether a spurious piece grows. Dealt by index (`--off-deal index`), the
 //! subset is an even stride through the points' indices and the sides alternate along it, so
 //! the draw follows the order of the input: the same cloud in another order gives another
-//! subset and another solid (where the count would exceed `per_point` times the number of points,
-//! the bound the memory checks allow for, the last points give theirs back: [`dealt_by_index`]). Over 219 benchmark sets (the bunny and the cow, 400-4000 points,
-//! clean, noisy and open) a random reordering moved the mesh -> truth distance by a median of
-//! 8 % and by up to 4x where a spurious piece appeared or went. A solid that depends on how a
+//! subset and another solid (where the count would exceed `per_point` times the number of
+//! points, the bound the memory checks allow for, the last points give theirs back). Over 219
+//! benchmark sets (the bunny and the cow, 400-4000 points, clean, noisy and open) a random
+//! reordering moved the mesh -> truth distance by a median of 8 % and by up to 4x where a
+//! spurious piece appeared or went. A solid that depends on how a
 //! file happens to be sorted (or on the order in which ranks wrote a merged scan) cannot be
 //! reproduced, so the default deals the off points by the points themselves.
 //!
