@@ -3,7 +3,7 @@
   python3 surface.py OUT [--check] [--quick] [--meshes bunny,cow] [--sizes 400,1000,2000,4000]
                          [--variant-sizes 1000,2000] [--methods default,trimmed,carrier,poisson]
                          [--ranks 2] [--grid 100] [--poisson-depth 8] [--sampling area|strided] [--time-runs 2]
-                         [--permute SEED] [--variants clean,noise0.1,noise0.5,open]
+                         [--permute SEED] [--variants clean,noise0.1,noise0.5,open] [--sets NAME,...]
 
 Point sets. For each mesh (tests/data/bunny10k.obj, tests/data/cow.obj) and each size N: N
 points on the surface (`area`: uniform over the area, jobs/bench/sample_surface.py; `strided`:
@@ -13,9 +13,9 @@ variant size: `noise0.1` and `noise0.5` add isotropic Gaussian noise whose stand
 coordinate is 0.1 % and 0.5 % of the mesh's bounding-box diagonal; `open` removes the points
 inside a ball of radius 15 % of the diagonal centred on the surface point farthest along the
 box's (1, 1, 1) direction (a scan that missed a cap; the solid's true surface there stays in the
-truth); `--variants` runs only the variants named. Truth: the mesh's own triangles and held-out
-points never fitted: with `area`, 5000 further area-uniform samples from an independent random
-stream; with `strided`, the vertices not taken.
+truth); `--variants` and `--sets` run only the variants or sets named. Truth: the mesh's own
+triangles and held-out points never fitted: with `area`, 5000 further area-uniform samples from
+an independent random stream; with `strided`, the vertices not taken.
 
 Methods. `default`: `volspline fit` with no surface option (the new default); `carrier`: the
 plain carrier method of Savchenko et al. 1995 (`--surface carrier`); `offsurface`:
@@ -154,9 +154,9 @@ def make_sets(args):
                 keep = np.linalg.norm(pts - centre, axis=1) > 0.15 * diag
                 variants.append(("open", pts[keep], centre))
             for variant, p, focus in variants:
-                if args.variants and variant not in args.variants:
-                    continue
                 name = f"{mesh}-{n}-{variant}"
+                if (args.variants and variant not in args.variants) or (args.sets and name not in args.sets):
+                    continue
                 if args.permute:
                     p = p[np.random.default_rng([args.permute, zlib.crc32(name.encode())]).permutation(len(p))]
                 sets.append((name, mesh, n, variant, p, truth, v, f, diag, focus))
@@ -278,6 +278,8 @@ def parse(argv):
     ap.add_argument("--variant-sizes", type=lst(int), default=[1000, 2000])
     ap.add_argument("--variants", type=lst(str), default=[],
                     help="only these variants (clean, noise0.1, noise0.5, open); all by default")
+    ap.add_argument("--sets", type=lst(str), default=[],
+                    help="only the sets named (e.g. cow-2000-open,bunny-400-clean); all by default")
     ap.add_argument("--methods", type=lst(str), default=["default", "trimmed", "carrier", "poisson"])
     ap.add_argument("--ranks", type=int, default=2)
     ap.add_argument("--grid", type=int, default=100)
@@ -318,6 +320,9 @@ def main(argv):
     if args.quick:
         sets = [s for s in sets if s[1] == "bunny" or s[0] == "cow-1000-clean"]
     names = [s[0] for s in sets]
+    unknown = sorted(set(args.sets) - set(names))
+    if unknown:
+        sys.exit(f"surface.py: --sets: no such set in this sampling: {', '.join(unknown)}")
     opens = [x for x in names if x.endswith("-open")]
     pictured = [x for x in PICTURED if x in names] or names[:1] + opens[:1]
     os.makedirs(os.path.join(args.out, "slices"), exist_ok=True)
