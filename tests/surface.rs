@@ -430,30 +430,25 @@ fn offsurface_fits_on_one_two_and_three_ranks_match_the_serial_oracle() {
     );
 }
 
-/// Cow samples on which the ray test turns patches (measured: see the test below).
-const RAYS_COW: usize = 2000;
+/// Cow samples (the tests' sampler: points, seed) on which the ray test turns patches and then
+/// the turns by unsupported surface turn one, dealt among neighbours (measured: see the test
+/// below; of seeds 1-12, seeds 1, 3, 4 and 10 do both).
+const RAYS_COW: (usize, u64) = (2000, 10);
 
 /// The patches turned by the ray test and then by the unsupported surface: the same on 1, 2 and 3
 /// ranks as in the serial oracle.
 #[test]
 fn patches_turned_by_the_ray_test_are_the_same_on_one_two_and_three_ranks() {
-    let (dir, input) = sampled_input("rays-oracle", "cow.xyz", common::COW, (RAYS_COW, 7));
+    let (dir, input) = sampled_input("rays-oracle", "cow.xyz", common::COW, RAYS_COW);
     let (oracle, off_count, turned, _, turns) =
-        serial_offsurface(&read_back(&input), UNIFORM_BY_INDEX, false, true);
+        serial_offsurface(&read_back(&input), (UNIFORM_RATE, Deal::default()), false, true);
+    // measured: 3 patches (13 points) turned
     assert!(turned.turned > 0, "{turned:?}");
-    // then the turns by unsupported surface turn patches too (measured: 2 of 3 tried, 408 -> 324
-    // unsupported crossings), each try solved with the second fit's bordered factor
+    // then the turns by unsupported surface turn a patch too (measured: 1 of 3 tried, 7 points,
+    // 389 -> 352 unsupported crossings), each try solved with the second fit's bordered factor
     assert!(turns.turned > 0 && turns.after < turns.before, "{turns:?}");
     // the second fit borders the first's factor (its off points changed side, blob points added)
-    fits_match_the_oracle(
-        &dir,
-        &input,
-        &oracle,
-        off_count,
-        "cholesky",
-        &UNIFORM,
-        &[&NO_CHOICE[..], &BY_INDEX].concat(),
-    );
+    fits_match_the_oracle(&dir, &input, &oracle, off_count, "cholesky", &UNIFORM, &NO_CHOICE);
 }
 
 /// Cow samples on which the wide and the narrow clearance of the blob search pin different nodes
