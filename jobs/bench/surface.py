@@ -317,12 +317,12 @@ def main(argv):
     has_surface = surface_flag(args.binary)
     methods, note = method_list(args, has_surface)
     sets = make_sets(args)
+    unknown = sorted(set(args.sets) - {s[0] for s in sets})
+    if unknown:
+        sys.exit(f"surface.py: --sets: no such set in this sampling: {', '.join(unknown)}")
     if args.quick:
         sets = [s for s in sets if s[1] == "bunny" or s[0] == "cow-1000-clean"]
     names = [s[0] for s in sets]
-    unknown = sorted(set(args.sets) - set(names))
-    if unknown:
-        sys.exit(f"surface.py: --sets: no such set in this sampling: {', '.join(unknown)}")
     opens = [x for x in names if x.endswith("-open")]
     pictured = [x for x in PICTURED if x in names] or names[:1] + opens[:1]
     os.makedirs(os.path.join(args.out, "slices"), exist_ok=True)

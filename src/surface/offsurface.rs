@@ -25,9 +25,9 @@
 //! points, the bound the memory checks allow for, the last points give theirs back). Over 219
 //! benchmark sets (the bunny and the cow, 400-4000 points, clean, noisy and open) a random
 //! reordering moved the mesh -> truth distance by a median of 8 % and by up to 4x where a
-//! spurious piece appeared or went. A solid that depends on how a
-//! file happens to be sorted (or on the order in which ranks wrote a merged scan) cannot be
-//! reproduced, so the default deals the off points by the points themselves.
+//! spurious piece appeared or went. A solid that depends on how a file happens to be sorted (or
+//! on the order in which ranks wrote a merged scan) cannot be reproduced, so the default deals
+//! the off points by the points themselves.
 //!
 //! Dealt among neighbours (`--off-deal neighbours`, the default, [`deal_among_neighbours`]),
 //! every decision comes from a 64-bit key hashed from a point's normalised coordinates rounded
