@@ -49,7 +49,10 @@ const NO_TURNS: [&str; 2] = ["--orient-turns", "off"];
 /// which points carry off points; the tests of a rule on a chosen sample pin the dealing on which
 /// it was measured there (the rules are the same for either dealing).
 const BY_INDEX: [&str; 2] = ["--off-deal", "index"];
-/// The oracle's off-point rates of the default options, dealt by index.
+/// The oracle's off-point rates of [`UNIFORM`] and of the default options, dealt among
+/// neighbours (the default), and of the default options dealt by index.
+const UNIFORM_DEALT: OffRates = (UNIFORM_RATE, Deal::Neighbours);
+const DEFAULT_DEALT: OffRates = ((RATE, DOUBTFUL_SHARE), Deal::Neighbours);
 const DEFAULT_BY_INDEX: OffRates = ((RATE, DOUBTFUL_SHARE), Deal::Index);
 /// Off-point options of the serial oracle: the rate for trusted normals and the share of it for
 /// doubtful ones, and the dealing.
@@ -415,8 +418,7 @@ fn offsurface_fits_on_one_two_and_three_ranks_match_the_serial_oracle() {
     let input = dir.join("bunny506.xyz");
     common::write_xyz(&input, &common::bunny_subset(10, 0));
     // a system of about 700 rows, solved by Householder QR: the turns' tries are fresh fits
-    let (oracle, off_count, _, _, _) =
-        serial_offsurface(&read_back(&input), (UNIFORM_RATE, Deal::default()), false, true);
+    let (oracle, off_count, _, _, _) = serial_offsurface(&read_back(&input), UNIFORM_DEALT, false, true);
     assert_eq!(off_count, 197);
     fits_match_the_oracle(
         &dir,
@@ -440,7 +442,7 @@ const RAYS_COW: (usize, u64) = (2000, 10);
 fn patches_turned_by_the_ray_test_are_the_same_on_one_two_and_three_ranks() {
     let (dir, input) = sampled_input("rays-oracle", "cow.xyz", common::COW, RAYS_COW);
     let (oracle, off_count, turned, _, turns) =
-        serial_offsurface(&read_back(&input), (UNIFORM_RATE, Deal::default()), false, true);
+        serial_offsurface(&read_back(&input), UNIFORM_DEALT, false, true);
     // measured: 3 patches (13 points) turned
     assert!(turned.turned > 0, "{turned:?}");
     // then the turns by unsupported surface turn a patch too (measured: 1 of 3 tried, 7 points,
@@ -459,7 +461,7 @@ const CHOICE_COW: (usize, u64) = (2000, 8);
 fn the_clearance_choice_is_the_same_on_one_two_and_three_ranks() {
     let (dir, input) = sampled_input("choice-oracle", "cow.xyz", common::COW, (CHOICE_COW.0, CHOICE_COW.1));
     let (oracle, off_count, _, kept_narrow, _) =
-        serial_offsurface(&read_back(&input), (UNIFORM_RATE, Deal::default()), true, true);
+        serial_offsurface(&read_back(&input), UNIFORM_DEALT, true, true);
     assert_eq!(kept_narrow, Some(true));
     // the default: the choice on, the off points dealt among neighbours
     fits_match_the_oracle(&dir, &input, &oracle, off_count, "cholesky", &UNIFORM, &[]);
@@ -763,8 +765,7 @@ fn solid_given_back_along_the_first_fits_solid_is_the_same_on_one_two_and_three_
     // data and along the leg, kept (dealt by index, the default before: 22 along the leg)
     let dir = common::temp_dir("hoof-oracle");
     let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/cow-400-seed8.xyz");
-    let (oracle, off_count, _, _, _) =
-        serial_offsurface(&read_back(&input), ((RATE, DOUBTFUL_SHARE), Deal::default()), false, true);
+    let (oracle, off_count, _, _, _) = serial_offsurface(&read_back(&input), DEFAULT_DEALT, false, true);
     let given = oracle.spline.centres.len() / 3 - 400 - off_count - 200;
     assert_eq!(given, 26, "{given} nodes given back");
     one_clearance_fits_match_the_oracle((&dir, &input), &oracle, off_count, &[]);
@@ -868,7 +869,7 @@ fn the_lattice_sampled_in_single_precision_has_the_signs_of_double_precision_on_
     // double-precision spline gives it, and its value to a few digits; were the bound too small
     // near zero, or the weights' scaling wrong, nodes would change sign
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bunny-400.xyz");
-    let f = first_fit(&read_back(&path), (UNIFORM_RATE, Deal::default()));
+    let f = first_fit(&read_back(&path), UNIFORM_DEALT);
     let sampled = sample(&Solo, &f.lattice, &f.data.carrier, &f.first);
     let ev = volspline::spline::Evaluator::new(&f.first);
     let (norm, nx) = (&f.data.norm, f.lattice.dims[0]);
@@ -903,7 +904,7 @@ fn the_winding_number_spares_the_nodes_under_a_hole_in_the_bunny() {
     // number above 1/2); on seeds 1-16, 1-4 nodes were spared on 4 of them, 8 of 10 inside
     let truth = common::load_mesh(Path::new(common::BUNNY));
     let pts = with_hole(&truth, HOLE_BUNNY.0, HOLE_BUNNY.1);
-    let f = first_fit(&pts, (UNIFORM_RATE, Deal::default()));
+    let f = first_fit(&pts, UNIFORM_DEALT);
     let blobs = f.search.blobs(&f.lattice, CLEARANCE);
     let norm = &f.data.norm;
     let inside = |q: &[f64]| {
@@ -942,7 +943,7 @@ fn the_clearance_choice_keeps_the_cap_over_a_hole_in_the_cow() {
     // takes the tip of a thin part leaves much of its inside outside any fit)
     let truth = common::load_mesh(Path::new(common::COW));
     let (pts, centre, r) = with_hole_centre(&truth, CAP_COW.0, CAP_COW.1);
-    let f = first_fit(&pts, (UNIFORM_RATE, Deal::default()));
+    let f = first_fit(&pts, UNIFORM_DEALT);
     let support = DataSupport::new(&f.data.centres, choice::FACTOR);
     let wide = f.search.blobs(&f.lattice, CLEARANCE);
     let narrow = f.search.blobs(&f.lattice, choice::NARROW * support.spacing);
@@ -1658,8 +1659,7 @@ fn the_turns_of_a_small_system_refit_afresh_alike_on_one_two_and_three_ranks() {
         common::BUNNY,
         (SMALL_TURNS_BUNNY.0, SMALL_TURNS_BUNNY.1),
     );
-    let (oracle, off_count, _, _, turns) =
-        serial_offsurface(&read_back(&input), (UNIFORM_RATE, Deal::default()), true, true);
+    let (oracle, off_count, _, _, turns) = serial_offsurface(&read_back(&input), UNIFORM_DEALT, true, true);
     // measured: 2 of 3 patches (10 points) turned, unsupported crossings 363 -> 269
     assert!(turns.turned > 0 && turns.after < turns.before, "{turns:?}");
     fits_match_the_oracle(&dir, &input, &oracle, off_count, "auto", &UNIFORM, &[]);
