@@ -19,7 +19,7 @@ use volspline::spline::hygiene::{prepare, Prepared};
 use volspline::spline::{Carrier, Kernel, Model, Spline};
 use volspline::surface::blobs::{
     blob_values, lost_solid, paths_to_solid, points_without_solid, sample, sample_window, winding_numbers,
-    Blobs, Lattice, Search, CLEARANCE, INSIDE, RESTORE_FROM,
+    Blobs, Lattice, Search, CLEARANCE, INSIDE, RESTORE_FROM, SECOND_ROUND_FROM,
 };
 use volspline::surface::choice::{self, unsupported_share};
 use volspline::surface::energy::{flip_by_energy, pairs, patch_energy, ENERGY_LIMIT};
@@ -53,7 +53,6 @@ const BY_INDEX: [&str; 2] = ["--off-deal", "index"];
 /// neighbours (the default), and of the default options dealt by index.
 const UNIFORM_DEALT: OffRates = (UNIFORM_RATE, Deal::Neighbours);
 const DEFAULT_DEALT: OffRates = ((RATE, DOUBTFUL_SHARE), Deal::Neighbours);
-const DEFAULT_BY_INDEX: OffRates = ((RATE, DOUBTFUL_SHARE), Deal::Index);
 /// Off-point options of the serial oracle: the rate for trusted normals and the share of it for
 /// doubtful ones, and the dealing.
 type OffRates = ((f64, f64), Deal);
@@ -212,18 +211,28 @@ fn first_fit(read: &[f64], (rate, deal): OffRates) -> FirstFit {
     FirstFit { k, data, prep, off_count, first, turned, lattice, search, normals, hoods, off }
 }
 
+/// What the serial oracle made and decided.
+struct Oracle {
+    model: Model,
+    /// The off points' count.
+    off_count: usize,
+    /// What the ray test turned.
+    rays: RayCheck,
+    /// Which clearance the choice kept (None: no choice made).
+    kept_narrow: Option<bool>,
+    /// The blob search's second round: its pins and whether its fit was kept (None: no round).
+    second_round: Option<(usize, bool)>,
+    /// The turns by unsupported surface.
+    turns: TurnCheck,
+}
+
 /// The default fit of `read` (the kernel r, the default carrier) made serially from the
 /// library's steps: orientation, off points, the first fit, the ray test, the blob search and
-/// the second fit, or with `choose` the choice between two second fits (`--blob-choice on`), and
-/// with `turns` the turns by unsupported surface (`--orient-turns on`, which runs where the
-/// binary kept its first factor: the projected Cholesky). Returns the model, the off points'
-/// count, what the ray test turned, which clearance the choice kept and the turns' report.
-fn serial_offsurface(
-    read: &[f64],
-    rate: OffRates,
-    choose: bool,
-    turns: bool,
-) -> (Model, usize, RayCheck, Option<bool>, TurnCheck) {
+/// the second fit, or with `choose` the choice between two second fits (`--blob-choice on`) and
+/// the blob search's second round, and with `turns` the turns by unsupported surface
+/// (`--orient-turns on`, which runs where the binary kept its first factor: the projected
+/// Cholesky). No step is limited by memory: the samples are small.
+fn serial_offsurface(read: &[f64], rate: OffRates, choose: bool, turns: bool) -> Oracle {
     let FirstFit { k, data, prep, off_count, first, turned, lattice, search, mut normals, hoods, mut off } =
         first_fit(read, rate);
     // the second fit; with `choose`, where the wide and the narrow clearance pin different nodes,
@@ -244,17 +253,41 @@ fn serial_offsurface(
         }
         (solve_serial(&system, &k, SolverKind::Householder), system)
     };
+    let winding = |at: &[[f64; 3]]| winding_numbers(&Solo, at, &data.centres, &normals, search.areas());
+    let share = |values: &[f64]| unsupported_share(&lattice, values, &support, winding).0;
     let ((mut spline, mut system), kept_narrow) = if !choose || narrow.centres == wide.centres {
         (fit_with(&wide), None)
     } else {
         let (a, b) = (fit_with(&wide), fit_with(&narrow));
-        let winding = |at: &[[f64; 3]]| winding_numbers(&Solo, at, &data.centres, &normals, search.areas());
-        let share = |s: &Spline| {
-            unsupported_share(&lattice, &sample(&Solo, &lattice, &data.carrier, s), &support, winding).0
-        };
-        let narrower = share(&b.0) < share(&a.0);
+        let sampled = |s: &Spline| sample(&Solo, &lattice, &data.carrier, s);
+        let narrower = share(&sampled(&b.0)) < share(&sampled(&a.0));
         (if narrower { b } else { a }, Some(narrower))
     };
+    // the second round, where the clearance kept pinned a sparse sample of its spurious nodes
+    // (the choice on): the nodes in open space of the kept fit pinned too, that fit kept where it
+    // leaves no more data points without solid and less surface unsupported
+    let (kept, clearance) = match kept_narrow {
+        Some(true) => (&narrow, choice::NARROW * support.spacing),
+        _ => (&wide, CLEARANCE),
+    };
+    let mut second_round = None;
+    if choose && kept.found > SECOND_ROUND_FROM * kept.source.len() {
+        let values = sample(&Solo, &lattice, &data.carrier, &spline);
+        let again = search.again(&Solo, &lattice, &values, &data.centres, &normals, &hoods.tree);
+        let more = again.open_blobs(&lattice, clearance);
+        if !more.source.is_empty() {
+            let tried = second_system(&system, &data, &more);
+            let tried_spline = solve_serial(&tried, &k, SolverKind::Householder);
+            let tried_values = sample(&Solo, &lattice, &data.carrier, &tried_spline);
+            let without = |v: &[f64]| points_without_solid(&lattice, v, &data.centres);
+            let kept = without(&tried_values) <= without(&values) && share(&tried_values) < share(&values);
+            println!("second round: {} points in open space, kept {kept}", more.source.len());
+            if kept {
+                (system, spline) = (tried, tried_spline);
+            }
+            second_round = Some((more.source.len(), kept));
+        }
+    }
     // the solid given back where pins were added: the nodes inside the data's surface of the
     // points that lost their solid, where there are RESTORE_FROM, and the paths to the parts
     // lost whole, with the first fit's values; kept where fewer points are left without solid,
@@ -340,7 +373,7 @@ fn serial_offsurface(
     }
     let model =
         Model { carrier: data.carrier.clone(), spline, coarse: Vec::new(), provenance: Default::default() };
-    (model, off_count, turned, kept_narrow, check)
+    Oracle { model, off_count, rays: turned, kept_narrow, second_round, turns: check }
 }
 
 /// The second system: the first one's centres and values (`prep`) with the constraint points of
@@ -359,12 +392,12 @@ fn second_system(prep: &Prepared, data: &Prepared, blobs: &Blobs) -> Prepared {
 fn fits_match_the_oracle(
     dir: &Path,
     input: &Path,
-    oracle: &Model,
-    off_count: usize,
+    oracle: &Oracle,
     solver: &str,
     rates: &[&str],
     extra: &[&str],
 ) {
+    let (off_count, oracle) = (oracle.off_count, &oracle.model);
     for ranks in [1, 2, 3] {
         let p = dir.join(format!("r{ranks}"));
         let p = p.to_str().unwrap();
@@ -383,19 +416,6 @@ fn fits_match_the_oracle(
         let dv = common::volume_diff(Path::new(&format!("{p}.hdf")), oracle);
         assert!(dv < 1e-9, "{ranks} ranks: grid values differ by {dv:e}");
     }
-}
-
-/// [`fits_match_the_oracle`] with the default off-point rates dealt as `dealing` says (empty: the
-/// default's dealing) and one clearance (the oracle makes no clearance choice), by the projected
-/// Cholesky.
-fn one_clearance_fits_match_the_oracle(
-    (dir, input): (&Path, &Path),
-    oracle: &Model,
-    off_count: usize,
-    dealing: &[&str],
-) {
-    let extra = [&NO_CHOICE[..], dealing].concat();
-    fits_match_the_oracle(dir, input, oracle, off_count, "cholesky", &DEFAULT_RATES, &extra);
 }
 
 /// `n` area-uniform samples (seed `seed` of the tests' sampler) of the mesh at `mesh`, written to
@@ -418,17 +438,9 @@ fn offsurface_fits_on_one_two_and_three_ranks_match_the_serial_oracle() {
     let input = dir.join("bunny506.xyz");
     common::write_xyz(&input, &common::bunny_subset(10, 0));
     // a system of about 700 rows, solved by Householder QR: the turns' tries are fresh fits
-    let (oracle, off_count, _, _, _) = serial_offsurface(&read_back(&input), UNIFORM_DEALT, false, true);
-    assert_eq!(off_count, 197);
-    fits_match_the_oracle(
-        &dir,
-        &input,
-        &oracle,
-        off_count,
-        "householder",
-        &UNIFORM,
-        &["--blob-choice", "off"],
-    );
+    let oracle = serial_offsurface(&read_back(&input), UNIFORM_DEALT, false, true);
+    assert_eq!(oracle.off_count, 197);
+    fits_match_the_oracle(&dir, &input, &oracle, "householder", &UNIFORM, &["--blob-choice", "off"]);
 }
 
 /// Cow samples (the tests' sampler: points, seed) on which the ray test turns patches and then
@@ -441,52 +453,47 @@ const RAYS_COW: (usize, u64) = (2000, 10);
 #[test]
 fn patches_turned_by_the_ray_test_are_the_same_on_one_two_and_three_ranks() {
     let (dir, input) = sampled_input("rays-oracle", "cow.xyz", common::COW, RAYS_COW);
-    let (oracle, off_count, turned, _, turns) =
-        serial_offsurface(&read_back(&input), UNIFORM_DEALT, false, true);
+    let oracle = serial_offsurface(&read_back(&input), UNIFORM_DEALT, false, true);
+    let (turned, turns) = (&oracle.rays, &oracle.turns);
     // measured: 3 patches (13 points) turned
     assert!(turned.turned > 0, "{turned:?}");
     // then the turns by unsupported surface turn a patch too (measured: 1 of 3 tried, 7 points,
     // 389 -> 352 unsupported crossings), each try solved with the second fit's bordered factor
     assert!(turns.turned > 0 && turns.after < turns.before, "{turns:?}");
     // the second fit borders the first's factor (its off points changed side, blob points added)
-    fits_match_the_oracle(&dir, &input, &oracle, off_count, "cholesky", &UNIFORM, &NO_CHOICE);
+    fits_match_the_oracle(&dir, &input, &oracle, "cholesky", &UNIFORM, &NO_CHOICE);
 }
 
 /// Cow samples on which the wide and the narrow clearance of the blob search pin different nodes
-/// and the narrow one leaves less unsupported surface, with either dealing of the off points
-/// (measured dealt by index: see the test below).
+/// and the narrow one leaves less unsupported surface, with the default's rates and with those
+/// of `UNIFORM` (measured: see the test below; of seeds 1-12 at 2000 points, the choice keeps
+/// the narrow fit on 11, with the turns off, and on this one it is nearest the cow).
 const CHOICE_COW: (usize, u64) = (2000, 8);
 
 #[test]
 fn the_clearance_choice_is_the_same_on_one_two_and_three_ranks() {
     let (dir, input) = sampled_input("choice-oracle", "cow.xyz", common::COW, (CHOICE_COW.0, CHOICE_COW.1));
-    let (oracle, off_count, _, kept_narrow, _) =
-        serial_offsurface(&read_back(&input), UNIFORM_DEALT, true, true);
-    assert_eq!(kept_narrow, Some(true));
+    let oracle = serial_offsurface(&read_back(&input), UNIFORM_DEALT, true, true);
+    assert_eq!(oracle.kept_narrow, Some(true));
     // the default: the choice on, the off points dealt among neighbours
-    fits_match_the_oracle(&dir, &input, &oracle, off_count, "cholesky", &UNIFORM, &[]);
+    fits_match_the_oracle(&dir, &input, &oracle, "cholesky", &UNIFORM, &[]);
 }
 
 #[test]
 fn the_clearance_choice_keeps_the_fit_nearer_the_cow() {
-    // the set of the test above (grid 64, one rank): the wide clearance of rule 2 leaves bulges
-    // beside the legs, the narrow one pins them; the fit with less surface farther than twice the
-    // median spacing from every data point is kept. Measured: mesh -> cow rms 0.330 -> 0.308 % of
-    // the diagonal, vertices beyond 2 % 0.56 -> 0.55 %; unsupported surface on the lattice 5.8 %
-    // (wide) against 5.2 % (narrow). (Before rule 3 took the winding number, 1000 samples, seed
-    // 2, went 0.513 -> 0.454; rule 3 now removes most of what the narrow clearance did there, and
-    // there the choice keeps the wide fit)
+    // the set of the test above with the default options (grid 64, one rank): the wide
+    // clearance of rule 2 leaves bulges beside the legs, the narrow one pins them (99 and 122
+    // blob points); the fit with less surface farther than twice the median spacing from every
+    // data point is kept. Measured: mesh -> cow rms 0.253 -> 0.210 % of the diagonal, vertices
+    // beyond 2 % 0.22 -> 0.00 %; unsupported surface on the lattice 4.3 % (wide) against 4.2 %
+    // (narrow). No second round runs on either. (Before rule 3 took the winding number, 1000
+    // samples, seed 2, went 0.513 -> 0.454; rule 3 now removes most of what the narrow
+    // clearance did there)
     let truth = common::load_mesh(Path::new(common::COW));
     let pts = area_samples(&truth, CHOICE_COW.0, CHOICE_COW.1);
     // the turns off in both: what is compared is the choice alone
-    let (off, _, off_line) = fit_mesh(
-        "cow-choice-off",
-        &pts,
-        "64",
-        &[&UNIFORM[..], &["--blob-choice", "off"], &NO_TURNS, &BY_INDEX].concat(),
-    );
-    let (on, _, on_line) =
-        fit_mesh("cow-choice-on", &pts, "64", &[&UNIFORM[..], &NO_TURNS, &BY_INDEX].concat());
+    let (off, _, off_line) = fit_mesh("cow-choice-off", &pts, "64", &[&NO_CHOICE[..], &NO_TURNS].concat());
+    let (on, _, on_line) = fit_mesh("cow-choice-on", &pts, "64", &NO_TURNS);
     let ((rms_off, far_off), (rms_on, far_on)) = (mesh_to_truth(&truth, &off), mesh_to_truth(&truth, &on));
     println!("off: {off_line}\n  rms {rms_off:.5}, far {far_off:.4}\non: {on_line}\n  rms {rms_on:.5}, far {far_on:.4}");
     assert!(!off_line.contains("clearance:"), "{off_line}");
@@ -668,23 +675,32 @@ fn off_points_dealt_among_neighbours_give_the_same_solid_for_any_order_of_the_cl
     assert!(d > 1e-3, "by index the scrambled order differs by only {d}");
 }
 
+/// Cow samples (the tests' sampler, 400 points) on which the floor of blob points matters (seed
+/// 9: see the test below; of seeds 1-12, N/4 = 100 pins instead of 200 gave a larger mesh -> cow
+/// distance on seeds 3, 4, 5, 7 and 9 and a smaller one on 1, 2, 6, 8, 11 and 12), and on which
+/// a second round is dropped by the data points' cells alone (seed 7).
+const FLOOR_COW: (usize, u64, u64) = (400, 9, 7);
+
 #[test]
 fn a_small_scan_gets_enough_pins_for_the_bulge_under_the_cows_chest() {
-    // 400 area-uniform samples of the cow (tests/data/cow-400.xyz, a sample of the surface
-    // benchmark): the first fit grows a bulge of false solid under the chest, in front of the
-    // front legs, and the blob search finds about 900 spurious nodes. N/4 = 100 pins, taken by
-    // an even stride, leave most of it: measured (grid 64) mesh -> cow rms 1.51 % of the
-    // diagonal, 8.9 % of the vertices beyond 2 %; the floor of 200 pins removes it: 0.91 %, 4.2 %
-    let (rms, far, surface) = fit_benchmark_sample("cow-400", 400, common::COW, &BY_INDEX);
+    // the first fit grows a bulge of false solid under the chest, in front of the front legs.
+    // N/4 = 100 pins, taken by an even stride from the spurious nodes, leave most of it:
+    // measured (grid 64) mesh -> cow rms 1.12 % of the diagonal, 7.4 % of the vertices beyond
+    // 2 %; the floor of 200 pins removes it: 0.68 %, 2.7 %
+    let truth = common::load_mesh(Path::new(common::COW));
+    let (n, seed, dropped) = FLOOR_COW;
+    let (mesh, _, surface) = fit_mesh("cow-400-floor", &area_samples(&truth, n, seed), "64", &[]);
+    let (rms, far) = mesh_to_truth(&truth, &mesh);
+    println!("{surface}\n  mesh -> cow rms {rms:.5}, far {far:.4}");
     let pins = volspline::surface::blobs::MIN_CAP;
     assert!(surface.contains(&format!("blobs: {pins} constraint points")), "{surface}");
-    assert!(rms < 0.0115 && far < 0.06, "mesh -> cow rms {rms}, far {far}");
-    // its second round pins 14 nodes and leaves 3 more data points without solid: it is dropped
-    // once the data points' cells alone are sampled, so no share is measured for it (the same
-    // count as from the whole lattice: 13 -> 16)
+    assert!(rms < 0.009 && far < 0.05, "mesh -> cow rms {rms}, far {far}");
+    // on another sample the second round pins 2 nodes and leaves 4 more data points without
+    // solid: it is dropped once the data points' cells alone are sampled, so no share is
+    // measured for it
+    let (_, _, surface) = fit_mesh("cow-400-dropped", &area_samples(&truth, n, dropped), "16", &[]);
     assert!(
-        surface
-            .contains("second round: 14 points in open space, data points without solid 13 -> 16: dropped"),
+        surface.contains("second round: 2 points in open space, data points without solid 5 -> 9: dropped"),
         "{surface}"
     );
 }
@@ -701,20 +717,39 @@ fn the_dipole_correction_leaves_the_flat_base_of_a_sparse_bunny_alone() {
     assert!(rms < 0.018, "mesh -> bunny rms {rms}, far {far}");
 }
 
+/// Cow samples (the tests' sampler) on which the narrow clearance is kept and the blob search's
+/// second round pins nodes in open space and keeps its fit (measured: see the tests below; of
+/// the cow at 400 and 1000 points, with and without a hole, and the bunny with a hole, seeds
+/// 1-12, eight rounds pinned nodes and five were kept).
+const SECOND_ROUND_COW: (usize, u64) = (1000, 12);
+
 #[test]
-fn a_second_round_of_pins_removes_the_web_the_first_pushed_between_the_cows_front_legs() {
-    // 896 samples of the cow with a hole (tests/data/cow-1000-open.xyz, a sample of the surface
-    // benchmark): the first fit is positive in a sheet under the belly, 734 spurious nodes of
-    // which the cap pins 224, and the second fit grows a blob of false solid between the front
-    // legs. The second round pins 79 nodes in open space and keeps its fit. Measured (grid 64)
-    // mesh -> cow rms 1.13 % of the diagonal, 5.9 % of the vertices beyond 2 %, without
-    // it; 0.38 % and 0.8 % with it
-    let (rms, far, surface) = fit_benchmark_sample("cow-1000-open", 896, common::COW, &BY_INDEX);
+fn a_second_round_of_pins_removes_the_false_solid_the_first_left_under_the_cow() {
+    // the clearance kept leaves most of the first fit's spurious nodes unpinned (the cap of N/4
+    // pins), and the second fit keeps a sheet of false solid under the belly and between the
+    // legs. The second round pins 68 nodes in open space and keeps its fit. Measured (grid 64)
+    // mesh -> cow rms 0.99 % of the diagonal, 4.6 % of the vertices beyond 2 %, without it;
+    // 0.29 % and 0.05 % with it
+    let truth = common::load_mesh(Path::new(common::COW));
+    let pts = area_samples(&truth, SECOND_ROUND_COW.0, SECOND_ROUND_COW.1);
+    let (mesh, _, surface) = fit_mesh("cow-second-round", &pts, "64", &[]);
+    let (rms, far) = mesh_to_truth(&truth, &mesh);
+    println!("{surface}\n  mesh -> cow rms {rms:.5}, far {far:.4}");
     assert!(
-        surface.contains("second round: 79 points in open space") && surface.contains(": kept"),
+        surface.contains("second round: 68 points in open space") && surface.contains(": kept"),
         "{surface}"
     );
-    assert!(rms < 0.006 && far < 0.03, "mesh -> cow rms {rms}, far {far}");
+    assert!(rms < 0.005 && far < 0.01, "mesh -> cow rms {rms}, far {far}");
+}
+
+#[test]
+fn the_second_round_of_pins_is_the_same_on_one_two_and_three_ranks() {
+    let (dir, input) = sampled_input("second-round-oracle", "cow.xyz", common::COW, SECOND_ROUND_COW);
+    let oracle = serial_offsurface(&read_back(&input), DEFAULT_DEALT, true, true);
+    // measured: the narrow clearance kept, 68 nodes pinned by the round, its fit kept
+    assert_eq!((oracle.kept_narrow, oracle.second_round), (Some(true), Some((68, true))));
+    // the default options
+    fits_match_the_oracle(&dir, &input, &oracle, "cholesky", &DEFAULT_RATES, &[]);
 }
 
 /// The cow, the points of `tests/data/NAME.xyz` (a sample of the cow from the surface benchmark)
@@ -761,14 +796,16 @@ fn solid_the_pins_took_from_a_thinly_sampled_leg_is_given_back() {
 
 #[test]
 fn solid_given_back_along_the_first_fits_solid_is_the_same_on_one_two_and_three_ranks() {
-    // the set of the test below, with the wide clearance alone: 26 nodes given back inside the
-    // data and along the leg, kept (dealt by index, the default before: 22 along the leg)
+    // the set of the test below with the default options: the narrow clearance kept (200 blob
+    // points, no second round), 27 nodes given back inside the data and along the leg, kept
+    // (with the wide clearance alone 26; dealt by index, the default before, 22 along the leg)
     let dir = common::temp_dir("hoof-oracle");
     let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/cow-400-seed8.xyz");
-    let (oracle, off_count, _, _, _) = serial_offsurface(&read_back(&input), DEFAULT_DEALT, false, true);
-    let given = oracle.spline.centres.len() / 3 - 400 - off_count - 200;
-    assert_eq!(given, 26, "{given} nodes given back");
-    one_clearance_fits_match_the_oracle((&dir, &input), &oracle, off_count, &[]);
+    let oracle = serial_offsurface(&read_back(&input), DEFAULT_DEALT, true, true);
+    assert_eq!((oracle.kept_narrow, oracle.second_round), (Some(true), None));
+    let given = oracle.model.spline.centres.len() / 3 - 400 - oracle.off_count - 200;
+    assert_eq!(given, 27, "{given} nodes given back");
+    fits_match_the_oracle(&dir, &input, &oracle, "cholesky", &DEFAULT_RATES, &[]);
 }
 
 #[test]
@@ -1659,17 +1696,20 @@ fn the_turns_of_a_small_system_refit_afresh_alike_on_one_two_and_three_ranks() {
         common::BUNNY,
         (SMALL_TURNS_BUNNY.0, SMALL_TURNS_BUNNY.1),
     );
-    let (oracle, off_count, _, _, turns) = serial_offsurface(&read_back(&input), UNIFORM_DEALT, true, true);
+    let oracle = serial_offsurface(&read_back(&input), UNIFORM_DEALT, true, true);
+    let turns = &oracle.turns;
     // measured: 2 of 3 patches (10 points) turned, unsupported crossings 363 -> 269
     assert!(turns.turned > 0 && turns.after < turns.before, "{turns:?}");
-    fits_match_the_oracle(&dir, &input, &oracle, off_count, "auto", &UNIFORM, &[]);
+    fits_match_the_oracle(&dir, &input, &oracle, "auto", &UNIFORM, &[]);
 }
 
-/// 2000 area-uniform samples of the cow (seed 3 of the surface benchmark), on which a turn of
-/// step 7 is kept by the open-space rule alone (measured: see the tests below).
-const OPEN_SPACE_COW: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/cow-2000-seed3.xyz");
+/// Cow samples with a hole (the tests' sampler: points before the hole, seed) on which a turn of
+/// step 7 is kept by the open-space rule alone (measured: see the tests below; of the cow at
+/// 1000 and 2000 points, with and without a hole, and the bunny at 1000 with a hole and 2000
+/// without, seeds 1-12, the only one).
+const OPEN_SPACE_COW: (usize, u64) = (1000, 8);
 
-/// The clearance choice off (the oracle's second fit takes one clearance).
+/// The clearance choice off (the second fit takes the wide clearance alone).
 const NO_CHOICE: [&str; 2] = ["--blob-choice", "off"];
 
 /// The default off-point options, spelt out.
@@ -1678,29 +1718,31 @@ const DEFAULT_RATES: [&str; 4] = ["--off-points", "0.5", "--doubtful-share", "0.
 #[test]
 fn a_turn_kept_by_open_space_is_the_same_on_one_two_and_three_ranks() {
     let dir = common::temp_dir("open-space-oracle");
-    let input = Path::new(OPEN_SPACE_COW);
-    let (oracle, off_count, _, _, turns) =
-        serial_offsurface(&read_back(input), DEFAULT_BY_INDEX, false, true);
-    // measured: 1 of 3 patches (12 points) turned, by the open-space rule, 261 -> 251 crossings
-    assert_eq!((turns.turned, turns.by_open_space), (1, 1), "{turns:?}");
-    assert!(!turns::gains(turns.before, turns.after), "{turns:?}");
-    one_clearance_fits_match_the_oracle((&dir, input), &oracle, off_count, &BY_INDEX);
+    let input = dir.join("cow-open.xyz");
+    let cow = common::load_mesh(Path::new(common::COW));
+    common::write_xyz(&input, &with_hole(&cow, OPEN_SPACE_COW.0, OPEN_SPACE_COW.1));
+    let oracle = serial_offsurface(&read_back(&input), DEFAULT_DEALT, true, true);
+    let turns = &oracle.turns;
+    // measured: 2 of 3 patches (17 points) turned, one by the open-space rule, 517 -> 466
+    // crossings
+    assert_eq!((turns.turned, turns.by_open_space), (2, 1), "{turns:?}");
+    fits_match_the_oracle(&dir, &input, &oracle, "cholesky", &DEFAULT_RATES, &[]);
 }
 
 #[test]
 fn a_turn_kept_by_open_space_removes_false_solid_beside_the_cow() {
-    // the set above with the default options, grid 64: one patch of 12 points turned, although
-    // the unsupported crossings fall by 3.8 % alone (261 -> 251), since those in open space fall
-    // by more than 5 %. Measured: mesh -> cow rms 0.285 % of the diagonal and 0.29 % of the
-    // vertices beyond 2 % without the turn (the rule of the whole count alone), 0.241 % and
-    // 0.07 % with it
+    // the set above with the default options, grid 64: two patches (17 points) are turned, one
+    // of them although the unsupported crossings do not fall enough alone, since those in open
+    // space fall by more than 5 %. Measured: without the open-space rule (the whole count alone;
+    // one patch of 10 points turned) mesh -> cow rms 0.495 % of the diagonal, 1.60 % of the
+    // vertices beyond 2 %; with it 0.455 % and 1.31 %
     let truth = common::load_mesh(Path::new(common::COW));
-    let pts = read_back(Path::new(OPEN_SPACE_COW));
-    let (mesh, _, line) = fit_mesh("cow-open-space-turn", &pts, "64", &BY_INDEX);
+    let pts = with_hole(&truth, OPEN_SPACE_COW.0, OPEN_SPACE_COW.1);
+    let (mesh, _, line) = fit_mesh("cow-open-space-turn", &pts, "64", &[]);
     let (rms, far) = mesh_to_truth(&truth, &mesh);
     println!("{line}\n  rms {rms:.5}, far {far:.4}");
     assert!(line.contains("turned (1 by open space)"), "{line}");
-    assert!(rms < 0.0026 && far < 0.0015, "mesh -> cow rms {rms}, far {far}");
+    assert!(rms < 0.0047 && far < 0.0145, "mesh -> cow rms {rms}, far {far}");
 }
 
 #[test]
