@@ -675,32 +675,30 @@ fn off_points_dealt_among_neighbours_give_the_same_solid_for_any_order_of_the_cl
     assert!(d > 1e-3, "by index the scrambled order differs by only {d}");
 }
 
-/// Cow samples (the tests' sampler, 400 points) on which the floor of blob points matters (seed
-/// 9: see the test below; of seeds 1-12, N/4 = 100 pins instead of 200 gave a larger mesh -> cow
-/// distance on seeds 3, 4, 5, 7 and 9 and a smaller one on 1, 2, 6, 8, 11 and 12), and on which
-/// a second round is dropped by the data points' cells alone (seed 7).
-const FLOOR_COW: (usize, u64, u64) = (400, 9, 7);
+/// Cow samples (the tests' sampler, 400 points) on which the floor of blob points matters (see
+/// the test below; of seeds 1-16, N/4 = 100 pins instead of 200 gave a larger mesh -> cow rms
+/// on seeds 4, 6, 7, 9, 12, 13, 14 and 16, by up to 0.63 % of the diagonal, and a smaller one on
+/// 1, 2, 3, 5, 8, 10, 11 and 15, by up to 0.50 %, 0.08 % but on seed 5).
+const FLOOR_COW: (usize, u64) = (400, 12);
 
 #[test]
-fn a_small_scan_gets_enough_pins_for_the_bulge_under_the_cows_chest() {
-    // the first fit grows a bulge of false solid under the chest, in front of the front legs.
-    // N/4 = 100 pins, taken by an even stride from the spurious nodes, leave most of it:
-    // measured (grid 64) mesh -> cow rms 1.12 % of the diagonal, 7.4 % of the vertices beyond
-    // 2 %; the floor of 200 pins removes it: 0.68 %, 2.7 %
+fn a_small_scan_gets_enough_pins_for_the_false_solid_beside_the_cow() {
+    // the first fit grows false solid beside the cow. N/4 = 100 pins, taken by an even stride
+    // from the spurious nodes, leave much of it: measured (grid 64) mesh ->
+    // cow rms 0.73 % of the diagonal, 3.2 % of the vertices beyond 2 %; the floor of 200 pins
+    // removes it: 0.50 %, 0.85 %
     let truth = common::load_mesh(Path::new(common::COW));
-    let (n, seed, dropped) = FLOOR_COW;
-    let (mesh, _, surface) = fit_mesh("cow-400-floor", &area_samples(&truth, n, seed), "64", &[]);
+    let (mesh, _, surface) =
+        fit_mesh("cow-400-floor", &area_samples(&truth, FLOOR_COW.0, FLOOR_COW.1), "64", &[]);
     let (rms, far) = mesh_to_truth(&truth, &mesh);
     println!("{surface}\n  mesh -> cow rms {rms:.5}, far {far:.4}");
     let pins = volspline::surface::blobs::MIN_CAP;
     assert!(surface.contains(&format!("blobs: {pins} constraint points")), "{surface}");
-    assert!(rms < 0.009 && far < 0.05, "mesh -> cow rms {rms}, far {far}");
-    // on another sample the second round pins 2 nodes and leaves 4 more data points without
-    // solid: it is dropped once the data points' cells alone are sampled, so no share is
-    // measured for it
-    let (_, _, surface) = fit_mesh("cow-400-dropped", &area_samples(&truth, n, dropped), "16", &[]);
+    assert!(rms < 0.006 && far < 0.02, "mesh -> cow rms {rms}, far {far}");
+    // its second round pins 3 nodes and leaves 3 more data points without solid: it is dropped
+    // once the data points' cells alone are sampled, so no share is measured for it
     assert!(
-        surface.contains("second round: 2 points in open space, data points without solid 5 -> 9: dropped"),
+        surface.contains("second round: 3 points in open space, data points without solid 11 -> 14: dropped"),
         "{surface}"
     );
 }
@@ -971,9 +969,10 @@ fn the_clearance_choice_keeps_the_cap_over_a_hole_in_the_cow() {
     // the narrow candidate pins nodes under the cap the first fit puts over the hole; counting
     // all unsupported surface it has the smaller share (the cap is unsupported too) and would be
     // kept; with the surface in the hole's mouth (data winding number 0.1-0.3) not counted, the
-    // wide one is. Measured: shares 0.1413 (wide) and 0.1254 (narrow) without the mouth rule,
-    // 0.0865 and 0.1068 with it; of the 372 lattice nodes inside the true cow within the hole's
-    // ball, 12.9 % are outside the wide fit's solid, 48.9 % outside the narrow one's. Over seeds
+    // wide one is. Measured: shares 0.1413 (wide) and 0.1322 (narrow) without the mouth rule,
+    // 0.0865 and 0.0890 with it; of the 372 lattice nodes inside the true cow within the hole's
+    // ball, 12.9 % are outside the wide fit's solid, 23.7 % outside the narrow one's (48.9 % with
+    // rule 2's winding threshold at 1/3, which left more pins under the cap). Over seeds
     // 1-10, with the off points dealt by index (the default before), the rule turned the choice
     // on seeds 5 and 7 (narrow 0.073 -> 0.172 hollow there); on seeds 1 and 4 the narrow fit is
     // kept either way and hollows 0.72 -> 0.81 and 0.51 -> 0.58 of those nodes (a ball that
@@ -1017,7 +1016,7 @@ fn the_clearance_choice_keeps_the_cap_over_a_hole_in_the_cow() {
     );
     assert!(all_narrow < all_wide, "without the mouth rule the narrow candidate is not kept");
     assert!(kept_wide < kept_narrow, "with the mouth rule the wide candidate is not kept");
-    assert!(under.len() > 200 && hollow_narrow > 2.0 * hollow_wide, "the narrow fit does not hollow the cap");
+    assert!(under.len() > 200 && hollow_narrow > 1.5 * hollow_wide, "the narrow fit does not hollow the cap");
     // the binary makes the same choice
     let (_, _, line) = fit_mesh("cow-cap", &pts, "32", &[&UNIFORM[..], &NO_TURNS].concat());
     assert!(line.contains("wide kept") && line.contains("fitted three times"), "{line}");
@@ -1705,9 +1704,9 @@ fn the_turns_of_a_small_system_refit_afresh_alike_on_one_two_and_three_ranks() {
 
 /// Cow samples with a hole (the tests' sampler: points before the hole, seed) on which a turn of
 /// step 7 is kept by the open-space rule alone (measured: see the tests below; of the cow at
-/// 1000 and 2000 points, with and without a hole, and the bunny at 1000 with a hole and 2000
-/// without, seeds 1-12, the only one).
-const OPEN_SPACE_COW: (usize, u64) = (1000, 8);
+/// 1000 and 2000 points with a hole and at 1000 without, and the bunny at 1000 with a hole,
+/// seeds 1-24, the only one).
+const OPEN_SPACE_COW: (usize, u64) = (2000, 16);
 
 /// The clearance choice off (the second fit takes the wide clearance alone).
 const NO_CHOICE: [&str; 2] = ["--blob-choice", "off"];
@@ -1723,26 +1722,25 @@ fn a_turn_kept_by_open_space_is_the_same_on_one_two_and_three_ranks() {
     common::write_xyz(&input, &with_hole(&cow, OPEN_SPACE_COW.0, OPEN_SPACE_COW.1));
     let oracle = serial_offsurface(&read_back(&input), DEFAULT_DEALT, true, true);
     let turns = &oracle.turns;
-    // measured: 2 of 3 patches (17 points) turned, one by the open-space rule, 517 -> 466
-    // crossings
-    assert_eq!((turns.turned, turns.by_open_space), (2, 1), "{turns:?}");
+    // measured: 1 of 3 patches (9 points) turned, by the open-space rule, 471 -> 457 crossings
+    assert_eq!((turns.turned, turns.by_open_space), (1, 1), "{turns:?}");
+    assert!(!turns::gains(turns.before, turns.after), "{turns:?}");
     fits_match_the_oracle(&dir, &input, &oracle, "cholesky", &DEFAULT_RATES, &[]);
 }
 
 #[test]
 fn a_turn_kept_by_open_space_removes_false_solid_beside_the_cow() {
-    // the set above with the default options, grid 64: two patches (17 points) are turned, one
-    // of them although the unsupported crossings do not fall enough alone, since those in open
-    // space fall by more than 5 %. Measured: without the open-space rule (the whole count alone;
-    // one patch of 10 points turned) mesh -> cow rms 0.495 % of the diagonal, 1.60 % of the
-    // vertices beyond 2 %; with it 0.455 % and 1.31 %
+    // the set above with the default options, grid 64: a patch of 9 points is turned although
+    // the unsupported crossings fall by 3 % alone (471 -> 457), since those in open space fall by
+    // more than 5 %. Measured: without the open-space rule (the whole count alone) mesh -> cow
+    // rms 0.411 % of the diagonal, 1.10 % of the vertices beyond 2 %; with it 0.392 % and 0.88 %
     let truth = common::load_mesh(Path::new(common::COW));
     let pts = with_hole(&truth, OPEN_SPACE_COW.0, OPEN_SPACE_COW.1);
     let (mesh, _, line) = fit_mesh("cow-open-space-turn", &pts, "64", &[]);
     let (rms, far) = mesh_to_truth(&truth, &mesh);
     println!("{line}\n  rms {rms:.5}, far {far:.4}");
     assert!(line.contains("turned (1 by open space)"), "{line}");
-    assert!(rms < 0.0047 && far < 0.0145, "mesh -> cow rms {rms}, far {far}");
+    assert!(rms < 0.0040 && far < 0.0099, "mesh -> cow rms {rms}, far {far}");
 }
 
 #[test]
