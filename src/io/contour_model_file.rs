@@ -31,7 +31,7 @@ pub const FORMAT: &str = "volspline-contour-model";
 /// Writes `model` to `path` (created or truncated).
 pub fn write_contour_model(path: &Path, model: &ContourModel) -> Result<()> {
     let h5 = |e: hdf5::Error| Error::hdf5(path, e);
-    let f = hdf5::File::create(path).map_err(h5)?;
+    let f = super::h5::create(path)?;
     let a = Attrs { file: &f, path };
     let kernel = model.sections[0].spline.kernel;
     a.put_str("format", FORMAT)?;

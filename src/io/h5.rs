@@ -1,6 +1,12 @@
 //! Typed access to the attributes and datasets of the model files over hdf5-metno, with errors
 //! that name the file, and the provenance block that both model formats (scattered points and
 //! contours) carry. Serial HDF5 only; the parallel volume output is in `vtkhdf`.
+//!
+//! Model files are written in HDF5's latest file format ([`create`]), whose metadata (superblock,
+//! object headers, B-trees, heaps of names) carry checksums, and their texts as byte arrays
+//! rather than variable-length strings (whose global heap has no checksum): a damaged file is
+//! refused by the library with an error. On files written in the earliest format a damaged
+//! object could make HDF5 1.10 read out of bounds and crash.
 
 use std::path::Path;
 
@@ -8,6 +14,11 @@ use hdf5::types::VarLenUnicode;
 
 use crate::error::{Error, Result};
 use crate::spline::model::Provenance;
+
+/// Creates (or truncates) the model file `path` in HDF5's latest file format (see the module doc).
+pub fn create(path: &Path) -> Result<hdf5::File> {
+    hdf5::File::with_options().with_fapl(|p| p.libver_latest()).create(path).map_err(|e| Error::hdf5(path, e))
+}
 
 /// The root group of one open model file.
 pub struct Attrs<'a> {
@@ -25,14 +36,13 @@ impl Attrs<'_> {
         Error::input(self.path, "", why)
     }
 
+    /// Writes the text `v` as a one-dimensional attribute of its UTF-8 bytes (an empty text as
+    /// one NUL byte). Not a variable-length string: those live in HDF5's global heap, whose
+    /// objects carry no checksum, and a file damaged there made the library itself read out of
+    /// bounds and crash instead of returning an error.
     pub fn put_str(&self, name: &str, v: &str) -> Result<()> {
-        let text: VarLenUnicode = v.parse().unwrap_or_default();
-        self.file
-            .new_attr::<VarLenUnicode>()
-            .create(name)
-            .map_err(|e| self.h5(e))?
-            .write_scalar(&text)
-            .map_err(|e| self.h5(e))
+        let bytes: Vec<u8> = if v.is_empty() { vec![0] } else { v.as_bytes().to_vec() };
+        self.file.new_attr_builder().with_data(&bytes).create(name).map(|_| ()).map_err(|e| self.h5(e))
     }
 
     pub fn put_f64s(&self, name: &str, v: &[f64]) -> Result<()> {
@@ -47,8 +57,19 @@ impl Attrs<'_> {
         self.file.attr(name).map_err(|_| self.bad(format!("attribute '{name}' is missing")))
     }
 
+    /// The text of attribute `name`: UTF-8 bytes as [`Attrs::put_str`] writes them, or a
+    /// variable-length string (files written before 2026-12-04).
     pub fn str(&self, name: &str) -> Result<String> {
-        let v = self.attr(name)?.read_scalar::<VarLenUnicode>().map_err(|e| self.h5(e))?;
+        let attr = self.attr(name)?;
+        if attr.dtype().map_err(|e| self.h5(e))?.is::<u8>() {
+            let mut bytes = attr.read_raw::<u8>().map_err(|e| self.h5(e))?;
+            while bytes.last() == Some(&0) {
+                bytes.pop();
+            }
+            return String::from_utf8(bytes)
+                .map_err(|_| self.bad(format!("attribute '{name}' is not UTF-8 text")));
+        }
+        let v = attr.read_scalar::<VarLenUnicode>().map_err(|e| self.h5(e))?;
         Ok(v.as_str().to_string())
     }
 

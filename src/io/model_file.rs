@@ -41,7 +41,7 @@ pub const FORMAT: &str = "volspline-model";
 /// Writes `model` to `path` (an HDF5 file, created or truncated).
 pub fn write_model(path: &Path, model: &Model) -> Result<()> {
     let h5 = |e: hdf5::Error| Error::hdf5(path, e);
-    let f = hdf5::File::create(path).map_err(h5)?;
+    let f = super::h5::create(path)?;
     let a = Attrs { file: &f, path };
     let sp = &model.spline;
     a.put_str("format", FORMAT)?;
