@@ -294,6 +294,30 @@ mod tests {
     }
 
     #[test]
+    fn texts_are_byte_arrays_and_variable_length_strings_of_earlier_files_still_read() {
+        let path = temp("texts");
+        let mut m = model(Kernel::new(3, 2).unwrap());
+        m.provenance.input = "scan \u{fc}.xyz".into();
+        write_model(&path, &m).unwrap();
+        let names = ["format", "carrier", "kernel", "input", "solver", "volspline_version"];
+        {
+            let f = hdf5::File::open_rw(&path).unwrap();
+            let a = Attrs { file: &f, path: &path };
+            for name in names {
+                // written as UTF-8 bytes (the empty solver as one NUL byte), read back as written
+                assert!(f.attr(name).unwrap().dtype().unwrap().is::<u8>(), "{name}");
+                let text = a.str(name).unwrap();
+                f.delete_attr(name).unwrap();
+                let v: hdf5::types::VarLenUnicode = text.parse().unwrap();
+                f.new_attr::<hdf5::types::VarLenUnicode>().create(name).unwrap().write_scalar(&v).unwrap();
+            }
+        }
+        let back = read_model(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(back, m);
+    }
+
+    #[test]
     fn malformed_compact_kernels_are_reported() {
         let path = temp("malformed");
         write_model(&path, &model(Kernel::wendland("wendland2", 0.2).unwrap())).unwrap();
