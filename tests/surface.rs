@@ -626,8 +626,19 @@ fn fit_benchmark_sample(name: &str, n: usize, truth: &str, extra: &[&str]) -> (f
     let pts: Vec<f64> =
         volspline::io::points::read_points(&path).unwrap().points.into_iter().flatten().collect();
     assert_eq!(pts.len(), 3 * n, "{}", path.display());
-    let (mesh, _, surface) = fit_mesh(name, &pts, "64", extra);
-    let (rms, far) = mesh_to_truth(&common::load_mesh(Path::new(truth)), &mesh);
+    fit_to_truth(name, &pts, &common::load_mesh(Path::new(truth)), extra)
+}
+
+/// Fits `pts` with the default surface method and `extra` (grid 64) and returns the mesh ->
+/// `truth` rms and far fraction ([`mesh_to_truth`]) and the surface line of the report.
+fn fit_to_truth(
+    name: &str,
+    pts: &[f64],
+    truth: &volspline::mesh::TriMesh,
+    extra: &[&str],
+) -> (f64, f64, String) {
+    let (mesh, _, surface) = fit_mesh(name, pts, "64", extra);
+    let (rms, far) = mesh_to_truth(truth, &mesh);
     println!("{name}: {surface}\n  mesh -> truth rms {rms:.5}, far {far:.4}");
     (rms, far, surface)
 }
@@ -688,10 +699,8 @@ fn a_small_scan_gets_enough_pins_for_the_false_solid_beside_the_cow() {
     // cow rms 0.73 % of the diagonal, 3.2 % of the vertices beyond 2 %; the floor of 200 pins
     // removes it: 0.50 %, 0.85 %
     let truth = common::load_mesh(Path::new(common::COW));
-    let (mesh, _, surface) =
-        fit_mesh("cow-400-floor", &area_samples(&truth, FLOOR_COW.0, FLOOR_COW.1), "64", &[]);
-    let (rms, far) = mesh_to_truth(&truth, &mesh);
-    println!("{surface}\n  mesh -> cow rms {rms:.5}, far {far:.4}");
+    let pts = area_samples(&truth, FLOOR_COW.0, FLOOR_COW.1);
+    let (rms, far, surface) = fit_to_truth("cow-400-floor", &pts, &truth, &[]);
     let pins = volspline::surface::blobs::MIN_CAP;
     assert!(surface.contains(&format!("blobs: {pins} constraint points")), "{surface}");
     assert!(rms < 0.006 && far < 0.02, "mesh -> cow rms {rms}, far {far}");
@@ -730,9 +739,7 @@ fn a_second_round_of_pins_removes_the_false_solid_the_first_left_under_the_cow()
     // 0.29 % and 0.05 % with it
     let truth = common::load_mesh(Path::new(common::COW));
     let pts = area_samples(&truth, SECOND_ROUND_COW.0, SECOND_ROUND_COW.1);
-    let (mesh, _, surface) = fit_mesh("cow-second-round", &pts, "64", &[]);
-    let (rms, far) = mesh_to_truth(&truth, &mesh);
-    println!("{surface}\n  mesh -> cow rms {rms:.5}, far {far:.4}");
+    let (rms, far, surface) = fit_to_truth("cow-second-round", &pts, &truth, &[]);
     assert!(
         surface.contains("second round: 68 points in open space") && surface.contains(": kept"),
         "{surface}"
@@ -1736,9 +1743,7 @@ fn a_turn_kept_by_open_space_removes_false_solid_beside_the_cow() {
     // rms 0.411 % of the diagonal, 1.10 % of the vertices beyond 2 %; with it 0.392 % and 0.88 %
     let truth = common::load_mesh(Path::new(common::COW));
     let pts = with_hole(&truth, OPEN_SPACE_COW.0, OPEN_SPACE_COW.1);
-    let (mesh, _, line) = fit_mesh("cow-open-space-turn", &pts, "64", &[]);
-    let (rms, far) = mesh_to_truth(&truth, &mesh);
-    println!("{line}\n  rms {rms:.5}, far {far:.4}");
+    let (rms, far, line) = fit_to_truth("cow-open-space-turn", &pts, &truth, &[]);
     assert!(line.contains("turned (1 by open space)"), "{line}");
     assert!(rms < 0.0040 && far < 0.0099, "mesh -> cow rms {rms}, far {far}");
 }
