@@ -259,8 +259,9 @@ pub struct FitArgs {
     /// Last, where the dense fit kept its factor, try turning the small patches of normals
     /// nearest to the surface no data supports (on, or off), at most 3, and keep a turn that
     /// removes at least 5 % of that surface: a patch turned on a sheet thinner than the sampling
-    /// (an ear) holds up a bulge beside it that the ray test cannot see. A try changes only
-    /// values, so it is solved with the kept fit's own factor (two triangular solves; below 1000
+    /// (an ear) holds up a bulge beside it that the ray test cannot see. Then at most 3 groups
+    /// of points with another sheet of data in front of them (one side of a thin part turned),
+    /// kept where the turn clears that surface in open space. A try changes only values, so it is solved with the kept fit's own factor (two triangular solves; below 1000
     /// points a fit that keeps none, by a solver the user chose, is made afresh) and only the
     /// lattice around the patch is sampled again; a large system solved without the projected
     /// Cholesky skips this step (see src/surface/turns.rs).

@@ -597,6 +597,8 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
                 ("turns_tried", t.tried),
                 ("turns_turned", t.turned),
                 ("turns_by_open_space", t.by_open_space),
+                ("turns_facing_tried", t.facing),
+                ("turns_facing_turned", t.facing_turned),
                 ("turns_unsupported_before", t.before),
                 ("turns_unsupported_after", t.after),
             ];
@@ -743,13 +745,17 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
             None => String::new(),
         } + &match &s.turns {
             Some(t) => format!(
-                "; turns: {} of {} patches tried ({} points) turned{}, unsupported crossings {} -> {}",
+                "; turns: {} of {} patches tried ({} points) turned{}{}, unsupported crossings {} -> {}",
                 t.turned,
                 t.tried,
                 t.turned_points,
                 match t.by_open_space {
                     0 => String::new(),
                     k => format!(" ({k} by open space)"),
+                },
+                match (t.facing, t.facing_turned) {
+                    (0, _) => String::new(),
+                    (k, m) => format!(", {k} of the tried groups facing a sheet ({m} turned)"),
                 },
                 t.before,
                 t.after

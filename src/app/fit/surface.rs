@@ -854,20 +854,51 @@ fn turn_by_surface(
         let crossings = choice::unsupported_crossings(lattice, &values, &support).0;
         (values, crossings)
     });
-    let candidates = stages.time(Stage::Turns, || {
+    let (candidates, patches) = stages.time(Stage::Turns, || {
         let knn = (&c.hoods.knn[..], c.hoods.kmax);
-        turns::candidates(&data.centres, &c.normals, knn, &c.hoods.tree, &crossings)
+        let mut candidates = turns::candidates(&data.centres, &c.normals, knn, &c.hoods.tree, &crossings);
+        let patches = candidates.len();
+        let in_window = |cd: &turns::Candidate| {
+            choice::unsupported_in_window(lattice, &values, &support, &cd.window(lattice))
+        };
+        let facing = turns::facing_candidates(
+            &data.centres,
+            &c.normals,
+            knn,
+            (&candidates, &c.off.source),
+            in_window,
+            crossings.len(),
+        );
+        candidates.extend(facing);
+        (candidates, patches)
     });
     let mut far = crossings.len();
-    let mut check = TurnCheck { tried: candidates.len(), before: far, ..Default::default() };
+    let mut check = TurnCheck {
+        tried: candidates.len(),
+        facing: candidates.len() - patches,
+        before: far,
+        ..Default::default()
+    };
     let nd = data.values.len();
-    for candidate in candidates {
+    for (number, candidate) in candidates.into_iter().enumerate() {
+        let facing = number >= patches;
         // the count changes within the window alone: where the crossings there now are too few
         // for their removal to be a gain, no turn of this patch can be
         let window = candidate.window(lattice);
         let within = |values: &[f64]| choice::unsupported_in_window(lattice, values, &support, &window);
         let now = stages.time(Stage::Turns, || within(&values));
         if !turns::gains(far, far - now) {
+            continue;
+        }
+        // the unsupported crossings in open space within the window, before and after
+        let open_count = |values: &[f64], normals: &[[f64; 3]]| {
+            let data = (&data.centres[..], normals, areas);
+            turns::open_space_crossings(run.comm, (lattice, &window), values, &support, data)
+        };
+        // a group facing a sheet is turned only where that clears open space: where the window
+        // holds too few crossings in open space for their removal to clear it, it is not tried
+        let open_before = facing.then(|| stages.time(Stage::Turns, || open_count(&values, &c.normals)));
+        if open_before.is_some_and(|open| !turns::clears_open_space(far, (open, 0))) {
             continue;
         }
         let mut member = vec![false; c.normals.len()];
@@ -889,15 +920,14 @@ fn turn_by_surface(
             let mut tried_values = values.clone();
             sample_window(run.comm, lattice, &window, (&data.carrier, &tried.spline), &mut tried_values);
             let after = far - now + within(&tried_values);
-            // the unsupported crossings in open space within the window, before and after
-            let open = || {
-                let count = |values: &[f64], normals: &[[f64; 3]]| {
-                    let data = (&data.centres[..], normals, areas);
-                    turns::open_space_crossings(run.comm, (lattice, &window), values, &support, data)
-                };
-                (count(&values, &c.normals), count(&tried_values, &normals))
+            let kept = match open_before {
+                Some(open) => (after < far
+                    && turns::clears_open_space(far, (open, open_count(&tried_values, &normals))))
+                .then_some(true),
+                None => turns::keeps_by(far, after, || {
+                    (open_count(&values, &c.normals), open_count(&tried_values, &normals))
+                }),
             };
-            let kept = turns::keeps_by(far, after, open);
             (tried_values, after, kept)
         });
         if let Some(by_open_space) = kept {
@@ -905,6 +935,7 @@ fn turn_by_surface(
             check.turned += 1;
             check.turned_points += candidate.members.len();
             check.by_open_space += usize::from(by_open_space);
+            check.facing_turned += usize::from(facing);
         }
     }
     check.after = far;
