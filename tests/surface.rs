@@ -377,7 +377,7 @@ fn serial_offsurface(read: &[f64], rate: OffRates, choose: bool, turns: bool) ->
             };
             // a group facing a sheet is kept by open space alone
             let kept = if number >= patches {
-                (after.len() < far.len() && turns::clears_open_space(far.len(), open())).then_some(true)
+                turns::keeps_group(far.len(), after.len(), open).then_some(true)
             } else {
                 turns::keeps_by(far.len(), after.len(), open)
             };

@@ -341,6 +341,16 @@ pub fn keeps_by(before: usize, after: usize, open: impl FnOnce() -> (usize, usiz
     }
 }
 
+/// Whether the turn of a group facing a sheet ([`facing_candidates`]) is kept: by open space
+/// alone, where it removes some of all `before` unsupported crossings (`after` are left) and
+/// [`clears_open_space`] with the crossings in open space within its window before and after
+/// (`open`, called only where the first test passes). A group is found by its own geometry, not
+/// by the surface it is charged with, so an overall gain without a clearing of open space does
+/// not keep it.
+pub fn keeps_group(before: usize, after: usize, open: impl FnOnce() -> (usize, usize)) -> bool {
+    after < before && clears_open_space(before, open())
+}
+
 /// The unsupported crossings of the field `values` on `lattice` (as
 /// [`unsupported_crossings_in_window`] finds them within `window`) that lie in open space: where
 /// the winding number of the data `points` with outward `normals` and surface shares `areas` (see
@@ -394,6 +404,10 @@ mod tests {
         assert_eq!(keeps_by(710, 651, || unreachable!()), Some(false));
         assert_eq!(keeps_by(464, 451, || (62, 17)), Some(true));
         assert_eq!(keeps_by(480, 464, || (2, 8)), None);
+        // a group is kept by open space alone: a large overall gain is not enough
+        assert!(!keeps_group(710, 500, || (10, 9)));
+        assert!(keeps_group(464, 451, || (62, 17)));
+        assert!(!keeps_group(464, 464, || unreachable!()));
     }
 
     /// The `kmax` nearest neighbours of each of `points` (xyz), by brute force.

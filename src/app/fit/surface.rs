@@ -921,9 +921,8 @@ fn turn_by_surface(
             sample_window(run.comm, lattice, &window, (&data.carrier, &tried.spline), &mut tried_values);
             let after = far - now + within(&tried_values);
             let kept = match open_before {
-                Some(open) => (after < far
-                    && turns::clears_open_space(far, (open, open_count(&tried_values, &normals))))
-                .then_some(true),
+                Some(open) => turns::keeps_group(far, after, || (open, open_count(&tried_values, &normals)))
+                    .then_some(true),
                 None => turns::keeps_by(far, after, || {
                     (open_count(&values, &c.normals), open_count(&tried_values, &normals))
                 }),
