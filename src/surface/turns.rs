@@ -334,7 +334,7 @@ pub fn keeps(before: usize, after: usize, open: impl FnOnce() -> (usize, usize))
 pub fn keeps_by(before: usize, after: usize, open: impl FnOnce() -> (usize, usize)) -> Option<bool> {
     if gains(before, after) {
         Some(false)
-    } else if after < before && clears_open_space(before, open()) {
+    } else if keeps_group(before, after, open) {
         Some(true)
     } else {
         None
