@@ -257,7 +257,8 @@ pub struct FitArgs {
     #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub restore_solid: bool,
     /// Last, where the dense fit kept its factor, try turning the small patches of normals
-    /// nearest to the surface no data supports (on, or off), at most 3, and keep a turn that
+    /// nearest to the surface no data supports (on, or off), at most 6 (past the third only
+    /// patches of 4 points or more), and keep a turn that
     /// removes at least 5 % of that surface: a patch turned on a sheet thinner than the sampling
     /// (an ear) holds up a bulge beside it that the ray test cannot see. Then at most 3 groups
     /// of points with another sheet of data in front of them (one side of a thin part turned),
