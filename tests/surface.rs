@@ -349,7 +349,9 @@ fn serial_offsurface(read: &[f64], rate: OffRates, choose: bool, turns: bool) ->
             far.len(),
         );
         candidates.extend(facing);
-        (check.tried, check.before, check.facing) = (candidates.len(), far.len(), candidates.len() - patches);
+        // every candidate is solved here: the binary passes over only those that cannot gain
+        (check.candidates, check.tried) = (candidates.len(), candidates.len());
+        (check.before, check.facing) = (far.len(), candidates.len() - patches);
         for (number, candidate) in candidates.into_iter().enumerate() {
             let (mut turned_normals, mut turned_off) = (normals.clone(), off.clone());
             candidate.members.iter().for_each(|&i| turned_normals[i] = normals[i].map(|v| -v));
@@ -1750,9 +1752,9 @@ fn a_turn_kept_by_open_space_is_the_same_on_one_two_and_three_ranks() {
     common::write_xyz(&input, &with_hole(&cow, OPEN_SPACE_COW.0, OPEN_SPACE_COW.1));
     let oracle = serial_offsurface(&read_back(&input), DEFAULT_DEALT, true, true);
     let turns = &oracle.turns;
-    // measured: 1 of 3 patches (9 points) turned, by the open-space rule, 471 -> 457 crossings
-    assert_eq!((turns.turned, turns.by_open_space), (1, 1), "{turns:?}");
-    assert!(!turns::gains(turns.before, turns.after), "{turns:?}");
+    // measured: two patches of 18 points in all turned, one by the open-space rule, 471 -> 428
+    // crossings (with three tries, the open-space turn alone: 471 -> 457)
+    assert_eq!((turns.turned, turns.by_open_space, turns.turned_points), (2, 1, 18), "{turns:?}");
     fits_match_the_oracle(&dir, &input, &oracle, "cholesky", &DEFAULT_RATES, &[]);
 }
 
@@ -1760,8 +1762,10 @@ fn a_turn_kept_by_open_space_is_the_same_on_one_two_and_three_ranks() {
 fn a_turn_kept_by_open_space_removes_false_solid_beside_the_cow() {
     // the set above with the default options, grid 64: a patch of 9 points is turned although
     // the unsupported crossings fall by 3 % alone (471 -> 457), since those in open space fall by
-    // more than 5 %. Measured: without the open-space rule (the whole count alone) mesh -> cow
-    // rms 0.411 % of the diagonal, 1.10 % of the vertices beyond 2 %; with it 0.392 % and 0.88 %
+    // more than 5 %. Measured with three patch tries (no second turn): without the open-space
+    // rule (the whole count alone) mesh -> cow rms 0.411 % of the diagonal, 1.10 % of the
+    // vertices beyond 2 %; with it 0.392 % and 0.88 %. Six tries turn a second patch of 9 points
+    // by the whole count as well
     let truth = common::load_mesh(Path::new(common::COW));
     let pts = with_hole(&truth, OPEN_SPACE_COW.0, OPEN_SPACE_COW.1);
     let (rms, far, line) = fit_to_truth("cow-open-space-turn", &pts, &truth, &[]);
@@ -1769,39 +1773,46 @@ fn a_turn_kept_by_open_space_removes_false_solid_beside_the_cow() {
     assert!(rms < 0.0040 && far < 0.0099, "mesh -> cow rms {rms}, far {far}");
 }
 
-/// Cow samples (the tests' sampler: points, seed) on which a group of points facing a sheet is
-/// turned (measured: see the tests below; of the cow at 1000 and 2000 points with and without a
-/// hole and the bunny at 1000 and 2000, seeds 1-16, the only one).
-const FACING_COW: (usize, u64) = (2000, 16);
+/// A sample of the cow with a hole (1863 points: seed 11's cow-2000-open of the surface
+/// benchmark) on which a group of points facing a sheet is turned. The group stands on the
+/// underside of the left ear, a sheet thinner than the sampling, one side of it turned; no
+/// patch of the ear is small enough to try. (With six patch tries, none of 240 samples of the
+/// tests' own sampler turned a group, 28 of them trying one: the cow at 2000 points with and
+/// without a hole, seeds 1-60; at 1000 points without a hole seeds 1-30, with one 31-60; the
+/// bunny at 2000 points seeds 1-30, at 1000 31-60.)
+const FACING_COW: &str = "cow-2000-open-seed11";
 
 #[test]
 fn a_group_facing_a_sheet_is_turned_alike_on_one_two_and_three_ranks() {
-    let (dir, input) = sampled_input("facing-oracle", "cow.xyz", common::COW, FACING_COW);
+    let dir = common::temp_dir("facing-oracle");
+    let input = dir.join("cow.xyz");
+    let (_, pts, _) = cow_sample(FACING_COW);
+    common::write_xyz(&input, &pts);
     let oracle = serial_offsurface(&read_back(&input), DEFAULT_DEALT, true, true);
     let turns = &oracle.turns;
-    // measured: a patch of 9 points and a group of 52 facing a sheet turned, 288 -> 260 crossings
-    assert_eq!((turns.turned, turns.facing_turned), (2, 1), "{turns:?}");
+    // measured: one turn, the group of 19 points facing a sheet, by the open-space rule
+    assert_eq!((turns.turned, turns.facing_turned, turns.by_open_space), (1, 1, 1), "{turns:?}");
     fits_match_the_oracle(&dir, &input, &oracle, "cholesky", &DEFAULT_RATES, &[]);
 }
 
 #[test]
 fn turning_a_group_facing_a_sheet_removes_false_solid_beside_the_cow() {
-    // the set above with the default options, grid 64: after a patch of 9 points, a group of 52
-    // points facing a sheet is turned by the open-space rule. Measured: with the patch alone (the
-    // step before the groups were tried) mesh -> cow rms 0.3415 % of the diagonal, 0.74 % of the
-    // vertices beyond 2 %, 3 components; with the group 0.3087 %, 0.46 %, 2 components
-    let truth = common::load_mesh(Path::new(common::COW));
-    let pts = area_samples(&truth, FACING_COW.0, FACING_COW.1);
+    // the set above with the default options, grid 64: the group of 19 points on the underside
+    // of the left ear is turned by the open-space rule, unsupported crossings 708 -> 624; no
+    // patch is. Measured: without the groups mesh -> cow rms 0.527 % of the
+    // diagonal, 1.76 % of the vertices beyond 2 % (the bulge beside the ear); with the group
+    // 0.305 % and 0.18 %
+    let (truth, pts, _) = cow_sample(FACING_COW);
     let (rms, far, line) = fit_to_truth("cow-facing-turn", &pts, &truth, &[]);
-    assert!(line.contains("3 of the tried groups facing a sheet (1 turned)"), "{line}");
-    assert!(rms < 0.0033 && far < 0.006, "mesh -> cow rms {rms}, far {far}");
+    assert!(line.contains("1 of the tried groups facing a sheet (1 turned)"), "{line}");
+    assert!(rms < 0.0040 && far < 0.008, "mesh -> cow rms {rms}, far {far}");
 }
 
 #[test]
 fn turning_a_patch_of_a_small_system_removes_unsupported_surface_on_the_bunny() {
-    // the set of the test above with the default rates, grid 64: two patches of 10 points in all
-    // turned by fresh fits, unsupported crossings 427 -> 293; three groups facing a sheet tried
-    // after them, none turned. Measured: mesh -> bunny rms 0.855 -> 0.685 % of the diagonal,
+    // the set of the test above with the default rates, grid 64: of five patches tried, two of
+    // 10 points in all turned by fresh fits, unsupported crossings 427 -> 293; three groups
+    // facing a sheet tried after them, none turned. Measured: mesh -> bunny rms 0.855 -> 0.685 % of the diagonal,
     // vertices beyond 2 % 4.22 -> 2.36 %
     let truth = common::load_mesh(Path::new(common::BUNNY));
     let pts = area_samples(&truth, SMALL_TURNS_BUNNY.0, SMALL_TURNS_BUNNY.1);
@@ -1810,7 +1821,7 @@ fn turning_a_patch_of_a_small_system_removes_unsupported_surface_on_the_bunny() 
     let ((rms_off, far_off), (rms_on, far_on)) = (mesh_to_truth(&truth, &off), mesh_to_truth(&truth, &on));
     println!("without: {off_line}\n  rms {rms_off:.5}, far {far_off:.4}\nwith: {on_line}\n  rms {rms_on:.5}, far {far_on:.4}");
     let tried =
-        "turns: 2 of 6 patches tried (10 points) turned, 3 of the tried groups facing a sheet (0 turned)";
+        "turns: 2 of 8 patches tried (10 points) turned, 3 of the tried groups facing a sheet (0 turned)";
     assert!(!off_line.contains("turns:") && on_line.contains(tried), "{on_line}");
     assert!(
         rms_on < 0.9 * rms_off && far_on < 0.7 * far_off,

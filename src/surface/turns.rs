@@ -156,14 +156,17 @@ pub const WINDOW: f64 = 1.0;
 /// What the turns did, for the report.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct TurnCheck {
-    /// Patches tried, and those turned with their points.
+    /// Patches and groups chosen to try ([`candidates`], [`facing_candidates`]).
+    pub candidates: usize,
+    /// Those tried with a solve (a candidate whose window holds too few unsupported crossings
+    /// for a turn to be kept is passed over), and those turned with their points.
     pub tried: usize,
     pub turned: usize,
     pub turned_points: usize,
     /// Turns kept by the open-space rule of [`keeps`] alone.
     pub by_open_space: usize,
-    /// Groups of points facing a sheet tried ([`facing_candidates`]), and those turned (counted
-    /// in `tried`, `turned` and `by_open_space` too).
+    /// Groups of points facing a sheet tried with a solve, and those turned (counted in
+    /// `tried`, `turned` and `by_open_space` too).
     pub facing: usize,
     pub facing_turned: usize,
     /// Unsupported crossings before and after.

@@ -594,6 +594,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         }
         if let Some(t) = &s.turns {
             let counts = [
+                ("turns_candidates", t.candidates),
                 ("turns_tried", t.tried),
                 ("turns_turned", t.turned),
                 ("turns_by_open_space", t.by_open_space),
@@ -745,7 +746,7 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
             None => String::new(),
         } + &match &s.turns {
             Some(t) => format!(
-                "; turns: {} of {} patches tried ({} points) turned{}{}, unsupported crossings {} -> {}",
+                "; turns: {} of {} patches tried ({} points) turned{}{}{}, unsupported crossings {} -> {}",
                 t.turned,
                 t.tried,
                 t.turned_points,
@@ -756,6 +757,10 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
                 match (t.facing, t.facing_turned) {
                     (0, _) => String::new(),
                     (k, m) => format!(", {k} of the tried groups facing a sheet ({m} turned)"),
+                },
+                match t.candidates - t.tried {
+                    0 => String::new(),
+                    k => format!(", {k} of {} candidates passed over without a solve", t.candidates),
                 },
                 t.before,
                 t.after

@@ -873,12 +873,7 @@ fn turn_by_surface(
         (candidates, patches)
     });
     let mut far = crossings.len();
-    let mut check = TurnCheck {
-        tried: candidates.len(),
-        facing: candidates.len() - patches,
-        before: far,
-        ..Default::default()
-    };
+    let mut check = TurnCheck { candidates: candidates.len(), before: far, ..Default::default() };
     let nd = data.values.len();
     for (number, candidate) in candidates.into_iter().enumerate() {
         let facing = number >= patches;
@@ -916,6 +911,8 @@ fn turn_by_surface(
         let off_values = off_values(&off, &data.points, &data.carrier, &data.norm);
         prep.values[nd..nd + off_values.len()].copy_from_slice(&off_values);
         let tried = refit(&prep, factor, stages)?;
+        check.tried += 1;
+        check.facing += usize::from(facing);
         let (tried_values, after, kept) = stages.time(Stage::Turns, || {
             let mut tried_values = values.clone();
             sample_window(run.comm, lattice, &window, (&data.carrier, &tried.spline), &mut tried_values);
