@@ -784,12 +784,20 @@ fn the_second_round_of_pins_is_the_same_on_one_two_and_three_ranks() {
 /// and the cow's bounding-box diagonal.
 fn cow_sample(name: &str) -> (volspline::mesh::TriMesh, Vec<f64>, f64) {
     let truth = common::load_mesh(Path::new(common::COW));
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(format!("{name}.xyz"));
-    let pts: Vec<f64> =
-        volspline::io::points::read_points(&path).unwrap().points.into_iter().flatten().collect();
+    let pts: Vec<f64> = volspline::io::points::read_points(&sample_path(name))
+        .unwrap()
+        .points
+        .into_iter()
+        .flatten()
+        .collect();
     let all: Vec<f64> = truth.vertices.iter().flatten().copied().collect();
     let (lo, hi) = volspline::spline::hygiene::bounding_box(&all, 3);
     (truth, pts, volspline::spline::hygiene::diagonal(&lo, &hi))
+}
+
+/// The file of the stored sample `name` (tests/data/NAME.xyz).
+fn sample_path(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(format!("{name}.xyz"))
 }
 
 /// Truth -> mesh rms over the truth's vertices as a fraction of `diag`: how much of the truth
@@ -1784,10 +1792,7 @@ const FACING_COW: &str = "cow-2000-open-seed11";
 
 #[test]
 fn a_group_facing_a_sheet_is_turned_alike_on_one_two_and_three_ranks() {
-    let dir = common::temp_dir("facing-oracle");
-    let input = dir.join("cow.xyz");
-    let (_, pts, _) = cow_sample(FACING_COW);
-    common::write_xyz(&input, &pts);
+    let (dir, input) = (common::temp_dir("facing-oracle"), sample_path(FACING_COW));
     let oracle = serial_offsurface(&read_back(&input), DEFAULT_DEALT, true, true);
     let turns = &oracle.turns;
     // measured: one turn, the group of 19 points facing a sheet, by the open-space rule
@@ -1799,9 +1804,8 @@ fn a_group_facing_a_sheet_is_turned_alike_on_one_two_and_three_ranks() {
 fn turning_a_group_facing_a_sheet_removes_false_solid_beside_the_cow() {
     // the set above with the default options, grid 64: the group of 19 points on the underside
     // of the left ear is turned by the open-space rule, unsupported crossings 708 -> 624; no
-    // patch is. Measured: without the groups mesh -> cow rms 0.527 % of the
-    // diagonal, 1.76 % of the vertices beyond 2 % (the bulge beside the ear); with the group
-    // 0.305 % and 0.18 %
+    // patch is. Measured: without the groups mesh -> cow rms 0.527 % of the diagonal, 1.76 % of
+    // the vertices beyond 2 % (the bulge beside the ear); with the group 0.305 % and 0.18 %
     let (truth, pts, _) = cow_sample(FACING_COW);
     let (rms, far, line) = fit_to_truth("cow-facing-turn", &pts, &truth, &[]);
     assert!(line.contains("1 of the tried groups facing a sheet (1 turned)"), "{line}");
@@ -1812,8 +1816,8 @@ fn turning_a_group_facing_a_sheet_removes_false_solid_beside_the_cow() {
 fn turning_a_patch_of_a_small_system_removes_unsupported_surface_on_the_bunny() {
     // the set of the test above with the default rates, grid 64: of five patches tried, two of
     // 10 points in all turned by fresh fits, unsupported crossings 427 -> 293; three groups
-    // facing a sheet tried after them, none turned. Measured: mesh -> bunny rms 0.855 -> 0.685 % of the diagonal,
-    // vertices beyond 2 % 4.22 -> 2.36 %
+    // facing a sheet tried after them, none turned. Measured: mesh -> bunny rms 0.855 -> 0.685 %
+    // of the diagonal, vertices beyond 2 % 4.22 -> 2.36 %
     let truth = common::load_mesh(Path::new(common::BUNNY));
     let pts = area_samples(&truth, SMALL_TURNS_BUNNY.0, SMALL_TURNS_BUNNY.1);
     let (off, _, off_line) = fit_mesh("bunny-small-turns-off", &pts, "64", &NO_TURNS);

@@ -84,10 +84,10 @@
 //! 8th nearest neighbour), more lie in front of it (the direction to them within the cone
 //! [`FACING_CONE`] of its normal) than behind it; such points with normals the same way are
 //! joined into groups along the neighbour graph ([`facing_groups`]). The groups whose window
-//! holds the most unsupported crossings, at most [`FACING_TRIES`] of them, are tried after the patches
-//! ([`facing_candidates`]); they are not charged by nearest points, since the false solid that a
-//! turned side holds up lies beside the part, nearer to its edge's points than to the turned
-//! ones. A group's turn is kept only by the open-space rule (the unsupported crossings in open
+//! holds the most unsupported crossings, at most [`FACING_TRIES`] of them, are tried after the
+//! patches ([`facing_candidates`]); they are not charged by nearest points, since the false solid
+//! that a turned side holds up lies beside the part, nearer to its edge's points than to the
+//! turned ones. A group's turn is kept only by the open-space rule (the unsupported crossings in open
 //! space within its window fall by more than [`GAIN`] of all, and the whole count falls): at the
 //! rim of a scan's hole, a group that faces across the hole also lowers the whole count, by
 //! eating the cap, and takes true solid with it. That rule needs the open-space count within
