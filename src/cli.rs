@@ -268,6 +268,14 @@ pub struct FitArgs {
     /// Cholesky skips this step (see src/surface/turns.rs).
     #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub orient_turns: bool,
+    /// Last, where the turns could run, give the data points nearest to the surface no data
+    /// supports that is left in open space (the data's winding number below 0.1), and that have
+    /// no off point, an outside off point each (at the median delta, halved at most 3 times until
+    /// it is nearest to its own point), and keep that fit when it removes at least 5 % of the
+    /// unsupported surface (on, or off): a bulge beside a thin part held by points without off
+    /// points goes. One more fit, bordering the kept fit's factor (see src/surface/outside.rs).
+    #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
+    pub outside_points: bool,
     /// Points of level 0 of the two-level compactly supported fit (--method csrbf with --surface
     /// auto or offsurface): a dense off-surface fit of this many points chosen evenly over space,
     /// the carrier of the Wendland spline through all points. At 12,000-16,000 points 4000 gave

@@ -27,7 +27,8 @@ turned by the spline's bending energy, src/surface/energy.rs); `side`: the defau
 second fits, the one with less unsupported surface kept, src/surface/choice.rs: the default
 since it was measured as an option); `wide`: the default without it (`--blob-choice off`, the
 wide clearance of the blob search alone); `turns` and `noturns`: `--orient-turns on` and `off` (patches
-turned where that shrinks the surface no data supports, src/surface/turns.rs); `denoise`: `--denoise on`
+turned where that shrinks the surface no data supports, src/surface/turns.rs); `nooutside`:
+`--outside-points off` (no outside off points after the turns, src/surface/outside.rs); `denoise`: `--denoise on`
 (the points moved onto quadrics of their same-sheet neighbours first, src/surface/denoise.rs); `dense`:
 `--method dense` (the default's off-surface fit as one dense system where `auto` would take the two
 levels of src/app/fit/levels.rs, from about 11,700 points on 2 ranks); `neighbours`: `--off-deal
@@ -254,6 +255,7 @@ def method_list(args, has_surface):
         flags = {"default": [], "poisson": [], "energy": ["--orient-energy", "on"], "side": ["--orient-side", "on"],
                  "trimmed": ["--trim"], "choice": ["--blob-choice", "on"], "wide": ["--blob-choice", "off"],
                  "turns": ["--orient-turns", "on"], "noturns": ["--orient-turns", "off"],
+                 "nooutside": ["--outside-points", "off"],
                  "denoise": ["--denoise", "on"], "dense": ["--method", "dense"],
                  "neighbours": ["--off-deal", "neighbours"], "index": ["--off-deal", "index"]}
         return [(m, "poisson" if m == "poisson" else "volspline",

@@ -20,7 +20,9 @@
 //!   pinned outside by further points for a second fit;
 //! - [`choice`]: of two second fits (a wide and a narrow clearance of the blob search), the one
 //!   with less surface that no data supports;
-//! - [`turns`]: last, the small patches of normals whose turn shrinks that surface, turned;
+//! - [`turns`]: then the small patches of normals whose turn shrinks that surface, turned;
+//! - [`outside`]: last, outside off points for the data points nearest to the unsupported
+//!   surface left in open space;
 //! - [`sheets`]: where a first fit's solid spills far beyond the data (both sides of a sheet
 //!   thinner than the sampling oriented alike), the normals oriented again by side;
 //! - [`support`]: where the data support the reconstructed surface, for trimming it.
@@ -39,6 +41,7 @@ pub mod energy;
 pub mod normals;
 pub mod offsurface;
 pub mod orient;
+pub mod outside;
 pub mod rays;
 pub mod sheets;
 pub mod support;

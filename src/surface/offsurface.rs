@@ -282,8 +282,8 @@ pub fn deal_among_neighbours(
 }
 
 /// delta and the place p + side delta n of the off point of data point `i` (normal `n`) on
-/// `side`, delta halved until the place is nearest to its source (None: no delta is); `found` is
-/// scratch space.
+/// `side`, delta halved from [`DELTA`] until the place is nearest to its source (None: no delta
+/// is); `found` is scratch space.
 pub(crate) fn place(
     points: &[f64],
     n: &[f64; 3],
@@ -292,9 +292,21 @@ pub(crate) fn place(
     side: f64,
     found: &mut Vec<usize>,
 ) -> Option<(f64, [f64; 3])> {
+    place_from(points, n, tree, (i, side), (DELTA, HALVINGS), found)
+}
+
+/// [`place`] with delta starting at `start` and halved at most `halvings` times.
+pub(crate) fn place_from(
+    points: &[f64],
+    n: &[f64; 3],
+    tree: &Octree,
+    (i, side): (usize, f64),
+    (start, halvings): (f64, usize),
+    found: &mut Vec<usize>,
+) -> Option<(f64, [f64; 3])> {
     let p = &points[3 * i..3 * i + 3];
-    let mut delta = DELTA;
-    for _ in 0..=HALVINGS {
+    let mut delta = start;
+    for _ in 0..=halvings {
         let q = [0, 1, 2].map(|d| p[d] + side * delta * n[d]);
         let own = dist2(&q, p);
         tree.within(q, own.sqrt(), found);

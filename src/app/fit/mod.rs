@@ -203,6 +203,7 @@ fn idle_options(a: &FitArgs, off: bool, method: Method, two_levels: bool) -> Vec
         "blob_choice",
         "restore_solid",
         "orient_turns",
+        "outside_points",
         "coarse_points",
     ];
     let groups: [(&[&str], bool, &str); 4] = [
@@ -605,6 +606,17 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             ];
             counts.into_iter().for_each(|(key, count)| r.figure(key, count));
         }
+        if let Some(o) = &s.outside {
+            let counts = [
+                ("outside_open", o.open),
+                ("outside_charged", o.charged),
+                ("outside_points", o.points),
+                ("outside_unsupported_before", o.before),
+                ("outside_unsupported_after", o.after),
+            ];
+            counts.into_iter().for_each(|(key, count)| r.figure(key, count));
+            r.figure("outside_kept", o.kept);
+        }
     }
     for (k, v) in &fitted.figures {
         r.figure(k, v);
@@ -766,6 +778,21 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
                 t.after
             ),
             None if s.turns_skipped => "; turns: skipped (no factor kept to try them with)".to_string(),
+            None => String::new(),
+        } + &match &s.outside {
+            Some(o) if o.no_room => format!(
+                "; outside points: {} for {} crossings in open space, not added (no memory for their fit)",
+                o.points, o.open
+            ),
+            Some(o) if o.points > 0 => format!(
+                "; outside points: {} for {} crossings in open space, unsupported crossings {} -> {}: {}",
+                o.points,
+                o.open,
+                o.before,
+                o.after,
+                if o.kept { "kept" } else { "dropped" }
+            ),
+            Some(o) => format!("; outside points: none placed for {} crossings in open space", o.open),
             None => String::new(),
         } + &match s.fits() {
             1 => String::new(),

@@ -16,12 +16,13 @@ use crate::spline::hygiene::Prepared;
 use crate::spline::{Kernel, Spline};
 use crate::surface::blobs::{
     blob_values, data_cells, lost_solid, paths_to_solid, points_without_solid, sample, sample_nodes,
-    sample_window, winding_numbers, Blobs, Lattice, Search, CLEARANCE, INSIDE, RESTORE_FROM,
+    sample_window, winding_numbers, Blobs, Lattice, Search, CLEARANCE, INSIDE, OPEN_SPACE, RESTORE_FROM,
     SECOND_ROUND_FROM,
 };
 use crate::surface::choice::{self, unsupported_share};
 use crate::surface::denoise::Denoised;
 use crate::surface::energy::{flip_by_energy, EnergyFlips};
+use crate::surface::outside;
 use crate::surface::rays::{self, RayCheck};
 use crate::surface::sheets;
 use crate::surface::support::DataSupport;
@@ -80,6 +81,10 @@ pub struct SurfaceSummary {
     /// Whether the turns were asked for but skipped: the system was too large to refit afresh
     /// for each try and kept no factor.
     pub turns_skipped: bool,
+    /// The outside off points after the turns (None: not run, since `--outside-points off`, the
+    /// system was too large to refit afresh and kept no factor, or no crossing was charged to a
+    /// point without an off point).
+    pub outside: Option<OutsideCheck>,
     /// The normals oriented again by side where the first fit's solid spilled far beyond the
     /// data (None: it did not).
     pub sides: Option<SideCheck>,
@@ -110,7 +115,8 @@ impl SurfaceSummary {
     /// The fits made: one, a second where rays turned patches or blobs were pinned, or the first
     /// and the candidates of the clearance choice; then the second round's and the turns' tries.
     pub fn fits(&self) -> usize {
-        let tried = self.turns.as_ref().map_or(0, |t| t.tried);
+        let tried = self.turns.as_ref().map_or(0, |t| t.tried)
+            + self.outside.as_ref().map_or(0, |o| usize::from(o.points > 0 && !o.no_room));
         let second = self.second_round.as_ref().is_some_and(|r| r.points > 0);
         let restored = self.restored.as_ref().is_some_and(|r| r.points > 0);
         tried
@@ -122,6 +128,27 @@ impl SurfaceSummary {
                 None => 1,
             }
     }
+}
+
+/// The outside off points after the turns (see [`crate::surface::outside`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OutsideCheck {
+    /// Unsupported crossings in open space, and the data points they were charged to that had
+    /// no off point.
+    pub open: usize,
+    pub charged: usize,
+    /// Outside off points placed (a charged point whose place no delta kept nearest to it gets
+    /// none).
+    pub points: usize,
+    /// Unsupported crossings before and after (the same where no fit was made).
+    pub before: usize,
+    pub after: usize,
+    /// Whether the fit with them was kept: the crossings fell by at least
+    /// [`crate::surface::turns::GAIN`] of their number.
+    pub kept: bool,
+    /// Whether they were not added since their fit would append more centres than the ranks'
+    /// memory allows.
+    pub no_room: bool,
 }
 
 /// Two candidate fits, with the blob search's wide and narrow clearance of rule 2, and which was
@@ -361,6 +388,7 @@ pub fn constrain(
         restored: None,
         turns: None,
         turns_skipped: false,
+        outside: None,
         sides: None,
         memory_limit: None,
     };
@@ -414,7 +442,10 @@ pub type Refit<'a> = dyn FnMut(&Prepared, Option<&KeptFactor>, &mut Stages) -> R
 /// off`), small patches of the normals whose turn shrinks the surface no data supports are
 /// turned, each tried by a solve
 /// with the kept fit's bordered factor, or by a fresh fit where the system is too small for the
-/// projected Cholesky that keeps one (see [`crate::surface::turns`]).
+/// projected Cholesky that keeps one (see [`crate::surface::turns`]); then (unless
+/// `--outside-points off`) the data points nearest to the unsupported surface left in open
+/// space get outside off points, kept where they remove enough of it (see
+/// [`crate::surface::outside`]).
 /// `data` is the data alone; the lattice covers its box grown by the grid's margin. The rays,
 /// the search (with the choice) and the turns have stages of their own.
 ///
@@ -448,11 +479,17 @@ pub fn check_first_fit(
     // without a kept factor (a solver the user chose, or no room to keep it) a try is a fresh
     // fit: affordable on small systems alone
     let affordable = basis.is_some() || c.prep.values.len() < FRESH_TRIES_BELOW;
-    let fit = if run.args.orient_turns && affordable {
-        let at = (basis.as_ref(), &lattice, &areas[..]);
-        turn_by_surface(run, data, c, (fit, values), stages, refit, at)?
+    let at = (basis.as_ref(), &lattice, &areas[..]);
+    let (fit, values) = if run.args.orient_turns && affordable {
+        let (fit, values) = turn_by_surface(run, data, c, (fit, values), stages, refit, at)?;
+        (fit, Some(values))
     } else {
         c.summary.turns_skipped = run.args.orient_turns;
+        (fit, values)
+    };
+    let fit = if run.args.outside_points && affordable {
+        outside_after_turns(run, data, c, (fit, values), stages, refit, (at, room))?
+    } else {
         fit
     };
     if let (Some(l), 0) = (c.summary.memory_limit, run.comm.rank()) {
@@ -847,7 +884,7 @@ fn turn_by_surface(
     stages: &mut Stages,
     refit: &mut Refit<'_>,
     (factor, lattice, areas): (Option<&KeptFactor>, &Lattice, &[f64]),
-) -> Result<Fitted> {
+) -> Result<(Fitted, Vec<f64>)> {
     let support = DataSupport::new(&data.centres, choice::FACTOR);
     let (mut values, crossings) = stages.time(Stage::Turns, || {
         let values = values.unwrap_or_else(|| sample(run.comm, lattice, &data.carrier, &fit.spline));
@@ -936,7 +973,76 @@ fn turn_by_surface(
     }
     check.after = far;
     c.summary.turns = Some(check);
-    Ok(fit)
+    Ok((fit, values))
+}
+
+/// `fit` of `c.prep`, or the fit with outside off points for the data points nearest to its
+/// unsupported crossings in open space, where that removes at least
+/// [`crate::surface::turns::GAIN`] of all its unsupported crossings (see
+/// [`crate::surface::outside`]; `c` is updated where it is kept). The off points are appended,
+/// so the fit borders `factor` where there is one; `values` are `fit`'s on `lattice` where they
+/// were sampled, `areas` the data points' shares of the surface for the winding numbers. Where
+/// the points with those already appended to the first fit's would be more than `room`, none
+/// are added. Collective.
+fn outside_after_turns(
+    run: &Run<'_>,
+    data: &Prepared,
+    c: &mut Constrained,
+    (fit, values): (Fitted, Option<Vec<f64>>),
+    stages: &mut Stages,
+    refit: &mut Refit<'_>,
+    ((factor, lattice, areas), room): ((Option<&KeptFactor>, &Lattice, &[f64]), usize),
+) -> Result<Fitted> {
+    let support = DataSupport::new(&data.centres, choice::FACTOR);
+    let (crossings, open, hits, extra) = stages.time(Stage::Turns, || {
+        let values = values.unwrap_or_else(|| sample(run.comm, lattice, &data.carrier, &fit.spline));
+        let crossings = choice::unsupported_crossings(lattice, &values, &support).0;
+        let winding = winding_numbers(run.comm, &crossings, &data.centres, &c.normals, areas);
+        let open = winding.iter().filter(|&&w| w < OPEN_SPACE).count();
+        let n = c.normals.len();
+        let hits = outside::charged(&crossings, &winding, &c.hoods.tree, n, OPEN_SPACE);
+        let extra = outside::outside_points(&data.centres, &c.normals, &c.hoods.tree, &c.off, &hits);
+        (crossings.len(), open, hits, extra)
+    });
+    let mut has_off = vec![false; hits.len()];
+    c.off.source.iter().for_each(|&i| has_off[i] = true);
+    let charged = hits.iter().zip(&has_off).filter(|&(&h, &o)| h > 0 && !o).count();
+    if charged == 0 {
+        return Ok(fit);
+    }
+    let mut check = OutsideCheck {
+        open,
+        charged,
+        points: extra.side.len(),
+        before: crossings,
+        after: crossings,
+        kept: false,
+        no_room: false,
+    };
+    let appended = c.prep.values.len() - data.values.len() - c.off.side.len();
+    if appended + check.points > room {
+        MemoryLimit::record(&mut c.summary.memory_limit, room, appended + check.points);
+        check.no_room = true;
+    }
+    if check.points == 0 || check.no_room {
+        c.summary.outside = Some(check);
+        return Ok(fit);
+    }
+    let mut prep = c.prep.clone();
+    prep.centres.extend_from_slice(&extra.centres);
+    prep.values.extend(off_values(&extra, &data.points, &data.carrier, &data.norm));
+    let tried = refit(&prep, factor, stages)?;
+    check.after = stages.time(Stage::Turns, || {
+        let values = sample(run.comm, lattice, &data.carrier, &tried.spline);
+        choice::unsupported_crossings(lattice, &values, &support).0.len()
+    });
+    check.kept = turns::gains(check.before, check.after);
+    c.summary.outside = Some(check);
+    if !check.kept {
+        return Ok(fit);
+    }
+    c.prep = prep;
+    Ok(tried)
 }
 
 /// `prep` with the constraint points of `blobs` appended (`data` the data alone).
