@@ -301,9 +301,9 @@ def parse(argv):
             ap.error(f"unknown mesh {m} (one of {', '.join(MESHES)})")
     for m in args.methods:
         if m not in ("default", "carrier", "offsurface", "energy", "side", "trimmed", "choice", "wide", "turns",
-                     "noturns", "denoise", "dense", "neighbours", "index", "poisson"):
+                     "noturns", "nooutside", "denoise", "dense", "neighbours", "index", "poisson"):
             ap.error(f"unknown method {m} (default, carrier, offsurface, energy, side, trimmed, choice, wide, turns, "
-                     "noturns, denoise, dense, neighbours, index, poisson)")
+                     "noturns, nooutside, denoise, dense, neighbours, index, poisson)")
     if args.quick:
         args.sizes, args.variant_sizes, args.grid = [1000, 2000], [1000], 64
     return args

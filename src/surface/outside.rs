@@ -35,8 +35,10 @@
 //! 0.372). None was lost. It changed 53 sets, each with less mesh -> truth; truth -> mesh rose
 //! on 32 (at most 0.552 -> 0.690 on a cow at 1000 points with noise 0.5 %, where Poisson has
 //! 0.699): the outside values pull the zero set inward beside the charged points. Charging at
-//! least two crossings to a point before it gets an off point mended one set fewer. The fit time
-//! stayed within a few per cent (median ratio to the fit without the step 1.00).
+//! least two crossings to a point before it gets an off point mended one set fewer. Cost: on 40
+//! sets timed with and without the step in one run, the fit took 0.97-1.16 times as long with
+//! it, median 1.07: the winding numbers at the crossings, the bordering of the outside points'
+//! rows onto the kept factor, and the whole lattice sampled for the decision.
 
 use crate::spline::octree::Octree;
 use crate::surface::offsurface::{place_from, OffPoints};

@@ -758,9 +758,10 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
             None => String::new(),
         } + &match &s.turns {
             Some(t) => format!(
-                "; turns: {} of {} patches tried ({} points) turned{}{}{}, unsupported crossings {} -> {}",
+                "; turns: {} of {} {} tried ({} points) turned{}{}{}, unsupported crossings {} -> {}",
                 t.turned,
                 t.tried,
+                if t.facing > 0 { "patches and groups" } else { "patches" },
                 t.turned_points,
                 match t.by_open_space {
                     0 => String::new(),
