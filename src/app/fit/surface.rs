@@ -994,7 +994,7 @@ fn outside_after_turns(
     ((factor, lattice, areas), room): ((Option<&KeptFactor>, &Lattice, &[f64]), usize),
 ) -> Result<Fitted> {
     let support = DataSupport::new(&data.centres, choice::FACTOR);
-    let (crossings, open, hits, extra) = stages.time(Stage::Turns, || {
+    let (crossings, open, extra) = stages.time(Stage::Turns, || {
         let values = values.unwrap_or_else(|| sample(run.comm, lattice, &data.carrier, &fit.spline));
         let crossings = choice::unsupported_crossings(lattice, &values, &support).0;
         let winding = winding_numbers(run.comm, &crossings, &data.centres, &c.normals, areas);
@@ -1002,11 +1002,10 @@ fn outside_after_turns(
         let n = c.normals.len();
         let hits = outside::charged(&crossings, &winding, &c.hoods.tree, n, OPEN_SPACE);
         let extra = outside::outside_points(&data.centres, &c.normals, &c.hoods.tree, &c.off, &hits);
-        (crossings.len(), open, hits, extra)
+        (crossings.len(), open, extra)
     });
-    let mut has_off = vec![false; hits.len()];
-    c.off.source.iter().for_each(|&i| has_off[i] = true);
-    let charged = hits.iter().zip(&has_off).filter(|&(&h, &o)| h > 0 && !o).count();
+    // every charged point without an off point is either placed or dropped
+    let charged = extra.side.len() + extra.dropped;
     if charged == 0 {
         return Ok(fit);
     }
@@ -1028,9 +1027,7 @@ fn outside_after_turns(
         c.summary.outside = Some(check);
         return Ok(fit);
     }
-    let mut prep = c.prep.clone();
-    prep.centres.extend_from_slice(&extra.centres);
-    prep.values.extend(off_values(&extra, &data.points, &data.carrier, &data.norm));
+    let prep = with_off_points(&c.prep, &extra);
     let tried = refit(&prep, factor, stages)?;
     check.after = stages.time(Stage::Turns, || {
         let values = sample(run.comm, lattice, &data.carrier, &tried.spline);
