@@ -778,9 +778,15 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
                 t.before,
                 t.after
             ),
+            None if s.turns_skipped && s.outside_skipped => {
+                "; turns and outside points: skipped (no factor kept to fit them with)".to_string()
+            }
             None if s.turns_skipped => "; turns: skipped (no factor kept to try them with)".to_string(),
             None => String::new(),
         } + &match &s.outside {
+            None if s.outside_skipped && !s.turns_skipped => {
+                "; outside points: skipped (no factor kept to fit them with)".to_string()
+            }
             Some(o) if o.no_room => format!(
                 "; outside points: {} for {} crossings in open space, not added (no memory for their fit)",
                 o.points, o.open

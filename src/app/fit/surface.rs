@@ -81,6 +81,9 @@ pub struct SurfaceSummary {
     /// Whether the turns were asked for but skipped: the system was too large to refit afresh
     /// for each try and kept no factor.
     pub turns_skipped: bool,
+    /// Whether the outside off points after the turns were asked for but skipped, as the turns
+    /// are: the system was too large to refit afresh and kept no factor.
+    pub outside_skipped: bool,
     /// The outside off points after the turns (None: not run, since `--outside-points off`, the
     /// system was too large to refit afresh and kept no factor, or no crossing was charged to a
     /// point without an off point).
@@ -388,6 +391,7 @@ pub fn constrain(
         restored: None,
         turns: None,
         turns_skipped: false,
+        outside_skipped: false,
         outside: None,
         sides: None,
         memory_limit: None,
@@ -490,6 +494,7 @@ pub fn check_first_fit(
     let fit = if run.args.outside_points && affordable {
         outside_after_turns(run, data, c, (fit, values), stages, refit, (at, room))?
     } else {
+        c.summary.outside_skipped = run.args.outside_points;
         fit
     };
     if let (Some(l), 0) = (c.summary.memory_limit, run.comm.rank()) {
