@@ -201,7 +201,8 @@ fn a_2d_factor_without_room_for_its_copy_is_not_kept_and_the_fit_is_the_same() {
     // second fits by moving it to the row-cyclic layout, a second copy of its lower triangle.
     // With a limit that takes the largest fresh second fit (1231 + 303 centres) but not the
     // two copies, the factor is not kept, the second fits factor their systems anew, the turns
-    // are skipped (none turned with the factor either), and the spline is the same
+    // and the outside points are skipped (none kept with the factor either), and the spline is
+    // the same
     let dir = common::temp_dir("preflight-no-copy");
     let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/cow-1000-open.xyz");
     for (ranks, layout) in [(1, "2d"), (2, "1x2")] {
@@ -216,7 +217,7 @@ fn a_2d_factor_without_room_for_its_copy_is_not_kept_and_the_fit_is_the_same() {
         let (fresh, both) = (dense_bytes_with(1538, ranks, 8), 2.0 * held + 200e6);
         assert!(both - fresh > 2e6, "{fresh} vs {both}");
         let limit = megabytes((fresh + both) / 2.0);
-        let fit = |name: &str, limit: Option<&str>| {
+        let fit_with = |name: &str, limit: Option<&str>, extra: &[&str]| {
             let p = dir.join(format!("{name}-{ranks}"));
             let mut args = vec![
                 "fit",
@@ -232,12 +233,14 @@ fn a_2d_factor_without_room_for_its_copy_is_not_kept_and_the_fit_is_the_same() {
                 "8",
             ];
             args.extend(limit.iter().flat_map(|l| ["--memory-per-rank", l]));
+            args.extend(extra);
             let out = common::run(ranks, &args);
             let text =
                 format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
             assert!(out.status.success(), "{args:?}: {text}");
             (read_model(&p.with_extension("model.h5")).unwrap(), text, p.with_extension("hdf"))
         };
+        let fit = |name: &str, limit: Option<&str>| fit_with(name, limit, &[]);
         let (kept, kept_text, _) = fit("kept", None);
         assert!(kept_text.contains("moved from the process grid in"), "{kept_text}");
         // the turns ran with the kept factor: one try solved, three passed over without a solve
@@ -256,6 +259,13 @@ fn a_2d_factor_without_room_for_its_copy_is_not_kept_and_the_fit_is_the_same() {
             ),
             "{what}: {text}"
         );
+        // with the turns off, the outside points are said to be skipped on their own
+        let (_, text, _) = fit_with("anew-no-turns", Some(&limit), &["--orient-turns", "off"]);
+        assert!(
+            text.contains("; outside points: skipped (no factor kept to fit them with)"),
+            "{what}: {text}"
+        );
+        assert!(!text.contains("; turns"), "{what}: {text}");
         let dw = common::rel_diff(&anew.spline.weights, &kept.spline.weights);
         let dc = common::rel_diff(&anew.spline.poly, &kept.spline.poly);
         assert!(dw < 1e-8 && dc < 1e-8, "{what}: weights {dw:e}, poly {dc:e}");
