@@ -211,13 +211,23 @@ fn radial_sums32_portable(
                         s[l] = gw[l].mul_add(r2.sqrt(), s[l]);
                     }
                 }
-                for l in 0..LANES32 {
-                    a[l] += f64::from(s[l]);
-                }
+                add_widened(a, &s);
                 c0 = c1;
             }
         }
         b0 = b1;
+    }
+}
+
+/// `a[l] += s[l]` in double precision, lane by lane. Kept out of line on purpose: inlined into
+/// [`radial_sums32_portable`], the vectoriser gives the whole loop the width of these double
+/// additions (8 lanes in a 512-bit register), and the single-precision sums then run at half
+/// the width the unit has (measured: about 1.9 times the time on an AVX-512 machine). The sums
+/// are the same either way, lane by lane; only the width of the instructions differs.
+#[inline(never)]
+fn add_widened(a: &mut [f64; LANES32], s: &[f32; LANES32]) {
+    for (a, &s) in a.iter_mut().zip(s) {
+        *a += f64::from(s);
     }
 }
 
