@@ -160,6 +160,7 @@ use super::offsurface::carrier_slope;
 use crate::grid::padded_box;
 use crate::par::{self, Comm};
 use crate::spline::carrier::Carrier;
+use crate::spline::evaluator::LANES;
 use crate::spline::octree::Octree;
 use crate::spline::{Normalisation, SignEvaluator, Spline};
 
@@ -834,29 +835,54 @@ pub fn winding_numbers(
     area: &[f64],
 ) -> Vec<f64> {
     let (rank, size) = (comm.rank(), comm.size());
-    let mut w: Vec<f64> = at
-        .par_iter()
-        .enumerate()
-        .map(|(k, &q)| if k % size == rank { winding_number(q, points, normals, area) } else { 0.0 })
-        .collect();
+    let mut w = vec![0.0; at.len()];
+    w.par_chunks_mut(LANES).zip(at.par_chunks(LANES)).enumerate().for_each(|(b, (out, q))| {
+        if b % size == rank {
+            // the block's places by coordinate, a short block padded with its first place
+            let lanes: [[f64; LANES]; 3] =
+                [0, 1, 2].map(|d| std::array::from_fn(|l| q[l.min(q.len() - 1)][d]));
+            out.copy_from_slice(&winding_lanes(&lanes, points, normals, area)[..q.len()]);
+        }
+    });
     comm.sum_f64(&mut w);
     w
 }
 
-/// The generalised winding number of the oriented data at q: the solid angle the surface
-/// elements a_j n_j at p_j subtend, sum_j a_j (p_j - q) . n_j / (4 pi |p_j - q|^3). It is 1 inside
-/// a closed surface and 0 outside; over a hole it falls off smoothly with the solid angle the
-/// hole takes, so a node deep under a hole stays near 1.
-fn winding_number(q: [f64; 3], points: &[f64], normals: &[[f64; 3]], area: &[f64]) -> f64 {
-    let mut w = 0.0;
-    for (j, n) in normals.iter().enumerate() {
-        let d = [points[3 * j] - q[0], points[3 * j + 1] - q[1], points[3 * j + 2] - q[2]];
-        let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-        if r2 > 0.0 {
-            w += area[j] * (d[0] * n[0] + d[1] * n[1] + d[2] * n[2]) / (r2 * r2.sqrt());
+crate::simd::on_widest_unit! {
+    /// The generalised winding numbers of the oriented data at [`LANES`] places (x, y and z
+    /// apart): the solid angle the surface elements a_j n_j at p_j subtend,
+    /// sum_j a_j (p_j - q) . n_j / (4 pi |p_j - q|^3). It is 1 inside a closed surface and 0
+    /// outside; over a hole it falls off smoothly with the solid angle the hole takes, so a place
+    /// deep under a hole stays near 1. A data point at the place itself adds nothing. One place
+    /// per lane, each summed in the order of j by the same operations on every path (see
+    /// [`crate::simd`]): a place's value does not depend on the block it is computed in.
+    fn winding_lanes[][](q: &[[f64; LANES]; 3], points: &[f64], normals: &[[f64; 3]], area: &[f64]) -> [f64; LANES] = winding_lanes_portable;
+}
+
+#[inline(always)]
+fn winding_lanes_portable(
+    q: &[[f64; LANES]; 3],
+    points: &[f64],
+    normals: &[[f64; 3]],
+    area: &[f64],
+) -> [f64; LANES] {
+    let mut w = [0.0; LANES];
+    for ((p, n), &a) in points.chunks_exact(3).zip(normals).zip(area) {
+        for l in 0..LANES {
+            let d = [p[0] - q[0][l], p[1] - q[1][l], p[2] - q[2][l]];
+            let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            let t = a * (d[0] * n[0] + d[1] * n[1] + d[2] * n[2]) / (r2 * r2.sqrt());
+            // w never is -0 (it starts at +0, and x + -x is +0), so adding +0 leaves it as it is
+            w[l] += if r2 > 0.0 { t } else { 0.0 };
         }
     }
-    w / (4.0 * std::f64::consts::PI)
+    w.map(|v| v / (4.0 * std::f64::consts::PI))
+}
+
+/// The winding number at one place (see [`winding_lanes`]).
+#[cfg(test)]
+fn winding_number(q: [f64; 3], points: &[f64], normals: &[[f64; 3]], area: &[f64]) -> f64 {
+    winding_lanes(&q.map(|v| [v; LANES]), points, normals, area)[0]
 }
 
 /// The positive nodes that may fall under rule 3 (see the module doc): inside a sheet of positive
@@ -1020,6 +1046,48 @@ mod tests {
         let expect = (1.0 - a.cos()) / 2.0;
         assert!((above - expect).abs() < 0.03, "w above the hole {above}, not {expect}");
         assert!(centre > WINDING && above < WINDING);
+    }
+
+    #[test]
+    fn winding_numbers_in_lanes_are_the_plain_sums_bit_for_bit() {
+        // the sum of one place at a time, in the order of the data points
+        let plain = |q: [f64; 3], pts: &[f64], normals: &[[f64; 3]], area: &[f64]| {
+            let mut w = 0.0;
+            for (j, n) in normals.iter().enumerate() {
+                let d = [pts[3 * j] - q[0], pts[3 * j + 1] - q[1], pts[3 * j + 2] - q[2]];
+                let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                if r2 > 0.0 {
+                    w += area[j] * (d[0] * n[0] + d[1] * n[1] + d[2] * n[2]) / (r2 * r2.sqrt());
+                }
+            }
+            w / (4.0 * std::f64::consts::PI)
+        };
+        let (pts, normals, tree, _) = sphere_and_lattice();
+        let area = point_areas(&pts, &tree);
+        let mut seed = 5u64;
+        let mut unit = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        // places inside, outside and on data points (which add nothing there), in counts around
+        // the lane width
+        for count in [1, 7, 8, 9, 23] {
+            let at: Vec<[f64; 3]> = (0..count)
+                .map(|i| match i % 3 {
+                    0 => [pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]],
+                    1 => [unit() - 0.5, unit() - 0.5, unit() - 0.5],
+                    _ => [1.2 + 0.3 * unit(), 3.0 * unit() - 1.5, 3.0 * unit() - 1.5],
+                })
+                .collect();
+            let got = winding_numbers(&Solo, &at, &pts, &normals, &area);
+            for (q, g) in at.iter().zip(&got) {
+                let want = plain(*q, &pts, &normals, &area);
+                assert_eq!(g.to_bits(), want.to_bits(), "{q:?}: {g} vs {want}");
+            }
+            if count > 1 {
+                assert!(got.iter().any(|&w| w > 0.9) && got.iter().any(|&w| w.abs() < 0.1), "{got:?}");
+            }
+        }
     }
 
     fn count_within(blobs: &Blobs, c: [f64; 3], r: f64) -> usize {

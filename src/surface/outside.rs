@@ -25,6 +25,12 @@
 //! points are not added: a bulge is false solid, and an inside point beside a thin part pushes
 //! the zero set outward, the way of the bulge.
 //!
+//! For that count the lattice is sampled again only around the outside points
+//! ([`window_nodes`]): the box of each point, its source and the crossings charged to the source,
+//! grown as the turns grow a tried patch's box; elsewhere the kept fit's values stand. New
+//! values of a few constraints move the zero set near them, while far away the unchanged
+//! constraints pin it, as for the turns (see [`crate::surface::turns`], "Cost").
+//!
 //! # Measured
 //!
 //! On the 259 sets of the surface benchmark (the bunny and the cow at 400-4000 points, clean,
@@ -41,7 +47,9 @@
 //! rows onto the kept factor, and the whole lattice sampled for the decision.
 
 use crate::spline::octree::Octree;
+use crate::surface::blobs::Lattice;
 use crate::surface::offsurface::{place_from, OffPoints};
+use crate::surface::turns::WINDOW;
 
 /// The most times the median delta is halved for one outside point.
 pub const HALVINGS: usize = 3;
@@ -101,6 +109,55 @@ pub fn outside_points(
     out
 }
 
+/// The nodes of `lattice` (sorted, each once) that a fit with the outside points `extra` may
+/// change, sampled again for the decision (see the module doc): for each outside point, the box
+/// of the point, its source among the data `points` (normalised, `tree` built over them) and the
+/// unsupported `crossings` in open space (winding numbers `winding` below `open_space`) charged to
+/// that source, grown by [`WINDOW`] times its longest side and two lattice spacings, as the turns
+/// grow a tried patch's box.
+pub fn window_nodes(
+    lattice: &Lattice,
+    points: &[f64],
+    tree: &Octree,
+    (crossings, winding, open_space): (&[[f64; 3]], &[f64], f64),
+    extra: &OffPoints,
+) -> Vec<usize> {
+    let n = points.len() / 3;
+    let mut boxes: Vec<Option<([f64; 3], [f64; 3])>> = vec![None; n];
+    extra.source.iter().for_each(|&i| {
+        let p = [points[3 * i], points[3 * i + 1], points[3 * i + 2]];
+        boxes[i] = Some((p, p));
+    });
+    let grow = |b: &mut ([f64; 3], [f64; 3]), q: &[f64]| {
+        for d in 0..3 {
+            b.0[d] = b.0[d].min(q[d]);
+            b.1[d] = b.1[d].max(q[d]);
+        }
+    };
+    let mut near = Vec::new();
+    for (q, _) in crossings.iter().zip(winding).filter(|(_, &w)| w < open_space) {
+        tree.nearest_k(*q, 1, &mut near);
+        if let Some(b) = near.first().and_then(|&(_, j)| boxes[j].as_mut()) {
+            grow(b, q);
+        }
+    }
+    let [nx, ny, _] = lattice.dims;
+    let mut nodes = Vec::new();
+    for (q, &i) in extra.centres.chunks_exact(3).zip(&extra.source) {
+        let mut b = boxes[i].expect("every outside point's source has a box");
+        grow(&mut b, q);
+        let [wx, wy, wz] = lattice.around(b.0, b.1, WINDOW);
+        for z in wz {
+            for y in wy.clone() {
+                nodes.extend(wx.clone().map(|x| x + nx * (y + ny * z)));
+            }
+        }
+    }
+    nodes.sort_unstable();
+    nodes.dedup();
+    nodes
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -149,6 +206,42 @@ mod tests {
         assert_eq!(&out.centres[3..], &[0.2, 0.2, 0.02]);
         // without off points there is no delta to start from
         assert!(outside_points(&points, &normals, &tree, &off_at(&[], &[]), &hits).side.is_empty());
+    }
+
+    #[test]
+    fn the_decision_samples_the_boxes_of_the_outside_points_and_their_crossings_grown() {
+        let (points, normals) = plane();
+        let tree = Octree::new(&points, 4);
+        // a lattice over [-1, 1]^3, spacing 0.05 (41 nodes a side)
+        let lattice = Lattice::new([-1.0; 3], [1.0; 3], 41);
+        // two crossings in open space nearest to point 12 (0.2, 0.2, 0), one in the mouth of a
+        // hole above point 24 (not charged), one above point 0 (which has an off point already)
+        let crossings = [[0.2, 0.2, 0.3], [0.18, 0.22, 0.05], [0.4, 0.4, 0.2], [0.0, 0.0, 0.1]];
+        let winding = [0.0, 0.05, 0.2, 0.0];
+        let hits = charged(&crossings, &winding, &tree, 25, 0.1);
+        let out = outside_points(&points, &normals, &tree, &off_at(&[0], &[0.02]), &hits);
+        assert_eq!((out.source.clone(), &out.centres[..]), (vec![12], &[0.2, 0.2, 0.02][..]));
+        let nodes = window_nodes(&lattice, &points, &tree, (&crossings, &winding, 0.1), &out);
+        // the box (0.18, 0.2, 0) - (0.2, 0.22, 0.3), longest side 0.3, grown by 0.3 + 2 x 0.05
+        let window = lattice.around([0.18, 0.2, 0.0], [0.2, 0.22, 0.3], WINDOW);
+        assert_eq!(nodes.len(), window.iter().map(|r| r.len()).product::<usize>());
+        let at = |q: [f64; 3]| {
+            let idx = q.map(|v| ((v + 1.0) / 0.05).round() as usize);
+            idx[0] + 41 * (idx[1] + 41 * idx[2])
+        };
+        // x from -0.22 to 0.6, y from -0.2 to 0.62, z from -0.4 to 0.7
+        for inside in [[0.2, 0.2, 0.0], [-0.2, -0.15, -0.35], [0.55, 0.6, 0.65]] {
+            assert!(nodes.binary_search(&at(inside)).is_ok(), "{inside:?}");
+        }
+        for outside in
+            [[-0.3, 0.2, 0.0], [0.7, 0.2, 0.0], [0.2, 0.75, 0.0], [0.2, 0.2, -0.5], [0.2, 0.2, 0.8]]
+        {
+            assert!(nodes.binary_search(&at(outside)).is_err(), "{outside:?}");
+        }
+        assert!(nodes.windows(2).all(|w| w[0] < w[1]));
+        // no outside point, nothing to sample
+        let none = outside_points(&points, &normals, &tree, &off_at(&[], &[]), &hits);
+        assert!(window_nodes(&lattice, &points, &tree, (&crossings, &winding, 0.1), &none).is_empty());
     }
 
     #[test]

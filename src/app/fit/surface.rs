@@ -999,16 +999,16 @@ fn outside_after_turns(
     ((factor, lattice, areas), room): ((Option<&KeptFactor>, &Lattice, &[f64]), usize),
 ) -> Result<Fitted> {
     let support = DataSupport::new(&data.centres, choice::FACTOR);
-    let (crossings, open, extra) = stages.time(Stage::Turns, || {
+    let (values, crossings, winding, extra) = stages.time(Stage::Turns, || {
         let values = values.unwrap_or_else(|| sample(run.comm, lattice, &data.carrier, &fit.spline));
         let crossings = choice::unsupported_crossings(lattice, &values, &support).0;
         let winding = winding_numbers(run.comm, &crossings, &data.centres, &c.normals, areas);
-        let open = winding.iter().filter(|&&w| w < OPEN_SPACE).count();
         let n = c.normals.len();
         let hits = outside::charged(&crossings, &winding, &c.hoods.tree, n, OPEN_SPACE);
         let extra = outside::outside_points(&data.centres, &c.normals, &c.hoods.tree, &c.off, &hits);
-        (crossings.len(), open, extra)
+        (values, crossings, winding, extra)
     });
+    let open = winding.iter().filter(|&&w| w < OPEN_SPACE).count();
     // every charged point without an off point is either placed or dropped
     let charged = extra.side.len() + extra.dropped;
     if charged == 0 {
@@ -1018,8 +1018,8 @@ fn outside_after_turns(
         open,
         charged,
         points: extra.side.len(),
-        before: crossings,
-        after: crossings,
+        before: crossings.len(),
+        after: crossings.len(),
         kept: false,
         no_room: false,
     };
@@ -1034,8 +1034,12 @@ fn outside_after_turns(
     }
     let prep = with_off_points(&c.prep, &extra);
     let tried = refit(&prep, factor, stages)?;
+    // the lattice sampled again around the outside points alone
     check.after = stages.time(Stage::Turns, || {
-        let values = sample(run.comm, lattice, &data.carrier, &tried.spline);
+        let around = (&crossings[..], &winding[..], OPEN_SPACE);
+        let nodes = outside::window_nodes(lattice, &data.centres, &c.hoods.tree, around, &extra);
+        let mut values = values;
+        sample_nodes(run.comm, lattice, &nodes, (&data.carrier, &tried.spline), &mut values);
         choice::unsupported_crossings(lattice, &values, &support).0.len()
     });
     check.kept = turns::gains(check.before, check.after);
