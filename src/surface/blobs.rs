@@ -270,6 +270,18 @@ impl Lattice {
         })
     }
 
+    /// Appends the nodes of `window` (index ranges along x, y and z, as [`Lattice::around`]
+    /// gives them) to `out`, x fastest.
+    pub fn push_window(&self, window: &[Range<usize>; 3], out: &mut Vec<usize>) {
+        let [nx, ny, _] = self.dims;
+        let [wx, wy, wz] = window.clone();
+        for z in wz {
+            for y in wy.clone() {
+                out.extend(wx.clone().map(|x| x + nx * (y + ny * z)));
+            }
+        }
+    }
+
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
@@ -394,14 +406,8 @@ pub fn sample_window(
     (carrier, spline): (&Carrier, &Spline),
     values: &mut [f64],
 ) {
-    let [nx, ny, _] = lattice.dims;
-    let [wx, wy, wz] = window.clone();
-    let mut nodes = Vec::with_capacity(wx.len() * wy.len() * wz.len());
-    for z in wz {
-        for y in wy.clone() {
-            nodes.extend(wx.clone().map(|x| x + nx * (y + ny * z)));
-        }
-    }
+    let mut nodes = Vec::with_capacity(window.iter().map(|r| r.len()).product());
+    lattice.push_window(window, &mut nodes);
     sample_nodes(comm, lattice, &nodes, (carrier, spline), values);
 }
 

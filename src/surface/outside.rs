@@ -143,17 +143,11 @@ pub fn window_nodes(
             grow(b, q);
         }
     }
-    let [nx, ny, _] = lattice.dims;
     let mut nodes = Vec::new();
     for (q, &i) in extra.centres.chunks_exact(3).zip(&extra.source) {
         let mut b = boxes[i].expect("every outside point's source has a box");
         grow(&mut b, q);
-        let [wx, wy, wz] = lattice.around(b.0, b.1, WINDOW);
-        for z in wz {
-            for y in wy.clone() {
-                nodes.extend(wx.clone().map(|x| x + nx * (y + ny * z)));
-            }
-        }
+        lattice.push_window(&lattice.around(b.0, b.1, WINDOW), &mut nodes);
     }
     nodes.sort_unstable();
     nodes.dedup();
