@@ -204,6 +204,7 @@ fn idle_options(a: &FitArgs, off: bool, method: Method, two_levels: bool) -> Vec
         "restore_solid",
         "orient_turns",
         "outside_points",
+        "mouth_points",
         "coarse_points",
     ];
     let groups: [(&[&str], bool, &str); 4] = [
@@ -617,6 +618,11 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             counts.into_iter().for_each(|(key, count)| r.figure(key, count));
             r.figure("outside_kept", o.kept);
         }
+        if let Some(m) = &s.mouth {
+            let counts =
+                [("mouth_crossings", m.crossings), ("mouth_wanted", m.wanted), ("mouth_points", m.points)];
+            counts.into_iter().for_each(|(key, count)| r.figure(key, count));
+        }
     }
     for (k, v) in &fitted.figures {
         r.figure(k, v);
@@ -800,6 +806,19 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
                 if o.kept { "kept" } else { "dropped" }
             ),
             Some(o) => format!("; outside points: none placed for {} crossings in open space", o.open),
+            None => String::new(),
+        } + &match &s.mouth {
+            Some(m) if m.no_room => format!(
+                "; mouth points: {} for {} crossings in the mouths of holes, not added (no memory for their fit)",
+                m.points, m.crossings
+            ),
+            Some(m) if m.points > 0 => {
+                format!("; mouth points: {} for {} crossings in the mouths of holes", m.points, m.crossings)
+            }
+            Some(m) if m.crossings > 0 => {
+                format!("; mouth points: none placed for {} crossings in the mouths of holes", m.crossings)
+            }
+            Some(_) => String::new(),
             None => String::new(),
         } + &match s.fits() {
             1 => String::new(),

@@ -88,6 +88,9 @@ pub struct SurfaceSummary {
     /// system was too large to refit afresh and kept no factor, or no crossing was charged to a
     /// point without an off point).
     pub outside: Option<OutsideCheck>,
+    /// The off points at the mouths of holes, last (None: not run, since `--mouth-points off` or
+    /// the system was too large to refit afresh and kept no factor).
+    pub mouth: Option<MouthPoints>,
     /// The normals oriented again by side where the first fit's solid spilled far beyond the
     /// data (None: it did not).
     pub sides: Option<SideCheck>,
@@ -119,7 +122,8 @@ impl SurfaceSummary {
     /// and the candidates of the clearance choice; then the second round's and the turns' tries.
     pub fn fits(&self) -> usize {
         let tried = self.turns.as_ref().map_or(0, |t| t.tried)
-            + self.outside.as_ref().map_or(0, |o| usize::from(o.points > 0 && !o.no_room));
+            + self.outside.as_ref().map_or(0, |o| usize::from(o.points > 0 && !o.no_room))
+            + self.mouth.as_ref().map_or(0, |m| usize::from(m.points > 0 && !m.no_room));
         let second = self.second_round.as_ref().is_some_and(|r| r.points > 0);
         let restored = self.restored.as_ref().is_some_and(|r| r.points > 0);
         tried
@@ -149,6 +153,21 @@ pub struct OutsideCheck {
     /// Whether the fit with them was kept: the crossings fell by at least
     /// [`crate::surface::turns::GAIN`] of their number.
     pub kept: bool,
+    /// Whether they were not added since their fit would append more centres than the ranks'
+    /// memory allows.
+    pub no_room: bool,
+}
+
+/// The off points at the mouths of holes, after the outside points (see
+/// [`crate::surface::outside`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MouthPoints {
+    /// Unsupported crossings with the data's winding number in [`outside::MOUTH`].
+    pub crossings: usize,
+    /// Off points wanted on the sides the charged data points lacked, and placed (a place that
+    /// no delta kept nearest to its own point is dropped); the fit with them is kept.
+    pub wanted: usize,
+    pub points: usize,
     /// Whether they were not added since their fit would append more centres than the ranks'
     /// memory allows.
     pub no_room: bool,
@@ -393,6 +412,7 @@ pub fn constrain(
         turns_skipped: false,
         outside_skipped: false,
         outside: None,
+        mouth: None,
         sides: None,
         memory_limit: None,
     };
@@ -491,7 +511,7 @@ pub fn check_first_fit(
         c.summary.turns_skipped = run.args.orient_turns;
         (fit, values)
     };
-    let fit = if run.args.outside_points && affordable {
+    let fit = if (run.args.outside_points || run.args.mouth_points) && affordable {
         outside_after_turns(run, data, c, (fit, values), stages, refit, (at, room))?
     } else {
         c.summary.outside_skipped = run.args.outside_points;
@@ -981,14 +1001,16 @@ fn turn_by_surface(
     Ok((fit, values))
 }
 
-/// `fit` of `c.prep`, or the fit with outside off points for the data points nearest to its
-/// unsupported crossings in open space, where that removes at least
-/// [`crate::surface::turns::GAIN`] of all its unsupported crossings (see
-/// [`crate::surface::outside`]; `c` is updated where it is kept). The off points are appended,
-/// so the fit borders `factor` where there is one; `values` are `fit`'s on `lattice` where they
-/// were sampled, `areas` the data points' shares of the surface for the winding numbers. Where
-/// the points with those already appended to the first fit's would be more than `room`, none
-/// are added. Collective.
+/// The last steps on `fit` of `c.prep` (see [`crate::surface::outside`]; `c` is updated with
+/// what is kept): with `--outside-points`, the fit with outside off points for the data points
+/// nearest to its unsupported crossings in open space, kept where that removes at least
+/// [`crate::surface::turns::GAIN`] of all its unsupported crossings; then, with
+/// `--mouth-points`, the fit with off points on both sides of those nearest to many of its
+/// unsupported crossings in the mouths of holes, kept. The off points are appended, so each fit borders
+/// `factor` where there is one; `values` are `fit`'s on `lattice` where they were sampled,
+/// `areas` the data points' shares of the surface for the winding numbers. Where the points
+/// with those already appended to the first fit's would be more than `room`, none are added.
+/// Collective.
 fn outside_after_turns(
     run: &Run<'_>,
     data: &Prepared,
@@ -999,15 +1021,67 @@ fn outside_after_turns(
     ((factor, lattice, areas), room): ((Option<&KeptFactor>, &Lattice, &[f64]), usize),
 ) -> Result<Fitted> {
     let support = DataSupport::new(&data.centres, choice::FACTOR);
-    let (values, crossings, winding, extra) = stages.time(Stage::Turns, || {
+    let (values, crossings, winding) = stages.time(Stage::Turns, || {
         let values = values.unwrap_or_else(|| sample(run.comm, lattice, &data.carrier, &fit.spline));
         let crossings = choice::unsupported_crossings(lattice, &values, &support).0;
         let winding = winding_numbers(run.comm, &crossings, &data.centres, &c.normals, areas);
-        let n = c.normals.len();
-        let hits = outside::charged(&crossings, &winding, &c.hoods.tree, n, OPEN_SPACE);
-        let extra = outside::outside_points(&data.centres, &c.normals, &c.hoods.tree, &c.off, &hits);
-        (values, crossings, winding, extra)
+        (values, crossings, winding)
     });
+    let n = c.normals.len();
+    let (tree, normals) = (&c.hoods.tree, &c.normals);
+    // the mouths' points are charged by the crossings of this fit, before any outside point
+    let mouth = run.args.mouth_points.then(|| {
+        let hits = outside::charged(&crossings, &winding, tree, n, outside::MOUTH);
+        (hits.iter().sum::<usize>(), outside::mouth_points(&data.centres, normals, tree, &c.off, &hits))
+    });
+    let fit = if run.args.outside_points {
+        let at = ((factor, lattice), room);
+        outside_in_open_space(run, data, c, (fit, values), stages, refit, at, (&crossings, &winding))?
+    } else {
+        fit
+    };
+    let Some((crossings, mouth)) = mouth else {
+        return Ok(fit);
+    };
+    let mut check = MouthPoints {
+        crossings,
+        wanted: mouth.side.len() + mouth.dropped,
+        points: mouth.side.len(),
+        no_room: false,
+    };
+    let appended = c.prep.values.len() - data.values.len() - c.off.side.len();
+    if appended + check.points > room {
+        MemoryLimit::record(&mut c.summary.memory_limit, room, appended + check.points);
+        check.no_room = true;
+    }
+    c.summary.mouth = Some(check);
+    if check.points == 0 || check.no_room {
+        return Ok(fit);
+    }
+    let prep = with_off_points(&c.prep, &mouth);
+    let fitted = refit(&prep, factor, stages)?;
+    c.prep = prep;
+    Ok(fitted)
+}
+
+/// `fit` of `c.prep`, or the fit with outside off points for the data points nearest to its
+/// unsupported `crossings` (with the data's winding numbers there) in open space, where that
+/// removes at least [`crate::surface::turns::GAIN`] of all of them (`c` is updated where it is
+/// kept; the arguments as for [`outside_after_turns`]). Collective.
+#[allow(clippy::too_many_arguments)]
+fn outside_in_open_space(
+    run: &Run<'_>,
+    data: &Prepared,
+    c: &mut Constrained,
+    (fit, values): (Fitted, Vec<f64>),
+    stages: &mut Stages,
+    refit: &mut Refit<'_>,
+    ((factor, lattice), room): ((Option<&KeptFactor>, &Lattice), usize),
+    (crossings, winding): (&[[f64; 3]], &[f64]),
+) -> Result<Fitted> {
+    let support = DataSupport::new(&data.centres, choice::FACTOR);
+    let hits = outside::charged(crossings, winding, &c.hoods.tree, c.normals.len(), ..OPEN_SPACE);
+    let extra = outside::outside_points(&data.centres, &c.normals, &c.hoods.tree, &c.off, &hits);
     let open = winding.iter().filter(|&&w| w < OPEN_SPACE).count();
     // every charged point without an off point is either placed or dropped
     let charged = extra.side.len() + extra.dropped;
@@ -1036,7 +1110,7 @@ fn outside_after_turns(
     let tried = refit(&prep, factor, stages)?;
     // the lattice sampled again around the outside points alone
     check.after = stages.time(Stage::Turns, || {
-        let around = (&crossings[..], &winding[..], OPEN_SPACE);
+        let around = (crossings, winding, OPEN_SPACE);
         let nodes = outside::window_nodes(lattice, &data.centres, &c.hoods.tree, around, &extra);
         let mut values = values;
         sample_nodes(run.comm, lattice, &nodes, (&data.carrier, &tried.spline), &mut values);
