@@ -276,16 +276,15 @@ pub struct FitArgs {
     /// points goes. One more fit, bordering the kept fit's factor (see src/surface/outside.rs).
     #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub outside_points: bool,
-    /// For scans with holes: then, where the turns could run, give the data points nearest to at
-    /// least 3 crossings of the surface no data supports in the mouths of holes (the data's
-    /// winding number between 0.4 and 0.6) an off point on each side where they have none, and
-    /// keep that fit (on, or off): held on both sides, the rim of the hole keeps the slope of
+    /// Then, where the turns could run, give the data points on a rim (their 15 nearest
+    /// neighbours leave a gap of 140 degrees or more around them) nearest to at least 3
+    /// crossings of the surface no data supports in the mouths of holes (the data's winding
+    /// number between 0.4 and 0.6) an off point on each side where they have none, and keep
+    /// that fit (on, or off): held on both sides, the rim of a scan's hole keeps the slope of
     /// the surface around it, and the cap over the hole sags less into the solid (a cow at 1000
-    /// points with a hole: truth -> mesh 1.25 -> 0.93 % of the diagonal). It also pushes out
-    /// unsupported surface near the data elsewhere (a web between two ears), so it is off by
-    /// default (README.md, step 9 of the default's steps). One more fit, bordering the kept
-    /// fit's factor (see src/surface/outside.rs).
-    #[arg(long, default_value = "off", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
+    /// points with a hole: truth -> mesh 1.25 -> 0.99 % of the diagonal). One more fit,
+    /// bordering the kept fit's factor (see src/surface/outside.rs).
+    #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub mouth_points: bool,
     /// Points of level 0 of the two-level compactly supported fit (--method csrbf with --surface
     /// auto or offsurface): a dense off-surface fit of this many points chosen evenly over space,

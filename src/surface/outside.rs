@@ -94,6 +94,11 @@ pub const HALVINGS: usize = 3;
 pub const MOUTH: Range<f64> = 0.4..0.6;
 /// Fewest crossings in the mouths of holes charged to a data point for its off points there.
 pub const MOUTH_HITS: usize = 3;
+/// The widest gap (degrees) between a data point's neighbours around it for it to count as on
+/// a rim ([`widest_gap`]).
+pub const MOUTH_GAP: f64 = 140.0;
+/// How many nearest neighbours [`widest_gap`] looks at.
+pub const RIM_NEIGHBOURS: usize = 15;
 
 /// How many of the unsupported `crossings` (lattice coordinates, which are the normalised ones)
 /// with the data's winding numbers `winding` in `band` (`..OPEN_SPACE` for open space,
@@ -132,22 +137,31 @@ pub fn outside_points(
     placed_on_side(points, normals, tree, (off, 1.0), |i| hits[i] > 0 && !has_off[i])
 }
 
-/// The off points of the data `points` (as for [`outside_points`]) that `hits` charged with at
-/// least [`MOUTH_HITS`] crossings in the mouths of holes, on each side where they have none in
-/// `off` (see the module doc, "Both sides at the mouths of holes"): the inside points first, then
-/// the outside ones, each in the order of their sources. Empty where `off` has none.
+/// The off points of the data `points` (as for [`outside_points`]; `knn` the nearest neighbours
+/// of each point, `kmax` per point, nearest first) that `hits` charged with at least
+/// [`MOUTH_HITS`] crossings in the mouths of holes and that lie on a rim ([`widest_gap`] of at
+/// least [`MOUTH_GAP`]), on each side where they have none in `off` (see the module doc, "Both
+/// sides at the mouths of holes"): the inside points first, then the outside ones, each in the
+/// order of their sources. Empty where `off` has none.
 pub fn mouth_points(
     points: &[f64],
     normals: &[[f64; 3]],
-    tree: &Octree,
+    (tree, (knn, kmax)): (&Octree, (&[usize], usize)),
     off: &OffPoints,
     hits: &[usize],
 ) -> OffPoints {
+    let k = RIM_NEIGHBOURS.min(kmax);
+    let rim: Vec<bool> = (0..normals.len())
+        .map(|i| {
+            hits[i] >= MOUTH_HITS
+                && widest_gap(points, i, &normals[i], &knn[i * kmax..i * kmax + k]) >= MOUTH_GAP.to_radians()
+        })
+        .collect();
     let mut out = OffPoints::default();
     for side in [-1.0, 1.0] {
         let mut has = vec![false; normals.len()];
         off.source.iter().zip(&off.side).filter(|(_, &s)| s == side).for_each(|(&i, _)| has[i] = true);
-        let placed = placed_on_side(points, normals, tree, (off, side), |i| hits[i] >= MOUTH_HITS && !has[i]);
+        let placed = placed_on_side(points, normals, tree, (off, side), |i| rim[i] && !has[i]);
         out.centres.extend_from_slice(&placed.centres);
         out.side.extend_from_slice(&placed.side);
         out.delta.extend_from_slice(&placed.delta);
@@ -155,6 +169,37 @@ pub fn mouth_points(
         out.dropped += placed.dropped;
     }
     out
+}
+
+/// The widest angle (radians) between the directions from data point `i` (of `points`, 3 per
+/// point) to consecutive ones of its `neighbours`, projected onto its tangent plane (unit
+/// `normal`): small where the neighbours surround the point, half a turn or more on the rim of
+/// a hole or at the edge of a scan.
+pub fn widest_gap(points: &[f64], i: usize, normal: &[f64; 3], neighbours: &[usize]) -> f64 {
+    let dot = |a: &[f64; 3], b: &[f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    // an orthonormal basis (u, v) of the tangent plane, from the axis least along the normal
+    let axis = if normal[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
+    let t = dot(&axis, normal);
+    let u = [0, 1, 2].map(|d| axis[d] - t * normal[d]);
+    let u = u.map(|x| x / dot(&u, &u).sqrt());
+    let v = [
+        normal[1] * u[2] - normal[2] * u[1],
+        normal[2] * u[0] - normal[0] * u[2],
+        normal[0] * u[1] - normal[1] * u[0],
+    ];
+    let mut angles: Vec<f64> = neighbours
+        .iter()
+        .map(|&j| {
+            let d = [0, 1, 2].map(|k| points[3 * j + k] - points[3 * i + k]);
+            dot(&d, &v).atan2(dot(&d, &u))
+        })
+        .collect();
+    if angles.is_empty() {
+        return std::f64::consts::TAU;
+    }
+    angles.sort_by(f64::total_cmp);
+    let around = angles[0] + std::f64::consts::TAU - angles[angles.len() - 1];
+    angles.windows(2).map(|w| w[1] - w[0]).fold(around, f64::max)
 }
 
 /// Off points on `side` (+1 outside, -1 inside) of the data points that `wanted` names, in the
@@ -234,6 +279,7 @@ pub fn window_nodes(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::surface::normals::nearest;
 
     /// A 5 x 5 grid of points in the plane z = 0, spacing 0.1, normals +z.
     fn plane() -> (Vec<f64>, Vec<[f64; 3]>) {
@@ -282,27 +328,46 @@ mod tests {
     }
 
     #[test]
-    fn points_charged_in_the_mouth_of_a_hole_get_the_sides_they_lack() {
+    fn the_widest_gap_is_small_inside_a_sampled_surface_and_half_a_turn_at_its_edge() {
         let (points, normals) = plane();
         let tree = Octree::new(&points, 4);
+        let knn = nearest(&tree, &points, RIM_NEIGHBOURS);
+        let gap = |i: usize| {
+            widest_gap(&points, i, &normals[i], &knn[i * RIM_NEIGHBOURS..(i + 1) * RIM_NEIGHBOURS])
+        };
+        // the centre: its 8 nearest surround it at every 45 degrees
+        assert!(gap(12) <= std::f64::consts::FRAC_PI_4 + 1e-12, "{}", gap(12));
+        // an edge, a corner
+        assert!((gap(2) - std::f64::consts::PI).abs() < 1e-12, "{}", gap(2));
+        assert!((gap(0) - 1.5 * std::f64::consts::PI).abs() < 1e-12, "{}", gap(0));
+        assert_eq!(widest_gap(&points, 0, &normals[0], &[]), std::f64::consts::TAU);
+    }
+
+    #[test]
+    fn points_charged_in_the_mouth_of_a_hole_on_a_rim_get_the_sides_they_lack() {
+        let (points, normals) = plane();
+        let tree = Octree::new(&points, 4);
+        let knn = nearest(&tree, &points, RIM_NEIGHBOURS);
         // crossings with winding numbers around 1/2 above point 12, one in open space there
         let crossings = [[0.2, 0.2, 0.1], [0.21, 0.2, 0.2], [0.2, 0.19, 0.3], [0.2, 0.2, 0.4]];
         let hits = charged(&crossings, &[0.45, 0.5, 0.59, 0.05], &tree, 25, MOUTH);
         assert_eq!((hits[12], hits.iter().sum::<usize>()), (3, 3));
-        // point 7 has an outside off point, 9 an inside one, 12 none; 4 is charged twice only
+        // on the edge y = 0 (a rim): point 1 has an inside off point, 3 an outside one, 2 none;
+        // the corner 4 is charged twice only, the centre 12 is no rim
         let mut hits = vec![0; 25];
-        (hits[4], hits[7], hits[9], hits[12]) = (2, 5, 3, MOUTH_HITS);
-        let mut off = off_at(&[7, 9, 20], &[0.01, 0.04, 0.02]);
-        off.side[1] = -1.0;
-        let out = mouth_points(&points, &normals, &tree, &off, &hits);
+        (hits[1], hits[2], hits[3], hits[4], hits[12]) = (3, MOUTH_HITS, 5, 2, 9);
+        let mut off = off_at(&[1, 3, 20], &[0.01, 0.04, 0.02]);
+        off.side[0] = -1.0;
+        let hoods = (&tree, (&knn[..], RIM_NEIGHBOURS));
+        let out = mouth_points(&points, &normals, hoods, &off, &hits);
         // the inside points first, then the outside ones, each by source; delta the median 0.02
-        assert_eq!(out.source, vec![7, 12, 9, 12]);
+        assert_eq!(out.source, vec![2, 3, 1, 2]);
         assert_eq!(out.side, vec![-1.0, -1.0, 1.0, 1.0]);
         assert_eq!(out.delta, vec![0.02; 4]);
-        assert_eq!(&out.centres[3..6], &[0.2, 0.2, -0.02]);
-        assert_eq!(&out.centres[9..], &[0.2, 0.2, 0.02]);
+        assert_eq!(&out.centres[..3], &[0.2, 0.0, -0.02]);
+        assert_eq!(&out.centres[9..], &[0.2, 0.0, 0.02]);
         // without off points there is no delta to start from
-        assert!(mouth_points(&points, &normals, &tree, &off_at(&[], &[]), &hits).side.is_empty());
+        assert!(mouth_points(&points, &normals, hoods, &off_at(&[], &[]), &hits).side.is_empty());
     }
 
     #[test]

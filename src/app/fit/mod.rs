@@ -784,6 +784,9 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
                 t.before,
                 t.after
             ),
+            None if s.turns_skipped && s.outside_skipped && s.mouth_skipped => {
+                "; turns, outside points and mouth points: skipped (no factor kept to fit them with)".to_string()
+            }
             None if s.turns_skipped && s.outside_skipped => {
                 "; turns and outside points: skipped (no factor kept to fit them with)".to_string()
             }
@@ -808,6 +811,9 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
             Some(o) => format!("; outside points: none placed for {} crossings in open space", o.open),
             None => String::new(),
         } + &match &s.mouth {
+            None if s.mouth_skipped && !(s.turns_skipped && s.outside_skipped) => {
+                "; mouth points: skipped (no factor kept to fit them with)".to_string()
+            }
             Some(m) if m.no_room => format!(
                 "; mouth points: {} for {} crossings in the mouths of holes, not added (no memory for their fit)",
                 m.points, m.crossings

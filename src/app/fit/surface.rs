@@ -84,6 +84,9 @@ pub struct SurfaceSummary {
     /// Whether the outside off points after the turns were asked for but skipped, as the turns
     /// are: the system was too large to refit afresh and kept no factor.
     pub outside_skipped: bool,
+    /// Whether the off points at the mouths of holes were asked for but skipped, as the turns
+    /// are.
+    pub mouth_skipped: bool,
     /// The outside off points after the turns (None: not run, since `--outside-points off`, the
     /// system was too large to refit afresh and kept no factor, or no crossing was charged to a
     /// point without an off point).
@@ -411,6 +414,7 @@ pub fn constrain(
         turns: None,
         turns_skipped: false,
         outside_skipped: false,
+        mouth_skipped: false,
         outside: None,
         mouth: None,
         sides: None,
@@ -515,6 +519,7 @@ pub fn check_first_fit(
         outside_after_turns(run, data, c, (fit, values), stages, refit, (at, room))?
     } else {
         c.summary.outside_skipped = run.args.outside_points;
+        c.summary.mouth_skipped = run.args.mouth_points;
         fit
     };
     if let (Some(l), 0) = (c.summary.memory_limit, run.comm.rank()) {
@@ -1032,7 +1037,8 @@ fn outside_after_turns(
     // the mouths' points are charged by the crossings of this fit, before any outside point
     let mouth = run.args.mouth_points.then(|| {
         let hits = outside::charged(&crossings, &winding, tree, n, outside::MOUTH);
-        (hits.iter().sum::<usize>(), outside::mouth_points(&data.centres, normals, tree, &c.off, &hits))
+        let hoods = (tree, (&c.hoods.knn[..], c.hoods.kmax));
+        (hits.iter().sum::<usize>(), outside::mouth_points(&data.centres, normals, hoods, &c.off, &hits))
     });
     let fit = if run.args.outside_points {
         let at = ((factor, lattice), room);
