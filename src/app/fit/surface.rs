@@ -1010,8 +1010,8 @@ fn turn_by_surface(
 /// what is kept): with `--outside-points`, the fit with outside off points for the data points
 /// nearest to its unsupported crossings in open space, kept where that removes at least
 /// [`crate::surface::turns::GAIN`] of all its unsupported crossings; then, with
-/// `--mouth-points`, the fit with off points on both sides of those nearest to many of its
-/// unsupported crossings in the mouths of holes, kept. The off points are appended, so each fit borders
+/// `--mouth-points`, the fit with off points on both sides of those on a rim nearest to
+/// several of its unsupported crossings in the mouths of holes, kept. The off points are appended, so each fit borders
 /// `factor` where there is one; `values` are `fit`'s on `lattice` where they were sampled,
 /// `areas` the data points' shares of the surface for the winding numbers. Where the points
 /// with those already appended to the first fit's would be more than `room`, none are added.
