@@ -88,6 +88,7 @@ use std::ops::{Range, RangeBounds};
 use crate::spline::octree::Octree;
 use crate::surface::blobs::Lattice;
 use crate::surface::offsurface::{place_from, OffPoints};
+use crate::surface::orient::dot;
 use crate::surface::turns::WINDOW;
 
 /// The most times the median delta is halved for one outside point.
@@ -180,7 +181,6 @@ pub fn mouth_points(
 /// `normal`): small where the neighbours surround the point, half a turn or more on the rim of
 /// a hole or at the edge of a scan.
 pub fn widest_gap(points: &[f64], i: usize, normal: &[f64; 3], neighbours: &[usize]) -> f64 {
-    let dot = |a: &[f64; 3], b: &[f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     // an orthonormal basis (u, v) of the tangent plane, from the axis least along the normal
     let axis = if normal[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
     let t = dot(&axis, normal);

@@ -1011,11 +1011,11 @@ fn turn_by_surface(
 /// nearest to its unsupported crossings in open space, kept where that removes at least
 /// [`crate::surface::turns::GAIN`] of all its unsupported crossings; then, with
 /// `--mouth-points`, the fit with off points on both sides of those on a rim nearest to
-/// several of its unsupported crossings in the mouths of holes, kept. The off points are appended, so each fit borders
-/// `factor` where there is one; `values` are `fit`'s on `lattice` where they were sampled,
-/// `areas` the data points' shares of the surface for the winding numbers. Where the points
-/// with those already appended to the first fit's would be more than `room`, none are added.
-/// Collective.
+/// several of its unsupported crossings in the mouths of holes, kept. The off points are
+/// appended, so each fit borders `factor` where there is one; `values` are `fit`'s on `lattice`
+/// where they were sampled, `areas` the data points' shares of the surface for the winding
+/// numbers. Where the points with those already appended to the first fit's would be more than
+/// `room`, none are added. Collective.
 fn outside_after_turns(
     run: &Run<'_>,
     data: &Prepared,
@@ -1042,7 +1042,8 @@ fn outside_after_turns(
     });
     let fit = if run.args.outside_points {
         let at = ((factor, lattice), room);
-        outside_in_open_space(run, data, c, (fit, values), stages, refit, at, (&crossings, &winding))?
+        let found = (&support, &crossings[..], &winding[..]);
+        outside_in_open_space(run, data, c, (fit, values), stages, refit, at, found)?
     } else {
         fit
     };
@@ -1071,9 +1072,9 @@ fn outside_after_turns(
 }
 
 /// `fit` of `c.prep`, or the fit with outside off points for the data points nearest to its
-/// unsupported `crossings` (with the data's winding numbers there) in open space, where that
-/// removes at least [`crate::surface::turns::GAIN`] of all of them (`c` is updated where it is
-/// kept; the arguments as for [`outside_after_turns`]). Collective.
+/// unsupported `crossings` (by `support`, with the data's winding numbers there) in open space,
+/// where that removes at least [`crate::surface::turns::GAIN`] of all of them (`c` is updated
+/// where it is kept; the arguments as for [`outside_after_turns`]). Collective.
 #[allow(clippy::too_many_arguments)]
 fn outside_in_open_space(
     run: &Run<'_>,
@@ -1083,9 +1084,8 @@ fn outside_in_open_space(
     stages: &mut Stages,
     refit: &mut Refit<'_>,
     ((factor, lattice), room): ((Option<&KeptFactor>, &Lattice), usize),
-    (crossings, winding): (&[[f64; 3]], &[f64]),
+    (support, crossings, winding): (&DataSupport, &[[f64; 3]], &[f64]),
 ) -> Result<Fitted> {
-    let support = DataSupport::new(&data.centres, choice::FACTOR);
     let hits = outside::charged(crossings, winding, &c.hoods.tree, c.normals.len(), ..OPEN_SPACE);
     let extra = outside::outside_points(&data.centres, &c.normals, &c.hoods.tree, &c.off, &hits);
     let open = winding.iter().filter(|&&w| w < OPEN_SPACE).count();
@@ -1120,7 +1120,7 @@ fn outside_in_open_space(
         let nodes = outside::window_nodes(lattice, &data.centres, &c.hoods.tree, around, &extra);
         let mut values = values;
         sample_nodes(run.comm, lattice, &nodes, (&data.carrier, &tried.spline), &mut values);
-        choice::unsupported_crossings(lattice, &values, &support).0.len()
+        choice::unsupported_crossings(lattice, &values, support).0.len()
     });
     check.kept = turns::gains(check.before, check.after);
     c.summary.outside = Some(check);
