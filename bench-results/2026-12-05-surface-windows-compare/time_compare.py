@@ -1,8 +1,9 @@
 import csv, glob, statistics, sys
-# Fit time of the default over the carrier method per set, run TAG (argv[1]) against the outside-time runs;
-# run from the repository root: python3 bench-results/2026-12-05-surface-windows-compare/time_compare.py windows-time
+# Fit time of the default over the carrier method per set, run TAG (argv[1]) against the runs BASE (argv[2],
+# outside-time by default); run from the repository root:
+#   python3 bench-results/2026-12-05-surface-windows-compare/time_compare.py windows-time [BASE]
 tag = sys.argv[1]  # e.g. windows-time
-base = 'outside-time'
+base = sys.argv[2] if len(sys.argv) > 2 else 'outside-time'
 samps = [f"seed{s}" for s in range(1, 13)] + ["strided"]
 rat, old, over, over_old, sp, spc = [], [], [], [], [], []
 per = {}
