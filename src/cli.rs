@@ -277,7 +277,8 @@ pub struct FitArgs {
     #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub outside_points: bool,
     /// Then, where the turns could run, give the data points on a rim (their 15 nearest
-    /// neighbours leave a gap of 140 degrees or more around them) nearest to at least 3
+    /// neighbours leave a gap of 140 degrees or more around them, and none has a normal more
+    /// than a right angle from theirs, as at the tip of a thin part) nearest to at least 3
     /// crossings of the surface no data supports in the mouths of holes (the data's winding
     /// number between 0.4 and 0.6) an off point on each side where they have none, and keep
     /// that fit (on, or off): held on both sides, the rim of a scan's hole keeps the slope of
