@@ -163,23 +163,29 @@ pub fn outside_points(
 /// The off points of the data `points` (as for [`outside_points`]; `knn` the nearest neighbours
 /// of each point, `kmax` per point, nearest first) that `hits` charged with at least
 /// [`MOUTH_HITS`] crossings in the mouths of holes and that lie on a rim ([`widest_gap`] of at
-/// least [`MOUTH_GAP`], no neighbour's normal at a cosine below [`FOLD`] to its own), on each side where they have none in `off` (see the module doc, "Both
-/// sides at the mouths of holes"): the inside points first, then the outside ones, each in the
-/// order of their sources. Empty where `off` has none.
+/// least [`MOUTH_GAP`], no neighbour's normal at a cosine below [`FOLD`] to its own), on each
+/// side where they have none in `off` (see the module doc, "Both sides at the mouths of
+/// holes"): the inside points first, then the outside ones, each in the order of their
+/// sources; empty where `off` has none. With them, how many points so charged with the gap of
+/// a rim were left out at a fold.
 pub fn mouth_points(
     points: &[f64],
     normals: &[[f64; 3]],
     (tree, (knn, kmax)): (&Octree, (&[usize], usize)),
     off: &OffPoints,
     hits: &[usize],
-) -> OffPoints {
+) -> (OffPoints, usize) {
     let k = RIM_NEIGHBOURS.min(kmax);
+    let mut folds = 0;
     let rim: Vec<bool> = (0..normals.len())
         .map(|i| {
             let near = &knn[i * kmax..i * kmax + k];
-            hits[i] >= MOUTH_HITS
-                && widest_gap(points, i, &normals[i], near) >= MOUTH_GAP.to_radians()
-                && near.iter().all(|&j| dot(&normals[i], &normals[j]) >= FOLD)
+            if hits[i] < MOUTH_HITS || widest_gap(points, i, &normals[i], near) < MOUTH_GAP.to_radians() {
+                return false;
+            }
+            let folded = near.iter().any(|&j| dot(&normals[i], &normals[j]) < FOLD);
+            folds += usize::from(folded);
+            !folded
         })
         .collect();
     let mut out = OffPoints::default();
@@ -193,7 +199,7 @@ pub fn mouth_points(
         out.source.extend_from_slice(&placed.source);
         out.dropped += placed.dropped;
     }
-    out
+    (out, folds)
 }
 
 /// The widest angle (radians) between the directions from data point `i` (of `points`, 3 per
@@ -383,7 +389,8 @@ mod tests {
         let mut off = off_at(&[1, 3, 20], &[0.01, 0.04, 0.02]);
         off.side[0] = -1.0;
         let hoods = (&tree, (&knn[..], RIM_NEIGHBOURS));
-        let out = mouth_points(&points, &normals, hoods, &off, &hits);
+        let (out, folds) = mouth_points(&points, &normals, hoods, &off, &hits);
+        assert_eq!(folds, 0);
         // the inside points first, then the outside ones, each by source; delta the median 0.02
         assert_eq!(out.source, vec![2, 3, 1, 2]);
         assert_eq!(out.side, vec![-1.0, -1.0, 1.0, 1.0]);
@@ -391,14 +398,15 @@ mod tests {
         assert_eq!(&out.centres[..3], &[0.2, 0.0, -0.02]);
         assert_eq!(&out.centres[9..], &[0.2, 0.0, 0.02]);
         // without off points there is no delta to start from
-        assert!(mouth_points(&points, &normals, hoods, &off_at(&[], &[]), &hits).side.is_empty());
+        assert!(mouth_points(&points, &normals, hoods, &off_at(&[], &[]), &hits).0.side.is_empty());
         // a neighbour facing the other way (point 7, beside the rim): the surface folds back
         // there, no rim; a neighbour at a right angle still leaves the rim
         let mut folded = normals.clone();
         folded[7] = [0.0, 0.0, -1.0];
-        assert!(mouth_points(&points, &folded, hoods, &off, &hits).side.is_empty());
+        let (out, folds) = mouth_points(&points, &folded, hoods, &off, &hits);
+        assert_eq!((out.side.len(), folds), (0, 3));
         folded[7] = [1.0, 0.0, 0.0];
-        assert_eq!(mouth_points(&points, &folded, hoods, &off, &hits).source, vec![2, 3, 1, 2]);
+        assert_eq!(mouth_points(&points, &folded, hoods, &off, &hits).0.source, vec![2, 3, 1, 2]);
     }
 
     #[test]

@@ -619,8 +619,12 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             r.figure("outside_kept", o.kept);
         }
         if let Some(m) = &s.mouth {
-            let counts =
-                [("mouth_crossings", m.crossings), ("mouth_wanted", m.wanted), ("mouth_points", m.points)];
+            let counts = [
+                ("mouth_crossings", m.crossings),
+                ("mouth_wanted", m.wanted),
+                ("mouth_points", m.points),
+                ("mouth_folds", m.folds),
+            ];
             counts.into_iter().for_each(|(key, count)| r.figure(key, count));
         }
     }
@@ -815,15 +819,22 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
                 "; mouth points: skipped (no factor kept to fit them with)".to_string()
             }
             Some(m) if m.no_room => format!(
-                "; mouth points: {} for {} crossings in the mouths of holes, not added (no memory for their fit)",
-                m.points, m.crossings
+                "; mouth points: {} for {} crossings in the mouths of holes{}, not added (no memory for their fit)",
+                m.points,
+                m.crossings,
+                folds_left_out(m.folds)
             ),
-            Some(m) if m.points > 0 => {
-                format!("; mouth points: {} for {} crossings in the mouths of holes", m.points, m.crossings)
-            }
-            Some(m) if m.crossings > 0 => {
-                format!("; mouth points: none placed for {} crossings in the mouths of holes", m.crossings)
-            }
+            Some(m) if m.points > 0 => format!(
+                "; mouth points: {} for {} crossings in the mouths of holes{}",
+                m.points,
+                m.crossings,
+                folds_left_out(m.folds)
+            ),
+            Some(m) if m.crossings > 0 => format!(
+                "; mouth points: none placed for {} crossings in the mouths of holes{}",
+                m.crossings,
+                folds_left_out(m.folds)
+            ),
             Some(_) => String::new(),
             None => String::new(),
         } + &match s.fits() {
@@ -832,6 +843,15 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
             3 => ", fitted three times".to_string(),
             k => format!(", fitted {k} times"),
         },
+    }
+}
+
+/// " (N rim points at folds left out)" where step 9 left out charged rim points at folds.
+fn folds_left_out(folds: usize) -> String {
+    match folds {
+        0 => String::new(),
+        1 => " (1 rim point at a fold left out)".to_string(),
+        n => format!(" ({n} rim points at folds left out)"),
     }
 }
 

@@ -171,6 +171,8 @@ pub struct MouthPoints {
     /// no delta kept nearest to its own point is dropped); the fit with them is kept.
     pub wanted: usize,
     pub points: usize,
+    /// Charged data points with the gap of a rim left out since the surface folds back there.
+    pub folds: usize,
     /// Whether they were not added since their fit would append more centres than the ranks'
     /// memory allows.
     pub no_room: bool,
@@ -1047,13 +1049,14 @@ fn outside_after_turns(
     } else {
         fit
     };
-    let Some((crossings, mouth)) = mouth else {
+    let Some((crossings, (mouth, folds))) = mouth else {
         return Ok(fit);
     };
     let mut check = MouthPoints {
         crossings,
         wanted: mouth.side.len() + mouth.dropped,
         points: mouth.side.len(),
+        folds,
         no_room: false,
     };
     let appended = c.prep.values.len() - data.values.len() - c.off.side.len();
