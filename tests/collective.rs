@@ -496,8 +496,9 @@ fn householder_agreed_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
 /// The projected Cholesky of the first three quarters of the bunny system, its factor kept, then
 /// bordered by none of the remaining quarter of the centres, by its first half, by that half in
 /// reverse order and by all of it, with every ninth of the first values negated, and each
-/// bordered factor solved again for values with every fifth negated: against the dense QR of the
-/// whole system, panels ending inside and beyond a rank's rows, and the same on every rank. The
+/// bordered factor solved again for values with every fifth negated, and for three other sets
+/// of values at once: against the dense QR of the whole system, panels ending inside and beyond
+/// a rank's rows, and the same on every rank. The
 /// factor keeps the first half's substitutions (the whole quarter exceeds what it keeps), and
 /// the later extensions reuse them.
 fn bordered_factor_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
@@ -601,6 +602,24 @@ fn check_bordering(
         let what = format!("{what}, other values by the bordered factor");
         log.close(&x, &want, 1e-9, || what.clone());
         same_on_every_rank(job.comm, log, &x, &what);
+        // three sets of values at once (one pass through the factor), each as the oracle solves it
+        let sets: Vec<Vec<f64>> = (1..=3)
+            .map(|t| {
+                let v = values.iter().enumerate();
+                v.map(|(i, v)| if i % (t + 2) == 0 { -v } else { v * t as f64 }).collect()
+            })
+            .collect();
+        let rhs: Vec<&[f64]> = sets.iter().map(|v| &v[..]).collect();
+        let many = dist::solve_bordered_many(job, first, &bordered, &rhs);
+        log.check(many.len() == 3, || format!("{what}: {} solutions of 3", many.len()));
+        for (t, (x, v)) in many.iter().zip(&sets).enumerate() {
+            let (_, b) = full_system(k, centres, v);
+            let want =
+                must(householder_solve(MatRef::from_column_major_slice(&a, size, size), &b), "the oracle");
+            let what = format!("{what}, values {t} of 3 at once");
+            log.close(x, &want, 1e-9, || what.clone());
+            same_on_every_rank(job.comm, log, x, &what);
+        }
     }
 }
 

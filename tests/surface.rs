@@ -482,8 +482,9 @@ fn fits_match_the_oracle(
     solver: &str,
     rates: &[&str],
     extra: &[&str],
-) {
+) -> Vec<String> {
     let (off_count, outside, oracle) = (oracle.off_count, &oracle.outside, &oracle.model);
+    let mut reports = Vec::new();
     for ranks in [1, 2, 3] {
         let p = dir.join(format!("r{ranks}"));
         let p = p.to_str().unwrap();
@@ -504,7 +505,9 @@ fn fits_match_the_oracle(
         assert!(dw < 1e-9 && dc < 1e-9, "{ranks} ranks: weights {dw:e}, poly {dc:e}");
         let dv = common::volume_diff(Path::new(&format!("{p}.hdf")), oracle);
         assert!(dv < 1e-9, "{ranks} ranks: grid values differ by {dv:e}");
+        reports.push(text);
     }
+    reports
 }
 
 /// `n` area-uniform samples (seed `seed` of the tests' sampler) of the mesh at `mesh`, written to
@@ -550,7 +553,14 @@ fn patches_turned_by_the_ray_test_are_the_same_on_one_two_and_three_ranks() {
     // 389 -> 352 unsupported crossings), each try solved with the second fit's bordered factor
     assert!(turns.turned > 0 && turns.after < turns.before, "{turns:?}");
     // the second fit borders the first's factor (its off points changed side, blob points added)
-    fits_match_the_oracle(&dir, &input, &oracle, "cholesky", &UNIFORM, &NO_CHOICE);
+    let reports = fits_match_the_oracle(&dir, &input, &oracle, "cholesky", &UNIFORM, &NO_CHOICE);
+    // the tries were the kept fit's solution plus columns of one solve of all candidates'
+    // changes, and the turns they kept are those of the oracle's separate solves
+    for text in &reports {
+        let tried = text.split_once("; turns: ").and_then(|(_, t)| t.split(' ').nth(2)).unwrap();
+        let together = format!(", {tried} tried by one solve of all candidates' changes");
+        assert!(text.contains(&together), "not \"{together}\" in {text}");
+    }
 }
 
 /// Cow samples on which the wide and the narrow clearance of the blob search pin different nodes

@@ -324,7 +324,6 @@ fn fit_bordered(
     let timed = Timed::new(comm);
     let job = Job::on(&timed).par(Par::rayon(threads));
     let t0 = std::time::Instant::now();
-    let n = first.factor.centres();
     let outcome = match &first.bordered {
         Some(bordered) if first.solves(prep) => Ok((
             stages.time(Stage::Solve, || dist::solve_bordered(&job, &first.factor, bordered, &prep.values)),
@@ -345,7 +344,75 @@ fn fit_bordered(
     };
     stages.add(Stage::CommWait, timed.seconds());
     let (x, kept) = outcome?;
-    let seconds = t0.elapsed().as_secs_f64();
+    let how = if kept.is_some() { "" } else { ", solved again for new values," };
+    let solved = (x, how, t0.elapsed().as_secs_f64(), true);
+    let mut fitted = from_bordered(run, kernel, prep, first, solved, &timed, stages);
+    fitted.factor = kept;
+    Ok(fitted)
+}
+
+/// The solutions for the values `rhs` (each as many as `prep`'s centres) of `prep`'s system,
+/// where `first` holds the bordered factor of exactly its centres: one forward and one back
+/// substitution through the factor for all of them
+/// ([`crate::linalg::dist::solve_bordered_many`]). None where it holds none. Collective.
+pub fn solve_many(
+    run: &Run<'_>,
+    prep: &Prepared,
+    first: &KeptFactor,
+    rhs: &[Vec<f64>],
+    stages: &mut Stages,
+) -> Option<Vec<Vec<f64>>> {
+    let bordered = first.bordered.as_ref().filter(|_| first.solves(prep))?;
+    let Run { comm, threads, .. } = *run;
+    let timed = Timed::new(comm);
+    let job = Job::on(&timed).par(Par::rayon(threads));
+    let rhs: Vec<&[f64]> = rhs.iter().map(|r| &r[..]).collect();
+    let x = stages.time(Stage::Solve, || dist::solve_bordered_many(&job, &first.factor, bordered, &rhs));
+    stages.add(Stage::CommWait, timed.seconds());
+    Some(x)
+}
+
+/// The fit of `prep` whose solution `x` was found with `first`'s bordered factor of its centres
+/// in `seconds` (as the sum of an earlier fit's solution and one of [`solve_many`]), reported as
+/// a fit solved with that factor; its residual is NaN until [`check_residual`] takes it (a try
+/// that is not kept needs none). Collective.
+pub fn fitted_from_bordered(
+    run: &Run<'_>,
+    kernel: Kernel,
+    prep: &Prepared,
+    first: &KeptFactor,
+    (x, seconds): (Vec<f64>, f64),
+    stages: &mut Stages,
+) -> Fitted {
+    let timed = Timed::new(run.comm);
+    let solved = (x, ", solved again for new values,", seconds, false);
+    from_bordered(run, kernel, prep, first, solved, &timed, stages)
+}
+
+/// Takes the residual of `fitted`, the fit of `prep` by the dense solvers, where it was left
+/// out ([`fitted_from_bordered`]). Collective.
+pub fn check_residual(run: &Run<'_>, prep: &Prepared, fitted: &mut Fitted, stages: &mut Stages) {
+    if fitted.residual.is_nan() {
+        let spline = &fitted.spline;
+        let x: Vec<f64> = spline.weights.iter().chain(&spline.poly).copied().collect();
+        fitted.residual = residual(run, &spline.kernel, prep, &x, stages);
+    }
+}
+
+/// The checks (the residual only with `check`), the spline and the report of the solution `x`
+/// of `prep`'s system found with `first`'s factor (`how`: what the report adds after the
+/// centres appended) in `seconds`. Collective.
+fn from_bordered(
+    run: &Run<'_>,
+    kernel: Kernel,
+    prep: &Prepared,
+    first: &KeptFactor,
+    (x, how, seconds, check): (Vec<f64>, &str, f64, bool),
+    timed: &Timed<'_>,
+    stages: &mut Stages,
+) -> Fitted {
+    let comm = run.comm;
+    let n = first.factor.centres();
     let solved = dist::Solved {
         x,
         used: SolverKind::Cholesky,
@@ -357,17 +424,14 @@ fn fit_bordered(
     let layout = RowCyclic::new(prep.values.len() + kernel.poly_count(), comm.size(), comm.rank());
     let m = prep.values.len() - n;
     let moved = first.moved.map_or(String::new(), |s| format!(", moved from the process grid in {s:.3} s"));
-    let how = format!(
-        "the first fit's factor ({n} centres{moved}) bordered by {m} appended centres{}",
-        if kept.is_some() { "" } else { ", solved again for new values," }
-    );
+    let how = format!("the first fit's factor ({n} centres{moved}) bordered by {m} appended centres{how}");
     let bordered = Some((n, format!("{how} in {seconds:.3} s")));
-    let mut fitted = finish(run, kernel, prep, solved, (layout, first.lookahead, bordered), &timed, stages);
+    let at = (layout, first.lookahead, bordered);
+    let mut fitted = finish(run, kernel, prep, solved, at, timed, stages, check);
     if let Some(seconds) = first.moved {
         fitted.figures.push(("factor_moved_max_s".into(), format!("{seconds:.6}")));
     }
-    fitted.factor = kept;
-    Ok(fitted)
+    fitted
 }
 
 /// Fits the spline of `kernel` to the prepared points with the dense solvers; with `keep`, the
@@ -470,7 +534,7 @@ pub fn fit(
         lookahead,
         moved,
     });
-    let mut fitted = finish(run, kernel, prep, solved, (layout, lookahead, None), &timed, stages);
+    let mut fitted = finish(run, kernel, prep, solved, (layout, lookahead, None), &timed, stages, true);
     if let Some(seconds) = moved {
         fitted.line.push_str(&format!(
             "\n  factor kept for later fits: moved from the process grid to the row-cyclic layout in {seconds:.3} s"
@@ -502,9 +566,28 @@ fn copy_fits(comm: &dyn Comm, rows: usize) -> bool {
     false
 }
 
-/// The checks, the spline and the report of a dense solve `solved` of `prep`'s system on
-/// `layout` (`lookahead` as used; `bordered`: the centres of the first fit whose factor was
-/// bordered, and how and in how many seconds); `timed` counted its collectives. Collective.
+/// ||M x - b|| / ||b|| of the solution `x` of `prep`'s bordered system (a product of the rows
+/// each rank holds on the row-cyclic layout), on every rank. Collective.
+fn residual(run: &Run<'_>, kernel: &Kernel, prep: &Prepared, x: &[f64], stages: &mut Stages) -> f64 {
+    let comm = run.comm;
+    let layout = RowCyclic::new(prep.values.len() + kernel.poly_count(), comm.size(), comm.rank());
+    stages.time(Stage::Check, || {
+        let globals: Vec<usize> = (0..layout.local_count()).map(|l| layout.global(l)).collect();
+        let mut parts = residual_parts(kernel, &prep.centres, &prep.values, &globals, x).to_vec();
+        comm.sum_f64(&mut parts);
+        if parts[1] > 0.0 {
+            (parts[0] / parts[1]).sqrt()
+        } else {
+            parts[0].sqrt()
+        }
+    })
+}
+
+/// The checks (with `check`: the residual; without, it is NaN until [`check_residual`] takes
+/// it), the spline and the report of a dense solve `solved` of `prep`'s system on `layout`
+/// (`lookahead` as used; `bordered`: the centres of the first fit whose factor was bordered, and
+/// how and in how many seconds); `timed` counted its collectives. Collective.
+#[allow(clippy::too_many_arguments)]
 fn finish(
     run: &Run<'_>,
     kernel: Kernel,
@@ -513,9 +596,9 @@ fn finish(
     (layout, lookahead, bordered): (RowCyclic, bool, Option<(usize, String)>),
     timed: &Timed<'_>,
     stages: &mut Stages,
+    check: bool,
 ) -> Fitted {
     let Run { comm, .. } = *run;
-    let (centres, values) = (&prep.centres, &prep.values);
     let calls = timed.calls();
     // the slowest rank's wait in each kind of call
     let mut by_kind: Vec<f64> = CallKind::ALL.iter().map(|&k| timed.seconds_in(k)).collect();
@@ -526,17 +609,8 @@ fn finish(
     if let (Some(why), 0) = (&solved.fallback, comm.rank()) {
         crate::note!("volspline: cholesky: {}; fell back to LU", why.root());
     }
-    let residual = stages.time(Stage::Check, || {
-        let globals: Vec<usize> = (0..layout.local_count()).map(|l| layout.global(l)).collect();
-        let mut parts = residual_parts(&kernel, centres, values, &globals, &solved.x).to_vec();
-        comm.sum_f64(&mut parts);
-        if parts[1] > 0.0 {
-            (parts[0] / parts[1]).sqrt()
-        } else {
-            parts[0].sqrt()
-        }
-    });
-    let spline = Spline::from_solution(kernel, centres.clone(), &solved.x, prep.norm);
+    let residual = if check { residual(run, &kernel, prep, &solved.x, stages) } else { f64::NAN };
+    let spline = Spline::from_solution(kernel, prep.centres.clone(), &solved.x, prep.norm);
     let mixed = solved.mixed_fallback.is_none() && solved.refinement.is_some();
     let precision =
         if mixed { format!("mixed (f32 {}, f64 refinement)", solved.used.name()) } else { "f64".into() };

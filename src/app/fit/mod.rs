@@ -598,6 +598,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             let counts = [
                 ("turns_candidates", t.candidates),
                 ("turns_tried", t.tried),
+                ("turns_superposed", t.superposed),
                 ("turns_turned", t.turned),
                 ("turns_by_open_space", t.by_open_space),
                 ("turns_facing_tried", t.facing),
@@ -768,7 +769,7 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
             None => String::new(),
         } + &match &s.turns {
             Some(t) => format!(
-                "; turns: {} of {} {} tried ({} points) turned{}{}{}, unsupported crossings {} -> {}",
+                "; turns: {} of {} {} tried ({} points) turned{}{}{}{}, unsupported crossings {} -> {}",
                 t.turned,
                 t.tried,
                 if t.facing > 0 { "patches and groups" } else { "patches" },
@@ -784,6 +785,10 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
                 match t.candidates - t.tried {
                     0 => String::new(),
                     k => format!(", {k} of {} candidates passed over without a solve", t.candidates),
+                },
+                match t.superposed {
+                    0 => String::new(),
+                    k => format!(", {k} tried by one solve of all candidates' changes"),
                 },
                 t.before,
                 t.after

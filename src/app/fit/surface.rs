@@ -6,7 +6,7 @@
 //! negative ([`crate::surface::blobs`]), and where either changed something the spline is fitted
 //! once more.
 
-use super::dense::KeptFactor;
+use super::dense::{self, KeptFactor};
 use super::{Fitted, Run};
 use crate::app::stages::{Stage, Stages};
 use crate::cli::{FitArgs, Surface};
@@ -902,7 +902,9 @@ fn second_round(
 /// `fit` of `c.prep` after the small patches of the normals whose turn shrinks the surface no
 /// data supports are turned, one candidate after the other (see [`crate::surface::turns`]): each
 /// candidate changes only the values of its off points, so its fit is a solve with `factor`, the
-/// fit's own (bordered) factor, where there is one (else a fresh fit of a small system), and only
+/// fit's own (bordered) factor, where there is one (else a fresh fit of a small system): the
+/// kept fit's solution plus the candidate's column of one solve for all candidates' changes,
+/// where no kept turn changed the same values (see "Cost" in [`crate::surface::turns`]), and only
 /// the lattice around the patch is sampled again, and its crossings counted again (a patch whose
 /// window holds too few unsupported crossings for their removal to be a gain is passed over
 /// without a solve). The lattice is the blob search's; `values`, the
@@ -944,6 +946,37 @@ fn turn_by_surface(
     let mut far = crossings.len();
     let mut check = TurnCheck { candidates: candidates.len(), before: far, ..Default::default() };
     let nd = data.values.len();
+    // a candidate's normals, off points and system turned from `c`'s
+    let turned = |c: &Constrained, candidate: &turns::Candidate| {
+        let mut member = vec![false; c.normals.len()];
+        candidate.members.iter().for_each(|&i| member[i] = true);
+        let mut normals = c.normals.clone();
+        candidate.members.iter().for_each(|&i| normals[i] = normals[i].map(|v| -v));
+        // the off points of the patch change side where they stand
+        let mut off = c.off.clone();
+        for (side, &i) in off.side.iter_mut().zip(&off.source) {
+            if member[i] {
+                *side = -*side;
+            }
+        }
+        let mut prep = c.prep.clone();
+        let off_values = off_values(&off, &data.points, &data.carrier, &data.norm);
+        prep.values[nd..nd + off_values.len()].copy_from_slice(&off_values);
+        (normals, off, prep)
+    };
+    let change = |prep: &Prepared, c: &Constrained| -> Vec<f64> {
+        prep.values.iter().zip(&c.prep.values).map(|(v, w)| v - w).collect()
+    };
+    // the system is linear and a try changes values alone: with a bordered factor of these
+    // centres, the solutions for every candidate's change come from one pass through it, and a
+    // try's fit is the kept fit's solution plus its candidate's (where no turn kept before it
+    // changed the same values)
+    let changes: Vec<Vec<f64>> = candidates.iter().map(|cd| change(&turned(c, cd).2, c)).collect();
+    let superposed = factor.and_then(|f| {
+        let t0 = std::time::Instant::now();
+        let solved = dense::solve_many(run, &c.prep, f, &changes, stages)?;
+        Some((f, solved, t0.elapsed().as_secs_f64() / changes.len().max(1) as f64))
+    });
     for (number, candidate) in candidates.into_iter().enumerate() {
         let facing = number >= patches;
         // the count changes within the window alone: where the crossings there now are too few
@@ -965,21 +998,17 @@ fn turn_by_surface(
         if open_before.is_some_and(|open| !turns::clears_open_space(far, (open, 0))) {
             continue;
         }
-        let mut member = vec![false; c.normals.len()];
-        candidate.members.iter().for_each(|&i| member[i] = true);
-        let mut normals = c.normals.clone();
-        candidate.members.iter().for_each(|&i| normals[i] = normals[i].map(|v| -v));
-        // the off points of the patch change side where they stand
-        let mut off = c.off.clone();
-        for (side, &i) in off.side.iter_mut().zip(&off.source) {
-            if member[i] {
-                *side = -*side;
+        let (normals, off, prep) = turned(c, &candidate);
+        let tried = match &superposed {
+            Some((first, solved, seconds)) if change(&prep, c) == changes[number] => {
+                let kernel = fit.spline.kernel;
+                let base = fit.spline.weights.iter().chain(&fit.spline.poly);
+                let x = base.zip(&solved[number]).map(|(a, b)| a + b).collect();
+                check.superposed += 1;
+                dense::fitted_from_bordered(run, kernel, &prep, first, (x, *seconds), stages)
             }
-        }
-        let mut prep = c.prep.clone();
-        let off_values = off_values(&off, &data.points, &data.carrier, &data.norm);
-        prep.values[nd..nd + off_values.len()].copy_from_slice(&off_values);
-        let tried = refit(&prep, factor, stages)?;
+            _ => refit(&prep, factor, stages)?,
+        };
         check.tried += 1;
         check.facing += usize::from(facing);
         let (tried_values, after, kept) = stages.time(Stage::Turns, || {
@@ -996,6 +1025,8 @@ fn turn_by_surface(
             (tried_values, after, kept)
         });
         if let Some(by_open_space) = kept {
+            let mut tried = tried;
+            dense::check_residual(run, &prep, &mut tried, stages);
             (c.normals, c.off, c.prep, fit, far, values) = (normals, off, prep, tried, after, tried_values);
             check.turned += 1;
             check.turned_points += candidate.members.len();

@@ -205,6 +205,59 @@ pub(super) fn back_substitute(
     mu
 }
 
+/// The columns mu_j with L^T mu_j = z_j, as [`back_substitute`] gives each, for all columns of
+/// `z` (n x c, replicated) in one pass over L: the products of a panel's rows with the finished
+/// entries below it are one matrix product of c columns, so L is read once for all of them, not
+/// once per column. Collective; the columns (n x c) on every rank.
+pub(super) fn back_substitute_many(
+    job: &Job<'_>,
+    rows: &LocalRows,
+    (k, n): (usize, usize),
+    nb: usize,
+    z: MatRef<'_, f64>,
+) -> Mat<f64> {
+    let Job { comm, par, .. } = *job;
+    let lay = rows.layout;
+    let la = lay.first_local_from(n);
+    let c = z.ncols();
+    let mut mu = Mat::<f64>::zeros(n, c);
+    // this rank's rows of mu in local order, as they become final, for contiguous products
+    let mut mine = Mat::<f64>::zeros(la, c);
+    let mut q1 = n;
+    while q1 > k {
+        let q0 = q1.saturating_sub(nb).max(k);
+        let bs = q1 - q0;
+        let u0 = lay.first_local_from(q1);
+        let mut sums = Mat::<f64>::zeros(bs, c);
+        if u0 < la {
+            let below = rows.view().submatrix(u0, q0, la - u0, bs);
+            gemm(
+                sums.as_mut(),
+                Accum::Replace,
+                below.transpose(),
+                mine.as_ref().subrows(u0, la - u0),
+                1.0,
+                par,
+            );
+        }
+        let mut buf: Vec<f64> = (0..bs * c).map(|q| sums[(q % bs, q / bs)]).collect();
+        comm.sum_f64(&mut buf);
+        let d = rows.gather_rows(comm, q0, q1, q0, q1);
+        for j in 0..c {
+            for i in (0..bs).rev() {
+                let s: f64 = (i + 1..bs).map(|t| d[t * bs + i] * mu[(q0 + t, j)]).sum();
+                mu[(q0 + i, j)] = (z[(q0 + i, j)] - buf[j * bs + i] - s) / d[i * bs + i];
+            }
+        }
+        for l in lay.first_local_from(q0)..u0 {
+            let g = lay.global(l);
+            (0..c).for_each(|j| mine[(l, j)] = mu[(g, j)]);
+        }
+        q1 = q0;
+    }
+    mu
+}
+
 /// The Householder QR P = Q [R; 0] of the polynomial block, on every rank: R above the diagonal
 /// of the first k columns of `qr` (column-major, n rows), the tails of the reflectors below.
 pub(super) struct Border {

@@ -64,7 +64,7 @@ use faer::linalg::matmul::triangular::{self, BlockStructure};
 use faer::linalg::triangular_solve::{solve_lower_triangular_in_place, solve_upper_triangular_in_place};
 use faer::{Accum, Mat, MatRef};
 
-use super::cholesky::{back_substitute, cholesky_small, Border};
+use super::cholesky::{back_substitute, back_substitute_many, cholesky_small, Border};
 use super::solver::Job;
 use super::system::{all_gather_rows, LocalRows};
 use crate::error::{Error, Result};
@@ -352,8 +352,8 @@ pub fn extend_solve(job: &Job<'_>, first: &Factored, new: &Appended<'_>) -> Resu
         ))
     })?;
     let bordered = Bordered { m, x, l22, g, r_new, zg, qte, m_top };
-    let z1: Vec<f64> = (b0..la).map(|l| bordered.x.get(l, m)).collect();
-    let lambda = bordered.finish(job, first, &z1, &y_s);
+    let z1 = Mat::<f64>::from_fn(la - b0, 1, |i, _| bordered.x.get(b0 + i, m));
+    let lambda = bordered.finish(job, first, z1.as_ref(), &[y_s]).pop().expect("one right-hand side");
     Ok((lambda, bordered))
 }
 
@@ -362,16 +362,33 @@ pub fn extend_solve(job: &Job<'_>, first: &Factored, new: &Appended<'_>) -> Resu
 /// for the first one: a forward and a back substitution through the first factor and small
 /// products. Collective.
 pub fn solve_bordered(job: &Job<'_>, first: &Factored, bordered: &Bordered, rhs: &[f64]) -> Vec<f64> {
+    solve_bordered_many(job, first, bordered, &[rhs]).pop().expect("one right-hand side")
+}
+
+/// [`solve_bordered`] for several right-hand sides at once: the forward and the back
+/// substitution each read the distributed factor once for all of them, so a few more right-hand
+/// sides cost little more than one where the substitutions are bound by the memory they read
+/// (the factor's rows, n^2 / 2 entries over the ranks) rather than by their flops. Collective.
+pub fn solve_bordered_many(
+    job: &Job<'_>,
+    first: &Factored,
+    bordered: &Bordered,
+    rhs: &[&[f64]],
+) -> Vec<Vec<f64>> {
     let (k, n) = (first.border.k, first.border.n);
-    assert_eq!(rhs.len(), n + bordered.m, "the right-hand side has the bordered system's centres");
     let lay = first.rows.layout;
     let (la, b0) = (lay.first_local_from(n), lay.first_local_from(k));
-    let (y, y_s) = projected_rhs(first, &bordered.g, rhs);
-    let mut z = LocalRows::zeros(lay, 1, 0);
-    (b0..la).for_each(|l| z.set(l, 0, first.sign * y[lay.global(l)]));
+    let mut z = LocalRows::zeros(lay, rhs.len(), 0);
+    let mut y_s = Vec::with_capacity(rhs.len());
+    for (j, rhs) in rhs.iter().enumerate() {
+        assert_eq!(rhs.len(), n + bordered.m, "the right-hand side has the bordered system's centres");
+        let (y, ys) = projected_rhs(first, &bordered.g, rhs);
+        (b0..la).for_each(|l| z.set(l, j, first.sign * y[lay.global(l)]));
+        y_s.push(ys);
+    }
     forward_substitute(job, first, &mut z);
-    let z1: Vec<f64> = (b0..la).map(|l| z.get(l, 0)).collect();
-    bordered.finish(job, first, &z1, &y_s)
+    let z1 = z.view().submatrix(b0, 0, la - b0, rhs.len());
+    bordered.finish(job, first, z1, &y_s)
 }
 
 /// y = Q^T r_old (n) and y' = G^T [y_{0..k}; r_new] (k + m) of the right-hand side `rhs` of the
@@ -419,9 +436,16 @@ fn forward_substitute(job: &Job<'_>, first: &Factored, x: &mut LocalRows) {
 }
 
 impl Bordered {
-    /// The solution from z1 = s L^{-1} y_{k..n} (this rank's rows k..n) and y' of a right-hand
-    /// side. Collective.
-    fn finish(&self, job: &Job<'_>, first: &Factored, z1: &[f64], y_s: &[f64]) -> Vec<f64> {
+    /// The solutions from the columns of z1 = s L^{-1} y_{k..n} (this rank's rows k..n, one
+    /// column per right-hand side) and the y' of each right-hand side: one pass of the back
+    /// substitution through L for all of them. Collective.
+    fn finish(
+        &self,
+        job: &Job<'_>,
+        first: &Factored,
+        z1: MatRef<'_, f64>,
+        y_s: &[Vec<f64>],
+    ) -> Vec<Vec<f64>> {
         let comm = job.comm;
         let (k, n, m) = (first.border.k, first.border.n, self.m);
         let lay = first.rows.layout;
@@ -429,49 +453,63 @@ impl Bordered {
         let s = first.sign;
         let w = k + m;
         let nb = first.panel.max(1);
+        let c = z1.ncols();
 
         // L22 mu_new = s y'_{k..} - X^T z1, through L22 L22^T
         let xl = self.x.view().submatrix(b0, 0, la - b0, m);
-        let xtz = xl.transpose() * MatRef::from_column_major_slice(z1, la - b0, 1);
-        let mut buf: Vec<f64> = (0..m).map(|i| xtz[(i, 0)]).collect();
+        let xtz = xl.transpose() * z1;
+        let mut buf: Vec<f64> = (0..m * c).map(|q| xtz[(q % m, q / m)]).collect();
         comm.sum_f64(&mut buf);
-        let mut mu_new = Mat::<f64>::from_fn(m, 1, |i, _| s * y_s[k + i] - buf[i]);
+        let mut mu_new = Mat::<f64>::from_fn(m, c, |i, j| s * y_s[j][k + i] - buf[j * m + i]);
         solve_lower_triangular_in_place(self.l22.as_ref(), mu_new.as_mut(), faer::Par::Seq);
         solve_upper_triangular_in_place(self.l22.transpose(), mu_new.as_mut(), faer::Par::Seq);
 
         // L^T mu = z1 - X mu_new
         let xm = xl * &mu_new;
-        let send: Vec<f64> = (0..la - b0).map(|i| z1[i] - xm[(i, 0)]).collect();
-        let mut zz = vec![0.0; n];
-        zz[k..].copy_from_slice(&all_gather_rows(comm, lay, &send, k..n, 1));
-        let mu = back_substitute(comm, &first.rows, (k, n), nb, &zz);
+        let send: Vec<f64> = (0..(la - b0) * c).map(|q| z1[(q / c, q % c)] - xm[(q / c, q % c)]).collect();
+        let gathered = all_gather_rows(comm, lay, &send, k..n, c);
+        let mu = if c == 1 {
+            let mut zz = vec![0.0; n];
+            zz[k..].copy_from_slice(&gathered);
+            let mu = back_substitute(comm, &first.rows, (k, n), nb, &zz);
+            Mat::from_fn(n, 1, |i, _| mu[i])
+        } else {
+            let zz = Mat::<f64>::from_fn(n, c, |i, j| if i < k { 0.0 } else { gathered[(i - k) * c + j] });
+            back_substitute_many(job, &first.rows, (k, n), nb, zz.as_ref())
+        };
 
         // lambda' = Q' [0; mu; 0; mu_new]: H puts G [0; mu_new] on R's and the new coordinates
         let (g_first, g_null) = (self.g.as_ref().subcols(0, k), self.g.as_ref().subcols(k, m));
         let u = g_null * &mu_new;
-        let mut lambda = mu.clone();
-        (0..k).for_each(|i| lambda[i] = u[(i, 0)]);
-        first.border.q(&mut lambda);
-
+        let zgm = &self.zg * &mu_new;
         // R' c = y'_{0..k} - G_first^T [M_{0..k,k..n} mu + (Z G_n mu_new)_{0..k};
         //                               (Q^T E)_{k..n}^T mu + (Z G_n mu_new)_{k..}]
-        let zgm = &self.zg * &mu_new;
-        let mut h = vec![0.0; w];
-        for l in b0..la {
-            let mu_l = mu[lay.global(l)];
-            (0..m).for_each(|j| h[k + j] += self.qte[(l, j)] * mu_l);
+        let mut h = vec![0.0; w * c];
+        for j in 0..c {
+            let h = &mut h[j * w..(j + 1) * w];
+            for l in b0..la {
+                let mu_l = mu[(lay.global(l), j)];
+                (0..m).for_each(|t| h[k + t] += self.qte[(l, t)] * mu_l);
+            }
         }
         comm.sum_f64(&mut h);
-        for i in 0..k {
-            h[i] = (k..n).map(|j| self.m_top[i * n + j] * mu[j]).sum::<f64>();
-        }
-        (0..w).for_each(|i| h[i] += zgm[(i, 0)]);
-        let hm = MatRef::from_column_major_slice(&h, w, 1);
-        let mut cc = Mat::<f64>::from_fn(k, 1, |i, _| y_s[i]) - g_first.transpose() * hm;
-        solve_upper_triangular_in_place(self.r_new.as_ref(), cc.as_mut(), faer::Par::Seq);
-
-        lambda.extend((0..m).map(|j| u[(k + j, 0)]));
-        lambda.extend((0..k).map(|i| cc[(i, 0)]));
-        lambda
+        (0..c)
+            .map(|j| {
+                let mut lambda: Vec<f64> = (0..n).map(|i| mu[(i, j)]).collect();
+                (0..k).for_each(|i| lambda[i] = u[(i, j)]);
+                first.border.q(&mut lambda);
+                let h = &mut h[j * w..(j + 1) * w];
+                for i in 0..k {
+                    h[i] = (k..n).map(|t| self.m_top[i * n + t] * mu[(t, j)]).sum::<f64>();
+                }
+                (0..w).for_each(|i| h[i] += zgm[(i, j)]);
+                let hm = MatRef::from_column_major_slice(h, w, 1);
+                let mut cc = Mat::<f64>::from_fn(k, 1, |i, _| y_s[j][i]) - g_first.transpose() * hm;
+                solve_upper_triangular_in_place(self.r_new.as_ref(), cc.as_mut(), faer::Par::Seq);
+                lambda.extend((0..m).map(|t| u[(k + t, j)]));
+                lambda.extend((0..k).map(|i| cc[(i, 0)]));
+                lambda
+            })
+            .collect()
     }
 }

@@ -11,7 +11,7 @@
 //! layout [`solve_2d_keeping`], which moves the factor to the row-cyclic layout by all-to-all
 //! exchanges, [`LocalBlocks::to_row_cyclic`]) by appended centres, for a second fit that adds
 //! constraint points to the first; [`solve_bordered`] solves the bordered system again for other
-//! values of the same centres.
+//! values of the same centres, [`solve_bordered_many`] for several at once.
 //!
 //! Every solver takes the panel width nb and a `faer::Par`. The panel kernels and the
 //! collectives are serial; the `Par` goes to the local GEMMs and triangular solves of the
@@ -38,7 +38,9 @@ mod test_support;
 
 pub use cholesky::cholesky_solve;
 pub use cholesky2d::cholesky2d_solve;
-pub use extend::{extend_solve, solve_bordered, Appended, Bordered, Factored, KEPT_SHARE};
+pub use extend::{
+    extend_solve, solve_bordered, solve_bordered_many, Appended, Bordered, Factored, KEPT_SHARE,
+};
 pub use grid::{squarest, BlockCyclic, Layout, LocalBlocks, ProcessGrid};
 pub use householder::householder_solve;
 pub use householder2d::householder2d_solve;
