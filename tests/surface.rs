@@ -554,11 +554,11 @@ fn patches_turned_by_the_ray_test_are_the_same_on_one_two_and_three_ranks() {
     assert!(turns.turned > 0 && turns.after < turns.before, "{turns:?}");
     // the second fit borders the first's factor (its off points changed side, blob points added)
     let reports = fits_match_the_oracle(&dir, &input, &oracle, "cholesky", &UNIFORM, &NO_CHOICE);
-    // the tries were the kept fit's solution plus columns of one solve of all candidates'
+    // the tries were the kept fit's solution plus columns of one solve of the candidates'
     // changes, and the turns they kept are those of the oracle's separate solves
     for text in &reports {
         let tried = text.split_once("; turns: ").and_then(|(_, t)| t.split(' ').nth(2)).unwrap();
-        let together = format!(", {tried} tried by one solve of all candidates' changes");
+        let together = format!(", {tried} tried by one solve of the candidates' changes");
         assert!(text.contains(&together), "not \"{together}\" in {text}");
     }
 }

@@ -112,8 +112,10 @@
 //! substitution through the distributed factor plus products with the small blocks of the
 //! border, O(n^2) flops instead of the O(n^2 m) of bordering again. The system is linear in its
 //! values: with M the bordered matrix, a try whose values differ from the kept fit's by d has
-//! the solution x + M^{-1} d, x the kept fit's. So the changes d of all candidates are solved
-//! before the first try, as columns of one forward and one back substitution: the
+//! the solution x + M^{-1} d, x the kept fit's. So when the first candidate comes to its try,
+//! its change d and those of all candidates after it are solved together, as columns of one
+//! forward and one back substitution (nothing is solved where every candidate is passed over
+//! before its try): the
 //! substitutions read the whole factor (n^2 / 2 entries over the ranks) and do 2 flops per entry
 //! and column, so they are bound by memory for a few columns, and nine candidates cost about
 //! three single solves (0.046 s against 0.016 s each on a cow at 4000 points, 5556 rows on
@@ -171,7 +173,7 @@ pub struct TurnCheck {
     /// for a turn to be kept is passed over), and those turned with their points.
     pub tried: usize,
     /// Tries whose fit is the kept fit's solution plus their candidate's column of the one solve
-    /// for all candidates' changes (the others were solved alone).
+    /// of the candidates' changes (the others were solved alone).
     pub superposed: usize,
     pub turned: usize,
     pub turned_points: usize,

@@ -788,7 +788,7 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
                 },
                 match t.superposed {
                     0 => String::new(),
-                    k => format!(", {k} tried by one solve of all candidates' changes"),
+                    k => format!(", {k} tried by one solve of the candidates' changes"),
                 },
                 t.before,
                 t.after

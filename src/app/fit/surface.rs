@@ -899,11 +899,16 @@ fn second_round(
     Ok((fit, values))
 }
 
+/// The solutions of the turn tries' changes of values with a bordered factor (see
+/// [`turn_by_surface`]): the factor, one solution per candidate from the first solved, and the
+/// seconds per solution.
+type Superposed<'a> = (&'a KeptFactor, Vec<Vec<f64>>, f64);
+
 /// `fit` of `c.prep` after the small patches of the normals whose turn shrinks the surface no
 /// data supports are turned, one candidate after the other (see [`crate::surface::turns`]): each
 /// candidate changes only the values of its off points, so its fit is a solve with `factor`, the
 /// fit's own (bordered) factor, where there is one (else a fresh fit of a small system): the
-/// kept fit's solution plus the candidate's column of one solve for all candidates' changes,
+/// kept fit's solution plus the candidate's column of one solve of the candidates' changes,
 /// where no kept turn changed the same values (see "Cost" in [`crate::surface::turns`]), and only
 /// the lattice around the patch is sampled again, and its crossings counted again (a patch whose
 /// window holds too few unsupported crossings for their removal to be a gain is passed over
@@ -968,15 +973,13 @@ fn turn_by_surface(
         prep.values.iter().zip(&c.prep.values).map(|(v, w)| v - w).collect()
     };
     // the system is linear and a try changes values alone: with a bordered factor of these
-    // centres, the solutions for every candidate's change come from one pass through it, and a
-    // try's fit is the kept fit's solution plus its candidate's (where no turn kept before it
-    // changed the same values)
+    // centres, a try's fit is the kept fit's solution plus the solution for its candidate's
+    // change (where no turn kept before it changed the same values); the changes of the first
+    // candidate that comes to a try and of all after it are solved then, together, in one pass
+    // through the factor (none where every candidate is passed over). `superposed`: that first
+    // candidate and the solutions, with the factor and the seconds per solution
     let changes: Vec<Vec<f64>> = candidates.iter().map(|cd| change(&turned(c, cd).2, c)).collect();
-    let superposed = factor.and_then(|f| {
-        let t0 = std::time::Instant::now();
-        let solved = dense::solve_many(run, &c.prep, f, &changes, stages)?;
-        Some((f, solved, t0.elapsed().as_secs_f64() / changes.len().max(1) as f64))
-    });
+    let mut superposed: Option<(usize, Option<Superposed<'_>>)> = None;
     for (number, candidate) in candidates.into_iter().enumerate() {
         let facing = number >= patches;
         // the count changes within the window alone: where the crossings there now are too few
@@ -999,11 +1002,19 @@ fn turn_by_surface(
             continue;
         }
         let (normals, off, prep) = turned(c, &candidate);
-        let tried = match &superposed {
+        let (from, solved) = superposed.get_or_insert_with(|| {
+            let t0 = std::time::Instant::now();
+            let solved = factor.and_then(|f| {
+                let solved = dense::solve_many(run, &c.prep, f, &changes[number..], stages)?;
+                Some((f, solved, t0.elapsed().as_secs_f64() / (changes.len() - number) as f64))
+            });
+            (number, solved)
+        });
+        let tried = match solved {
             Some((first, solved, seconds)) if change(&prep, c) == changes[number] => {
                 let kernel = fit.spline.kernel;
                 let base = fit.spline.weights.iter().chain(&fit.spline.poly);
-                let x = base.zip(&solved[number]).map(|(a, b)| a + b).collect();
+                let x = base.zip(&solved[number - *from]).map(|(a, b)| a + b).collect();
                 check.superposed += 1;
                 dense::fitted_from_bordered(run, kernel, &prep, first, (x, *seconds), stages)
             }
