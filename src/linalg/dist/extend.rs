@@ -75,7 +75,7 @@ use faer::linalg::matmul::triangular::{self, BlockStructure};
 use faer::linalg::triangular_solve::{solve_lower_triangular_in_place, solve_upper_triangular_in_place};
 use faer::{Accum, Mat, MatRef};
 
-use super::cholesky::{back_substitute, back_substitute_many, cholesky_small, Border};
+use super::cholesky::{back_substitute_many, cholesky_small, Border};
 use super::solver::Job;
 use super::system::{all_gather_rows, LocalRows};
 use crate::error::{Error, Result};
@@ -520,15 +520,8 @@ impl Bordered {
         let xm = &self.y * &u;
         let send: Vec<f64> = (0..(la - b0) * c).map(|q| z1[(q / c, q % c)] - xm[(q / c, q % c)]).collect();
         let gathered = all_gather_rows(comm, lay, &send, k..n, c);
-        let mu = if c == 1 {
-            let mut zz = vec![0.0; n];
-            zz[k..].copy_from_slice(&gathered);
-            let mu = back_substitute(comm, &first.rows, (k, n), nb, &zz);
-            Mat::from_fn(n, 1, |i, _| mu[i])
-        } else {
-            let zz = Mat::<f64>::from_fn(n, c, |i, j| if i < k { 0.0 } else { gathered[(i - k) * c + j] });
-            back_substitute_many(job, &first.rows, (k, n), nb, zz.as_ref())
-        };
+        let zz = Mat::<f64>::from_fn(n, c, |i, j| if i < k { 0.0 } else { gathered[(i - k) * c + j] });
+        let mu = back_substitute_many(job, &first.rows, (k, n), nb, zz.as_ref());
 
         // lambda' = Q' [0; mu; 0; mu_new]: H puts G [0; mu_new] on R's and the new coordinates
         let zgm = &self.zg * &mu_new;
