@@ -394,12 +394,22 @@ fn serial_offsurface(read: &[f64], rate: OffRates, choose: bool, turns: bool) ->
             } else {
                 turns::keeps_by(far.len(), after.len(), open)
             };
-            if let Some(by_open_space) = kept {
+            // either, where no count keeps it, as the smoother spline
+            let energy =
+                |spline: &Spline, system: &Prepared| turns::bending_energy(&spline.weights, &system.values);
+            let smoother = kept.is_none()
+                && turns::keeps_smoother(
+                    far.len(),
+                    after.len(),
+                    (energy(&spline, &system), energy(&tried_spline, &tried)),
+                );
+            if let Some(by_open_space) = kept.or(smoother.then_some(false)) {
                 (normals, off, system, spline) = (turned_normals, turned_off, tried, tried_spline);
                 (values, far) = (tried_values, after);
                 check.turned += 1;
                 check.turned_points += candidate.members.len();
                 check.by_open_space += usize::from(by_open_space);
+                check.smoother += usize::from(smoother);
                 check.facing_turned += usize::from(number >= patches);
             }
         }
@@ -891,8 +901,8 @@ fn solid_the_pins_took_from_a_thinly_sampled_leg_is_given_back() {
     // benchmark): a front leg carries 3 of them. The first fit has it; the 200 pins of the blob
     // search, none near it, sink it below the lattice, and the mesh loses it. The nodes of the
     // points that lost their solid, inside the data's surface, get the first fit's values back.
-    // Measured (grid 64): truth -> mesh rms 2.61 % of the diagonal without, 1.34 % with; mesh ->
-    // truth 0.662 % and 0.677 %
+    // Measured (grid 64): truth -> mesh rms 2.09 % of the diagonal without, 1.28 % with; mesh ->
+    // truth 0.652 % and 0.714 %
     let (truth, pts, diag) = cow_sample("cow-400-seed6");
     let complete = |mesh: &volspline::mesh::TriMesh| truth_to_mesh(&truth, mesh, diag);
     let (off, _, off_line) =
@@ -904,7 +914,7 @@ fn solid_the_pins_took_from_a_thinly_sampled_leg_is_given_back() {
     println!("with: {on_line}\n  truth -> mesh {t_on:.5}, mesh -> truth {m_on:.5}");
     assert!(!off_line.contains("solid lost"), "{off_line}");
     assert!(on_line.contains("given back at") && on_line.contains(": kept"), "{on_line}");
-    assert!(t_on < 0.018 && t_off > 0.022, "truth -> mesh {t_on} with, {t_off} without");
+    assert!(t_on < 0.016 && t_off > 0.019, "truth -> mesh {t_on} with, {t_off} without");
     assert!(m_on < 0.0075, "mesh -> truth {m_on} with ({m_off} without)");
 }
 
@@ -1395,9 +1405,9 @@ fn trimming_leaves_out_the_unsupported_surface_of_the_cow_and_keeps_the_rest() {
     // the cow set of the blob test above: its closed solid keeps bulges and webs no data
     // supports; `--trim` writes beside the closed surface one without the regions of triangles
     // farther than twice the median spacing from every data point that reach twice as far or
-    // stand that spacing off the plane of the nearest data. Measured (grid 64, 2 ranks): five
-    // regions standing off, 1.24 % of the area, left out; mesh -> cow rms 0.424 -> 0.359 % of the
-    // diagonal, vertices beyond 2 % 0.90 -> 0.29 %
+    // stand that spacing off the plane of the nearest data. Measured (grid 64, 2 ranks): four
+    // regions standing off, 0.83 % of the area, left out; mesh -> cow rms 0.350 -> 0.319 % of the
+    // diagonal, vertices beyond 2 % 0.48 -> 0.14 %
     let truth = common::load_mesh(Path::new(common::COW));
     let pts = area_samples(&truth, 1000, 7);
     let (dir, text) = fit_trimmed("cow-trim", &pts, "64");
@@ -1431,7 +1441,7 @@ fn trimming_leaves_out_the_unsupported_surface_of_the_cow_and_keeps_the_rest() {
         assert!(text.lines().any(|l| l.trim_start().starts_with(stage)), "no {stage} row:\n{text}");
     }
     assert!(
-        rms_trimmed < 0.9 * rms_closed && far_trimmed < 0.5 * far_closed,
+        rms_trimmed < 0.95 * rms_closed && far_trimmed < 0.5 * far_closed,
         "mesh -> cow rms {rms_closed} -> {rms_trimmed}, far {far_closed} -> {far_trimmed}"
     );
     let judged = trim_oracle(&pts, &closed, &trimmed, &text);
@@ -1939,9 +1949,9 @@ fn off_points_at_the_mouth_of_a_hole_hold_the_cap_over_the_cow() {
     // benchmark), grid 64: the cap the fit puts over the hole sags into the solid; the points
     // nearest to 3 or more unsupported crossings in the hole's mouth, held on both sides, keep
     // the slope of the surface at the rim and lift the cap: 7 off points (of the rim's points)
-    // for 223 crossings in the mouth. Measured: truth -> cow (all its vertices) rms 2.27 -> 1.79
-    // % of the diagonal, mesh -> cow 0.520 -> 0.503 % with 1.95 -> 1.55 % of the vertices beyond
-    // 2 %
+    // for 212 crossings in the mouth (after a patch turned as the smoother spline). Measured:
+    // truth -> cow (all its vertices) rms 2.26 -> 1.79 % of the diagonal, mesh -> cow 0.495 ->
+    // 0.477 % with 1.66 -> 1.26 % of the vertices beyond 2 %
     let (truth, pts, diag) = cow_sample(MOUTH_COW);
     let complete = |mesh: &volspline::mesh::TriMesh| truth_to_mesh(&truth, mesh, diag);
     let (off, _, off_line) = fit_mesh("cow-mouth-off", &pts, "64", &["--mouth-points", "off"]);
@@ -1951,7 +1961,7 @@ fn off_points_at_the_mouth_of_a_hole_hold_the_cap_over_the_cow() {
     println!("without: {off_line}\n  mesh -> truth {m_off:.5} (far {f_off:.5}), truth -> mesh {t_off:.5}");
     println!("with: {on_line}\n  mesh -> truth {m_on:.5} (far {f_on:.5}), truth -> mesh {t_on:.5}");
     assert!(!off_line.contains("mouth points"), "{off_line}");
-    assert!(on_line.contains("mouth points: 7 for 223 crossings in the mouths of holes"), "{on_line}");
+    assert!(on_line.contains("mouth points: 7 for 212 crossings in the mouths of holes"), "{on_line}");
     assert!(t_on < 0.0190 && t_off > 0.021, "truth -> mesh with {t_on}, without {t_off}");
     assert!(m_on < 0.0052 && f_on < 0.017, "with: mesh -> cow rms {m_on}, far {f_on}");
 }
@@ -2001,6 +2011,25 @@ fn turning_a_patch_of_a_small_system_removes_unsupported_surface_on_the_bunny() 
         rms_on < 0.9 * rms_off && far_on < 0.7 * far_off,
         "rms {rms_off} -> {rms_on}, far {far_off} -> {far_on}"
     );
+}
+
+#[test]
+fn a_patch_whose_turn_smooths_the_spline_is_turned_on_an_open_cow() {
+    // 1000 area-uniform samples of the cow with a ball of 15 % of the diagonal around its rump
+    // left out (tests/data/cow-1000-open-seed8.xyz, seed 8's cow-1000-open of the surface
+    // benchmark), grid 64, one rank: the patch tried second removes 20 of the 431 unsupported
+    // crossings left after the first turn (4.6 %, under the twentieth a count keeps) and takes
+    // 0.22 % of the bending energy off, so it is turned as the smoother spline. Measured:
+    // without that rule (the same build with it off) mesh -> cow rms 0.516 % of the diagonal,
+    // 1.77 % of the vertices beyond 2 %, truth -> mesh 1.66 %; with it 0.475 %, 1.26 % and 1.62 %
+    let (truth, pts, diag) = cow_sample("cow-1000-open-seed8");
+    let (mesh, _, line) = fit_mesh("cow-smoother-turn", &pts, "64", &[]);
+    let (rms, far) = mesh_to_truth(&truth, &mesh);
+    let complete = truth_to_mesh(&truth, &mesh, diag);
+    println!("{line}\n  mesh -> cow rms {rms:.5}, far {far:.5}, truth -> mesh {complete:.5}");
+    assert!(line.contains("turns: 2 of 6 patches tried (22 points) turned (1 as smoother)"), "{line}");
+    assert!(rms < 0.0050 && far < 0.015, "mesh -> cow rms {rms}, far {far}");
+    assert!(complete < 0.0166, "truth -> mesh {complete}");
 }
 
 /// 2000 area-uniform samples of the bunny (seed 3) with Gaussian noise of 0.5 % of the diagonal

@@ -601,6 +601,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
                 ("turns_superposed", t.superposed),
                 ("turns_turned", t.turned),
                 ("turns_by_open_space", t.by_open_space),
+                ("turns_smoother", t.smoother),
                 ("turns_facing_tried", t.facing),
                 ("turns_facing_turned", t.facing_turned),
                 ("turns_unsupported_before", t.before),
@@ -774,9 +775,11 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
                 t.tried,
                 if t.facing > 0 { "patches and groups" } else { "patches" },
                 t.turned_points,
-                match t.by_open_space {
-                    0 => String::new(),
-                    k => format!(" ({k} by open space)"),
+                match (t.by_open_space, t.smoother) {
+                    (0, 0) => String::new(),
+                    (k, 0) => format!(" ({k} by open space)"),
+                    (0, m) => format!(" ({m} as smoother)"),
+                    (k, m) => format!(" ({k} by open space, {m} as smoother)"),
                 },
                 match (t.facing, t.facing_turned) {
                     (0, _) => String::new(),

@@ -1035,13 +1035,21 @@ fn turn_by_surface(
             };
             (tried_values, after, kept)
         });
-        if let Some(by_open_space) = kept {
+        // a try no count keeps is kept where it removes some unsupported surface and the spline
+        // through its values is smoother
+        let smoother = kept.is_none() && {
+            let energy =
+                |fit: &Fitted, prep: &Prepared| turns::bending_energy(&fit.spline.weights, &prep.values);
+            turns::keeps_smoother(far, after, (energy(&fit, &c.prep), energy(&tried, &prep)))
+        };
+        if let Some(by_open_space) = kept.or(smoother.then_some(false)) {
             let mut tried = tried;
             dense::check_residual(run, &prep, &mut tried, stages);
             (c.normals, c.off, c.prep, fit, far, values) = (normals, off, prep, tried, after, tried_values);
             check.turned += 1;
             check.turned_points += candidate.members.len();
             check.by_open_space += usize::from(by_open_space);
+            check.smoother += usize::from(smoother);
             check.facing_turned += usize::from(facing);
         }
     }
