@@ -440,6 +440,7 @@ pub fn keeps_group(before: usize, after: usize, open: impl FnOnce() -> (usize, u
 /// the spline's energy semi-norm (a multiple of the integral of its squared Laplacian), >= 0.
 /// The interpolant has the least of it among all functions through the same values.
 pub fn bending_energy(weights: &[f64], values: &[f64]) -> f64 {
+    debug_assert_eq!(weights.len(), values.len(), "one value per weight");
     -weights.iter().zip(values).map(|(w, r)| w * r).sum::<f64>()
 }
 
