@@ -1994,6 +1994,63 @@ fn the_tip_of_an_ear_is_no_rim_of_a_hole() {
 }
 
 #[test]
+fn both_side_votes_keep_the_fit_with_less_unsupported_surface_on_one_and_two_ranks() {
+    // the set of the test above, grid 64: --orient-side both fits without and with the side
+    // vote and keeps the one whose surface crosses fewer lattice cells away from the data
+    let truth = common::load_mesh(Path::new(common::BUNNY));
+    let pts = read_back(&sample_path(FOLD_BUNNY));
+    let (plain, _, _) = fit_mesh("bunny-side-off", &pts, "64", &[]);
+    let (side, _, _) = fit_mesh("bunny-side-on", &pts, "64", &["--orient-side", "on"]);
+    let dir = common::temp_dir("bunny-side-both");
+    let input = dir.join("p.xyz");
+    common::write_xyz(&input, &pts);
+    let run = |ranks: usize, tag: &str| {
+        let (prefix, csv) = (dir.join(tag), dir.join(format!("{tag}.csv")));
+        let args = [
+            "fit",
+            input.to_str().unwrap(),
+            "--out",
+            prefix.to_str().unwrap(),
+            "--grid",
+            "64",
+            "--orient-side",
+            "both",
+            "--timings",
+            csv.to_str().unwrap(),
+        ];
+        let text = common::run_ok(ranks, &args);
+        let choice = text.lines().find(|l| l.contains("--orient-side both: unsupported crossings"));
+        let timings = std::fs::read_to_string(&csv).unwrap();
+        (common::load_mesh(&dir.join(format!("{tag}.ply"))), choice.unwrap_or_default().to_string(), timings)
+    };
+    let (both, choice_one, timings) = run(1, "one");
+    let (two, choice_two, _) = run(2, "two");
+    let [(rms_plain, far_plain), (rms_side, far_side), (rms_both, far_both)] =
+        [&plain, &side, &both].map(|m| mesh_to_truth(&truth, m));
+    println!(
+        "{choice_one}\n  mesh -> bunny rms / far: off {rms_plain:.5} / {far_plain:.5}, on {rms_side:.5} / \
+         {far_side:.5}, both {rms_both:.5} / {far_both:.5}"
+    );
+    assert!(choice_one.contains("the fit with the side vote kept"), "{choice_one}");
+    assert!(timings.contains("side_choice_kept,with"), "{timings}");
+    // the fit kept is the one with the side vote, to the vertex
+    assert_eq!(both.vertices.len(), side.vertices.len());
+    assert_eq!((rms_both, far_both), (rms_side, far_side));
+    assert!(rms_both < 0.9 * rms_plain, "mesh -> bunny rms {rms_plain} -> {rms_both}");
+    // two ranks make the same choice from the same counts
+    assert_eq!(choice_one, choice_two);
+    assert_eq!(two.vertices.len(), both.vertices.len());
+    // the two-level compactly supported fit does not make its dense fit twice: refused
+    let prefix = dir.join("csrbf");
+    let args = ["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--method", "csrbf"];
+    let out = common::run(1, &[&args[..], &["--surface", "offsurface", "--orient-side", "both"]].concat());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("--orient-side both makes the dense off-surface fit twice"), "{err}");
+    assert!(!prefix.with_extension("ply").exists());
+}
+
+#[test]
 fn turning_a_patch_of_a_small_system_removes_unsupported_surface_on_the_bunny() {
     // the set of the test above with the default rates, grid 64: of five patches tried, two of
     // 10 points in all turned by fresh fits, unsupported crossings 427 -> 293; three groups

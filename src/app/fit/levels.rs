@@ -32,7 +32,7 @@ use super::surface::{check_first_fit, constrain, spilling, SurfaceSummary};
 use super::{dense, Fitted, Run};
 use crate::app::preflight::{dense_fit_bytes, largest_fitting};
 use crate::app::stages::{Stage, Stages};
-use crate::cli::FitArgs;
+use crate::cli::{FitArgs, SideVote};
 use crate::error::{Error, Result};
 use crate::par::Comm;
 use crate::spline::compact::DEFAULT_NEIGHBOURS;
@@ -174,7 +174,7 @@ pub fn fit(
     let mut inner = Stages::default();
     let keep = even_subsample(&prep.centres, coarse_points);
     let sub = restrict(prep, &keep);
-    let mut constrained = constrain(run, &sub, None, &mut inner)?;
+    let mut constrained = constrain(run, &sub, None, run.args.orient_side == SideVote::On, &mut inner)?;
     let r = Kernel::new(3, 2)?.with_smoothing(run.args.smooth)?;
     let mut refit =
         |p: &Prepared, first: Option<&dense::KeptFactor>, st: &mut Stages| dense::refit(run, r, p, first, st);

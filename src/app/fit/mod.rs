@@ -18,7 +18,7 @@ use super::render::{preview_view, write_picture};
 use super::report::{run_provenance, Report};
 use super::stages::{Stage, Stages};
 use super::volume::{check_grid, output_path, throughput_line, write_volume, Volume};
-use crate::cli::{FitArgs, KernelChoice, Method};
+use crate::cli::{FitArgs, KernelChoice, Method, SideVote};
 use crate::error::{Error, Result};
 use crate::frep::raycast::Colouring;
 use crate::frep::{Implicit, ModelSolid};
@@ -311,6 +311,13 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             if off { "the two-level compactly supported one" } else { "the plain carrier method" }
         )));
     }
+    if a.orient_side == SideVote::Both && off && two_level.is_some() {
+        return Err(Error::Usage(
+            "--orient-side both makes the dense off-surface fit twice; this fit is the two-level compactly \
+             supported one (use --method dense, or --orient-side on or off)"
+                .to_string(),
+        ));
+    }
     // auto: the scale test of the quadrics' misfit on the unoriented normals
     let (auto, mut hoods) = match a.denoise.0 {
         None if off && two_level.is_none() => {
@@ -345,11 +352,18 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         )
     });
     // the projection's report: moved points, and the noise estimate and longest move in the
-    // data's units
-    let (prep, denoised) = if denoise {
-        let (moved, d) = surface::denoise(&run, &prep, hoods.take(), &mut stages)?;
-        let scale = prep.norm.scale;
-        let line = format!(
+    // data's units; the normals it projects along oriented with the side vote where `side`
+    let original = prep;
+    let denoise_step =
+        |side: bool, hoods: &mut Option<crate::surface::Neighbourhoods>, stages: &mut Stages| {
+            if !denoise {
+                let line = auto.map(|_| (format!("denoise: {auto_part}not applied"), 0, 0.0, 0.0));
+                return Ok((original.clone(), line));
+            }
+            let prep = &original;
+            let (moved, d) = surface::denoise(&run, prep, hoods.take(), side, stages)?;
+            let scale = prep.norm.scale;
+            let line = format!(
             "denoise: {auto_part}{} of {n} points moved onto quadrics of their same-sheet neighbours, noise \
              estimate {:.3e} ({:.3} % of the diagonal), longest move {:.3e}",
             d.moved,
@@ -357,15 +371,16 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             100.0 * d.noise / 2.0,
             d.max_move * scale
         );
-        if comm.rank() == 0 {
-            crate::note!("volspline fit: {line}");
-        }
-        (moved, Some((line, d.moved, d.noise * scale, d.max_move * scale)))
-    } else {
-        (prep, auto.map(|_| (format!("denoise: {auto_part}not applied"), 0, 0.0, 0.0)))
-    };
+            if comm.rank() == 0 {
+                crate::note!("volspline fit: {line}");
+            }
+            Ok::<_, Error>((moved, Some((line, d.moved, d.noise * scale, d.max_move * scale))))
+        };
     let two_levels = two_level.is_some();
-    let (fitted, summary, method, kernel, why) = if let Some((method, kernel, why)) = two_level {
+    let (prep, denoised, fitted, summary, method, kernel, why) = if let Some((method, kernel, why)) =
+        two_level
+    {
+        let (prep, denoised) = denoise_step(a.orient_side == SideVote::On, &mut hoods, &mut stages)?;
         warn_idle_options(comm, a, off, method, true);
         // level 0 takes as many points as its dense fit has room for, up to --coarse-points
         let coarse = levels::level0_points(a, n, machine)?;
@@ -390,63 +405,96 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         check_grid(comm, &grid, a.grid.curvature)?;
         let (fitted, summary) = levels::fit(&run, kernel, &prep, coarse, &mut stages)?;
         super::finite::check_fit(&fitted, &prep)?;
-        (fitted, Some(summary), method, kernel, why)
+        (prep, denoised, fitted, Some(summary), method, kernel, why)
     } else {
-        let mut constrained =
-            if off { Some(surface::constrain(&run, &prep, hoods.take(), &mut stages)?) } else { None };
-        // the spline's centres and values: the data's, with the off-surface points after them
-        let fit_prep = constrained.as_ref().map_or(&prep, |c| &c.prep);
-        let first_summary = constrained.as_ref().map(|c| c.summary.clone());
-        let rows = fit_prep.values.len();
-        let (method, kernel, why) = choose(a, rows, machine, &fit_prep.centres)?;
-        warn_idle_options(comm, a, off, method, false);
-        if comm.rank() == 0 {
-            crate::note!(
-                "volspline fit: {points_read} points read from {}, {} duplicates merged, N = {n}{}, kernel {}, carrier {}",
-                a.input.display(),
-                prep.merged,
-                first_summary.as_ref().map_or(String::new(), |s| format!(" + {} off-surface points", s.off_points)),
-                kernel.name(),
-                prep.carrier
-            );
-        }
-        if method != Method::Csrbf {
-            dense::check(comm, &kernel, rows, a)?;
-        }
-        check_grid(comm, &grid, a.grid.curvature)?;
-        // the second fit against spurious blobs has more rows: checked again
-        let mut fit_with = |p: &Prepared, first: Option<&dense::KeptFactor>, stages: &mut Stages| match method
-        {
-            Method::Dense | Method::Auto => dense::refit(&run, kernel, p, first, stages),
-            Method::Csrbf => compact::fit(&run, kernel, p, None, stages),
-        };
-        // a first fit that may be followed by a second keeps its factor for it
-        let mut fitted = match method {
-            Method::Dense | Method::Auto => dense::fit(&run, kernel, fit_prep, off, &mut stages)?,
-            Method::Csrbf => compact::fit(&run, kernel, fit_prep, None, &mut stages)?,
-        };
-        if let Some(c) = constrained.as_mut() {
-            // a sheet thinner than the sampling oriented alike on both sides: normals by side
-            if matches!(method, Method::Dense | Method::Auto) {
-                if let Some(again) = surface::spilling(&run, kernel, &prep, c, &mut fitted, &mut stages)? {
-                    fitted = again;
-                }
+        // the fit from the off-surface points on (the plain carrier's where there are none), with
+        // the normals oriented with the side vote or without it
+        let single = |side: bool,
+                      mut hoods: Option<crate::surface::Neighbourhoods>,
+                      stages: &mut Stages,
+                      first: bool|
+         -> Result<_> {
+            let (prep, denoised) = denoise_step(side, &mut hoods, stages)?;
+            let mut constrained =
+                if off { Some(surface::constrain(&run, &prep, hoods, side, stages)?) } else { None };
+            // the spline's centres and values: the data's, with the off-surface points after them
+            let fit_prep = constrained.as_ref().map_or(&prep, |c| &c.prep);
+            let first_summary = constrained.as_ref().map(|c| c.summary.clone());
+            let rows = fit_prep.values.len();
+            let (method, kernel, why) = choose(a, rows, machine, &fit_prep.centres)?;
+            if first {
+                warn_idle_options(comm, a, off, method, false);
             }
-            let rows = c.prep.values.len();
-            // the second fits append at most as many centres as the ranks have room for
-            let room = match method {
-                Method::Dense | Method::Auto => {
-                    let most = surface::most_appended(&prep, c, a.grid.margin.fraction);
-                    dense::appendable(&run, kernel, rows, fitted.factor.as_ref(), most)
-                }
-                Method::Csrbf => usize::MAX,
+            if comm.rank() == 0 {
+                crate::note!(
+                    "volspline fit: {points_read} points read from {}, {} duplicates merged, N = {n}{}, kernel {}, carrier {}",
+                    a.input.display(),
+                    prep.merged,
+                    first_summary.as_ref().map_or(String::new(), |s| format!(" + {} off-surface points", s.off_points)),
+                    kernel.name(),
+                    prep.carrier
+                );
+            }
+            if method != Method::Csrbf {
+                dense::check(comm, &kernel, rows, a)?;
+            }
+            check_grid(comm, &grid, a.grid.curvature)?;
+            // the second fit against spurious blobs has more rows: checked again
+            let mut fit_with =
+                |p: &Prepared, first: Option<&dense::KeptFactor>, stages: &mut Stages| match method {
+                    Method::Dense | Method::Auto => dense::refit(&run, kernel, p, first, stages),
+                    Method::Csrbf => compact::fit(&run, kernel, p, None, stages),
+                };
+            // a first fit that may be followed by a second keeps its factor for it
+            let mut fitted = match method {
+                Method::Dense | Method::Auto => dense::fit(&run, kernel, fit_prep, off, stages)?,
+                Method::Csrbf => compact::fit(&run, kernel, fit_prep, None, stages)?,
             };
-            fitted = surface::check_first_fit(&run, &prep, c, fitted, &mut stages, &mut fit_with, room)?;
+            if let Some(c) = constrained.as_mut() {
+                // a sheet thinner than the sampling oriented alike on both sides: normals by side
+                if matches!(method, Method::Dense | Method::Auto) {
+                    if let Some(again) = surface::spilling(&run, kernel, &prep, c, &mut fitted, stages)? {
+                        fitted = again;
+                    }
+                }
+                let rows = c.prep.values.len();
+                // the second fits append at most as many centres as the ranks have room for
+                let room = match method {
+                    Method::Dense | Method::Auto => {
+                        let most = surface::most_appended(&prep, c, a.grid.margin.fraction);
+                        dense::appendable(&run, kernel, rows, fitted.factor.as_ref(), most)
+                    }
+                    Method::Csrbf => usize::MAX,
+                };
+                fitted = surface::check_first_fit(&run, &prep, c, fitted, stages, &mut fit_with, room)?;
+            }
+            Ok((prep, denoised, fitted, constrained, method, kernel, why))
+        };
+        let side = a.orient_side == SideVote::On;
+        let (mut prep, mut denoised, mut fitted, mut constrained, mut method, mut kernel, mut why) =
+            single(side, hoods.take(), &mut stages, true)?;
+        if off && a.orient_side == SideVote::Both {
+            // the fit with the side vote as well: kept where its surface crosses fewer lattice
+            // cells away from the data
+            fitted.factor = None;
+            let other = single(true, None, &mut stages, false)?;
+            let without = constrained.as_ref().and_then(|c| surface::unsupported_left(&c.summary));
+            let with = other.3.as_ref().and_then(|c| surface::unsupported_left(&c.summary));
+            let keep = matches!((without, with), (Some(x), Some(y)) if y < x);
+            if comm.rank() == 0 {
+                crate::note!("{}", surface::side_choice_line(without, with, keep));
+            }
+            if keep {
+                (prep, denoised, fitted, constrained, method, kernel, why) = other;
+            }
+            if let Some(c) = constrained.as_mut() {
+                c.summary.side_choice = Some((without, with, keep));
+            }
         }
         let fit_prep = constrained.as_ref().map_or(&prep, |c| &c.prep);
         let summary = constrained.as_ref().map(|c| c.summary.clone());
         super::finite::check_fit(&fitted, fit_prep)?;
-        (fitted, summary, method, kernel, why)
+        (prep, denoised, fitted, summary, method, kernel, why)
     };
     let levels: Vec<&Spline> = fitted.coarse.iter().chain(std::iter::once(&fitted.spline)).collect();
     let (rms, max_abs) = stages.time(Stage::Check, || at_points(comm, &levels, &prep));
@@ -552,6 +600,12 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         r.figure("orient_flipped", s.flipped);
         if let Some(k) = s.side_turned {
             r.figure("orient_side_turned", k);
+        }
+        if let Some((without, with, keep)) = s.side_choice {
+            let count = |c: Option<usize>| c.map_or(String::new(), |c| c.to_string());
+            r.figure("side_choice_without", count(without));
+            r.figure("side_choice_with", count(with));
+            r.figure("side_choice_kept", if keep { "with" } else { "without" });
         }
         if let Some(e) = &s.energy {
             r.figure("energy_ran", e.ran);
@@ -686,6 +740,11 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
             },
         ) + &match s.side_turned {
             Some(k) => format!(", {k} turned by the side vote"),
+            None => String::new(),
+        } + &match s.side_choice {
+            Some((_, _, keep)) => {
+                format!(" (--orient-side both: the fit {} the side vote kept)", if keep { "with" } else { "without" })
+            }
             None => String::new(),
         } + &match &s.sides {
             Some(k) => format!(

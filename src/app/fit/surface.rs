@@ -56,6 +56,10 @@ pub struct SurfaceSummary {
     pub dense_dipole: bool,
     /// Patches turned by the side vote (None: not run).
     pub side_turned: Option<usize>,
+    /// With `--orient-side both`: the unsupported crossings left by the fit without the side
+    /// vote and by that with it (see [`unsupported_left`]), and whether the one with it was
+    /// kept (None: one fit made).
+    pub side_choice: Option<(Option<usize>, Option<usize>, bool)>,
     /// The patch orientation by energy (None: not asked for).
     pub energy: Option<EnergyFlips>,
     /// Constraint points added by the second fit against spurious blobs (0: no second fit).
@@ -331,6 +335,26 @@ pub fn with_off_surface(surface: Surface, n: usize) -> bool {
     }
 }
 
+/// The unsupported crossings the fit of `summary` leaves on the lattice of its last step: those
+/// after step 8 (the outside off points, where it ran), else after step 7 (the turns); None
+/// where neither ran. What `--orient-side both` compares.
+pub fn unsupported_left(summary: &SurfaceSummary) -> Option<usize> {
+    summary.outside.map(|o| o.after).or(summary.turns.as_ref().map(|t| t.after))
+}
+
+/// The report's line on the choice of `--orient-side both`: the crossings `without` and `with`
+/// the side vote and whether the fit with it was kept.
+pub fn side_choice_line(without: Option<usize>, with: Option<usize>, keep: bool) -> String {
+    let count = |c: Option<usize>| c.map_or("not counted".to_string(), |c| c.to_string());
+    format!(
+        "volspline fit: --orient-side both: unsupported crossings {} without the side vote, {} with it: \
+         the fit {} the side vote kept",
+        count(without),
+        count(with),
+        if keep { "with" } else { "without" }
+    )
+}
+
 /// The name of the surface method in the report.
 pub fn name(off: bool) -> &'static str {
     if off {
@@ -343,12 +367,14 @@ pub fn name(off: bool) -> &'static str {
 /// `prep` with its data points moved onto quadrics fitted to their same-sheet neighbours
 /// (`--denoise`, [`crate::surface::denoise`]) and what the projection did: the normals are
 /// oriented once for it (from `hoods`, the neighbourhoods of `prep`'s points, where the caller
-/// has them), and everything after it ([`constrain`] on) is made again from the moved points.
+/// has them; with the side vote where `side`), and everything after it ([`constrain`] on) is
+/// made again from the moved points.
 /// Collective; every rank computes the same.
 pub fn denoise(
     run: &Run<'_>,
     prep: &Prepared,
     hoods: Option<Neighbourhoods>,
+    side: bool,
     stages: &mut Stages,
 ) -> Result<(Prepared, Denoised)> {
     let comm: &dyn Comm = run.comm;
@@ -356,8 +382,7 @@ pub fn denoise(
         Some(h) => h,
         None => stages.time(Stage::Normals, || agree(comm, neighbourhoods_on(comm, &prep.centres)))?,
     };
-    let o = stages
-        .time(Stage::Orient, || surface::oriented_with(comm, &prep.centres, &hoods, run.args.orient_side))?;
+    let o = stages.time(Stage::Orient, || surface::oriented_with(comm, &prep.centres, &hoods, side))?;
     let moved = stages.time(Stage::Normals, || {
         surface::denoise::project(&prep.centres, &o.normals, &hoods.knn, hoods.kmax)
     });
@@ -367,11 +392,12 @@ pub fn denoise(
 
 /// `prep` with the off-surface points appended to its centres and values (its data points are
 /// left as they are) and what was done; `hoods`: the neighbourhoods of `prep`'s points where the
-/// caller has them. Collective.
+/// caller has them; `side`: whether the normals are oriented with the side vote. Collective.
 pub fn constrain(
     run: &Run<'_>,
     prep: &Prepared,
     hoods: Option<Neighbourhoods>,
+    side: bool,
     stages: &mut Stages,
 ) -> Result<Constrained> {
     let comm: &dyn Comm = run.comm;
@@ -380,7 +406,7 @@ pub fn constrain(
         None => stages.time(Stage::Normals, || agree(comm, neighbourhoods_on(comm, &prep.centres)))?,
     };
     let (orientation, off) = stages.time(Stage::Orient, || -> Result<_> {
-        let o = surface::oriented_with(comm, &prep.centres, &hoods, run.args.orient_side)?;
+        let o = surface::oriented_with(comm, &prep.centres, &hoods, side)?;
         let off = by_trust(prep, &hoods, &o.normals, run.args);
         Ok((o, off))
     })?;
@@ -405,6 +431,7 @@ pub fn constrain(
         flipped: orientation.flipped,
         dense_dipole: orientation.dense_dipole,
         side_turned: orientation.side_turned,
+        side_choice: None,
         energy,
         blob_points: 0,
         blob_regions: 0,
