@@ -353,17 +353,17 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     });
     // the projection's report: moved points, and the noise estimate and longest move in the
     // data's units; the normals it projects along oriented with the side vote where `side`
-    let original = prep;
-    let denoise_step =
-        |side: bool, hoods: &mut Option<crate::surface::Neighbourhoods>, stages: &mut Stages| {
-            if !denoise {
-                let line = auto.map(|_| (format!("denoise: {auto_part}not applied"), 0, 0.0, 0.0));
-                return Ok((original.clone(), line));
-            }
-            let prep = &original;
-            let (moved, d) = surface::denoise(&run, prep, hoods.take(), side, stages)?;
-            let scale = prep.norm.scale;
-            let line = format!(
+    let denoise_step = |prep: Prepared,
+                        side: bool,
+                        hoods: &mut Option<crate::surface::Neighbourhoods>,
+                        stages: &mut Stages| {
+        if !denoise {
+            let line = auto.map(|_| (format!("denoise: {auto_part}not applied"), 0, 0.0, 0.0));
+            return Ok((prep, line));
+        }
+        let (moved, d) = surface::denoise(&run, &prep, hoods.take(), side, stages)?;
+        let scale = prep.norm.scale;
+        let line = format!(
             "denoise: {auto_part}{} of {n} points moved onto quadrics of their same-sheet neighbours, noise \
              estimate {:.3e} ({:.3} % of the diagonal), longest move {:.3e}",
             d.moved,
@@ -371,16 +371,16 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             100.0 * d.noise / 2.0,
             d.max_move * scale
         );
-            if comm.rank() == 0 {
-                crate::note!("volspline fit: {line}");
-            }
-            Ok::<_, Error>((moved, Some((line, d.moved, d.noise * scale, d.max_move * scale))))
-        };
+        if comm.rank() == 0 {
+            crate::note!("volspline fit: {line}");
+        }
+        Ok::<_, Error>((moved, Some((line, d.moved, d.noise * scale, d.max_move * scale))))
+    };
     let two_levels = two_level.is_some();
     let (prep, denoised, fitted, summary, method, kernel, why) = if let Some((method, kernel, why)) =
         two_level
     {
-        let (prep, denoised) = denoise_step(a.orient_side == SideVote::On, &mut hoods, &mut stages)?;
+        let (prep, denoised) = denoise_step(prep, a.orient_side == SideVote::On, &mut hoods, &mut stages)?;
         warn_idle_options(comm, a, off, method, true);
         // level 0 takes as many points as its dense fit has room for, up to --coarse-points
         let coarse = levels::level0_points(a, n, machine)?;
@@ -409,12 +409,13 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     } else {
         // the fit from the off-surface points on (the plain carrier's where there are none), with
         // the normals oriented with the side vote or without it
-        let single = |side: bool,
+        let single = |prep: Prepared,
+                      side: bool,
                       mut hoods: Option<crate::surface::Neighbourhoods>,
                       stages: &mut Stages,
                       first: bool|
          -> Result<_> {
-            let (prep, denoised) = denoise_step(side, &mut hoods, stages)?;
+            let (prep, denoised) = denoise_step(prep, side, &mut hoods, stages)?;
             let mut constrained =
                 if off { Some(surface::constrain(&run, &prep, hoods, side, stages)?) } else { None };
             // the spline's centres and values: the data's, with the off-surface points after them
@@ -471,13 +472,15 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
             Ok((prep, denoised, fitted, constrained, method, kernel, why))
         };
         let side = a.orient_side == SideVote::On;
+        // the data as read, kept for a second fit only
+        let again = (off && a.orient_side == SideVote::Both).then(|| prep.clone());
         let (mut prep, mut denoised, mut fitted, mut constrained, mut method, mut kernel, mut why) =
-            single(side, hoods.take(), &mut stages, true)?;
-        if off && a.orient_side == SideVote::Both {
+            single(prep, side, hoods.take(), &mut stages, true)?;
+        if let Some(read) = again {
             // the fit with the side vote as well: kept where its surface crosses fewer lattice
             // cells away from the data
             fitted.factor = None;
-            let other = single(true, None, &mut stages, false)?;
+            let other = single(read, true, None, &mut stages, false)?;
             let without = constrained.as_ref().and_then(|c| surface::unsupported_left(&c.summary));
             let with = other.3.as_ref().and_then(|c| surface::unsupported_left(&c.summary));
             let keep = matches!((without, with), (Some(x), Some(y)) if y < x);
