@@ -210,14 +210,16 @@ pub struct FitArgs {
     /// dense off-surface fit (auto stays off elsewhere).
     #[arg(long, default_value = "auto", value_name = "auto|on|off", value_parser = denoise_mode)]
     pub denoise: Denoise,
-    /// Turn small patches of the oriented normals whose off-plane neighbours lie mostly on their
-    /// outer side (on, or off): the two sides of thin parts (legs, ears) seen in one
-    /// neighbourhood (see src/surface/orient.rs; it helped the cow at 4000 points and hurt it at
-    /// 1000, so it is off by default). both: the dense off-surface fit is made twice, without and
-    /// with the vote, and the one whose surface crosses fewer lattice cells away from the data
-    /// is kept (nearer the truth on 206 of 294 benchmark sets that the vote changes; the fit
-    /// takes about 1.5 times as long; README.md, Choosing the side vote by the spline).
-    #[arg(long, default_value = "off", value_name = "on|off|both", value_parser = side_vote_mode)]
+    /// The side vote: small patches of the oriented normals whose off-plane neighbours lie mostly
+    /// on their outer side (the two sides of thin parts, legs and ears, seen in one
+    /// neighbourhood; see src/surface/orient.rs) are turned. try (the default): the vote's turns
+    /// are tried together as one turn after the blob search, by one solve with the kept factor,
+    /// and kept where they leave fewer unsupported crossings (src/surface/turns.rs); on: turned
+    /// in the orientation itself (it helped the cow at 4000 points and hurt it at 1000); off:
+    /// never; both: the dense off-surface fit is made twice, without and with the vote in the
+    /// orientation, and the one leaving fewer unsupported crossings kept (about 1.5 times the
+    /// default's time). README.md, Choosing the side vote by the spline.
+    #[arg(long, default_value = "try", value_name = "try|on|off|both", value_parser = side_vote_mode)]
     pub orient_side: SideVote,
     /// Turn whole patches of the estimated normals where that lowers the bending energy of the
     /// off-surface spline (on, or off), for up to 6000 rows (see src/surface/energy.rs).
@@ -695,11 +697,13 @@ fn reason<T>(r: Result<T>) -> Parsed<T> {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Denoise(pub Option<bool>);
 
-/// `--orient-side`: the side vote off, on, or both ways with the better fit kept.
+/// `--orient-side`: the side vote off, on in the orientation, tried as one turn after the blob
+/// search, or both ways with the better fit kept.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SideVote {
     Off,
     On,
+    Try,
     Both,
 }
 
@@ -707,8 +711,9 @@ fn side_vote_mode(s: &str) -> Parsed<SideVote> {
     match s {
         "off" => Ok(SideVote::Off),
         "on" => Ok(SideVote::On),
+        "try" => Ok(SideVote::Try),
         "both" => Ok(SideVote::Both),
-        other => Err(format!("expected on, off or both, not '{other}'")),
+        other => Err(format!("expected try, on, off or both, not '{other}'")),
     }
 }
 
@@ -990,15 +995,17 @@ mod tests {
         let cli = parse(&["fit", "a.xyz", "--out", "o", "--margin", "0.2"]).unwrap();
         let Command::Fit(a) = cli.command else { panic!("fit") };
         assert_eq!(a.grid.margin, Margin { fraction: 0.2, grow: false });
-        for (text, side) in [("off", SideVote::Off), ("on", SideVote::On), ("both", SideVote::Both)] {
+        for (text, side) in
+            [("off", SideVote::Off), ("on", SideVote::On), ("try", SideVote::Try), ("both", SideVote::Both)]
+        {
             let cli = parse(&["fit", "a.xyz", "--out", "o", "--orient-side", text]).unwrap();
             let Command::Fit(a) = cli.command else { panic!("fit") };
             assert_eq!(a.orient_side, side);
         }
         let Command::Fit(a) = parse(&["fit", "a.xyz", "--out", "o"]).unwrap().command else { panic!("fit") };
-        assert_eq!(a.orient_side, SideVote::Off);
+        assert_eq!(a.orient_side, SideVote::Try);
         let err = parse(&["fit", "a.xyz", "--out", "o", "--orient-side", "auto"]).unwrap_err().to_string();
-        assert!(err.contains("expected on, off or both, not 'auto'"), "{err}");
+        assert!(err.contains("expected try, on, off or both, not 'auto'"), "{err}");
     }
 
     #[test]

@@ -24,7 +24,8 @@ than twice the data's median spacing from every data point left out: an open sur
 targets are reported apart); `energy`: the default with `--orient-energy on` (patches of the normals
 turned by the spline's bending energy, src/surface/energy.rs); `side`: the default with
 `--orient-side on` (the side vote of src/surface/orient.rs); `both`: `--orient-side both` (the fit
-made without and with the side vote, the one with fewer unsupported crossings kept); `choice`: `--blob-choice on` (two
+made without and with the side vote, the one with fewer unsupported crossings kept); `sideoff`:
+`--orient-side off` (without the default's try of the side vote's turns in step 7); `choice`: `--blob-choice on` (two
 second fits, the one with less unsupported surface kept, src/surface/choice.rs: the default
 since it was measured as an option); `wide`: the default without it (`--blob-choice off`, the
 wide clearance of the blob search alone); `turns` and `noturns`: `--orient-turns on` and `off` (patches
@@ -254,7 +255,7 @@ def method_list(args, has_surface):
     """[(label, kind, flags)] of the methods this binary can run, and a note on the choice."""
     if has_surface:
         flags = {"default": [], "poisson": [], "energy": ["--orient-energy", "on"], "side": ["--orient-side", "on"],
-                 "both": ["--orient-side", "both"],
+                 "both": ["--orient-side", "both"], "sideoff": ["--orient-side", "off"],
                  "trimmed": ["--trim"], "choice": ["--blob-choice", "on"], "wide": ["--blob-choice", "off"],
                  "turns": ["--orient-turns", "on"], "noturns": ["--orient-turns", "off"],
                  "nooutside": ["--outside-points", "off"],
@@ -302,9 +303,9 @@ def parse(argv):
         if m not in MESHES:
             ap.error(f"unknown mesh {m} (one of {', '.join(MESHES)})")
     for m in args.methods:
-        if m not in ("default", "carrier", "offsurface", "energy", "side", "both", "trimmed", "choice", "wide", "turns",
+        if m not in ("default", "carrier", "offsurface", "energy", "side", "both", "sideoff", "trimmed", "choice", "wide", "turns",
                      "noturns", "nooutside", "denoise", "dense", "neighbours", "index", "poisson"):
-            ap.error(f"unknown method {m} (default, carrier, offsurface, energy, side, both, trimmed, choice, wide, turns, "
+            ap.error(f"unknown method {m} (default, carrier, offsurface, energy, side, both, sideoff, trimmed, choice, wide, turns, "
                      "noturns, nooutside, denoise, dense, neighbours, index, poisson)")
     if args.quick:
         args.sizes, args.variant_sizes, args.grid = [1000, 2000], [1000], 64

@@ -74,6 +74,10 @@
 //! (a crease, the inside of a bend) puts them on the outer side, so only patches of at most
 //! [`SIDE_PATCH_SHARE`] of the points are turned: the large smooth sheets are left to the steps
 //! above. One pass; a second turned a few more patches and changed no reconstruction measured.
+//! The fit applies the vote in the orientation only when asked (`--orient-side on`); by default
+//! it tries the vote's turns after the first fit and keeps them where the spline's surface
+//! leaves fewer unsupported crossings with them ([`side_vote`] on the oriented normals; see
+//! [`crate::surface::turns`], "The side vote as one try").
 //!
 //! Measured (agreement with the true normals of area-uniform samples, jobs/bench/orient_energy.rs):
 //! cow 1000 / 2000 / 4000 points 0.920 / 0.9225 / 0.960 without the vote, 0.945 / 0.951 / 0.9755
@@ -473,6 +477,21 @@ pub(crate) fn turn_by_neighbour_side(
         }
     }
     turn.iter().filter(|&&t| t).count()
+}
+
+/// The side vote on normals `o` already oriented consistently and outward (by [`orient`]
+/// without it): its small patches turned as the side vote of the module doc turns them, then all
+/// normals turned back outward where the turns reversed the sign of the total flux, as
+/// [`orient`] ends. Returns how many patches the vote turned.
+pub fn side_vote(points: &[f64], o: &mut [[f64; 3]], knn: &[usize], kmax: usize) -> usize {
+    let turned = turn_by_neighbour_side(points, o, knn, kmax);
+    let n = o.len();
+    if turned > 0 && flux(points, o, &areas(points, knn, kmax, n), &centroid(points, n), 0..n) < 0.0 {
+        for v in o.iter_mut() {
+            *v = [-v[0], -v[1], -v[2]];
+        }
+    }
+    turned
 }
 
 /// Orients `normals` (unit, arbitrary signs) of `points` (3 values per point) consistently and

@@ -314,7 +314,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     if a.orient_side == SideVote::Both && off && two_level.is_some() {
         return Err(Error::Usage(
             "--orient-side both makes the dense off-surface fit twice; this fit is the two-level compactly \
-             supported one (use --method dense, or --orient-side on or off)"
+             supported one (use --method dense, or --orient-side try, on or off)"
                 .to_string(),
         ));
     }
@@ -665,6 +665,16 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
                 ("turns_unsupported_after", t.after),
             ];
             counts.into_iter().for_each(|(key, count)| r.figure(key, count));
+            if let Some(v) = &t.side {
+                let counts = [
+                    ("side_try_patches", v.patches),
+                    ("side_try_points", v.points),
+                    ("side_try_unsupported_before", v.before),
+                    ("side_try_unsupported_after", v.after),
+                ];
+                counts.into_iter().for_each(|(key, count)| r.figure(key, count));
+                r.figure("side_try_kept", v.kept);
+            }
         }
         if let Some(o) = &s.outside {
             let counts = [
@@ -828,6 +838,16 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
             Some(l) => format!(
                 "; memory: room for {} appended centres in the second fits, {} wanted",
                 l.room, l.wanted
+            ),
+            None => String::new(),
+        } + &match s.turns.as_ref().and_then(|t| t.side) {
+            Some(v) => format!(
+                "; side vote: {} patches ({} points) tried as one turn, unsupported crossings {} -> {}: {}",
+                v.patches,
+                v.points,
+                v.before,
+                v.after,
+                if v.kept { "kept" } else { "not kept" }
             ),
             None => String::new(),
         } + &match &s.turns {

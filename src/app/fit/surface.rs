@@ -9,7 +9,7 @@
 use super::dense::{self, KeptFactor};
 use super::{Fitted, Run};
 use crate::app::stages::{Stage, Stages};
-use crate::cli::{FitArgs, Surface};
+use crate::cli::{FitArgs, SideVote, Surface};
 use crate::error::Result;
 use crate::par::{agree, Comm};
 use crate::spline::hygiene::Prepared;
@@ -26,7 +26,7 @@ use crate::surface::outside;
 use crate::surface::rays::{self, RayCheck};
 use crate::surface::sheets;
 use crate::surface::support::DataSupport;
-use crate::surface::turns::{self, TurnCheck};
+use crate::surface::turns::{self, SideTry, TurnCheck};
 use crate::surface::{
     self, neighbourhoods_on, off_points_by_trust, off_values, Doubt, Neighbourhoods, OffPoints,
 };
@@ -957,7 +957,7 @@ fn turn_by_surface(
         let crossings = choice::unsupported_crossings(lattice, &values, &support).0;
         (values, crossings)
     });
-    let (candidates, patches) = stages.time(Stage::Turns, || {
+    let (candidates, patches, side_patches) = stages.time(Stage::Turns, || {
         let knn = (&c.hoods.knn[..], c.hoods.kmax);
         let mut candidates = turns::candidates(&data.centres, &c.normals, knn, &c.hoods.tree, &crossings);
         let patches = candidates.len();
@@ -973,10 +973,20 @@ fn turn_by_surface(
             crossings.len(),
         );
         candidates.extend(facing);
-        (candidates, patches)
+        // the side vote's turns, tried together before the patches
+        let side = (run.args.orient_side == SideVote::Try)
+            .then(|| turns::side_candidate(&data.centres, &c.normals, knn))
+            .flatten();
+        let side_patches = side.as_ref().map(|(candidate, patches)| {
+            candidates.insert(0, candidate.clone());
+            *patches
+        });
+        (candidates, patches, side_patches)
     });
     let mut far = crossings.len();
-    let mut check = TurnCheck { candidates: candidates.len(), before: far, ..Default::default() };
+    // the side vote's try, where there is one, is candidate 0 and counted apart
+    let sides = usize::from(side_patches.is_some());
+    let mut check = TurnCheck { candidates: candidates.len() - sides, before: far, ..Default::default() };
     let nd = data.values.len();
     // a candidate's normals, off points and system turned from `c`'s
     let turned = |c: &Constrained, candidate: &turns::Candidate| {
@@ -1008,13 +1018,14 @@ fn turn_by_surface(
     let changes: Vec<Vec<f64>> = candidates.iter().map(|cd| change(&turned(c, cd).2, c)).collect();
     let mut superposed: Option<(usize, Option<Superposed<'_>>)> = None;
     for (number, candidate) in candidates.into_iter().enumerate() {
-        let facing = number >= patches;
+        let vote = number < sides;
+        let facing = number >= patches + sides;
         // the count changes within the window alone: where the crossings there now are too few
         // for their removal to be a gain, no turn of this patch can be
         let window = candidate.window(lattice);
         let within = |values: &[f64]| choice::unsupported_in_window(lattice, values, &support, &window);
         let now = stages.time(Stage::Turns, || within(&values));
-        if !turns::gains(far, far - now) {
+        if !vote && !turns::gains(far, far - now) {
             continue;
         }
         // the unsupported crossings in open space within the window, before and after
@@ -1042,18 +1053,19 @@ fn turn_by_surface(
                 let kernel = fit.spline.kernel;
                 let base = fit.spline.weights.iter().chain(&fit.spline.poly);
                 let x = base.zip(&solved[number - *from]).map(|(a, b)| a + b).collect();
-                check.superposed += 1;
+                check.superposed += usize::from(!vote);
                 dense::fitted_from_bordered(run, kernel, &prep, first, (x, *seconds), stages)
             }
             _ => refit(&prep, factor, stages)?,
         };
-        check.tried += 1;
+        check.tried += usize::from(!vote);
         check.facing += usize::from(facing);
         let (tried_values, after, kept) = stages.time(Stage::Turns, || {
             let mut tried_values = values.clone();
             sample_window(run.comm, lattice, &window, (&data.carrier, &tried.spline), &mut tried_values);
             let after = far - now + within(&tried_values);
             let kept = match open_before {
+                _ if vote => turns::keeps_side(far, after).then_some(false),
                 Some(open) => turns::keeps_group(far, after, || (open, open_count(&tried_values, &normals)))
                     .then_some(true),
                 None => turns::keeps_by(far, after, || {
@@ -1064,15 +1076,22 @@ fn turn_by_surface(
         });
         // a try no count keeps is kept where it removes some unsupported surface and the spline
         // through its values is smoother
-        let smoother = kept.is_none() && {
+        let smoother = !vote && kept.is_none() && {
             let energy =
                 |fit: &Fitted, prep: &Prepared| turns::bending_energy(&fit.spline.weights, &prep.values);
             turns::keeps_smoother(far, after, (energy(&fit, &c.prep), energy(&tried, &prep)))
         };
+        if let (true, Some(patches)) = (vote, side_patches) {
+            let points = candidate.members.len();
+            check.side = Some(SideTry { patches, points, before: far, after, kept: kept.is_some() });
+        }
         if let Some(by_open_space) = kept.or(smoother.then_some(false)) {
             let mut tried = tried;
             dense::check_residual(run, &prep, &mut tried, stages);
             (c.normals, c.off, c.prep, fit, far, values) = (normals, off, prep, tried, after, tried_values);
+            if vote {
+                continue;
+            }
             check.turned += 1;
             check.turned_points += candidate.members.len();
             check.by_open_space += usize::from(by_open_space);
