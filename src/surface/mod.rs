@@ -20,7 +20,8 @@
 //!   pinned outside by further points for a second fit;
 //! - [`choice`]: of two second fits (a wide and a narrow clearance of the blob search), the one
 //!   with less surface that no data supports;
-//! - [`turns`]: then the small patches of normals whose turn shrinks that surface, turned;
+//! - [`turns`]: then the side vote's turns tried together, and the small patches of normals whose
+//!   turn shrinks that surface, turned;
 //! - [`outside`]: last, outside off points for the data points nearest to the unsupported
 //!   surface left in open space;
 //! - [`sheets`]: where a first fit's solid spills far beyond the data (both sides of a sheet
