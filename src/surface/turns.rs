@@ -209,7 +209,6 @@ pub const LATE_POINTS: usize = 4;
 pub const FACING_TRIES: usize = 3;
 /// The share of the unsupported crossings a turn must remove to be kept.
 pub const GAIN: f64 = 0.05;
-
 /// The share of the unsupported crossings a turn must remove to be kept by [`keeps_smoother`],
 /// where it also makes the spline smoother.
 pub const SMOOTHER_GAIN: f64 = 0.02;
@@ -271,6 +270,18 @@ pub struct Candidate {
 }
 
 impl Candidate {
+    /// The candidate of `members`, with the box of their `points` (normalised, 3 values each).
+    pub fn of_points(points: &[f64], members: Vec<usize>) -> Candidate {
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for &i in &members {
+            for d in 0..3 {
+                lo[d] = lo[d].min(points[3 * i + d]);
+                hi[d] = hi[d].max(points[3 * i + d]);
+            }
+        }
+        Candidate { members, lo, hi }
+    }
+
     /// The nodes of `lattice` whose values a turn of this patch may change: those of the box
     /// grown by [`WINDOW`] times its longest side and 2 lattice spacings on every side, as index
     /// ranges along x, y and z.
@@ -280,10 +291,10 @@ impl Candidate {
 }
 
 /// The turns of the side vote (see [`mod@crate::surface::orient`]) on the oriented `normals` of
-/// `points` (normalised, `kmax` nearest neighbours each in `knn`) as one candidate, all its patches
-/// together, with the number of patches. None where the vote
-/// turns nothing, or would turn more than half of the points (after it, the total flux turned
-/// them all back outward: not a turn of small patches).
+/// `points` (normalised, `kmax` nearest neighbours each in `knn`) as one candidate, all its
+/// patches together, with the number of patches. None where the vote turns nothing, or would
+/// turn more than half of the points (after it, the total flux turned them all back outward:
+/// not a turn of small patches).
 pub fn side_candidate(
     points: &[f64],
     normals: &[[f64; 3]],
@@ -295,14 +306,7 @@ pub fn side_candidate(
     if members.is_empty() || 2 * members.len() > normals.len() {
         return None;
     }
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    for &i in &members {
-        for d in 0..3 {
-            lo[d] = lo[d].min(points[3 * i + d]);
-            hi[d] = hi[d].max(points[3 * i + d]);
-        }
-    }
-    Some((Candidate { members, lo, hi }, patches))
+    Some((Candidate::of_points(points, members), patches))
 }
 
 /// Whether the side vote's try ([`side_candidate`]) that takes the unsupported crossings from
@@ -388,14 +392,7 @@ pub fn facing_candidates(
         .into_iter()
         .filter(|g| g.iter().any(|&i| source[i]) && !patches.iter().any(|p| p.members == *g))
         .map(|members| {
-            let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-            for &i in &members {
-                for d in 0..3 {
-                    lo[d] = lo[d].min(points[3 * i + d]);
-                    hi[d] = hi[d].max(points[3 * i + d]);
-                }
-            }
-            let candidate = Candidate { members, lo, hi };
+            let candidate = Candidate::of_points(points, members);
             (in_window(&candidate), candidate)
         })
         .filter(|&(now, _)| gains(far, far - now.min(far)))

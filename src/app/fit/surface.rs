@@ -977,9 +977,9 @@ fn turn_by_surface(
         let side = (run.args.orient_side == SideVote::Try)
             .then(|| turns::side_candidate(&data.centres, &c.normals, knn))
             .flatten();
-        let side_patches = side.as_ref().map(|(candidate, patches)| {
-            candidates.insert(0, candidate.clone());
-            *patches
+        let side_patches = side.map(|(candidate, patches)| {
+            candidates.insert(0, candidate);
+            patches
         });
         (candidates, patches, side_patches)
     });
@@ -1081,9 +1081,15 @@ fn turn_by_surface(
                 |fit: &Fitted, prep: &Prepared| turns::bending_energy(&fit.spline.weights, &prep.values);
             turns::keeps_smoother(far, after, (energy(&fit, &c.prep), energy(&tried, &prep)))
         };
-        if let (true, Some(patches)) = (vote, side_patches) {
+        if vote {
             let points = candidate.members.len();
-            check.side = Some(SideTry { patches, points, before: far, after, kept: kept.is_some() });
+            check.side = side_patches.map(|patches| SideTry {
+                patches,
+                points,
+                before: far,
+                after,
+                kept: kept.is_some(),
+            });
         }
         if let Some(by_open_space) = kept.or(smoother.then_some(false)) {
             let mut tried = tried;
