@@ -27,7 +27,7 @@ use volspline::surface::offsurface::{trusted, Deal, DOUBTFUL_SHARE};
 use volspline::surface::outside;
 use volspline::surface::rays::{self, RayCheck};
 use volspline::surface::support::DataSupport;
-use volspline::surface::turns::{self, TurnCheck};
+use volspline::surface::turns::{self, SideTry, TurnCheck};
 use volspline::surface::{
     neighbourhoods, off_points_by_trust, off_value_parts, off_values, oriented, oriented_with, Doubt,
     Neighbourhoods, OffPoints,
@@ -231,6 +231,8 @@ struct Oracle {
     second_round: Option<(usize, bool)>,
     /// The turns by unsupported surface.
     turns: TurnCheck,
+    /// Whether the side vote's try was made (`--orient-side try`; else `off`).
+    side_try: bool,
     /// The outside off points after the turns as the report states them (None: none placed).
     outside: Option<String>,
     /// The outside off points among the model's centres (0: none kept).
@@ -245,9 +247,10 @@ struct Oracle {
 /// the blob search's second round, and with `turns` the turns by unsupported surface and the
 /// outside off points and the off points at the mouths of holes after them (`--orient-turns
 /// on`, `--outside-points on`, `--mouth-points on`, which run where
-/// the binary kept its first factor: the projected Cholesky). No step is limited by memory: the
-/// samples are small.
-fn serial_offsurface(read: &[f64], rate: OffRates, choose: bool, turns: bool) -> Oracle {
+/// the binary kept its first factor: the projected Cholesky), and with `side_try` the side
+/// vote's turns tried together before the turns' patches (`--orient-side try`; without it
+/// `off`). No step is limited by memory: the samples are small.
+fn serial_offsurface(read: &[f64], rate: OffRates, choose: bool, turns: bool, side_try: bool) -> Oracle {
     let FirstFit { k, data, prep, off_count, first, turned, lattice, search, mut normals, hoods, mut off } =
         first_fit(read, rate);
     // the second fit; with `choose`, where the wide and the narrow clearance pin different nodes,
@@ -368,7 +371,17 @@ fn serial_offsurface(read: &[f64], rate: OffRates, choose: bool, turns: bool) ->
         // every candidate is solved here: the binary passes over only those that cannot gain
         (check.candidates, check.tried) = (candidates.len(), candidates.len());
         (check.before, check.facing) = (far.len(), candidates.len() - patches);
+        // the side vote's turns, all its patches one candidate, tried first and kept where the
+        // unsupported crossings fall at all
+        let side = side_try.then(|| turns::side_candidate(&data.centres, &normals, knn)).flatten();
+        let sides = usize::from(side.is_some());
+        if let Some((candidate, patches)) = side {
+            let points = candidate.members.len();
+            check.side = Some(SideTry { patches, points, ..Default::default() });
+            candidates.insert(0, candidate);
+        }
         for (number, candidate) in candidates.into_iter().enumerate() {
+            let (vote, number) = (number < sides, number.saturating_sub(sides));
             let (mut turned_normals, mut turned_off) = (normals.clone(), off.clone());
             candidate.members.iter().for_each(|&i| turned_normals[i] = normals[i].map(|v| -v));
             for (side, i) in turned_off.side.iter_mut().zip(&off.source) {
@@ -394,7 +407,13 @@ fn serial_offsurface(read: &[f64], rate: OffRates, choose: bool, turns: bool) ->
                 (count(&values, &normals), count(&tried_values, &turned_normals))
             };
             // a group facing a sheet is kept by open space alone
-            let kept = if number >= patches {
+            let kept = if vote {
+                let kept = turns::keeps_side(far.len(), after.len());
+                if let Some(side) = check.side.as_mut() {
+                    (side.before, side.after, side.kept) = (far.len(), after.len(), kept);
+                }
+                kept.then_some(false)
+            } else if number >= patches {
                 turns::keeps_group(far.len(), after.len(), open).then_some(true)
             } else {
                 turns::keeps_by(far.len(), after.len(), open)
@@ -402,7 +421,8 @@ fn serial_offsurface(read: &[f64], rate: OffRates, choose: bool, turns: bool) ->
             // either, where no count keeps it, as the smoother spline
             let energy =
                 |spline: &Spline, system: &Prepared| turns::bending_energy(&spline.weights, &system.values);
-            let smoother = kept.is_none()
+            let smoother = !vote
+                && kept.is_none()
                 && turns::keeps_smoother(
                     far.len(),
                     after.len(),
@@ -411,6 +431,9 @@ fn serial_offsurface(read: &[f64], rate: OffRates, choose: bool, turns: bool) ->
             if let Some(by_open_space) = kept.or(smoother.then_some(false)) {
                 (normals, off, system, spline) = (turned_normals, turned_off, tried, tried_spline);
                 (values, far) = (tried_values, after);
+                if vote {
+                    continue;
+                }
                 check.turned += 1;
                 check.turned_points += candidate.members.len();
                 check.by_open_space += usize::from(by_open_space);
@@ -471,6 +494,7 @@ fn serial_offsurface(read: &[f64], rate: OffRates, choose: bool, turns: bool) ->
         kept_narrow,
         second_round,
         turns: check,
+        side_try,
         outside,
         outside_kept,
         mouth: mouth_count,
@@ -498,13 +522,12 @@ fn fits_match_the_oracle(
     rates: &[&str],
     extra: &[&str],
 ) -> Vec<String> {
-    let (off_count, outside, oracle) = (oracle.off_count, &oracle.outside, &oracle.model);
+    let (off_count, outside, side_try) = (oracle.off_count, &oracle.outside, oracle.side_try);
+    let oracle = &oracle.model;
     let mut reports = Vec::new();
     for ranks in [1, 2, 3] {
         let p = dir.join(format!("r{ranks}"));
         let p = p.to_str().unwrap();
-        // the oracle makes the steps without the side vote's try (tested against one rank on its
-        // own)
         let args = [
             "fit",
             input.to_str().unwrap(),
@@ -517,7 +540,7 @@ fn fits_match_the_oracle(
             "--panel",
             "16",
             "--orient-side",
-            "off",
+            if side_try { "try" } else { "off" },
         ];
         let text = common::run_ok(ranks, &[&args[..], rates, extra].concat());
         assert!(text.contains(&format!("{off_count} off-surface points")), "{text}");
@@ -559,7 +582,7 @@ fn offsurface_fits_on_one_two_and_three_ranks_match_the_serial_oracle() {
     let input = dir.join("bunny506.xyz");
     common::write_xyz(&input, &common::bunny_subset(10, 0));
     // a system of about 700 rows, solved by Householder QR: the turns' tries are fresh fits
-    let oracle = serial_offsurface(&read_back(&input), UNIFORM_DEALT, false, true);
+    let oracle = serial_offsurface(&read_back(&input), UNIFORM_DEALT, false, true, false);
     assert_eq!(oracle.off_count, 197);
     fits_match_the_oracle(&dir, &input, &oracle, "householder", &UNIFORM, &["--blob-choice", "off"]);
 }
@@ -574,7 +597,7 @@ const RAYS_COW: (usize, u64) = (2000, 10);
 #[test]
 fn patches_turned_by_the_ray_test_are_the_same_on_one_two_and_three_ranks() {
     let (dir, input) = sampled_input("rays-oracle", "cow.xyz", common::COW, RAYS_COW);
-    let oracle = serial_offsurface(&read_back(&input), UNIFORM_DEALT, false, true);
+    let oracle = serial_offsurface(&read_back(&input), UNIFORM_DEALT, false, true, false);
     let (turned, turns) = (&oracle.rays, &oracle.turns);
     // measured: 3 patches (13 points) turned
     assert!(turned.turned > 0, "{turned:?}");
@@ -601,7 +624,7 @@ const CHOICE_COW: (usize, u64) = (2000, 8);
 #[test]
 fn the_clearance_choice_is_the_same_on_one_two_and_three_ranks() {
     let (dir, input) = sampled_input("choice-oracle", "cow.xyz", common::COW, (CHOICE_COW.0, CHOICE_COW.1));
-    let oracle = serial_offsurface(&read_back(&input), UNIFORM_DEALT, true, true);
+    let oracle = serial_offsurface(&read_back(&input), UNIFORM_DEALT, true, true, false);
     assert_eq!(oracle.kept_narrow, Some(true));
     // the default: the choice on, the off points dealt among neighbours
     fits_match_the_oracle(&dir, &input, &oracle, "cholesky", &UNIFORM, &[]);
@@ -880,7 +903,7 @@ fn a_second_round_of_pins_removes_the_false_solid_the_first_left_under_the_cow()
 #[test]
 fn the_second_round_of_pins_is_the_same_on_one_two_and_three_ranks() {
     let (dir, input) = sampled_input("second-round-oracle", "cow.xyz", common::COW, SECOND_ROUND_COW);
-    let oracle = serial_offsurface(&read_back(&input), DEFAULT_DEALT, true, true);
+    let oracle = serial_offsurface(&read_back(&input), DEFAULT_DEALT, true, true, false);
     // measured: the narrow clearance kept, 68 nodes pinned by the round, its fit kept
     assert_eq!((oracle.kept_narrow, oracle.second_round), (Some(true), Some((68, true))));
     // the default options
@@ -945,7 +968,7 @@ fn solid_given_back_along_the_first_fits_solid_is_the_same_on_one_two_and_three_
     // then 6 outside points for 46 unsupported crossings in open space, kept (333 -> 307)
     let dir = common::temp_dir("hoof-oracle");
     let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/cow-400-seed8.xyz");
-    let oracle = serial_offsurface(&read_back(&input), DEFAULT_DEALT, true, true);
+    let oracle = serial_offsurface(&read_back(&input), DEFAULT_DEALT, true, true, false);
     assert_eq!((oracle.kept_narrow, oracle.second_round), (Some(true), None));
     assert_eq!(oracle.outside_kept, 6);
     let given = oracle.model.spline.centres.len() / 3 - 400 - oracle.off_count - 200 - oracle.outside_kept;
@@ -1843,7 +1866,7 @@ fn the_turns_of_a_small_system_refit_afresh_alike_on_one_two_and_three_ranks() {
         common::BUNNY,
         (SMALL_TURNS_BUNNY.0, SMALL_TURNS_BUNNY.1),
     );
-    let oracle = serial_offsurface(&read_back(&input), UNIFORM_DEALT, true, true);
+    let oracle = serial_offsurface(&read_back(&input), UNIFORM_DEALT, true, true, false);
     let turns = &oracle.turns;
     // measured: 2 of 3 patches (10 points) turned, unsupported crossings 363 -> 269
     assert!(turns.turned > 0 && turns.after < turns.before, "{turns:?}");
@@ -1868,7 +1891,7 @@ fn a_turn_kept_by_open_space_is_the_same_on_one_two_and_three_ranks() {
     let input = dir.join("cow-open.xyz");
     let cow = common::load_mesh(Path::new(common::COW));
     common::write_xyz(&input, &with_hole(&cow, OPEN_SPACE_COW.0, OPEN_SPACE_COW.1));
-    let oracle = serial_offsurface(&read_back(&input), DEFAULT_DEALT, true, true);
+    let oracle = serial_offsurface(&read_back(&input), DEFAULT_DEALT, true, true, false);
     let turns = &oracle.turns;
     // measured: two patches of 18 points in all turned, one by the open-space rule, 471 -> 428
     // crossings (with three tries, the open-space turn alone: 471 -> 457)
@@ -1903,7 +1926,7 @@ const FACING_COW: &str = "cow-2000-open-seed11";
 #[test]
 fn a_group_facing_a_sheet_is_turned_alike_on_one_two_and_three_ranks() {
     let (dir, input) = (common::temp_dir("facing-oracle"), sample_path(FACING_COW));
-    let oracle = serial_offsurface(&read_back(&input), DEFAULT_DEALT, true, true);
+    let oracle = serial_offsurface(&read_back(&input), DEFAULT_DEALT, true, true, false);
     let turns = &oracle.turns;
     // measured: one turn, the group of 19 points facing a sheet, by the open-space rule
     assert_eq!((turns.turned, turns.facing_turned, turns.by_open_space), (1, 1, 1), "{turns:?}");
@@ -1951,7 +1974,7 @@ fn outside_points_after_the_turns_remove_the_web_between_the_cows_front_legs() {
 #[test]
 fn off_points_at_the_mouth_of_a_hole_are_the_same_on_one_two_and_three_ranks() {
     let (dir, input) = (common::temp_dir("mouth-oracle"), sample_path(MOUTH_COW));
-    let oracle = serial_offsurface(&read_back(&input), DEFAULT_DEALT, true, true);
+    let oracle = serial_offsurface(&read_back(&input), DEFAULT_DEALT, true, true, false);
     // measured: 7 off points at the mouth of the hole, after a patch turned as the smoother
     // spline (a try no count keeps)
     assert_eq!(oracle.mouth, 7);
@@ -2074,7 +2097,7 @@ fn both_side_votes_keep_the_fit_with_less_unsupported_surface_on_one_and_two_ran
 const TAIL_COW: &str = "cow-2000-noise0.1-seed14";
 
 #[test]
-fn the_side_vote_tried_as_one_turn_clears_false_solid_beside_the_cows_tail_on_one_two_and_three_ranks() {
+fn the_side_vote_tried_as_one_turn_clears_false_solid_beside_the_cows_tail() {
     // grid 64: the default tries the side vote's turns together in step 7 and keeps them (the
     // unsupported crossings fall); without the vote the tail of the cow carries false solid.
     // Measured: the vote turns 24 patches (60 points), unsupported crossings 292 -> 264; mesh ->
@@ -2085,30 +2108,16 @@ fn the_side_vote_tried_as_one_turn_clears_false_solid_beside_the_cows_tail_on_on
     let dir = common::temp_dir("cow-tail-side-try");
     let input = dir.join("p.xyz");
     common::write_xyz(&input, &pts);
-    let run = |ranks: usize, tag: &str| {
-        let (prefix, csv) = (dir.join(tag), dir.join(format!("{tag}.csv")));
-        let args = ["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--grid", "64"];
-        let text = common::run_ok(ranks, &[&args[..], &["--timings", csv.to_str().unwrap()]].concat());
-        let line = text.lines().find(|l| l.contains("surface offsurface")).unwrap_or_default().to_string();
-        let timings = std::fs::read_to_string(&csv).unwrap();
-        (common::load_mesh(&dir.join(format!("{tag}.ply"))), line, timings)
-    };
-    let (one, line_one, timings) = run(1, "one");
-    let (two, line_two, _) = run(2, "two");
-    let (three, line_three, _) = run(3, "three");
-    let part = |line: &str| line.split("; ").find(|p| p.starts_with("side vote:")).map(str::to_string);
-    let tried = part(&line_one).expect("the side vote's try in the report");
+    let (prefix, csv) = (dir.join("try"), dir.join("try.csv"));
+    let args = ["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--grid", "64"];
+    let text = common::run_ok(2, &[&args[..], &["--timings", csv.to_str().unwrap()]].concat());
+    let timings = std::fs::read_to_string(&csv).unwrap();
+    let tried = side_vote_part(&text).expect("the side vote's try in the report");
     println!("{tried}");
-    assert!(part(&off_line).is_none(), "{off_line}");
-    let expected =
-        "side vote: 24 patches (60 points) tried as one turn, unsupported crossings 292 -> 264: kept";
-    assert_eq!(tried, expected);
+    assert!(side_vote_part(&off_line).is_none(), "{off_line}");
+    assert_eq!(tried, TAIL_COW_TRY);
     assert!(timings.contains("side_try_kept,true"), "{timings}");
-    // two and three ranks count the same crossings and keep the same turn
-    for (line, mesh) in [(&line_two, &two), (&line_three, &three)] {
-        assert_eq!(part(line).as_deref(), Some(&tried[..]));
-        assert_eq!(mesh.vertices.len(), one.vertices.len());
-    }
+    let one = common::load_mesh(&dir.join("try.ply"));
     let [(rms_off, far_off), (rms_try, far_try)] = [&off, &one].map(|m| mesh_to_truth(&truth, m));
     let (complete_off, complete_try) = (truth_to_mesh(&truth, &off, diag), truth_to_mesh(&truth, &one, diag));
     println!(
@@ -2120,6 +2129,33 @@ fn the_side_vote_tried_as_one_turn_clears_false_solid_beside_the_cows_tail_on_on
         "mesh -> cow rms {rms_off} -> {rms_try}, far {far_off} -> {far_try}"
     );
     assert!(complete_try < 1.05 * complete_off, "cow -> mesh rms {complete_off} -> {complete_try}");
+}
+
+/// The side vote's try on the sample of [`TAIL_COW`] as the report states it.
+const TAIL_COW_TRY: &str =
+    "side vote: 24 patches (60 points) tried as one turn, unsupported crossings 292 -> 264: kept";
+
+/// The side vote's part of the surface line in a fit's report `text`, if any.
+fn side_vote_part(text: &str) -> Option<String> {
+    let line = text.lines().find(|l| l.contains("surface offsurface"))?;
+    line.split("; ").find(|p| p.starts_with("side vote:")).map(str::to_string)
+}
+
+#[test]
+fn the_side_vote_tried_as_one_turn_is_the_serial_oracles_on_one_two_and_three_ranks() {
+    // the set of the test above with the default options: the serial oracle makes the side
+    // vote's try and the turns after it from the library's steps, solving each try afresh with
+    // Householder; the binary solves the try and the patches' tries together through the kept
+    // Cholesky factor, and must count the same crossings, keep the same turn and end with the
+    // same spline on any number of ranks
+    let dir = common::temp_dir("cow-tail-side-oracle");
+    let input = sample_path(TAIL_COW);
+    let oracle = serial_offsurface(&read_back(&input), DEFAULT_DEALT, true, true, true);
+    let want = SideTry { patches: 24, points: 60, before: 292, after: 264, kept: true };
+    assert_eq!(oracle.turns.side, Some(want));
+    for text in fits_match_the_oracle(&dir, &input, &oracle, "cholesky", &DEFAULT_RATES, &[]) {
+        assert_eq!(side_vote_part(&text).as_deref(), Some(TAIL_COW_TRY));
+    }
 }
 
 #[test]
