@@ -485,11 +485,8 @@ pub(crate) fn turn_by_neighbour_side(
 /// [`orient`] ends. Returns how many patches the vote turned.
 pub fn side_vote(points: &[f64], o: &mut [[f64; 3]], knn: &[usize], kmax: usize) -> usize {
     let turned = turn_by_neighbour_side(points, o, knn, kmax);
-    let n = o.len();
-    if turned > 0 && flux(points, o, &areas(points, knn, kmax, n), &centroid(points, n), 0..n) < 0.0 {
-        for v in o.iter_mut() {
-            *v = [-v[0], -v[1], -v[2]];
-        }
+    if turned > 0 {
+        make_outward(points, o, knn, kmax);
     }
     turned
 }
