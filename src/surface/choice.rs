@@ -145,7 +145,7 @@ fn crossings_in(
                     }
                     let q = crossing(lattice, values, i, a).expect("the edge changes sign");
                     all += 1;
-                    if !support.supports(&q) {
+                    if !support.supports_near(lattice, i, &q) {
                         far.push(q);
                     }
                 }
@@ -296,5 +296,51 @@ mod tests {
         // the whole lattice as the window
         let whole = [0..41, 0..41, 0..41];
         assert_eq!(unsupported_in_window(&lattice, &after, &support, &whole), all_after);
+    }
+
+    #[test]
+    fn the_lattice_classes_give_the_crossings_the_tree_gives() {
+        // 600 points scattered about a wavy sheet and a ball beside it, a field whose surface
+        // crosses the lattice near the data, between them and far from them
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let points: Vec<f64> = (0..600)
+            .flat_map(|i| {
+                let (u, v) = (2.0 * next() - 1.0, 2.0 * next() - 1.0);
+                if i % 3 == 0 {
+                    let (a, b) = (std::f64::consts::TAU * u, (v).acos());
+                    [0.4 + 0.3 * b.sin() * a.cos(), 0.3 * b.sin() * a.sin(), 0.5 + 0.3 * b.cos()]
+                } else {
+                    [u, v, 0.2 * (3.0 * u).sin() * v]
+                }
+            })
+            .collect();
+        let lattice = Lattice::new([-1.1; 3], [1.1; 3], 37);
+        let field: Vec<f64> = (0..lattice.len())
+            .map(|i| {
+                let q = lattice.node(i);
+                0.3 * (4.0 * q[0]).sin() + 0.2 * (5.0 * q[1]).cos() - q[2] + 0.1 * (next() - 0.5)
+            })
+            .collect();
+        let tree_only = DataSupport::new(&points, FACTOR);
+        let classes = DataSupport::new(&points, FACTOR).on_lattice(&lattice);
+        let (far, all) = crossings_in(&lattice, &field, &tree_only, &lattice.dims.map(|n| 0..n));
+        let (far_by_class, all_by_class) =
+            crossings_in(&lattice, &field, &classes, &lattice.dims.map(|n| 0..n));
+        assert_eq!(all, all_by_class);
+        assert!(far.len() > 100 && far.len() < all - 100, "{} of {all} unsupported", far.len());
+        assert_eq!(far, far_by_class);
+        // another lattice than the classes': the tree answers
+        let other = Lattice::new([-1.0; 3], [1.0; 3], 30);
+        let field: Vec<f64> = (0..other.len()).map(|i| 0.25 - other.node(i)[2].abs()).collect();
+        assert_eq!(
+            unsupported_crossings(&other, &field, &tree_only),
+            unsupported_crossings(&other, &field, &classes)
+        );
     }
 }

@@ -42,6 +42,7 @@ use rayon::prelude::*;
 use crate::mesh::trim::Support;
 use crate::spline::octree::{Octree, DEFAULT_LEAF_CAPACITY};
 use crate::spline::Model;
+use crate::surface::blobs::Lattice;
 use crate::surface::normals::Plane;
 
 /// How deep an unsupported region of a surface must reach to be left out, in multiples of the
@@ -71,7 +72,24 @@ pub struct DataSupport {
     pub factor: f64,
     /// F times the spacing.
     pub radius: f64,
+    /// What [`DataSupport::on_lattice`] found at the nodes of a lattice.
+    nodes: Option<NodeReach>,
 }
+
+/// Whether the data support every point within one lattice spacing of each node of a lattice,
+/// none of them, or some (see [`DataSupport::on_lattice`]).
+struct NodeReach {
+    lattice: Lattice,
+    /// [`ALL_NEAR`], [`SOME_NEAR`] or [`NONE_NEAR`] per node.
+    class: Vec<u8>,
+}
+
+/// Every point within one lattice spacing of the node is supported.
+const ALL_NEAR: u8 = 2;
+/// Some may be: the tree decides.
+const SOME_NEAR: u8 = 1;
+/// None is.
+const NONE_NEAR: u8 = 0;
 
 impl DataSupport {
     /// The support of `points` (3 values per point, at least 2 distinct) at `factor` times their
@@ -84,7 +102,82 @@ impl DataSupport {
             .map(|i| tree.kth_distance([points[3 * i], points[3 * i + 1], points[3 * i + 2]], 2))
             .collect();
         let spacing = median(nearest.iter().copied().filter(|d| *d > 0.0 && d.is_finite()).collect());
-        DataSupport { tree, nearest, spacing, factor, radius: factor * spacing }
+        DataSupport { tree, nearest, spacing, factor, radius: factor * spacing, nodes: None }
+    }
+
+    /// This support with the answer of [`DataSupport::supports`] for the points near each node
+    /// of `lattice` worked out once, for [`DataSupport::supports_near`]. A point q within one
+    /// spacing h of a node x has |q - p| <= |x - p| + h for every data point p, and
+    /// |q - p| >= |x - p| - h: so where some data point lies within R - h of the node (R the
+    /// radius), every such q is supported; where none lies within R + h, none is; only the nodes
+    /// in between leave the answer to the tree. Both bounds are widened by a billionth of R + h,
+    /// far above the rounding of the distances, so the answers are exactly those of
+    /// [`DataSupport::supports`]. The classes are found from the data points, each marking the
+    /// nodes within R + h of it: a few hundred nodes a point, where the surface checks of a fit
+    /// asked the tree again at each of some 10^4 crossings of the lattice's edges, tens of times
+    /// a fit.
+    pub fn on_lattice(mut self, lattice: &Lattice) -> Self {
+        let h = lattice.h;
+        let margin = 1e-9 * (self.radius + h);
+        let (near, reach) = (self.radius - h - margin, self.radius + h + margin);
+        let near2 = if near > 0.0 { near * near } else { -1.0 };
+        let reach2 = reach * reach;
+        let [nx, ny, nz] = lattice.dims;
+        let mut class = vec![NONE_NEAR; lattice.len()];
+        // each z-plane of nodes marked by the data points within reach of it, the planes in
+        // parallel; the points sorted by z so that each plane visits its own
+        let n = self.nearest.len();
+        let mut by_z: Vec<[f64; 3]> = (0..n).map(|i| self.tree.point(i)).collect();
+        by_z.sort_by(|a, b| a[2].total_cmp(&b[2]));
+        let z_of: Vec<f64> = by_z.iter().map(|p| p[2]).collect();
+        let span = |x: f64, d: usize, len: usize| -> Option<std::ops::Range<usize>> {
+            let a = ((x - reach - lattice.lo[d]) / h).ceil().max(0.0);
+            let b = ((x + reach - lattice.lo[d]) / h).floor().min((len - 1) as f64);
+            (a <= b).then(|| a as usize..b as usize + 1)
+        };
+        class.par_chunks_mut(nx * ny).enumerate().for_each(|(z, plane)| {
+            let qz = lattice.lo[2] + z as f64 * h;
+            let first = z_of.partition_point(|&pz| pz < qz - reach);
+            let last = z_of.partition_point(|&pz| pz <= qz + reach);
+            for p in &by_z[first..last] {
+                let (Some(xs), Some(ys)) = (span(p[0], 0, nx), span(p[1], 1, ny)) else {
+                    continue;
+                };
+                let dz2 = (qz - p[2]) * (qz - p[2]);
+                for y in ys {
+                    let dy = lattice.lo[1] + y as f64 * h - p[1];
+                    let dyz2 = dy * dy + dz2;
+                    for x in xs.clone() {
+                        let dx = lattice.lo[0] + x as f64 * h - p[0];
+                        let d2 = dx * dx + dyz2;
+                        let c = &mut plane[x + nx * y];
+                        if d2 <= near2 {
+                            *c = ALL_NEAR;
+                        } else if d2 <= reach2 && *c == NONE_NEAR {
+                            *c = SOME_NEAR;
+                        }
+                    }
+                }
+            }
+        });
+        debug_assert_eq!(class.len(), nx * ny * nz);
+        self.nodes = Some(NodeReach { lattice: *lattice, class });
+        self
+    }
+
+    /// [`DataSupport::supports`] for a point `x` within one spacing of node `i` of `lattice`
+    /// (a crossing of one of the node's edges): the same answer, found from the node's class
+    /// where [`DataSupport::on_lattice`] worked them out for this lattice, from the tree where
+    /// the node's class leaves it open or there are none.
+    pub fn supports_near(&self, lattice: &Lattice, i: usize, x: &[f64; 3]) -> bool {
+        match &self.nodes {
+            Some(r) if r.lattice == *lattice => match r.class[i] {
+                ALL_NEAR => true,
+                NONE_NEAR => false,
+                _ => self.supports(x),
+            },
+            _ => self.supports(x),
+        }
     }
 
     /// The support of the data points `model` records (the first `data_points` centres of its
@@ -192,6 +285,43 @@ mod tests {
         assert!(s.supports(&[0.0, 0.0, 1.0]));
         assert!(!s.supports(&[0.0, 0.0, 1.01]));
         assert!(!s.supports(&[-1.0, -1.0, 0.0]));
+    }
+
+    #[test]
+    fn the_nodes_of_a_lattice_answer_as_the_tree_does_up_to_the_radius_itself() {
+        // a 10 x 10 grid of spacing 0.5 in the plane z = 0 (radius 1) and a lattice of spacing
+        // 0.25 whose nodes and edge ends lie on binary fractions: the nodes 0.75 = R - h and
+        // 1.25 = R + h below a data point are left to the tree, whose answer for the far end
+        // of their edges, exactly R and R - h from the point, is "supported"
+        let pts: Vec<f64> =
+            (0..100).flat_map(|i| [0.5 * (i % 10) as f64, 0.5 * (i / 10) as f64, 0.0]).collect();
+        let lattice = Lattice::new([-2.0; 3], [6.5, 6.5, 2.0], 35);
+        assert_eq!(lattice.h, 0.25);
+        let s = DataSupport::new(&pts, 2.0).on_lattice(&lattice);
+        let index = |x: [f64; 3]| {
+            let i = x.map(|v| v + 2.0).map(|v| (v / 0.25) as usize);
+            i[0] + lattice.dims[0] * (i[1] + lattice.dims[1] * i[2])
+        };
+        let classes = &s.nodes.as_ref().unwrap().class;
+        for (node, class, end, supported) in [
+            ([2.0, 2.0, -1.25], SOME_NEAR, [2.0, 2.0, -1.0], true),
+            ([2.0, 2.0, -0.75], SOME_NEAR, [2.0, 2.0, -0.5], true),
+            ([2.0, 2.0, -0.5], ALL_NEAR, [2.0, 2.0, -0.25], true),
+            ([2.0, 2.0, -1.5], NONE_NEAR, [2.0, 2.0, -1.25], false),
+            ([2.0, 2.0, 1.25], SOME_NEAR, [2.0, 2.0, 1.5], false),
+            ([-1.25, 2.0, 0.0], SOME_NEAR, [-1.0, 2.0, 0.0], true),
+        ] {
+            let i = index(node);
+            assert_eq!(lattice.node(i), node);
+            assert_eq!(classes[i], class, "{node:?}");
+            for x in [node, end] {
+                assert_eq!(s.supports_near(&lattice, i, &x), s.supports(&x), "{x:?}");
+            }
+            assert_eq!(s.supports_near(&lattice, i, &end), supported, "{end:?}");
+        }
+        // most nodes are decided by their class alone
+        let open = classes.iter().filter(|&&c| c == SOME_NEAR).count();
+        assert!(open * 4 < classes.len(), "{open} of {} left to the tree", classes.len());
     }
 
     #[test]

@@ -635,7 +635,8 @@ fn rays_and_blobs(
         c.prep = with_off_points(data, &c.off);
     }
     // the data's support, which the clearance choice alone needs
-    let support = run.args.blob_choice.then(|| DataSupport::new(&data.centres, choice::FACTOR));
+    let support =
+        run.args.blob_choice.then(|| DataSupport::new(&data.centres, choice::FACTOR).on_lattice(lattice));
     let (values, wide, narrow, search) = stages.time(Stage::Blobs, || {
         let values = sample(run.comm, lattice, &data.carrier, &first.spline);
         let search = Search::new(run.comm, lattice, &values, &data.centres, &c.normals, &c.hoods.tree);
@@ -951,7 +952,7 @@ fn turn_by_surface(
     refit: &mut Refit<'_>,
     (factor, lattice, areas): (Option<&KeptFactor>, &Lattice, &[f64]),
 ) -> Result<(Fitted, Vec<f64>)> {
-    let support = DataSupport::new(&data.centres, choice::FACTOR);
+    let support = DataSupport::new(&data.centres, choice::FACTOR).on_lattice(lattice);
     let (mut values, crossings) = stages.time(Stage::Turns, || {
         let values = values.unwrap_or_else(|| sample(run.comm, lattice, &data.carrier, &fit.spline));
         let crossings = choice::unsupported_crossings(lattice, &values, &support).0;
@@ -1129,7 +1130,7 @@ fn outside_after_turns(
     refit: &mut Refit<'_>,
     ((factor, lattice, areas), room): ((Option<&KeptFactor>, &Lattice, &[f64]), usize),
 ) -> Result<Fitted> {
-    let support = DataSupport::new(&data.centres, choice::FACTOR);
+    let support = DataSupport::new(&data.centres, choice::FACTOR).on_lattice(lattice);
     let (values, crossings, winding) = stages.time(Stage::Turns, || {
         let values = values.unwrap_or_else(|| sample(run.comm, lattice, &data.carrier, &fit.spline));
         let crossings = choice::unsupported_crossings(lattice, &values, &support).0;
