@@ -129,18 +129,28 @@ fn crossings_in(
         .into_par_iter()
         .map(|(y, z)| {
             let (mut all, mut far) = (0usize, Vec::new());
+            // what the row decides: whether the upper ends along y and z exist, and whether the
+            // row's nodes and their upper ends along y and z lie in the window as far as y and z
+            // go
+            let exists_yz = [y + 1 < ny, z + 1 < nz];
+            let row_in = wy.contains(&y) && wz.contains(&z);
+            let upper_in =
+                [wy.contains(&(y + 1)) && wz.contains(&z), wy.contains(&y) && wz.contains(&(z + 1))];
             for x in below(&wx) {
                 let i = x + nx * (y + ny * z);
-                let here = wx.contains(&x) && wy.contains(&y) && wz.contains(&z);
-                // whether the edge's upper end exists, and whether it lies in the window
-                let upper = [
-                    (x + 1 < nx, wx.contains(&(x + 1)) && wy.contains(&y) && wz.contains(&z)),
-                    (y + 1 < ny, wx.contains(&x) && wy.contains(&(y + 1)) && wz.contains(&z)),
-                    (z + 1 < nz, wx.contains(&x) && wy.contains(&y) && wz.contains(&(z + 1))),
-                ];
                 let inside = values[i] > 0.0;
-                for (a, &(exists, within)) in upper.iter().enumerate() {
-                    if !exists || !(here || within) || (values[i + strides[a]] > 0.0) == inside {
+                let x_in = wx.contains(&x);
+                let here = x_in && row_in;
+                for (a, &stride) in strides.iter().enumerate() {
+                    // the sign first: most edges do not change it
+                    let exists = if a == 0 { x + 1 < nx } else { exists_yz[a - 1] };
+                    if !exists || (values[i + stride] > 0.0) == inside {
+                        continue;
+                    }
+                    // whether the edge's upper end lies in the window
+                    let within =
+                        if a == 0 { wx.contains(&(x + 1)) && row_in } else { x_in && upper_in[a - 1] };
+                    if !(here || within) {
                         continue;
                     }
                     let q = crossing(lattice, values, i, a).expect("the edge changes sign");
