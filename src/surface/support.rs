@@ -122,7 +122,7 @@ impl DataSupport {
         let (near, reach) = (self.radius - h - margin, self.radius + h + margin);
         let near2 = if near > 0.0 { near * near } else { -1.0 };
         let reach2 = reach * reach;
-        let [nx, ny, nz] = lattice.dims;
+        let [nx, ny, _] = lattice.dims;
         let mut class = vec![NONE_NEAR; lattice.len()];
         // each z-plane of nodes marked by the data points within reach of it, the planes in
         // parallel; the points sorted by z so that each plane visits its own
@@ -160,7 +160,6 @@ impl DataSupport {
                 }
             }
         });
-        debug_assert_eq!(class.len(), nx * ny * nz);
         self.nodes = Some(NodeReach { lattice: *lattice, class });
         self
     }

@@ -522,8 +522,10 @@ pub fn check_first_fit(
 ) -> Result<Fitted> {
     let factor = first.factor.take();
     let lattice = search_lattice(data, c, run.args.grid.margin.fraction);
+    // the data's support on the lattice, for every count of unsupported crossings below
+    let support = DataSupport::new(&data.centres, choice::FACTOR).on_lattice(&lattice);
     let at = (factor.as_ref(), &lattice, room);
-    let searched = rays_and_blobs(run, data, c, first, stages, refit, at)?;
+    let searched = rays_and_blobs(run, data, c, first, stages, refit, (at, &support))?;
     // the data points' shares of the surface, for the turns' winding numbers
     let areas = searched.areas.clone();
     let (mut fit, values) = if run.args.restore_solid {
@@ -538,14 +540,14 @@ pub fn check_first_fit(
     let affordable = basis.is_some() || c.prep.values.len() < FRESH_TRIES_BELOW;
     let at = (basis.as_ref(), &lattice, &areas[..]);
     let (fit, values) = if run.args.orient_turns && affordable {
-        let (fit, values) = turn_by_surface(run, data, c, (fit, values), stages, refit, at)?;
+        let (fit, values) = turn_by_surface(run, data, c, (fit, values), stages, refit, (at, &support))?;
         (fit, Some(values))
     } else {
         c.summary.turns_skipped = run.args.orient_turns;
         (fit, values)
     };
     let fit = if (run.args.outside_points || run.args.mouth_points) && affordable {
-        outside_after_turns(run, data, c, (fit, values), stages, refit, (at, room))?
+        outside_after_turns(run, data, c, (fit, values), stages, refit, (at, room, &support))?
     } else {
         c.summary.outside_skipped = run.args.outside_points;
         c.summary.mouth_skipped = run.args.mouth_points;
@@ -594,7 +596,8 @@ fn within_room(blobs: Blobs, room: usize, summary: &mut SurfaceSummary) -> Blobs
 }
 
 /// The ray test and the blob search with the clearance choice of [`check_first_fit`] (`factor`:
-/// the first fit's, where it was kept; `room`: the centres a second fit may append): the fit
+/// the first fit's, where it was kept; `room`: the centres a second fit may append; `support`:
+/// the data's support on `lattice`, which the turns and the outside points count with too): the fit
 /// kept, with its values on the lattice where they were sampled, and what [`restore_solid`]
 /// compares it with. Collective.
 fn rays_and_blobs(
@@ -604,7 +607,7 @@ fn rays_and_blobs(
     first: Fitted,
     stages: &mut Stages,
     refit: &mut Refit<'_>,
-    (factor, lattice, room): (Option<&KeptFactor>, &Lattice, usize),
+    ((factor, lattice, room), support): ((Option<&KeptFactor>, &Lattice, usize), &DataSupport),
 ) -> Result<Searched> {
     let turned = stages.time(Stage::Rays, || {
         if !run.args.orient_rays {
@@ -635,13 +638,12 @@ fn rays_and_blobs(
         c.prep = with_off_points(data, &c.off);
     }
     // the data's support, which the clearance choice alone needs
-    let support =
-        run.args.blob_choice.then(|| DataSupport::new(&data.centres, choice::FACTOR).on_lattice(lattice));
+    let support = run.args.blob_choice.then_some(support);
     let (values, wide, narrow, search) = stages.time(Stage::Blobs, || {
         let values = sample(run.comm, lattice, &data.carrier, &first.spline);
         let search = Search::new(run.comm, lattice, &values, &data.centres, &c.normals, &c.hoods.tree);
         let wide = search.blobs(lattice, CLEARANCE);
-        let narrow = support.as_ref().map(|s| search.blobs(lattice, choice::NARROW * s.spacing));
+        let narrow = support.map(|s| search.blobs(lattice, choice::NARROW * s.spacing));
         (values, wide, narrow, search)
     });
     let wide = within_room(wide, room, &mut c.summary);
@@ -656,7 +658,7 @@ fn rays_and_blobs(
     c.summary.rays = run.args.orient_rays.then(|| turned.clone());
     // the first fit is the candidate of a blob set where it pins nothing and no patch turned
     let first_stands = |b: &Blobs| b.source.is_empty() && turned.turned == 0;
-    let (Some(narrow), Some(support)) = (narrow, support.as_ref()) else {
+    let (Some(narrow), Some(support)) = (narrow, support) else {
         if first_stands(&wide) {
             return Ok(done(first, Some(values)));
         }
@@ -671,12 +673,12 @@ fn rays_and_blobs(
         let (values, share) = stages.time(Stage::Blobs, || {
             let values = sample(run.comm, lattice, &data.carrier, &fit.spline);
             let winding = |at: &[[f64; 3]]| winding_numbers(run.comm, at, &data.centres, &c.normals, areas);
-            let share = unsupported_share(lattice, &values, &support, winding).0;
+            let share = unsupported_share(lattice, &values, support, winding).0;
             (values, share)
         });
         let kept = Round { fit, values, share, clearance: CLEARANCE };
         let (fit, values) =
-            second_round(run, data, c, kept, (lattice, &search, &support), (factor, room), stages, refit)?;
+            second_round(run, data, c, kept, (lattice, &search, support), (factor, room), stages, refit)?;
         return Ok(done(fit, Some(values)));
     };
     // two candidates: each is the first fit or a second one, with its points and the lattice
@@ -950,12 +952,11 @@ fn turn_by_surface(
     (mut fit, values): (Fitted, Option<Vec<f64>>),
     stages: &mut Stages,
     refit: &mut Refit<'_>,
-    (factor, lattice, areas): (Option<&KeptFactor>, &Lattice, &[f64]),
+    ((factor, lattice, areas), support): ((Option<&KeptFactor>, &Lattice, &[f64]), &DataSupport),
 ) -> Result<(Fitted, Vec<f64>)> {
-    let support = DataSupport::new(&data.centres, choice::FACTOR).on_lattice(lattice);
     let (mut values, crossings) = stages.time(Stage::Turns, || {
         let values = values.unwrap_or_else(|| sample(run.comm, lattice, &data.carrier, &fit.spline));
-        let crossings = choice::unsupported_crossings(lattice, &values, &support).0;
+        let crossings = choice::unsupported_crossings(lattice, &values, support).0;
         (values, crossings)
     });
     let (candidates, patches, side_patches) = stages.time(Stage::Turns, || {
@@ -963,7 +964,7 @@ fn turn_by_surface(
         let mut candidates = turns::candidates(&data.centres, &c.normals, knn, &c.hoods.tree, &crossings);
         let patches = candidates.len();
         let in_window = |cd: &turns::Candidate| {
-            choice::unsupported_in_window(lattice, &values, &support, &cd.window(lattice))
+            choice::unsupported_in_window(lattice, &values, support, &cd.window(lattice))
         };
         let facing = turns::facing_candidates(
             &data.centres,
@@ -1024,7 +1025,7 @@ fn turn_by_surface(
         // the count changes within the window alone: where the crossings there now are too few
         // for their removal to be a gain, no turn of this patch can be
         let window = candidate.window(lattice);
-        let within = |values: &[f64]| choice::unsupported_in_window(lattice, values, &support, &window);
+        let within = |values: &[f64]| choice::unsupported_in_window(lattice, values, support, &window);
         let now = stages.time(Stage::Turns, || within(&values));
         if !vote && !turns::gains(far, far - now) {
             continue;
@@ -1032,7 +1033,7 @@ fn turn_by_surface(
         // the unsupported crossings in open space within the window, before and after
         let open_count = |values: &[f64], normals: &[[f64; 3]]| {
             let data = (&data.centres[..], normals, areas);
-            turns::open_space_crossings(run.comm, (lattice, &window), values, &support, data)
+            turns::open_space_crossings(run.comm, (lattice, &window), values, support, data)
         };
         // a group facing a sheet is turned only where that clears open space: where the window
         // holds too few crossings in open space for their removal to clear it, it is not tried
@@ -1128,12 +1129,11 @@ fn outside_after_turns(
     (fit, values): (Fitted, Option<Vec<f64>>),
     stages: &mut Stages,
     refit: &mut Refit<'_>,
-    ((factor, lattice, areas), room): ((Option<&KeptFactor>, &Lattice, &[f64]), usize),
+    ((factor, lattice, areas), room, support): ((Option<&KeptFactor>, &Lattice, &[f64]), usize, &DataSupport),
 ) -> Result<Fitted> {
-    let support = DataSupport::new(&data.centres, choice::FACTOR).on_lattice(lattice);
     let (values, crossings, winding) = stages.time(Stage::Turns, || {
         let values = values.unwrap_or_else(|| sample(run.comm, lattice, &data.carrier, &fit.spline));
-        let crossings = choice::unsupported_crossings(lattice, &values, &support).0;
+        let crossings = choice::unsupported_crossings(lattice, &values, support).0;
         let winding = winding_numbers(run.comm, &crossings, &data.centres, &c.normals, areas);
         (values, crossings, winding)
     });
@@ -1147,7 +1147,7 @@ fn outside_after_turns(
     });
     let fit = if run.args.outside_points {
         let at = ((factor, lattice), room);
-        let found = (&support, &crossings[..], &winding[..]);
+        let found = (support, &crossings[..], &winding[..]);
         outside_in_open_space(run, data, c, (fit, values), stages, refit, at, found)?
     } else {
         fit
