@@ -68,6 +68,8 @@
 //! GEMMs on the same pieces: the factors are the same, bit for bit in the tests on two and three
 //! ranks.
 
+use std::rc::Rc;
+
 use crate::linalg::gemm::{gemm, solve_lower};
 use faer::reborrow::{Reborrow, ReborrowMut};
 use faer::{Accum, Mat, MatMut, MatRef, Par};
@@ -213,7 +215,7 @@ pub(super) fn back_substitute_many(
     job: &Job<'_>,
     rows: &LocalRows,
     (k, n): (usize, usize),
-    nb: usize,
+    (nb, diagonal): (usize, &dyn Fn(usize, usize) -> Rc<Mat<f64>>),
     z: MatRef<'_, f64>,
 ) -> Mat<f64> {
     let Job { comm, par, .. } = *job;
@@ -242,11 +244,11 @@ pub(super) fn back_substitute_many(
         }
         let mut buf: Vec<f64> = (0..bs * c).map(|q| sums[(q % bs, q / bs)]).collect();
         comm.sum_f64(&mut buf);
-        let d = rows.gather_rows(comm, q0, q1, q0, q1);
+        let d = diagonal(q0, q1);
         for j in 0..c {
             for i in (0..bs).rev() {
-                let s: f64 = (i + 1..bs).map(|t| d[t * bs + i] * mu[(q0 + t, j)]).sum();
-                mu[(q0 + i, j)] = (z[(q0 + i, j)] - buf[j * bs + i] - s) / d[i * bs + i];
+                let s: f64 = (i + 1..bs).map(|t| d[(t, i)] * mu[(q0 + t, j)]).sum();
+                mu[(q0 + i, j)] = (z[(q0 + i, j)] - buf[j * bs + i] - s) / d[(i, i)];
             }
         }
         for l in lay.first_local_from(q0)..u0 {

@@ -57,7 +57,7 @@
 //! substitutes only the others. Second fits that differ in a few of hundreds of appended centres
 //! (two candidate sets of constraint points, or a set and a superset of it) then cost one
 //! substitution between them instead of one each. The kept columns are bounded by
-//! [`KEPT_SHARE`] of the factor's centres.
+//! [`kept_most`] of the factor's centres.
 //!
 //! X itself is never formed: X^T X = G_n^T (Y^T Y) G_n, and the solves take X^T z = G_n^T (Y^T z)
 //! and X u = Y (G_n u). The Gram matrix Y^T Y of the kept columns is kept with them (summed over
@@ -66,9 +66,20 @@
 //! (n - k) flops of X^T X become a product of the few new columns, and the (n - k) m k flops
 //! and the memory traffic that would form X are saved too (a fit of 5556 centres bordered by
 //! 373, 371 of them kept, on 2 ranks: 0.043 s -> 0.028 s).
+//!
+//! # Diagonal blocks kept
+//!
+//! Both substitutions solve with L's diagonal blocks of one panel each, which every rank needs
+//! whole: a gather of panel x panel entries per block and substitution. L does not change
+//! between extensions, so the blocks gathered once are kept (the forward substitution's and the
+//! back substitution's, whose panels are cut from opposite ends) up to [`DIAGONAL_BYTES`] a
+//! rank, and later substitutions read them from there: on a fit of 514 centres bordered ten
+//! times on one rank, about a third of the extensions' time went to gathering and unpacking the
+//! same blocks again.
 
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 use std::collections::HashMap;
+use std::rc::Rc;
 
 use crate::linalg::gemm::gemm;
 use faer::linalg::matmul::triangular::{self, BlockStructure};
@@ -80,12 +91,32 @@ use super::solver::Job;
 use super::system::{all_gather_rows, LocalRows};
 use crate::error::{Error, Result};
 use crate::linalg::reflector::{explicit_v, qr_in_place, wy_t};
+use crate::par::Comm;
 
 /// Most columns of Y a factor keeps (see "Substitutions kept per centre"), as a share of its
 /// centres: a quarter adds at most a quarter to the memory of the factor's own rows, and holds
 /// the constraint points of the blob search (at most a sixth of the centres of an off-surface
-/// fit).
+/// fit of some thousands of points). Small factors keep up to [`KEPT_FLOOR`] columns whatever
+/// their share ([`kept_most`]).
 pub const KEPT_SHARE: f64 = 0.25;
+
+/// The columns of Y every factor may keep, up to its own centres, whatever its share: on small
+/// fits the blob search's constraint points are more than the share holds (200 on 400 data
+/// points with 114 off points, where a quarter is 128); with them kept, each later extension by
+/// the same points and a few more substitutes the few (there, on 2 ranks, the extensions after
+/// the first two took 1.0-1.2 ms instead of 3.0-3.3 ms). At most 512 columns of a factor's rows
+/// and a 512 x 512 Gram matrix: a few megabytes.
+pub const KEPT_FLOOR: usize = 512;
+
+/// The most columns of Y a factor of `n` centres keeps: [`KEPT_SHARE`] of them, at least
+/// [`KEPT_FLOOR`] (at most `n`).
+pub fn kept_most(n: usize) -> usize {
+    ((KEPT_SHARE * n as f64) as usize).max(KEPT_FLOOR.min(n))
+}
+
+/// Most bytes of L's diagonal blocks a factor keeps on each rank (see "Diagonal blocks kept"):
+/// both substitutions' blocks of a factor of about 8000 centres at the default panel of 256.
+pub const DIAGONAL_BYTES: f64 = 32e6;
 
 /// The factor of a solved projected Cholesky kept for bordering: the rows it overwrote (L of
 /// s B in rows and columns k..n, rows 0..k and columns 0..k of Q^T A Q as the projection left
@@ -97,6 +128,9 @@ pub struct Factored {
     sign: f64,
     panel: usize,
     kept: RefCell<Substituted>,
+    /// The most columns of Y it keeps ([`kept_most`] unless set).
+    keep: usize,
+    diagonal: Diagonal,
     /// The seconds this rank took to move the factor from the 2D layout (None: factored here).
     moved: Option<f64>,
 }
@@ -113,6 +147,39 @@ struct Substituted {
     gram: Mat<f64>,
 }
 
+/// A diagonal block of L, shared by the substitutions that read it.
+type Block = Rc<Mat<f64>>;
+
+/// L's diagonal blocks gathered by earlier substitutions (see "Diagonal blocks kept"), by their
+/// first and last row: the lower triangle of each, zero above it. Every rank asks for the same
+/// blocks in the same order and keeps the same ones, so a block kept on one is kept on all and
+/// the gather it saves is skipped by every rank alike.
+#[derive(Default)]
+struct Diagonal {
+    blocks: RefCell<HashMap<(usize, usize), Block>>,
+    bytes: Cell<f64>,
+}
+
+impl Diagonal {
+    /// The block of rows and columns q0..q1 of L in `rows`: kept, or gathered (and kept while
+    /// there is room). Collective where it gathers.
+    fn block(&self, comm: &dyn Comm, rows: &LocalRows, q0: usize, q1: usize) -> Block {
+        if let Some(b) = self.blocks.borrow().get(&(q0, q1)) {
+            return Rc::clone(b);
+        }
+        let bs = q1 - q0;
+        let d = rows.gather_rows(comm, q0, q1, q0, q1);
+        // the lower triangle alone: above it the first solve may have left entries of B
+        let l11 = Rc::new(Mat::<f64>::from_fn(bs, bs, |i, j| if j <= i { d[i * bs + j] } else { 0.0 }));
+        let bytes = self.bytes.get() + 8.0 * (bs * bs) as f64;
+        if bytes <= DIAGONAL_BYTES {
+            self.bytes.set(bytes);
+            self.blocks.borrow_mut().insert((q0, q1), Rc::clone(&l11));
+        }
+        l11
+    }
+}
+
 impl Default for Substituted {
     fn default() -> Self {
         Substituted { columns: Vec::new(), centres: HashMap::new(), gram: Mat::zeros(0, 0) }
@@ -121,7 +188,8 @@ impl Default for Substituted {
 
 impl Factored {
     pub(super) fn new(rows: LocalRows, border: Border, sign: f64, panel: usize) -> Self {
-        Factored { rows, border, sign, panel, kept: RefCell::default(), moved: None }
+        let (kept, keep, diagonal) = (RefCell::default(), kept_most(border.n), Diagonal::default());
+        Factored { rows, border, sign, panel, kept, keep, diagonal, moved: None }
     }
 
     /// The factor moved from the 2D layout in `seconds` (on this rank).
@@ -132,6 +200,17 @@ impl Factored {
     /// The seconds this rank took to move the factor from the 2D layout, if it was moved.
     pub fn moved(&self) -> Option<f64> {
         self.moved
+    }
+
+    /// The factor keeping at most `columns` columns of Y for later extensions (by default
+    /// [`kept_most`] of its centres). The same on every rank.
+    pub fn keeping_at_most(self, columns: usize) -> Self {
+        Factored { keep: columns, ..self }
+    }
+
+    /// The most columns of Y this factor keeps for later extensions.
+    pub fn keeps_at_most(&self) -> usize {
+        self.keep
     }
 
     /// The appended centres whose substitutions this factor keeps for later extensions.
@@ -229,8 +308,7 @@ impl Factored {
         });
         // keep the border's columns, and the new centres' while there is room
         let fresh_centres = new.iter().filter(|&&c| c >= k).count();
-        let centres_fit =
-            keys.is_some() && (kept.centres.len() + fresh_centres) as f64 <= KEPT_SHARE * n as f64;
+        let centres_fit = keys.is_some() && kept.centres.len() + fresh_centres <= self.keep;
         let added: Vec<usize> = (0..new.len()).filter(|&t| new[t] < k || centres_fit).collect();
         if !added.is_empty() {
             let count = held + added.len();
@@ -465,12 +543,10 @@ fn forward_substitute(job: &Job<'_>, first: &Factored, x: &mut LocalRows) {
     while q0 < n {
         let q1 = (q0 + nb).min(n);
         let bs = q1 - q0;
-        let diag = first.rows.gather_rows(comm, q0, q1, q0, q1);
+        let l11 = first.diagonal.block(comm, &first.rows, q0, q1);
         let rhs = x.gather_rows(comm, q0, q1, 0, cols);
-        // the lower triangle alone: above it the first solve may have left entries of B
-        let l11 = Mat::<f64>::from_fn(bs, bs, |i, j| if j <= i { diag[i * bs + j] } else { 0.0 });
         let mut zb = Mat::<f64>::from_fn(bs, cols, |i, j| rhs[i * cols + j]);
-        solve_lower_triangular_in_place(l11.as_ref(), zb.as_mut(), faer::Par::Seq);
+        solve_lower_triangular_in_place(Mat::as_ref(&l11), zb.as_mut(), faer::Par::Seq);
         for l in lay.first_local_from(q0)..lay.first_local_from(q1) {
             let i = lay.global(l) - q0;
             (0..cols).for_each(|j| x.set(l, j, zb[(i, j)]));
@@ -521,7 +597,8 @@ impl Bordered {
         let send: Vec<f64> = (0..(la - b0) * c).map(|q| z1[(q / c, q % c)] - xm[(q / c, q % c)]).collect();
         let gathered = all_gather_rows(comm, lay, &send, k..n, c);
         let zz = Mat::<f64>::from_fn(n, c, |i, j| if i < k { 0.0 } else { gathered[(i - k) * c + j] });
-        let mu = back_substitute_many(job, &first.rows, (k, n), nb, zz.as_ref());
+        let diagonal = |q0: usize, q1: usize| first.diagonal.block(comm, &first.rows, q0, q1);
+        let mu = back_substitute_many(job, &first.rows, (k, n), (nb, &diagonal), zz.as_ref());
 
         // lambda' = Q' [0; mu; 0; mu_new]: H puts G [0; mu_new] on R's and the new coordinates
         let zgm = &self.zg * &mu_new;
