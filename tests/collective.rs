@@ -500,8 +500,8 @@ fn householder_agreed_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
 /// of values at once: against the dense QR of the whole system, panels ending inside and beyond
 /// a rank's rows, and the same on every rank. The
 /// factor keeps the first half's substitutions, and the later extensions reuse them; held to a
-/// quarter of its centres it keeps no more, by default (small factors keep up to
-/// `dist::KEPT_FLOOR` columns) the whole quarter's too.
+/// quarter of its centres, or given no memory beyond the estimate, it keeps no more, by default
+/// (small factors keep up to `dist::KEPT_FLOOR` columns) the whole quarter's too.
 fn bordered_factor_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
     let k = Kernel::new(3, 2).unwrap();
     let prep = bunny_system(&k);
@@ -516,12 +516,30 @@ fn bordered_factor_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
         );
         let first = first.expect("the projected Cholesky keeps its factor");
         // by default a factor this small keeps every column; held to a quarter of its centres,
-        // the whole remaining quarter (a third of n) does not fit
-        let first = match panel {
-            16 => first,
-            _ => first.keeping_at_most(n / 4),
+        // or given no memory beyond the estimate (which counts a quarter), the whole remaining
+        // quarter (a third of n) does not fit
+        let (first, most) = match panel {
+            7 => (first.keeping_at_most(n / 4), n / 4),
+            16 => (first, dist::kept_most(n)),
+            _ => {
+                first.limit_extras(0.0);
+                (first, n / 4)
+            }
         };
-        check_bordering(&job, log, &k, &prep, &first, &format!("panel {panel}"));
+        let what = format!("panel {panel}");
+        check_bordering(&job, log, &k, &prep, (&first, most), &what);
+        // no more memory beyond the estimate than given: with none, no diagonal block either;
+        // given less than it holds, it lets go of all it kept
+        let beyond = first.extra_bytes();
+        match panel {
+            64 => log.check(beyond == 0.0, || format!("{what}: {beyond} bytes beyond the estimate")),
+            _ => {
+                log.check(beyond > 0.0, || format!("{what}: nothing kept beyond the estimate"));
+                first.limit_extras(beyond / 2.0);
+                let (now, kept) = (first.extra_bytes(), first.kept_centres());
+                log.check(now == 0.0 && kept == 0, || format!("{what}: {now} bytes, {kept} kept"));
+            }
+        }
     }
 }
 
@@ -559,7 +577,7 @@ fn bordered_2d_factor_matches_the_oracle(comm: &dyn Comm, log: &mut Log) {
             log.check(first.centres() == n && first.border() == 4, || {
                 format!("{what}: factor of {}", first.centres())
             });
-            check_bordering(&job, log, &k, &prep, &first, &what);
+            check_bordering(&job, log, &k, &prep, (&first, dist::kept_most(n)), &what);
         }
     }
 }
@@ -571,7 +589,7 @@ fn check_bordering(
     log: &mut Log,
     k: &Kernel,
     prep: &Prepared,
-    first: &dist::Factored,
+    (first, most): (&dist::Factored, usize),
     label: &str,
 ) {
     let total = prep.values.len();
@@ -593,7 +611,7 @@ fn check_bordering(
         // fits what the factor keeps
         let kept = match step {
             0 => 0,
-            3 if total - n <= first.keeps_at_most() => total - n,
+            3 if total - n <= most => total - n,
             _ => half - n,
         };
         log.check(first.kept_centres() == kept, || {

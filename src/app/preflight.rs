@@ -30,7 +30,7 @@ use crate::cli::ranks_on_this_node;
 use crate::error::{Error, Result};
 use crate::grid::Grid;
 use crate::io::staging::{is_special, output_target, parent_dir, same_file};
-use crate::linalg::dist::{kept_most, Precision, DIAGONAL_BYTES};
+use crate::linalg::dist::{Precision, KEPT_SHARE};
 use crate::par::{agree, Comm};
 
 /// Memory a dense fit of a system of `system` rows needs on each of `ranks` ranks, in bytes, with
@@ -89,15 +89,14 @@ const PAGE: f64 = 4096.0;
 /// Memory per rank that bordering a kept factor of `n` centres by `m` more takes on top of it
 /// (border `k`): five blocks of this rank's rows by m columns at the peak (the cross block, it
 /// projected, its substitution through the factor, that times the border's new basis, the
-/// bordered rows), the substitutions the factor keeps for later extensions (at most
-/// [`kept_most`] columns of its rows, and their Gram matrix), the diagonal blocks of its factor
-/// kept on every rank (at most [`DIAGONAL_BYTES`], and no more than two n x n matrices) and a
-/// few (k + m) x (k + m) matrices on every rank.
+/// bordered rows), the substitutions the factor keeps for later extensions ([`KEPT_SHARE`] n
+/// columns of its rows; what it keeps beyond that lives in the room this leaves, see
+/// [`crate::linalg::dist::Factored::limit_extras`]) and a few (k + m) x (k + m) matrices on
+/// every rank.
 pub fn bordered_fit_bytes(n: usize, m: usize, k: usize, ranks: usize) -> f64 {
     let rows = n.div_ceil(ranks.max(1)) as f64;
-    let (w, kept) = ((k + m) as f64, kept_most(n) as f64);
-    let diagonal = DIAGONAL_BYTES.min(16.0 * (n * n) as f64);
-    1.15 * (8.0 * (rows * (5.0 * (m + 1) as f64 + kept) + kept * kept + 5.0 * w * w) + diagonal)
+    let w = (k + m) as f64;
+    1.15 * 8.0 * (rows * (5.0 * (m + 1) as f64 + KEPT_SHARE * n as f64) + 5.0 * w * w)
 }
 
 /// Memory the volume outputs need on the rank with the thickest slab of `grid`: its values with

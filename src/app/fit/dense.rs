@@ -255,13 +255,17 @@ pub fn refit(
     if let Some(first) = first.filter(|f| f.extended_by(prep)) {
         let (n, m) = (first.factor.centres(), prep.values.len() - first.factor.centres());
         let k = kernel.poly_count();
+        let held = dense_matrix_bytes(n + k, run.comm.size(), Precision::F64, true) + FIXED_BYTES;
+        let need = bordered_fit_bytes(n, m, k, run.comm.size());
         check_memory_beside(
             run.comm,
-            dense_matrix_bytes(n + k, run.comm.size(), Precision::F64, true) + FIXED_BYTES,
-            bordered_fit_bytes(n, m, k, run.comm.size()),
+            held,
+            need,
             &format!("bordering the first fit's factor ({n} centres) by {m} more"),
             "use more ranks or nodes, --blob-choice off, or fewer points",
         )?;
+        // what the factor keeps beyond the estimate to save time lives in the room left
+        first.factor.limit_extras(super::agreed_room(run.comm, held) - need);
         match fit_bordered(run, kernel, prep, first, stages) {
             Err(e) if e.is_not_definite() => {
                 if run.comm.rank() == 0 {

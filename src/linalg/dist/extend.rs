@@ -76,6 +76,16 @@
 //! rank, and later substitutions read them from there: on a fit of 514 centres bordered ten
 //! times on one rank, about a third of the extensions' time went to gathering and unpacking the
 //! same blocks again.
+//!
+//! # Memory beyond the estimate
+//!
+//! The memory a bordering needs is estimated with the kept columns of the share alone
+//! ([`KEPT_SHARE`]). What a factor keeps beyond that (the diagonal blocks, the columns beyond
+//! the share up to [`KEPT_FLOOR`]) only saves time, so it lives in the room the estimate leaves:
+//! the caller gives each extension that room ([`Factored::limit_extras`]; the ranks agree on
+//! it), the factor keeps no more beyond the estimate than that, and it lets go of what it kept
+//! beyond the estimate where an extension leaves less room than it holds. Counted alike on every
+//! rank (the rows of the rank with the most), so every rank keeps the same.
 
 use std::cell::{Cell, RefCell};
 use std::collections::HashMap;
@@ -131,6 +141,10 @@ pub struct Factored {
     /// The most columns of Y it keeps ([`kept_most`] unless set).
     keep: usize,
     diagonal: Diagonal,
+    /// The bytes it may keep beyond the memory estimate (see "Memory beyond the estimate"), and
+    /// those of the columns of Y it keeps beyond the share.
+    extras_room: Cell<f64>,
+    columns_beyond: Cell<f64>,
     /// The seconds this rank took to move the factor from the 2D layout (None: factored here).
     moved: Option<f64>,
 }
@@ -162,8 +176,8 @@ struct Diagonal {
 
 impl Diagonal {
     /// The block of rows and columns q0..q1 of L in `rows`: kept, or gathered (and kept while
-    /// there is room). Collective where it gathers.
-    fn block(&self, comm: &dyn Comm, rows: &LocalRows, q0: usize, q1: usize) -> Block {
+    /// the blocks stay within `room` bytes and [`DIAGONAL_BYTES`]). Collective where it gathers.
+    fn block(&self, comm: &dyn Comm, rows: &LocalRows, (q0, q1): (usize, usize), room: f64) -> Block {
         if let Some(b) = self.blocks.borrow().get(&(q0, q1)) {
             return Rc::clone(b);
         }
@@ -172,7 +186,7 @@ impl Diagonal {
         // the lower triangle alone: above it the first solve may have left entries of B
         let l11 = Rc::new(Mat::<f64>::from_fn(bs, bs, |i, j| if j <= i { d[i * bs + j] } else { 0.0 }));
         let bytes = self.bytes.get() + 8.0 * (bs * bs) as f64;
-        if bytes <= DIAGONAL_BYTES {
+        if bytes <= DIAGONAL_BYTES.min(room) {
             self.bytes.set(bytes);
             self.blocks.borrow_mut().insert((q0, q1), Rc::clone(&l11));
         }
@@ -189,7 +203,8 @@ impl Default for Substituted {
 impl Factored {
     pub(super) fn new(rows: LocalRows, border: Border, sign: f64, panel: usize) -> Self {
         let (kept, keep, diagonal) = (RefCell::default(), kept_most(border.n), Diagonal::default());
-        Factored { rows, border, sign, panel, kept, keep, diagonal, moved: None }
+        let (extras_room, columns_beyond) = (Cell::new(f64::INFINITY), Cell::new(0.0));
+        Factored { rows, border, sign, panel, kept, keep, diagonal, extras_room, columns_beyond, moved: None }
     }
 
     /// The factor moved from the 2D layout in `seconds` (on this rank).
@@ -208,9 +223,38 @@ impl Factored {
         Factored { keep: columns, ..self }
     }
 
-    /// The most columns of Y this factor keeps for later extensions.
-    pub fn keeps_at_most(&self) -> usize {
-        self.keep
+    /// Gives the factor `bytes` per rank beyond the memory estimate for what it keeps to save
+    /// time (see "Memory beyond the estimate"; unlimited until set): where it holds more, it
+    /// lets go of the diagonal blocks and the substitutions it kept. The same on every rank.
+    pub fn limit_extras(&self, bytes: f64) {
+        if self.extra_bytes() > bytes {
+            self.diagonal.blocks.borrow_mut().clear();
+            self.diagonal.bytes.set(0.0);
+            *self.kept.borrow_mut() = Substituted::default();
+            self.columns_beyond.set(0.0);
+        }
+        self.extras_room.set(bytes);
+    }
+
+    /// The bytes per rank this factor keeps beyond the memory estimate: its diagonal blocks and
+    /// the columns of Y (with their rows of the Gram matrix) beyond [`KEPT_SHARE`].
+    pub fn extra_bytes(&self) -> f64 {
+        self.diagonal.bytes.get() + self.columns_beyond.get()
+    }
+
+    /// The bytes of `columns` kept columns of Y beyond the share, counted with the rows of the
+    /// rank that has the most.
+    fn beyond_share(&self, columns: usize) -> f64 {
+        let share = (KEPT_SHARE * self.border.n as f64) as usize;
+        let rows = self.border.n.div_ceil(self.rows.layout.ranks);
+        8.0 * ((rows + columns) * columns.saturating_sub(share)) as f64
+    }
+
+    /// The diagonal block of rows and columns q0..q1 of L (see "Diagonal blocks kept").
+    /// Collective where it gathers.
+    fn diagonal_block(&self, comm: &dyn Comm, q0: usize, q1: usize) -> Block {
+        let room = self.extras_room.get() - self.columns_beyond.get();
+        self.diagonal.block(comm, &self.rows, (q0, q1), room)
     }
 
     /// The appended centres whose substitutions this factor keeps for later extensions.
@@ -308,7 +352,10 @@ impl Factored {
         });
         // keep the border's columns, and the new centres' while there is room
         let fresh_centres = new.iter().filter(|&&c| c >= k).count();
-        let centres_fit = keys.is_some() && kept.centres.len() + fresh_centres <= self.keep;
+        let total = kept.centres.len() + fresh_centres;
+        let beyond = self.beyond_share(total);
+        let room = self.extras_room.get() - self.diagonal.bytes.get();
+        let centres_fit = keys.is_some() && total <= self.keep && (beyond == 0.0 || beyond <= room);
         let added: Vec<usize> = (0..new.len()).filter(|&t| new[t] < k || centres_fit).collect();
         if !added.is_empty() {
             let count = held + added.len();
@@ -325,6 +372,7 @@ impl Factored {
                     kept.centres.insert(key(new[t] - k).expect("keys given"), held + slot);
                 }
             }
+            self.columns_beyond.set(self.beyond_share(kept.centres.len()));
         }
         let z = x.view().col(new.len()).subrows(b0, h).iter().copied().collect();
         (yc, gram, z)
@@ -543,7 +591,7 @@ fn forward_substitute(job: &Job<'_>, first: &Factored, x: &mut LocalRows) {
     while q0 < n {
         let q1 = (q0 + nb).min(n);
         let bs = q1 - q0;
-        let l11 = first.diagonal.block(comm, &first.rows, q0, q1);
+        let l11 = first.diagonal_block(comm, q0, q1);
         let rhs = x.gather_rows(comm, q0, q1, 0, cols);
         let mut zb = Mat::<f64>::from_fn(bs, cols, |i, j| rhs[i * cols + j]);
         solve_lower_triangular_in_place(Mat::as_ref(&l11), zb.as_mut(), faer::Par::Seq);
@@ -597,7 +645,7 @@ impl Bordered {
         let send: Vec<f64> = (0..(la - b0) * c).map(|q| z1[(q / c, q % c)] - xm[(q / c, q % c)]).collect();
         let gathered = all_gather_rows(comm, lay, &send, k..n, c);
         let zz = Mat::<f64>::from_fn(n, c, |i, j| if i < k { 0.0 } else { gathered[(i - k) * c + j] });
-        let diagonal = |q0: usize, q1: usize| first.diagonal.block(comm, &first.rows, q0, q1);
+        let diagonal = |q0: usize, q1: usize| first.diagonal_block(comm, q0, q1);
         let mu = back_substitute_many(job, &first.rows, (k, n), (nb, &diagonal), zz.as_ref());
 
         // lambda' = Q' [0; mu; 0; mu_new]: H puts G [0; mu_new] on R's and the new coordinates
