@@ -39,8 +39,8 @@ mod test_support;
 pub use cholesky::cholesky_solve;
 pub use cholesky2d::cholesky2d_solve;
 pub use extend::{
-    extend_solve, kept_most, solve_bordered, solve_bordered_many, Appended, Bordered, Factored,
-    DIAGONAL_BYTES, KEPT_FLOOR, KEPT_SHARE,
+    extend_solve, kept_most, solve_bordered, solve_bordered_many, Appended, Bordered, Factored, KEPT_FLOOR,
+    KEPT_SHARE,
 };
 pub use grid::{squarest, BlockCyclic, Layout, LocalBlocks, ProcessGrid};
 pub use householder::householder_solve;
