@@ -68,7 +68,10 @@ pub struct FitArgs {
     /// Output prefix: writes PREFIX.model.h5, PREFIX.hdf, PREFIX.ply.
     #[arg(long, value_name = "PREFIX")]
     pub out: PathBuf,
-    /// Carrier solid: ball (fitted to the data), ball:cx,cy,cz,r, ellipsoid:cx,cy,cz,a,b,c, or
+    /// Carrier solid: ball (fitted to the data), ball:cx,cy,cz,r, ellipsoid (fitted to the data:
+    /// the principal axes and extents of the points), ellipsoid(S) (the same with the spread of
+    /// its semi-axes scaled by S in 0..1 on a log scale: 0 is a ball), ellipsoid:cx,cy,cz,a,b,c
+    /// (along the coordinate axes; nine more numbers give the unit axes one after the other), or
     /// union(A,B) / intersection(A,B) / difference(A,B) of carriers (R-functions).
     #[arg(long, default_value = "ball", value_name = "SPEC", value_parser = carrier_3d)]
     pub carrier: Carrier,

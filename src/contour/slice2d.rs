@@ -133,7 +133,7 @@ fn dense_hint(section: &Section, diag: f64) -> String {
 /// The disc round a 2D point set: centre of the bounding box, radius half its diagonal.
 fn disc_around(points: &[f64]) -> Carrier {
     let (lo, hi) = bounding_box(points, 2);
-    Carrier::AutoBall.resolve(&lo, &hi)
+    Carrier::AutoBall.resolve(&lo, &hi, &[])
 }
 
 /// Fits the section: merges points of the section closer than `merge_tol` times its diagonal,

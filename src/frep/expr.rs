@@ -340,8 +340,8 @@ fn step(e: &Expr) -> f64 {
     super::DIFF_STEP * if size > 0.0 { size } else { 1.0 }
 }
 
-/// `carrier(MODEL, SPEC)`: the model of `path` with `carrier` (an automatic ball fitted to its
-/// data box), keeping its unit.
+/// `carrier(MODEL, SPEC)`: the model of `path` with `carrier` (an automatic carrier fitted to its
+/// data box: the ball round it, or the ellipsoid of its extents), keeping its unit.
 fn swap(path: &Path, carrier: &Carrier) -> Result<Expr> {
     if format_of(path).is_ok_and(|f| f == contour_model_file::FORMAT) {
         return Err(Error::Usage(format!(
@@ -353,7 +353,7 @@ fn swap(path: &Path, carrier: &Carrier) -> Result<Expr> {
     let mut model = read_model(path)?;
     let unit = rms_gradient(&model, &model_samples(&model));
     let (lo, hi) = (model.provenance.box_lo, model.provenance.box_hi);
-    model.carrier = carrier.resolve(&lo, &hi);
+    model.carrier = carrier.resolve(&lo, &hi, &[]);
     let domain = hull((lo, hi), carrier_box(&model.carrier));
     Ok(Expr::Model { model: Box::new(model), unit, domain })
 }
@@ -400,7 +400,7 @@ fn rms_gradient(f: &dyn Implicit, points: &[[f64; 3]]) -> f64 {
 /// The unit of a carrier operand: |grad f_c| on its surface (see the module doc).
 fn carrier_unit(c: &Carrier) -> f64 {
     match c {
-        Carrier::AutoBall => 1.0,
+        Carrier::AutoBall | Carrier::AutoEllipsoid { .. } => 1.0,
         Carrier::Ball { radius, .. } => 2.0 * radius,
         Carrier::Ellipsoid { semi_axes, .. } => {
             (semi_axes.iter().map(|a| 4.0 / (a * a)).sum::<f64>() / semi_axes.len() as f64).sqrt()

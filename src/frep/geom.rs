@@ -3,6 +3,7 @@
 
 use glam::DVec3;
 
+use crate::spline::carrier::ellipsoid_axis;
 use crate::spline::Carrier;
 
 /// A box (lo, hi).
@@ -14,9 +15,16 @@ pub(crate) fn carrier_box(c: &Carrier) -> Box3 {
         ([0, 1, 2].map(|d| centre[d] - r(d)), [0, 1, 2].map(|d| centre[d] + r(d)))
     };
     match c {
-        Carrier::AutoBall => ([-1.0; 3], [1.0; 3]),
+        Carrier::AutoBall | Carrier::AutoEllipsoid { .. } => ([-1.0; 3], [1.0; 3]),
         Carrier::Ball { centre, radius } => around(centre, &|_| *radius),
-        Carrier::Ellipsoid { centre, semi_axes } => around(centre, &|d| semi_axes[d]),
+        // the half-extent along coordinate d of an ellipsoid: sqrt(sum_j (a_j u_j[d])^2)
+        Carrier::Ellipsoid { centre, semi_axes, axes } => around(centre, &|d| {
+            let n = semi_axes.len();
+            (0..n)
+                .map(|j| (semi_axes[j] * ellipsoid_axis(axes.as_deref(), n, j, d)).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        }),
         Carrier::Union(a, b) => hull(carrier_box(a), carrier_box(b)),
         Carrier::Intersection(a, b) => {
             let m = meet(carrier_box(a), carrier_box(b));
@@ -100,5 +108,24 @@ mod tests {
         assert!((q[0] - 1.0).abs() < 1e-15 && q[1].abs() < 1e-15, "{q:?}");
         let b = carrier_box(&Carrier::parse("union(ball:0,0,0,1,ellipsoid:3,0,0,1,2,3)", 3).unwrap());
         assert_eq!(b, ([-1.0, -2.0, -3.0], [4.0, 2.0, 3.0]));
+    }
+
+    #[test]
+    fn a_turned_ellipsoid_lies_in_its_box() {
+        // semi-axes 2 and 1 along the diagonals of the xy plane, 0.5 along z
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        let spec = format!("ellipsoid:1,0,0,2,1,0.5,{h},{h},0,{},{h},0,0,0,1", -h);
+        let c = Carrier::parse(&spec, 3).unwrap();
+        let (lo, hi) = carrier_box(&c);
+        let half = (2.5f64).sqrt(); // sqrt((2 h)^2 + (1 h)^2)
+        for (d, want) in [half, half, 0.5].into_iter().enumerate() {
+            assert!((hi[d] - lo[d] - 2.0 * want).abs() < 1e-12, "{d}: {lo:?} {hi:?}");
+        }
+        // the box is tight: the ellipsoid's extreme point along x lies on it
+        let u = [2.0 * h, 2.0 * h, 0.0];
+        let v = [-h, h, 0.0];
+        let n = (u[0] * u[0] + v[0] * v[0]).sqrt();
+        let p = [1.0 + (u[0] * u[0] + v[0] * v[0]) / n, (u[0] * u[1] + v[0] * v[1]) / n, 0.0];
+        assert!(c.eval(&p).abs() < 1e-12 && (p[0] - hi[0]).abs() < 1e-12, "{p:?} {}", c.eval(&p));
     }
 }

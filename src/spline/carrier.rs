@@ -23,6 +23,25 @@
 //! ball or ellipsoid is itself reproduced, U = f_c and f = 0 everywhere: `hygiene::prepare`
 //! refuses that combination ([`Carrier::polynomial_degree`]).
 //!
+//! # The fitted ellipsoid
+//!
+//! Only a carrier's quadratic part shapes the solid (above), and of an ellipsoid only its shape:
+//! scaled by s, 1 - Q(x) / s^2 = (1 - Q(x)) / s^2 + (1 - 1 / s^2), a multiple plus a constant, and
+//! the values at the off points scale with the gradient, so the solid is the same. Where the data
+//! hold the zero set the carrier hardly matters; across a hole in a scan the zero set is the
+//! spline's continuation of the field around it, and the carrier's curvature is what that
+//! continuation starts from. A ball curves the field alike in every direction. `ellipsoid` fits
+//! one to the points: its axes are the principal directions of their scatter (the eigenvectors
+//! of their covariance, by Jacobi rotations, each signed so that its largest component is
+//! positive), its semi-axes half the points' extent along each and its centre the middle of
+//! those extents, so it turns with the points (a rotated cloud gets the rotated ellipsoid) and
+//! does not depend on their order. `ellipsoid(S)` scales the spread of the semi-axes on a log
+//! scale, a_j -> g (a_j / g)^S with g their geometric mean: S = 1 is the fitted ellipsoid, S = 0
+//! a ball. A semi-axis is kept at least a thousandth of the largest, so flat data still give a
+//! solid. Measured on holed scans of an elongated shape (README, "A second hole"), the fitted
+//! shape lifts a cap over a flank that the ball lets sag into the body, and flattens one over the
+//! end of the long axis.
+//!
 //! # R-functions
 //!
 //! Unions, intersections and differences of carriers are made with Rvachev's R-functions (the
@@ -43,8 +62,11 @@
 //!
 //! Specs (also the canonical text stored in model files, see `Display`):
 //! `ball` (automatic: fitted to the data's bounding box), `ball:cx,cy,cz,r` (f = r^2 - |x - c|^2,
-//! the FRep sphere), `ellipsoid:cx,cy,cz,a,b,c` (f = 1 - sum (x_j - c_j)^2 / a_j^2), and the
-//! R-functions `union(A,B)`, `intersection(A,B)`, `difference(A,B)`. In two dimensions the same
+//! the FRep sphere), `ellipsoid` and `ellipsoid(S)` (automatic: fitted to the data, above),
+//! `ellipsoid:cx,cy,cz,a,b,c` (f = 1 - sum (x_j - c_j)^2 / a_j^2), the same followed by the unit
+//! axes u_1, u_2, u_3 one after the other (f = 1 - sum ((x - c) . u_j / a_j)^2; they must be
+//! orthonormal to 1e-6), and the R-functions `union(A,B)`, `intersection(A,B)`,
+//! `difference(A,B)`. In two dimensions the same
 //! specs take two centre coordinates (`ball:cx,cy,r` is a disc).
 
 use std::fmt;
@@ -60,9 +82,18 @@ pub enum Carrier {
         centre: Vec<f64>,
         radius: f64,
     },
+    /// Placeholder for "fit an ellipsoid to the data" with the spread of its semi-axes scaled by
+    /// `spread` (1: as fitted); resolved by [`Carrier::resolve`] before use (see "The fitted
+    /// ellipsoid" in the module doc).
+    AutoEllipsoid {
+        spread: f64,
+    },
+    /// f = 1 - sum_j ((x - c) . u_j / a_j)^2, with u_j the unit rows of `axes` (`dim` x `dim`, row
+    /// by row) or the coordinate axes where `axes` is None.
     Ellipsoid {
         centre: Vec<f64>,
         semi_axes: Vec<f64>,
+        axes: Option<Vec<f64>>,
     },
     Union(Box<Carrier>, Box<Carrier>),
     Intersection(Box<Carrier>, Box<Carrier>),
@@ -81,32 +112,42 @@ impl Carrier {
         Ok(c)
     }
 
-    /// Replaces `AutoBall` by the ball centred on the bounding box with radius half its diagonal,
-    /// so every data point is inside. For m = 2 any ball gives the same solid (see "Which carriers
-    /// change the solid" in the module doc).
-    pub fn resolve(&self, lo: &[f64], hi: &[f64]) -> Carrier {
+    /// Replaces `AutoBall` by the ball centred on the bounding box `lo`..`hi` with radius half its
+    /// diagonal, so every data point is inside (for m = 2 any ball gives the same solid: see "Which
+    /// carriers change the solid" in the module doc), and `AutoEllipsoid` by the ellipsoid fitted
+    /// to the data `points` (`lo.len()` coordinates per point; see "The fitted ellipsoid").
+    pub fn resolve(&self, lo: &[f64], hi: &[f64], points: &[f64]) -> Carrier {
         match self {
             Carrier::AutoBall => {
                 let centre: Vec<f64> = lo.iter().zip(hi).map(|(a, b)| 0.5 * a + 0.5 * b).collect();
                 let diag = crate::spline::hygiene::diagonal(lo, hi);
                 Carrier::Ball { centre, radius: (0.5 * diag).max(f64::MIN_POSITIVE) }
             }
-            Carrier::Union(a, b) => Carrier::Union(Box::new(a.resolve(lo, hi)), Box::new(b.resolve(lo, hi))),
-            Carrier::Intersection(a, b) => {
-                Carrier::Intersection(Box::new(a.resolve(lo, hi)), Box::new(b.resolve(lo, hi)))
+            Carrier::AutoEllipsoid { spread } => fitted_ellipsoid(lo, hi, points, *spread),
+            Carrier::Union(a, b) => {
+                Carrier::Union(Box::new(a.resolve(lo, hi, points)), Box::new(b.resolve(lo, hi, points)))
             }
+            Carrier::Intersection(a, b) => Carrier::Intersection(
+                Box::new(a.resolve(lo, hi, points)),
+                Box::new(b.resolve(lo, hi, points)),
+            ),
             Carrier::Difference(a, b) => {
-                Carrier::Difference(Box::new(a.resolve(lo, hi)), Box::new(b.resolve(lo, hi)))
+                Carrier::Difference(Box::new(a.resolve(lo, hi, points)), Box::new(b.resolve(lo, hi, points)))
             }
             other => other.clone(),
         }
+    }
+
+    /// Whether the carrier is an automatic one (fitted to the data), at any depth.
+    pub fn is_automatic(&self) -> bool {
+        !self.is_resolved()
     }
 
     /// Whether every automatic ball has been replaced by a concrete one (a stored model's carrier
     /// must be: only a resolved carrier can be evaluated).
     pub fn is_resolved(&self) -> bool {
         match self {
-            Carrier::AutoBall => false,
+            Carrier::AutoBall | Carrier::AutoEllipsoid { .. } => false,
             Carrier::Ball { .. } | Carrier::Ellipsoid { .. } => true,
             Carrier::Union(a, b) | Carrier::Intersection(a, b) | Carrier::Difference(a, b) => {
                 a.is_resolved() && b.is_resolved()
@@ -118,23 +159,29 @@ impl Carrier {
     /// whose polynomial part reaches that degree reproduces such a carrier exactly, leaving f = 0.
     pub fn polynomial_degree(&self) -> Option<usize> {
         match self {
-            Carrier::AutoBall | Carrier::Ball { .. } | Carrier::Ellipsoid { .. } => Some(2),
+            Carrier::AutoBall
+            | Carrier::AutoEllipsoid { .. }
+            | Carrier::Ball { .. }
+            | Carrier::Ellipsoid { .. } => Some(2),
             _ => None,
         }
     }
 
-    /// f_c(x); `x` has at least `dim` components. Panics on an unresolved `AutoBall`.
+    /// f_c(x); `x` has at least `dim` components. Panics on an unresolved automatic carrier.
     #[inline]
     pub fn eval(&self, x: &[f64]) -> f64 {
         match self {
-            Carrier::AutoBall => panic!("automatic ball carrier used before Carrier::resolve"),
+            Carrier::AutoBall | Carrier::AutoEllipsoid { .. } => {
+                panic!("automatic carrier used before Carrier::resolve")
+            }
             Carrier::Ball { centre, radius } => {
                 let d2: f64 = centre.iter().zip(x).map(|(c, v)| (v - c) * (v - c)).sum();
                 radius * radius - d2
             }
-            Carrier::Ellipsoid { centre, semi_axes } => {
-                let s: f64 =
-                    centre.iter().zip(semi_axes).zip(x).map(|((c, a), v)| ((v - c) / a).powi(2)).sum();
+            Carrier::Ellipsoid { centre, semi_axes, axes } => {
+                let s: f64 = (0..semi_axes.len())
+                    .map(|j| (ellipsoid_coordinate(centre, axes.as_deref(), j, x) / semi_axes[j]).powi(2))
+                    .sum();
                 1.0 - s
             }
             Carrier::Union(a, b) => r_union(a.eval(x), b.eval(x)),
@@ -142,6 +189,137 @@ impl Carrier {
             Carrier::Difference(a, b) => r_intersection(a.eval(x), -b.eval(x)),
         }
     }
+}
+
+/// The coordinate (x - c) . u_j of `x` along an ellipsoid's axis j (`axes`: the unit axes row by
+/// row, or None for the coordinate axes).
+#[inline]
+pub fn ellipsoid_coordinate(centre: &[f64], axes: Option<&[f64]>, j: usize, x: &[f64]) -> f64 {
+    let dim = centre.len();
+    match axes {
+        Some(u) => (0..dim).map(|d| (x[d] - centre[d]) * u[j * dim + d]).sum(),
+        None => x[j] - centre[j],
+    }
+}
+
+/// Component `d` of an ellipsoid's unit axis `j` (see [`ellipsoid_coordinate`]).
+#[inline]
+pub fn ellipsoid_axis(axes: Option<&[f64]>, dim: usize, j: usize, d: usize) -> f64 {
+    match axes {
+        Some(u) => u[j * dim + d],
+        None => f64::from(u8::from(j == d)),
+    }
+}
+
+/// The ellipsoid fitted to the data `points` (`lo.len()` coordinates each, `lo`..`hi` their box;
+/// see "The fitted ellipsoid" in the module doc): axes along the principal directions of the
+/// points' scatter, semi-axes half the points' extent along each, centre the middle of those
+/// extents. Without points, or where the scatter has no direction of its own (fewer than two
+/// points), the ellipsoid of the box: the coordinate axes and half the box's extents. A semi-axis
+/// is at least a thousandth of the largest, so flat or straight data still give a solid. With
+/// `spread` below 1 the semi-axes a_j become g (a_j / g)^spread, g their geometric mean: 1 keeps
+/// the fitted shape, 0 gives the ball of radius g (which any ball's solid equals).
+pub fn fitted_ellipsoid(lo: &[f64], hi: &[f64], points: &[f64], spread: f64) -> Carrier {
+    let dim = lo.len();
+    let n = points.len().checked_div(dim).unwrap_or(0);
+    let floor = |mut a: Vec<f64>| {
+        let big = a.iter().fold(0.0f64, |m, &x| m.max(x)).max(f64::MIN_POSITIVE);
+        a.iter_mut().for_each(|x| *x = x.max(1e-3 * big));
+        let g = (a.iter().map(|x| x.ln()).sum::<f64>() / a.len().max(1) as f64).exp();
+        if spread != 1.0 {
+            a.iter_mut().for_each(|x| *x = g * (*x / g).powf(spread));
+        }
+        a
+    };
+    if n < 2 {
+        let centre = lo.iter().zip(hi).map(|(a, b)| 0.5 * a + 0.5 * b).collect();
+        let semi_axes = floor(lo.iter().zip(hi).map(|(a, b)| 0.5 * (b - a)).collect());
+        return Carrier::Ellipsoid { centre, semi_axes, axes: None };
+    }
+    let mean: Vec<f64> =
+        (0..dim).map(|d| points.iter().skip(d).step_by(dim).sum::<f64>() / n as f64).collect();
+    let mut cov = vec![0.0; dim * dim];
+    for p in points.chunks_exact(dim) {
+        for a in 0..dim {
+            for b in 0..dim {
+                cov[a * dim + b] += (p[a] - mean[a]) * (p[b] - mean[b]);
+            }
+        }
+    }
+    let axes = principal_axes(&cov, dim);
+    let (mut lo_u, mut hi_u) = (vec![f64::INFINITY; dim], vec![f64::NEG_INFINITY; dim]);
+    for p in points.chunks_exact(dim) {
+        for j in 0..dim {
+            let t = ellipsoid_coordinate(&mean, Some(&axes), j, p);
+            lo_u[j] = lo_u[j].min(t);
+            hi_u[j] = hi_u[j].max(t);
+        }
+    }
+    let centre = (0..dim)
+        .map(|d| mean[d] + (0..dim).map(|j| 0.5 * (lo_u[j] + hi_u[j]) * axes[j * dim + d]).sum::<f64>())
+        .collect();
+    let semi_axes = floor((0..dim).map(|j| 0.5 * (hi_u[j] - lo_u[j])).collect());
+    Carrier::Ellipsoid { centre, semi_axes, axes: Some(axes) }
+}
+
+/// The unit eigenvectors of the symmetric `dim` x `dim` matrix `m` (row by row), by cyclic Jacobi
+/// rotations, largest eigenvalue first; each turned so that its largest component is positive,
+/// so the axes do not depend on the rounding of the rotations' signs.
+fn principal_axes(m: &[f64], dim: usize) -> Vec<f64> {
+    let mut a = m.to_vec();
+    let mut v: Vec<f64> = (0..dim * dim).map(|i| f64::from(u8::from(i / dim == i % dim))).collect();
+    for _ in 0..64 {
+        let off: f64 = (0..dim)
+            .flat_map(|p| (0..dim).filter(move |&q| q != p).map(move |q| (p, q)))
+            .map(|(p, q)| a[p * dim + q].powi(2))
+            .sum();
+        let scale: f64 = a.iter().map(|x| x * x).sum();
+        if off <= 1e-30 * scale {
+            break;
+        }
+        for p in 0..dim {
+            for q in p + 1..dim {
+                let apq = a[p * dim + q];
+                if apq == 0.0 {
+                    continue;
+                }
+                let theta = 0.5 * (a[q * dim + q] - a[p * dim + p]) / apq;
+                let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+                let t = if theta == 0.0 { 1.0 } else { t };
+                let c = 1.0 / (t * t + 1.0).sqrt();
+                let s = t * c;
+                for k in 0..dim {
+                    let (akp, akq) = (a[k * dim + p], a[k * dim + q]);
+                    a[k * dim + p] = c * akp - s * akq;
+                    a[k * dim + q] = s * akp + c * akq;
+                }
+                for k in 0..dim {
+                    let (apk, aqk) = (a[p * dim + k], a[q * dim + k]);
+                    a[p * dim + k] = c * apk - s * aqk;
+                    a[q * dim + k] = s * apk + c * aqk;
+                }
+                for k in 0..dim {
+                    let (vkp, vkq) = (v[k * dim + p], v[k * dim + q]);
+                    v[k * dim + p] = c * vkp - s * vkq;
+                    v[k * dim + q] = s * vkp + c * vkq;
+                }
+            }
+        }
+    }
+    // columns of v are the eigenvectors; order by eigenvalue, largest first
+    let mut order: Vec<usize> = (0..dim).collect();
+    order.sort_by(|&i, &j| a[j * dim + j].total_cmp(&a[i * dim + i]));
+    let mut out = vec![0.0; dim * dim];
+    for (row, &col) in order.iter().enumerate() {
+        let u: Vec<f64> = (0..dim).map(|k| v[k * dim + col]).collect();
+        let big = u.iter().copied().fold(0.0f64, |m, x| if x.abs() > m.abs() { x } else { m });
+        let sign = if big < 0.0 { -1.0 } else { 1.0 };
+        let norm = u.iter().map(|x| x * x).sum::<f64>().sqrt();
+        for k in 0..dim {
+            out[row * dim + k] = sign * u[k] / norm;
+        }
+    }
+    out
 }
 
 /// R-function union (R_0 system, as in HyperFun): positive where either argument is.
@@ -161,9 +339,14 @@ impl fmt::Display for Carrier {
         let list = |v: &[f64]| v.iter().map(|x| format!("{x:?}")).collect::<Vec<_>>().join(",");
         match self {
             Carrier::AutoBall => write!(f, "ball"),
+            Carrier::AutoEllipsoid { spread } if *spread == 1.0 => write!(f, "ellipsoid"),
+            Carrier::AutoEllipsoid { spread } => write!(f, "ellipsoid({spread:?})"),
             Carrier::Ball { centre, radius } => write!(f, "ball:{},{radius:?}", list(centre)),
-            Carrier::Ellipsoid { centre, semi_axes } => {
+            Carrier::Ellipsoid { centre, semi_axes, axes: None } => {
                 write!(f, "ellipsoid:{},{}", list(centre), list(semi_axes))
+            }
+            Carrier::Ellipsoid { centre, semi_axes, axes: Some(u) } => {
+                write!(f, "ellipsoid:{},{},{}", list(centre), list(semi_axes), list(u))
             }
             Carrier::Union(a, b) => write!(f, "union({a},{b})"),
             Carrier::Intersection(a, b) => write!(f, "intersection({a},{b})"),
@@ -312,25 +495,54 @@ impl Parser<'_> {
                 Ok(Carrier::Ball { centre: v[..d].to_vec(), radius: v[d] })
             }
             "ellipsoid" | "ellipse" => {
-                self.expect(b':')?;
+                self.skip_ws();
+                if self.s.get(self.pos) == Some(&b'(') {
+                    self.pos += 1;
+                    let at = self.pos;
+                    let v = self.numbers()?;
+                    self.expect(b')')?;
+                    if v.len() != 1 || !(0.0..=1.0).contains(&v[0]) {
+                        self.pos = at;
+                        return Err(self.error("a fitted ellipsoid's spread is one number from 0 to 1"));
+                    }
+                    return Ok(Carrier::AutoEllipsoid { spread: v[0] });
+                }
+                if self.s.get(self.pos) != Some(&b':') {
+                    return Ok(Carrier::AutoEllipsoid { spread: 1.0 });
+                }
+                self.pos += 1;
                 let v = self.numbers()?;
-                if v.len() != 2 * d {
+                if v.len() != 2 * d && v.len() != 2 * d + d * d {
                     return Err(self.error(&format!(
-                        "ellipsoid needs {} numbers (centre, semi-axes), got {}",
+                        "ellipsoid needs {} numbers (centre, semi-axes) or {} (centre, semi-axes, then                          the unit axes one after the other), got {}",
                         2 * d,
+                        2 * d + d * d,
                         v.len()
                     )));
                 }
-                if v[d..].iter().any(|&a| a <= 0.0) {
+                if v[d..2 * d].iter().any(|&a| a <= 0.0) {
                     return Err(self.error("ellipsoid semi-axes must be positive"));
                 }
-                if let Some(a) = v[d..].iter().find(|&&a| a < MIN_CARRIER_LENGTH) {
+                if let Some(a) = v[d..2 * d].iter().find(|&&a| a < MIN_CARRIER_LENGTH) {
                     return Err(self.error(&format!(
                         "ellipsoid semi-axis {a:e} is below {MIN_CARRIER_LENGTH:e}, the smallest whose square is \
                          representable; rescale the data"
                     )));
                 }
-                Ok(Carrier::Ellipsoid { centre: v[..d].to_vec(), semi_axes: v[d..].to_vec() })
+                let axes = (v.len() > 2 * d).then(|| v[2 * d..].to_vec());
+                if let Some(u) = &axes {
+                    for (i, j) in (0..d).flat_map(|i| (0..d).map(move |j| (i, j))) {
+                        let dot: f64 = (0..d).map(|k| u[i * d + k] * u[j * d + k]).sum();
+                        if (dot - f64::from(u8::from(i == j))).abs() > 1e-6 {
+                            return Err(self.error(&format!(
+                                "ellipsoid axes must be orthonormal: axes {} and {} have dot product {dot}",
+                                i + 1,
+                                j + 1
+                            )));
+                        }
+                    }
+                }
+                Ok(Carrier::Ellipsoid { centre: v[..d].to_vec(), semi_axes: v[d..2 * d].to_vec(), axes })
             }
             "union" | "intersection" | "difference" => {
                 self.expect(b'(')?;
@@ -450,8 +662,104 @@ mod tests {
     }
 
     #[test]
+    fn turned_ellipsoids_parse_round_trip_and_are_checked() {
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        let spec =
+            format!("ellipsoid:0.0,0.0,0.0,2.0,1.0,0.5,{h:?},{h:?},0.0,{:?},{h:?},0.0,0.0,0.0,1.0", -h);
+        let c = Carrier::parse(&spec, 3).unwrap();
+        assert_eq!(c.to_string(), spec);
+        assert_eq!(Carrier::parse(&c.to_string(), 3).unwrap(), c);
+        // on the long axis, along (1, 1, 0) / sqrt 2, at 2: the surface
+        assert!(c.eval(&[2.0 * h, 2.0 * h, 0.0]).abs() < 1e-15);
+        assert!(c.eval(&[2.0 * h, -2.0 * h, 0.0]) < -1.0);
+        assert_eq!(Carrier::parse("ellipsoid", 3).unwrap(), Carrier::AutoEllipsoid { spread: 1.0 });
+        assert_eq!(Carrier::AutoEllipsoid { spread: 1.0 }.to_string(), "ellipsoid");
+        let half = Carrier::parse("ellipsoid(0.5)", 3).unwrap();
+        assert_eq!((half.to_string(), half.is_resolved()), ("ellipsoid(0.5)".to_string(), false));
+        for bad in ["ellipsoid(1.5)", "ellipsoid(0.5,1)", "ellipsoid(-1)", "ellipsoid(0.5"] {
+            assert!(Carrier::parse(bad, 3).is_err(), "{bad}");
+        }
+        let e = Carrier::parse("ellipsoid:0,0,0,1,1,1,1,0,0,1,0,0,0,0,1", 3).unwrap_err().to_string();
+        assert!(e.contains("orthonormal") && e.contains("axes 1 and 2"), "{e}");
+        let e = Carrier::parse("ellipsoid:0,0,0,1,1,1,1,0,0", 3).unwrap_err().to_string();
+        assert!(e.contains("needs 6 numbers") && e.contains("or 15"), "{e}");
+    }
+
+    /// Points on the surface of the ellipsoid with semi-axes `a` along the rows of `axes` about
+    /// `centre`, on a grid of angles.
+    fn on_ellipsoid(centre: [f64; 3], a: [f64; 3], axes: [[f64; 3]; 3]) -> Vec<f64> {
+        let mut out = Vec::new();
+        for i in 0..24 {
+            for j in 1..12 {
+                let (th, ph) =
+                    (i as f64 * std::f64::consts::TAU / 24.0, j as f64 * std::f64::consts::PI / 12.0);
+                let t = [a[0] * ph.sin() * th.cos(), a[1] * ph.sin() * th.sin(), a[2] * ph.cos()];
+                out.extend((0..3).map(|d| centre[d] + (0..3).map(|k| t[k] * axes[k][d]).sum::<f64>()));
+            }
+        }
+        // the two poles, so the extents along the third axis are reached
+        for s in [-1.0, 1.0] {
+            out.extend((0..3).map(|d| centre[d] + s * a[2] * axes[2][d]));
+        }
+        out
+    }
+
+    #[test]
+    fn the_fitted_ellipsoid_follows_a_turned_cloud() {
+        // a rotation by 0.5 rad about (1, 2, 2) / 3
+        let (k, t) = ([1.0 / 3.0, 2.0 / 3.0, 2.0 / 3.0], 0.5f64);
+        let r: [[f64; 3]; 3] = std::array::from_fn(|i| {
+            std::array::from_fn(|j| {
+                let delta = f64::from(u8::from(i == j));
+                let cross = match (i, j) {
+                    (0, 1) => -k[2],
+                    (1, 0) => k[2],
+                    (0, 2) => k[1],
+                    (2, 0) => -k[1],
+                    (1, 2) => -k[0],
+                    (2, 1) => k[0],
+                    _ => 0.0,
+                };
+                t.cos() * delta + t.sin() * cross + (1.0 - t.cos()) * k[i] * k[j]
+            })
+        });
+        let (centre, a) = ([1.0, -2.0, 0.5], [3.0, 2.0, 1.0]);
+        let pts = on_ellipsoid(centre, a, r);
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for p in pts.chunks_exact(3) {
+            for d in 0..3 {
+                lo[d] = lo[d].min(p[d]);
+                hi[d] = hi[d].max(p[d]);
+            }
+        }
+        let c = Carrier::AutoEllipsoid { spread: 1.0 }.resolve(&lo, &hi, &pts);
+        let Carrier::Ellipsoid { centre: got_c, semi_axes, axes: Some(axes) } = &c else { panic!("{c}") };
+        for j in 0..3 {
+            let along: f64 = (0..3).map(|d| axes[3 * j + d] * r[j][d]).sum();
+            assert!(along.abs() > 1.0 - 1e-9, "axis {j}: {axes:?} against {:?}", r[j]);
+            assert!((semi_axes[j] - a[j]).abs() < 1e-9, "{semi_axes:?}");
+            assert!((got_c[j] - centre[j]).abs() < 1e-9, "{got_c:?}");
+        }
+        // every point lies on the fitted surface
+        assert!(pts.chunks_exact(3).all(|p| c.eval(p).abs() < 1e-9));
+        // without the points: the box's ellipsoid; flat data keep a solid
+        let boxed = Carrier::AutoEllipsoid { spread: 1.0 }.resolve(&[0.0, 0.0, 0.0], &[4.0, 2.0, 0.0], &[]);
+        assert_eq!(boxed.to_string(), "ellipsoid:2.0,1.0,0.0,2.0,1.0,0.002");
+        // the spread halved: semi-axes g (a / g)^0.5 with g the geometric mean, here 1
+        let c = Carrier::AutoEllipsoid { spread: 0.5 }.resolve(&lo, &hi, &pts);
+        let Carrier::Ellipsoid { semi_axes, .. } = &c else { panic!("{c}") };
+        let g = (3.0f64 * 2.0 * 1.0).cbrt();
+        for (got, a) in semi_axes.iter().zip(a) {
+            assert!((got - g * (a / g).sqrt()).abs() < 1e-9, "{semi_axes:?}");
+        }
+        let ball = Carrier::AutoEllipsoid { spread: 0.0 }.resolve(&lo, &hi, &pts);
+        let Carrier::Ellipsoid { semi_axes, .. } = &ball else { panic!("{ball}") };
+        assert!(semi_axes.iter().all(|s| (s - g).abs() < 1e-9), "{semi_axes:?}");
+    }
+
+    #[test]
     fn auto_ball_contains_the_box() {
-        let c = Carrier::AutoBall.resolve(&[0.0, 0.0, 0.0], &[2.0, 2.0, 1.0]);
+        let c = Carrier::AutoBall.resolve(&[0.0, 0.0, 0.0], &[2.0, 2.0, 1.0], &[]);
         for corner in [[0.0, 0.0, 0.0], [2.0, 2.0, 1.0], [2.0, 0.0, 1.0]] {
             assert!(c.eval(&corner) >= -1e-12);
         }

@@ -55,7 +55,7 @@
 //! and the difference is the intersection with -f2. Where f1 = f2 = 0 (rho = 0, the edge of the
 //! set operation) g is not differentiable; the rho terms are dropped there.
 
-use crate::spline::carrier::Carrier;
+use crate::spline::carrier::{ellipsoid_axis, ellipsoid_coordinate, Carrier};
 use crate::spline::kernel::{Kernel, WendlandKind};
 use crate::spline::{Model, Spline};
 
@@ -216,17 +216,26 @@ pub fn spline_jet(spline: &Spline, x: &[f64; 3]) -> Jet {
 pub fn carrier_jet(carrier: &Carrier, x: &[f64; 3]) -> Jet {
     let mut jet = Jet { value: carrier.eval(x), ..Jet::default() };
     match carrier {
-        Carrier::AutoBall => unreachable!("Carrier::eval panics first"),
+        Carrier::AutoBall | Carrier::AutoEllipsoid { .. } => unreachable!("Carrier::eval panics first"),
         Carrier::Ball { centre, .. } => {
             for (j, c) in centre.iter().enumerate() {
                 jet.gradient[j] = -2.0 * (x[j] - c);
                 jet.hessian[j][j] = -2.0;
             }
         }
-        Carrier::Ellipsoid { centre, semi_axes } => {
-            for (j, (c, a)) in centre.iter().zip(semi_axes).enumerate() {
-                jet.gradient[j] = -2.0 * (x[j] - c) / (a * a);
-                jet.hessian[j][j] = -2.0 / (a * a);
+        // f = 1 - sum_j (t_j / a_j)^2 with t_j = (x - c) . u_j: gradient -2 sum_j t_j u_j / a_j^2,
+        // Hessian -2 sum_j u_j u_j^T / a_j^2
+        Carrier::Ellipsoid { centre, semi_axes, axes } => {
+            let n = semi_axes.len();
+            for (j, a) in semi_axes.iter().enumerate() {
+                let t = ellipsoid_coordinate(centre, axes.as_deref(), j, x);
+                let u = |d: usize| ellipsoid_axis(axes.as_deref(), n, j, d);
+                for r in 0..n {
+                    jet.gradient[r] -= 2.0 * t * u(r) / (a * a);
+                    for c in 0..n {
+                        jet.hessian[r][c] -= 2.0 * u(r) * u(c) / (a * a);
+                    }
+                }
             }
         }
         Carrier::Union(a, b) => return r_function_jet(&carrier_jet(a, x), &carrier_jet(b, x), 1.0),
@@ -362,6 +371,9 @@ mod tests {
         for spec in [
             "ball:0.1,0.2,-0.3,1.5",
             "ellipsoid:0.1,0.2,-0.3,1.5,0.7,1.1",
+            // turned by 0.6 rad about z: axes (cos, sin, 0), (-sin, cos, 0), (0, 0, 1)
+            "ellipsoid:0.1,0.2,-0.3,1.5,0.7,1.1,0.8253356149096783,0.5646424733950354,0,\
+             -0.5646424733950354,0.8253356149096783,0,0,0,1",
             "union(ball:-0.5,0,0,0.8,ellipsoid:0.5,0,0,0.7,0.9,1.0)",
             "intersection(ball:-0.2,0,0,1.2,ball:0.3,0.1,0,1.0)",
             "difference(ball:0,0,0,1.2,union(ball:0.6,0,0,0.5,ball:0,0.7,0.1,0.4))",

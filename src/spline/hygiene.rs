@@ -362,7 +362,7 @@ pub fn prepare(raw: &[f64], kernel: &Kernel, carrier: &Carrier, merge_tol: f64) 
         |v: &[f64]| -> Vec<f64> { keep.iter().flat_map(|&i| v[3 * i..3 * i + 3].iter().copied()).collect() };
     let (points, centres) = (pick(raw), pick(&all));
     check_unisolvent(kernel, &centres).map_err(|e| after_merging(e, merged, raw.len() / 3, merge_tol))?;
-    let carrier = carrier.resolve(&lo, &hi);
+    let carrier = carrier.resolve(&lo, &hi, &points);
     let values: Vec<f64> = points.chunks_exact(3).map(|p| carrier.eval(p)).collect();
     if let Some(bad) = values.iter().find(|v| !v.is_finite()) {
         let big = lo.iter().chain(&hi).fold(0.0f64, |a, b| a.max(b.abs()));

@@ -1443,7 +1443,7 @@ mod tests {
         let weights: Vec<f64> = (0..60).map(|i| (i as f64 * 0.37).sin()).collect();
         let kernel = crate::spline::Kernel::new(3, 2).unwrap();
         let spline = Spline { kernel, centres, weights, poly: vec![0.1, 0.2, -0.3, 0.4], norm };
-        let carrier = Carrier::AutoBall.resolve(&[-1.0; 3], &[1.0; 3]);
+        let carrier = Carrier::AutoBall.resolve(&[-1.0; 3], &[1.0; 3], &[]);
         let lattice = Lattice::new([-0.8; 3], [0.8; 3], 7);
         let values = sample(&Solo, &lattice, &carrier, &spline);
         for (i, v) in values.iter().enumerate() {
