@@ -32,8 +32,7 @@
 //! spline's continuation of the field around it, and the carrier's curvature is what that
 //! continuation starts from. A ball curves the field alike in every direction. `ellipsoid` fits
 //! one to the points: its axes are the principal directions of their scatter (the eigenvectors
-//! of their covariance, by Jacobi rotations, each signed so that its largest component is
-//! positive), its semi-axes half the points' extent along each and its centre the middle of
+//! of their covariance, each signed so that its largest component is positive), its semi-axes half the points' extent along each and its centre the middle of
 //! those extents, so it turns with the points (a rotated cloud gets the rotated ellipsoid) and
 //! does not depend on their order. `ellipsoid(S)` scales the spread of the semi-axes on a log
 //! scale, a_j -> g (a_j / g)^S with g their geometric mean: S = 1 is the fitted ellipsoid, S = 0
@@ -72,6 +71,7 @@
 use std::fmt;
 
 use crate::error::{Error, Result};
+use crate::surface::normals::Plane;
 
 /// A carrier solid in `dim` dimensions.
 #[derive(Debug, Clone, PartialEq)]
@@ -136,11 +136,6 @@ impl Carrier {
             }
             other => other.clone(),
         }
-    }
-
-    /// Whether the carrier is an automatic one (fitted to the data), at any depth.
-    pub fn is_automatic(&self) -> bool {
-        !self.is_resolved()
     }
 
     /// Whether every automatic ball has been replaced by a concrete one (a stored model's carrier
@@ -214,14 +209,13 @@ pub fn ellipsoid_axis(axes: Option<&[f64]>, dim: usize, j: usize, d: usize) -> f
 /// The ellipsoid fitted to the data `points` (`lo.len()` coordinates each, `lo`..`hi` their box;
 /// see "The fitted ellipsoid" in the module doc): axes along the principal directions of the
 /// points' scatter, semi-axes half the points' extent along each, centre the middle of those
-/// extents. Without points, or where the scatter has no direction of its own (fewer than two
-/// points), the ellipsoid of the box: the coordinate axes and half the box's extents. A semi-axis
+/// extents (the scatter's axes are those of [`Plane::of`]). Without points, with fewer than two,
+/// or in two dimensions, the ellipsoid of the box: the coordinate axes and half the box's
+/// extents. A semi-axis
 /// is at least a thousandth of the largest, so flat or straight data still give a solid. With
 /// `spread` below 1 the semi-axes a_j become g (a_j / g)^spread, g their geometric mean: 1 keeps
 /// the fitted shape, 0 gives the ball of radius g (which any ball's solid equals).
 pub fn fitted_ellipsoid(lo: &[f64], hi: &[f64], points: &[f64], spread: f64) -> Carrier {
-    let dim = lo.len();
-    let n = points.len().checked_div(dim).unwrap_or(0);
     let floor = |mut a: Vec<f64>| {
         let big = a.iter().fold(0.0f64, |m, &x| m.max(x)).max(f64::MIN_POSITIVE);
         a.iter_mut().for_each(|x| *x = x.max(1e-3 * big));
@@ -231,95 +225,36 @@ pub fn fitted_ellipsoid(lo: &[f64], hi: &[f64], points: &[f64], spread: f64) -> 
         }
         a
     };
-    if n < 2 {
+    if lo.len() != 3 || points.len() < 6 {
         let centre = lo.iter().zip(hi).map(|(a, b)| 0.5 * a + 0.5 * b).collect();
         let semi_axes = floor(lo.iter().zip(hi).map(|(a, b)| 0.5 * (b - a)).collect());
         return Carrier::Ellipsoid { centre, semi_axes, axes: None };
     }
-    let mean: Vec<f64> =
-        (0..dim).map(|d| points.iter().skip(d).step_by(dim).sum::<f64>() / n as f64).collect();
-    let mut cov = vec![0.0; dim * dim];
-    for p in points.chunks_exact(dim) {
-        for a in 0..dim {
-            for b in 0..dim {
-                cov[a * dim + b] += (p[a] - mean[a]) * (p[b] - mean[b]);
-            }
-        }
-    }
-    let axes = principal_axes(&cov, dim);
-    let (mut lo_u, mut hi_u) = (vec![f64::INFINITY; dim], vec![f64::NEG_INFINITY; dim]);
-    for p in points.chunks_exact(dim) {
-        for j in 0..dim {
+    // the principal directions of the scatter, the largest first, each turned so that its
+    // largest component is positive (the eigenvectors' signs are the rotations' rounding)
+    let scatter = Plane::of(|| points.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
+    let axes: Vec<f64> = (0..3)
+        .rev()
+        .flat_map(|col| {
+            let u = [0, 1, 2].map(|r| scatter.vectors[r][col]);
+            let big = u.iter().copied().fold(0.0f64, |m, x| if x.abs() > m.abs() { x } else { m });
+            u.map(|x| if big < 0.0 { -x } else { x })
+        })
+        .collect();
+    let mean = scatter.mean;
+    let (mut lo_u, mut hi_u) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for p in points.chunks_exact(3) {
+        for j in 0..3 {
             let t = ellipsoid_coordinate(&mean, Some(&axes), j, p);
             lo_u[j] = lo_u[j].min(t);
             hi_u[j] = hi_u[j].max(t);
         }
     }
-    let centre = (0..dim)
-        .map(|d| mean[d] + (0..dim).map(|j| 0.5 * (lo_u[j] + hi_u[j]) * axes[j * dim + d]).sum::<f64>())
+    let centre = (0..3)
+        .map(|d| mean[d] + (0..3).map(|j| 0.5 * (lo_u[j] + hi_u[j]) * axes[3 * j + d]).sum::<f64>())
         .collect();
-    let semi_axes = floor((0..dim).map(|j| 0.5 * (hi_u[j] - lo_u[j])).collect());
+    let semi_axes = floor((0..3).map(|j| 0.5 * (hi_u[j] - lo_u[j])).collect());
     Carrier::Ellipsoid { centre, semi_axes, axes: Some(axes) }
-}
-
-/// The unit eigenvectors of the symmetric `dim` x `dim` matrix `m` (row by row), by cyclic Jacobi
-/// rotations, largest eigenvalue first; each turned so that its largest component is positive,
-/// so the axes do not depend on the rounding of the rotations' signs.
-fn principal_axes(m: &[f64], dim: usize) -> Vec<f64> {
-    let mut a = m.to_vec();
-    let mut v: Vec<f64> = (0..dim * dim).map(|i| f64::from(u8::from(i / dim == i % dim))).collect();
-    for _ in 0..64 {
-        let off: f64 = (0..dim)
-            .flat_map(|p| (0..dim).filter(move |&q| q != p).map(move |q| (p, q)))
-            .map(|(p, q)| a[p * dim + q].powi(2))
-            .sum();
-        let scale: f64 = a.iter().map(|x| x * x).sum();
-        if off <= 1e-30 * scale {
-            break;
-        }
-        for p in 0..dim {
-            for q in p + 1..dim {
-                let apq = a[p * dim + q];
-                if apq == 0.0 {
-                    continue;
-                }
-                let theta = 0.5 * (a[q * dim + q] - a[p * dim + p]) / apq;
-                let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
-                let t = if theta == 0.0 { 1.0 } else { t };
-                let c = 1.0 / (t * t + 1.0).sqrt();
-                let s = t * c;
-                for k in 0..dim {
-                    let (akp, akq) = (a[k * dim + p], a[k * dim + q]);
-                    a[k * dim + p] = c * akp - s * akq;
-                    a[k * dim + q] = s * akp + c * akq;
-                }
-                for k in 0..dim {
-                    let (apk, aqk) = (a[p * dim + k], a[q * dim + k]);
-                    a[p * dim + k] = c * apk - s * aqk;
-                    a[q * dim + k] = s * apk + c * aqk;
-                }
-                for k in 0..dim {
-                    let (vkp, vkq) = (v[k * dim + p], v[k * dim + q]);
-                    v[k * dim + p] = c * vkp - s * vkq;
-                    v[k * dim + q] = s * vkp + c * vkq;
-                }
-            }
-        }
-    }
-    // columns of v are the eigenvectors; order by eigenvalue, largest first
-    let mut order: Vec<usize> = (0..dim).collect();
-    order.sort_by(|&i, &j| a[j * dim + j].total_cmp(&a[i * dim + i]));
-    let mut out = vec![0.0; dim * dim];
-    for (row, &col) in order.iter().enumerate() {
-        let u: Vec<f64> = (0..dim).map(|k| v[k * dim + col]).collect();
-        let big = u.iter().copied().fold(0.0f64, |m, x| if x.abs() > m.abs() { x } else { m });
-        let sign = if big < 0.0 { -1.0 } else { 1.0 };
-        let norm = u.iter().map(|x| x * x).sum::<f64>().sqrt();
-        for k in 0..dim {
-            out[row * dim + k] = sign * u[k] / norm;
-        }
-    }
-    out
 }
 
 /// R-function union (R_0 system, as in HyperFun): positive where either argument is.
