@@ -68,13 +68,14 @@ pub struct FitArgs {
     /// Output prefix: writes PREFIX.model.h5, PREFIX.hdf, PREFIX.ply.
     #[arg(long, value_name = "PREFIX")]
     pub out: PathBuf,
-    /// Carrier solid: ball (fitted to the data), ball:cx,cy,cz,r, ellipsoid (fitted to the data:
-    /// the principal axes and extents of the points), ellipsoid(S) (the same with the spread of
-    /// its semi-axes scaled by S in 0..1 on a log scale: 0 is a ball), ellipsoid:cx,cy,cz,a,b,c
+    /// Carrier solid: auto (ellipsoid(0.3) for the off-surface fit, ball for the plain carrier
+    /// method), ball (fitted to the data), ball:cx,cy,cz,r, ellipsoid (fitted to the data: the
+    /// principal axes and extents of the points), ellipsoid(S) (the same with the spread of its
+    /// semi-axes scaled by S in 0..1 on a log scale: 0 is a ball), ellipsoid:cx,cy,cz,a,b,c
     /// (along the coordinate axes; nine more numbers give the unit axes one after the other), or
     /// union(A,B) / intersection(A,B) / difference(A,B) of carriers (R-functions).
-    #[arg(long, default_value = "ball", value_name = "SPEC", value_parser = carrier_3d)]
-    pub carrier: Carrier,
+    #[arg(long, default_value = "auto", value_name = "SPEC", value_parser = fit_carrier)]
+    pub carrier: FitCarrier,
     /// How the spline is built: dense (a global Green's function, the dense row-cyclic solvers),
     /// csrbf (a compactly supported Wendland function: an octree, a sparse Cholesky, MUMPS across
     /// ranks) or auto (dense while its matrix fits in memory and its solve should take under
@@ -315,6 +316,15 @@ pub struct FitArgs {
 /// `--lookahead`: on or off as asked, or None for the layout's default.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct LookAhead(pub Option<bool>);
+
+/// The carrier `fit` uses: chosen with the surface method, or the one given.
+#[derive(Debug, Clone, PartialEq)]
+pub enum FitCarrier {
+    /// `--carrier auto`: [`crate::app::fit::surface::AUTO_CARRIER`] for the off-surface fit, the
+    /// fitted ball for the plain carrier method.
+    Auto,
+    Given(Carrier),
+}
 
 /// What `fit` fits the spline to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -745,6 +755,13 @@ fn carrier_3d(s: &str) -> Parsed<Carrier> {
     reason(Carrier::parse(s, 3))
 }
 
+fn fit_carrier(s: &str) -> Parsed<FitCarrier> {
+    if s == "auto" {
+        return Ok(FitCarrier::Auto);
+    }
+    carrier_3d(s).map(FitCarrier::Given)
+}
+
 fn kernel_choice(s: &str) -> Parsed<KernelChoice> {
     match s {
         "auto" => Ok(KernelChoice::Auto),
@@ -987,10 +1004,11 @@ mod tests {
             (a.surface, a.off_points, a.doubtful_share, a.off_deal),
             (Surface::Auto, 0.5, 0.4, Deal::Neighbours)
         );
-        assert!(a.carrier.to_string().starts_with("ball:"));
+        assert!(matches!(&a.carrier, FitCarrier::Given(c) if c.to_string().starts_with("ball:")));
         let cli =
             parse(&["fit", "a.xyz", "--out", "o", "--surface", "carrier", "--off-points", "2"]).unwrap();
         let Command::Fit(a) = cli.command else { panic!("fit") };
+        assert_eq!(a.carrier, FitCarrier::Auto);
         assert_eq!((a.surface, a.off_points), (Surface::Carrier, 2.0));
         let cli = parse(&["fit", "a.xyz", "--out", "o", "--off-deal", "index"]).unwrap();
         let Command::Fit(a) = cli.command else { panic!("fit") };

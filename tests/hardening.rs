@@ -40,17 +40,30 @@ fn scaled_bunny(scale: f64) -> Vec<f64> {
 
 #[test]
 fn extreme_scales_are_refused_with_the_cause() {
-    for (scale, needle) in [(1e154, "not finite"), (1e-200, "spread is not representable")] {
+    // at 1e154 the ball's values (squared lengths) overflow: the plain carrier method, whose
+    // carrier is the ball, is refused; the default's fitted ellipsoid, 1 - sum (x_j / a_j)^2,
+    // has values of order one at any scale and fits
+    let cases = [(1e154, "not finite", "carrier"), (1e-200, "spread is not representable", "auto")];
+    for (scale, needle, surface) in cases {
         for ranks in [1, 2] {
             let dir = temp_dir(&format!("hardening-scale-{scale:e}-{ranks}"));
             let input = dir.join("points.xyz");
             write_xyz(&input, &scaled_bunny(scale));
-            let out = run(ranks, &["fit", s(&input), "--out", s(&dir.join("out")), "--grid", "12"]);
+            let prefix = dir.join("out");
+            let args = ["fit", s(&input), "--out", s(&prefix), "--grid", "12", "--surface", surface];
+            let out = run(ranks, &args);
             refused(&out, 1, needle, &dir, &[&input]);
             let t = text(&out);
             assert!(!t.contains("distinct points") && !t.contains("one plane"), "{t}");
         }
     }
+    let dir = temp_dir("hardening-scale-1e154-default");
+    let input = dir.join("points.xyz");
+    write_xyz(&input, &scaled_bunny(1e154));
+    let out = run(2, &["fit", s(&input), "--out", s(&dir.join("out")), "--grid", "12", "--no-preview"]);
+    assert!(out.status.success(), "{}", text(&out));
+    assert!(text(&out).contains("carrier ellipsoid:"), "{}", text(&out));
+    assert!(triangles(&out) > 50, "{}", text(&out));
 }
 
 /// The "surface f = 0: T triangles" count of a run's report.

@@ -53,9 +53,9 @@ pub fn check_fit(fitted: &Fitted, prep: &Prepared) -> Result<()> {
 
 /// Whether a model is negative far from the data: f is evaluated at the 8 corners and 6 face
 /// centres of the data's box grown by 4 half-diagonals beyond each side. The growth is the same
-/// on every axis: the default ball carrier is as wide as the box's diagonal on every axis, so a
-/// box grown in proportion to its sides (9 times each) left the far points of a long, thin scan
-/// inside the ball, where f > 0 is right. Returns a warning naming the first place where f >= 0
+/// on every axis: the fitted ball carrier is as wide as the box's diagonal on every axis (the
+/// fitted ellipsoids lie within it), so a box grown in proportion to its sides (9 times each)
+/// left the far points of a long, thin scan inside the ball, where f > 0 is right. Returns a warning naming the first place where f >= 0
 /// and how many of the 14 are not negative, or None for a bounded solid. The same on every rank (every rank holds the whole
 /// model).
 pub fn check_bounded(model: &Model) -> Option<String> {

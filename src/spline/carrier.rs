@@ -37,9 +37,11 @@
 //! does not depend on their order. `ellipsoid(S)` scales the spread of the semi-axes on a log
 //! scale, a_j -> g (a_j / g)^S with g their geometric mean: S = 1 is the fitted ellipsoid, S = 0
 //! a ball. A semi-axis is kept at least a thousandth of the largest, so flat data still give a
-//! solid. Measured on holed scans of an elongated shape (README, "A second hole"), the fitted
+//! solid. Measured on holed scans of an elongated shape, the fitted
 //! shape lifts a cap over a flank that the ball lets sag into the body, and flattens one over the
-//! end of the long axis.
+//! end of the long axis; with the spread scaled by 0.3 to 0.5 most of the one is kept and little
+//! of the other, and `ellipsoid(0.3)` is the carrier of the off-surface fit by default
+//! (`--carrier auto`).
 //!
 //! # R-functions
 //!

@@ -363,15 +363,30 @@ pub fn prepare(raw: &[f64], kernel: &Kernel, carrier: &Carrier, merge_tol: f64) 
     let (points, centres) = (pick(raw), pick(&all));
     check_unisolvent(kernel, &centres).map_err(|e| after_merging(e, merged, raw.len() / 3, merge_tol))?;
     let carrier = carrier.resolve(&lo, &hi, &points);
+    let values = carrier_values(&carrier, &points, &lo, &hi)?;
+    Ok(Prepared { points, centres, values, carrier, norm, merged, box_lo: lo, box_hi: hi })
+}
+
+/// The carrier's values at the points, refused where one is not finite.
+fn carrier_values(carrier: &Carrier, points: &[f64], lo: &[f64], hi: &[f64]) -> Result<Vec<f64>> {
     let values: Vec<f64> = points.chunks_exact(3).map(|p| carrier.eval(p)).collect();
     if let Some(bad) = values.iter().find(|v| !v.is_finite()) {
-        let big = lo.iter().chain(&hi).fold(0.0f64, |a, b| a.max(b.abs()));
+        let big = lo.iter().chain(hi).fold(0.0f64, |a, b| a.max(b.abs()));
         return Err(Error::Numerical(format!(
             "the carrier '{carrier}' is not finite at the data (a value is {bad}): its squares overflow \
              for coordinates up to {big:e}; rescale the data or choose a carrier of smaller magnitude"
         )));
     }
-    Ok(Prepared { points, centres, values, carrier, norm, merged, box_lo: lo, box_hi: hi })
+    Ok(values)
+}
+
+impl Prepared {
+    /// The same points with another carrier (resolved against them) and its values.
+    pub fn with_carrier(self, carrier: &Carrier) -> Result<Prepared> {
+        let carrier = carrier.resolve(&self.box_lo, &self.box_hi, &self.points);
+        let values = carrier_values(&carrier, &self.points, &self.box_lo, &self.box_hi)?;
+        Ok(Prepared { values, carrier, ..self })
+    }
 }
 
 #[cfg(test)]

@@ -3,7 +3,7 @@
 //!
 //! # Why they appear
 //!
-//! The solid is f = f_c - U: the carrier f_c (a ball around the data by default) is positive in
+//! The solid is f = f_c - U: the carrier f_c (a ball or an ellipsoid around the data) is positive in
 //! a large region, and the spline U cancels it only where constraints hold it, at the data and
 //! at the off-surface points a distance delta beside it. In empty space inside the carrier, away
 //! from both, nothing asks U to cancel f_c, and f stays positive there: closed blobs in the gaps

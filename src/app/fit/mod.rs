@@ -18,7 +18,7 @@ use super::render::{preview_view, write_picture};
 use super::report::{run_provenance, Report};
 use super::stages::{Stage, Stages};
 use super::volume::{check_grid, output_path, throughput_line, write_volume, Volume};
-use crate::cli::{FitArgs, KernelChoice, Method, SideVote};
+use crate::cli::{FitArgs, FitCarrier, KernelChoice, Method, SideVote};
 use crate::error::{Error, Result};
 use crate::frep::raycast::Colouring;
 use crate::frep::{Implicit, ModelSolid};
@@ -26,6 +26,7 @@ use crate::grid::{padded_box, Grid};
 use crate::io::{self, model_file, points};
 use crate::linalg::dist::Layout;
 use crate::par::{agree, on_root, Comm};
+use crate::spline::carrier::Carrier;
 use crate::spline::compact::{default_support, DEFAULT_NEIGHBOURS};
 use crate::spline::hygiene::{
     isolated_points, prepare, Prepared, ISOLATION_FACTOR, ISOLATION_NEIGHBOUR, STRAY_GROUP_SHARE,
@@ -284,12 +285,20 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         _ => Kernel::new(3, 2)?,
     };
     // the points' geometry refused (too few, all on one plane) is the input file's fault
-    let prep = prepare(&raw, &base, &a.carrier, a.merge_tol).map_err(|e| match e {
+    let given = match &a.carrier {
+        FitCarrier::Given(c) => c.clone(),
+        FitCarrier::Auto => Carrier::AutoBall,
+    };
+    let in_input = |e| match e {
         Error::Numerical(m) => Error::input(&a.input, "", m),
         other => other,
-    })?;
+    };
+    let mut prep = prepare(&raw, &base, &given, a.merge_tol).map_err(in_input)?;
     let n = prep.values.len();
     let off = surface::with_off_surface(a.surface, n);
+    if off && a.carrier == FitCarrier::Auto {
+        prep = prep.with_carrier(&surface::AUTO_CARRIER).map_err(in_input)?;
+    }
     let layout = a.layout.resolve(comm.size(), n + base.poly_count(), a.precision);
     let run = Run { args: a, comm, threads, layout };
     let (plo, phi) = padded_box(&prep.box_lo, &prep.box_hi, a.grid.margin.fraction);
