@@ -2042,8 +2042,9 @@ fn the_fitted_carrier_lifts_the_cap_over_a_hole_in_the_flank() {
     };
     let (t_ball, m_ball, _) = run("cow-flank-ball", "ball");
     let (t_auto, m_auto, f_auto) = run("cow-flank-ellipsoid", "auto");
-    // measured: truth -> mesh (all the cow's vertices) 1.049 -> 0.681 % of the diagonal, mesh ->
-    // truth 1.452 -> 0.516 %, vertices beyond 2 % 6.6 -> 1.5 %
+    // measured: truth -> mesh (all the cow's vertices) 1.049 -> 0.675 % of the diagonal, mesh ->
+    // truth 1.452 -> 0.457 %, vertices beyond 2 % 6.6 -> 0.64 % ('ellipsoid(0.5)': 0.681, 0.516,
+    // 1.5 %)
     assert!(t_ball > 0.0095 && m_ball > 0.0120, "ball: truth -> mesh {t_ball}, mesh -> truth {m_ball}");
     assert!(t_auto < 0.0075 && m_auto < 0.0060 && f_auto < 0.02, "auto: {t_auto}, {m_auto}, far {f_auto}");
 }
