@@ -3,7 +3,7 @@
   python3 surface.py OUT [--check] [--quick] [--meshes bunny,cow] [--sizes 400,1000,2000,4000]
                          [--variant-sizes 1000,2000] [--methods default,trimmed,carrier,poisson]
                          [--ranks 2] [--grid 100] [--poisson-depth 8] [--sampling area|strided] [--time-runs 2]
-                         [--permute SEED] [--variants clean,noise0.1,noise0.5,open,openx] [--sets NAME,...]
+                         [--permute SEED] [--variants clean,noise0.1,noise0.5,open,openx,...] [--sets NAME,...]
 
 Point sets. For each mesh (tests/data/bunny10k.obj, tests/data/cow.obj) and each size N: N
 points on the surface (`area`: uniform over the area, jobs/bench/sample_surface.py; `strided`:
@@ -16,7 +16,10 @@ box's (1, 1, 1) direction (a scan that missed a cap; the solid's true surface th
 truth); `openx`, run only when `--variants` or `--sets` names it, removes the same ball centred on
 the surface point farthest along +x instead (a second hole elsewhere on each mesh: the bunny's
 flank low by its base, the cow's flank by its belly, where `open` takes the bunny's back and the
-cow's head); `--variants` and `--sets` run only the variants or sets named. Truth: the mesh's own
+cow's head); `openmy` and `openmz`, likewise run only when named, centre it on the point farthest
+along -y (the bunny's base, a hind hoof of the cow) and along -z (the tip of the bunny's ear
+that points back, the cow's rump, at the other end of its long axis from the head); `--variants`
+and `--sets` run only the variants or sets named. Truth: the mesh's own
 triangles and held-out points never fitted: with `area`, 5000 further area-uniform samples from
 an independent random stream; with `strided`, the vertices not taken.
 
@@ -98,7 +101,9 @@ FIELDS = ["set", "mesh", "n_requested", "variant", "points", "method", "flags", 
 # scan, open scans, the noisiest cow
 # Variants run only when named (--variants or --sets), so that the sets of a sampling stay those
 # of the runs before them
-OPT_IN = ("openx",)
+OPT_IN = ("openx", "openmy", "openmz")
+# The holed variants: the direction along which the hole's centre is the farthest surface point
+HOLES = (("open", (1, 1, 1)), ("openx", (1, 0, 0)), ("openmy", (0, -1, 0)), ("openmz", (0, 0, -1)))
 PICTURED = ["bunny-2000-clean", "bunny-2000-open", "bunny-1000-open", "cow-2000-noise0.5", "cow-1000-clean"]
 
 
@@ -158,7 +163,7 @@ def make_sets(args):
                 for pct in (0.1, 0.5):
                     rng = np.random.default_rng([args.seed, 2, n, int(pct * 10)])
                     variants.append((f"noise{pct:g}", pts + rng.normal(scale=pct / 100 * diag, size=pts.shape), None))
-                for variant, direction in (("open", (1, 1, 1)), ("openx", (1, 0, 0))):
+                for variant, direction in HOLES:
                     if variant in OPT_IN and variant not in args.variants and not any(
                             x.endswith(f"-{variant}") for x in args.sets):
                         continue
@@ -292,7 +297,7 @@ def parse(argv):
     ap.add_argument("--sizes", type=lst(int), default=[400, 1000, 2000, 4000])
     ap.add_argument("--variant-sizes", type=lst(int), default=[1000, 2000])
     ap.add_argument("--variants", type=lst(str), default=[],
-                    help="only these variants (clean, noise0.1, noise0.5, open, openx); all but openx by default")
+                    help="only these variants (clean, noise0.1, noise0.5, open, openx, openmy, openmz); all but the last three by default")
     ap.add_argument("--sets", type=lst(str), default=[],
                     help="only the sets named (e.g. cow-2000-open,bunny-400-clean); all by default")
     ap.add_argument("--methods", type=lst(str), default=["default", "trimmed", "carrier", "poisson"])
@@ -338,7 +343,7 @@ def main(argv):
     if args.quick:
         sets = [s for s in sets if s[1] == "bunny" or s[0] == "cow-1000-clean"]
     names = [s[0] for s in sets]
-    opens = [x for x in names if x.endswith("-open") or x.endswith("-openx")]
+    opens = [x for x in names if any(x.endswith(f"-{h}") for h, _ in HOLES)]
     pictured = [x for x in PICTURED if x in names] or names[:1] + opens[:1]
     os.makedirs(os.path.join(args.out, "slices"), exist_ok=True)
     with open(os.path.join(args.out, "notes.txt"), "w") as notes:
