@@ -55,9 +55,9 @@ pub fn check_fit(fitted: &Fitted, prep: &Prepared) -> Result<()> {
 /// centres of the data's box grown by 4 half-diagonals beyond each side. The growth is the same
 /// on every axis: the fitted ball carrier is as wide as the box's diagonal on every axis (the
 /// fitted ellipsoids lie within it), so a box grown in proportion to its sides (9 times each)
-/// left the far points of a long, thin scan inside the ball, where f > 0 is right. Returns a warning naming the first place where f >= 0
-/// and how many of the 14 are not negative, or None for a bounded solid. The same on every rank (every rank holds the whole
-/// model).
+/// left the far points of a long, thin scan inside the ball, where f > 0 is right. Returns a
+/// warning naming the first place where f >= 0 and how many of the 14 are not negative, or None
+/// for a bounded solid. The same on every rank (every rank holds the whole model).
 pub fn check_bounded(model: &Model) -> Option<String> {
     let (lo, hi) = (model.provenance.box_lo, model.provenance.box_hi);
     let c: Vec<f64> = (0..3).map(|d| 0.5 * (lo[d] + hi[d])).collect();

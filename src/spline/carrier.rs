@@ -451,7 +451,8 @@ impl Parser<'_> {
                 let v = self.numbers()?;
                 if v.len() != 2 * d && v.len() != 2 * d + d * d {
                     return Err(self.error(&format!(
-                        "ellipsoid needs {} numbers (centre, semi-axes) or {} (centre, semi-axes, then                          the unit axes one after the other), got {}",
+                        "ellipsoid needs {} numbers (centre, semi-axes) or {} (centre, semi-axes, then the \
+                         unit axes one after the other), got {}",
                         2 * d,
                         2 * d + d * d,
                         v.len()
