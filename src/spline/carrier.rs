@@ -233,8 +233,15 @@ pub fn fitted_ellipsoid(lo: &[f64], hi: &[f64], points: &[f64], spread: f64) -> 
         return Carrier::Ellipsoid { centre, semi_axes, axes: None };
     }
     // the principal directions of the scatter, the largest first, each turned so that its
-    // largest component is positive (the eigenvectors' signs are the rotations' rounding)
-    let scatter = Plane::of(|| points.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
+    // largest component is positive (the eigenvectors' signs are the rotations' rounding); the
+    // scatter is taken of the points moved to the box's middle and divided by its largest
+    // half-extent, so that its squares stay of order one at any scale the data may have (taken of
+    // the raw coordinates they overflow from about 1e154), and its mean is scaled back
+    let mid = [0, 1, 2].map(|d| 0.5 * lo[d] + 0.5 * hi[d]);
+    let unit = (0..3).map(|d| 0.5 * hi[d] - 0.5 * lo[d]).fold(0.0f64, f64::max);
+    let unit = if unit.is_normal() { unit } else { 1.0 };
+    let scatter =
+        Plane::of(|| points.chunks_exact(3).map(move |p| [0, 1, 2].map(|d| (p[d] - mid[d]) / unit)));
     let axes: Vec<f64> = (0..3)
         .rev()
         .flat_map(|col| {
@@ -243,7 +250,7 @@ pub fn fitted_ellipsoid(lo: &[f64], hi: &[f64], points: &[f64], spread: f64) -> 
             u.map(|x| if big < 0.0 { -x } else { x })
         })
         .collect();
-    let mean = scatter.mean;
+    let mean = [0, 1, 2].map(|d| mid[d] + unit * scatter.mean[d]);
     let (mut lo_u, mut hi_u) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
     for p in points.chunks_exact(3) {
         for j in 0..3 {
@@ -693,6 +700,17 @@ mod tests {
         let ball = Carrier::AutoEllipsoid { spread: 0.0 }.resolve(&lo, &hi, &pts);
         let Carrier::Ellipsoid { semi_axes, .. } = &ball else { panic!("{ball}") };
         assert!(semi_axes.iter().all(|s| (s - g).abs() < 1e-9), "{semi_axes:?}");
+        // the same points at 1e200, where their squares overflow: the same ellipsoid, scaled
+        let big = 1e200;
+        let scaled: Vec<f64> = pts.iter().map(|v| v * big).collect();
+        let (lo_b, hi_b) = (lo.map(|v| v * big), hi.map(|v| v * big));
+        let c = Carrier::AutoEllipsoid { spread: 1.0 }.resolve(&lo_b, &hi_b, &scaled);
+        let Carrier::Ellipsoid { centre: got_c, semi_axes, .. } = &c else { panic!("{c}") };
+        for j in 0..3 {
+            assert!((semi_axes[j] / big - a[j]).abs() < 1e-9, "{c}");
+            assert!((got_c[j] / big - centre[j]).abs() < 1e-9, "{c}");
+        }
+        assert!(scaled.chunks_exact(3).all(|p| c.eval(p).abs() < 1e-9), "{c}");
     }
 
     #[test]

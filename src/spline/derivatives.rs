@@ -231,9 +231,11 @@ pub fn carrier_jet(carrier: &Carrier, x: &[f64; 3]) -> Jet {
                 let t = ellipsoid_coordinate(centre, axes.as_deref(), j, x);
                 let u = |d: usize| ellipsoid_axis(axes.as_deref(), n, j, d);
                 for r in 0..n {
-                    jet.gradient[r] -= 2.0 * t * u(r) / (a * a);
+                    // divided by a twice rather than by its square, which overflows from
+                    // semi-axes of about 1e154 on
+                    jet.gradient[r] -= 2.0 * (t / a) * u(r) / a;
                     for c in 0..n {
-                        jet.hessian[r][c] -= 2.0 * u(r) * u(c) / (a * a);
+                        jet.hessian[r][c] -= 2.0 * (u(r) / a) * (u(c) / a);
                     }
                 }
             }

@@ -445,14 +445,19 @@ pub fn off_points_at(
 
 /// |grad f_c| at `x` (caller's coordinates) by central differences of step `h`.
 pub fn carrier_slope(carrier: &Carrier, x: &[f64], h: f64) -> f64 {
-    let mut g2 = 0.0;
-    for d in 0..3 {
+    let g = [0, 1, 2].map(|d| {
         let (mut a, mut b) = ([x[0], x[1], x[2]], [x[0], x[1], x[2]]);
         a[d] += h;
         b[d] -= h;
-        g2 += ((carrier.eval(&a) - carrier.eval(&b)) / (2.0 * h)).powi(2);
+        (carrier.eval(&a) - carrier.eval(&b)) / (2.0 * h)
+    });
+    // the length taken relative to the largest component: an ellipsoid's slope is about 2 / a,
+    // whose square underflows for the semi-axes of data at 1e160
+    let big = g.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if big == 0.0 || !big.is_finite() {
+        return big;
     }
-    g2.sqrt()
+    big * g.iter().map(|v| (v / big).powi(2)).sum::<f64>().sqrt()
 }
 
 /// The spline's values r = f_c(q) - t at the off points, t = -side * g * delta in the caller's
@@ -486,6 +491,22 @@ pub fn off_value_parts(
 mod tests {
     use super::*;
     use crate::surface::fibonacci_sphere;
+
+    #[test]
+    fn the_carrier_slope_holds_at_scales_whose_squares_underflow_or_overflow() {
+        // an ellipsoid's slope at a point of its surface on its first axis is 2 / a_0
+        for scale in [1.0, 1e-150, 1e160, 1e300] {
+            let c = Carrier::Ellipsoid {
+                centre: vec![0.0; 3],
+                semi_axes: vec![3.0 * scale, 2.0 * scale, scale],
+                axes: None,
+            };
+            let g = carrier_slope(&c, &[3.0 * scale, 0.0, 0.0], 1e-6 * scale);
+            assert!((g * scale * 1.5 - 1.0).abs() < 1e-6, "{scale:e}: {g:e}");
+            let jet = crate::spline::derivatives::carrier_jet(&c, &[3.0 * scale, 0.0, 0.0]);
+            assert!((jet.gradient[0] * scale * 1.5 + 1.0).abs() < 1e-12, "{scale:e}: {:?}", jet.gradient);
+        }
+    }
 
     #[test]
     fn the_doubtful_share_holds_up_to_seventy_percent_doubt_then_rises_to_the_full_rate() {

@@ -285,9 +285,12 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
         _ => Kernel::new(3, 2)?,
     };
     // the points' geometry refused (too few, all on one plane) is the input file's fault
+    // under `auto` the data are prepared with the off-surface fit's ellipsoid (whose values are of
+    // order one at any scale) and the plain carrier method's ball replaces it below where the fit
+    // has no off points, so that the ball's overflow refuses only the fits that use it
     let given = match &a.carrier {
         FitCarrier::Given(c) => c.clone(),
-        FitCarrier::Auto => Carrier::AutoBall,
+        FitCarrier::Auto => surface::AUTO_CARRIER,
     };
     let in_input = |e| match e {
         Error::Numerical(m) => Error::input(&a.input, "", m),
@@ -296,8 +299,8 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
     let mut prep = prepare(&raw, &base, &given, a.merge_tol).map_err(in_input)?;
     let n = prep.values.len();
     let off = surface::with_off_surface(a.surface, n);
-    if off && a.carrier == FitCarrier::Auto {
-        prep = prep.with_carrier(&surface::AUTO_CARRIER).map_err(in_input)?;
+    if !off && a.carrier == FitCarrier::Auto {
+        prep = prep.with_carrier(&Carrier::AutoBall).map_err(in_input)?;
     }
     let layout = a.layout.resolve(comm.size(), n + base.poly_count(), a.precision);
     let run = Run { args: a, comm, threads, layout };
