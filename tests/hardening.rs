@@ -72,6 +72,59 @@ fn extreme_scales_are_refused_with_the_cause() {
     assert!(counts.iter().all(|&c| c.abs_diff(counts[0]) * 20 <= counts[0]), "{counts:?}");
 }
 
+/// The default's model of data at 1e300 is read back, evaluated and pictured as at unit scale: its
+/// fitted ellipsoid is a carrier spec of numbers beyond the balls' 1e150, the picture is cast in
+/// the solid's own unit (a camera's squared distances would overflow), and curvature, whose
+/// second derivatives underflow there, is refused with the cause before any output.
+#[test]
+fn a_model_of_data_at_1e300_is_evaluated_and_pictured_as_at_unit_scale() {
+    let mut counts = Vec::new();
+    let mut pixels = Vec::new();
+    for scale in [1.0, 1e300] {
+        let dir = temp_dir(&format!("hardening-model-{scale:e}"));
+        let input = dir.join("points.xyz");
+        write_xyz(&input, &scaled_bunny(scale));
+        let model = dir.join("fit");
+        let out = run(2, &["fit", s(&input), "--out", s(&model), "--grid", "12", "--no-preview"]);
+        assert!(out.status.success(), "{scale:e}: {}", text(&out));
+        let model = dir.join("fit.model.h5");
+        let out = run(2, &["eval", s(&model), "--out", s(&dir.join("eval")), "--grid", "16"]);
+        assert!(out.status.success(), "{scale:e}: {}", text(&out));
+        counts.push(triangles(&out));
+        let png = dir.join("picture.png");
+        let out = run(2, &["render", s(&model), "--out", s(&png), "--size", "128x128"]);
+        assert!(out.status.success(), "{scale:e}: {}", text(&out));
+        let t = text(&out);
+        let hits: usize = t
+            .split(" pixels on the solid")
+            .next()
+            .and_then(|h| h.rsplit(' ').next())
+            .and_then(|w| w.parse().ok())
+            .unwrap_or_else(|| panic!("no pixel count: {t}"));
+        pixels.push(hits);
+        if scale > 1.0 {
+            let before: Vec<PathBuf> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).collect();
+            let keep: Vec<&Path> = before.iter().map(|p| p.as_path()).collect();
+            for (args, needle) in [
+                (
+                    vec!["render", s(&model), "--out", s(&dir.join("c.png")), "--color", "curvature"],
+                    "--color curvature",
+                ),
+                (
+                    vec!["eval", s(&model), "--out", s(&dir.join("c")), "--grid", "12", "--curvature"],
+                    "--curvature",
+                ),
+            ] {
+                let out = run(2, &args);
+                refused(&out, 2, needle, &dir, &keep);
+                assert!(text(&out).contains("second derivatives, which underflow"), "{}", text(&out));
+            }
+        }
+    }
+    assert!(counts[0] > 100 && counts[0].abs_diff(counts[1]) * 20 <= counts[0], "{counts:?}");
+    assert!(pixels[0] > 1000 && pixels[0].abs_diff(pixels[1]) * 100 <= pixels[0], "{pixels:?}");
+}
+
 /// The "surface f = 0: T triangles" count of a run's report.
 fn triangles(out: &std::process::Output) -> usize {
     let t = text(out);

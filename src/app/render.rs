@@ -16,11 +16,12 @@ use super::report::Report;
 use super::stages::{Stage, Stages};
 use crate::cli::{RenderArgs, ViewArgs};
 use crate::error::{Error, Result};
+use crate::frep::curvature::check_curvature_reach;
 use crate::frep::curvature::curvature;
 use crate::frep::raycast::{
     first_root, pixel_colour, shade, Axis, Camera, Colouring, Lattice, View, BACKGROUND,
 };
-use crate::frep::{Expr, Implicit, ModelSolid, Syntax};
+use crate::frep::{Expr, Implicit, ModelSolid, Rescaled, Syntax};
 use crate::io::contour_model_file::{self, read_contour_model};
 use crate::io::h5::format_of;
 use crate::io::model_file::read_model;
@@ -85,6 +86,14 @@ pub fn render(
     colouring: Colouring,
 ) -> Result<Option<Picture>> {
     let bounds = agree(comm, checked_bounds(solid))?;
+    if colouring == Colouring::Curvature {
+        let reach = bounds.0.iter().chain(&bounds.1).fold(0.0f64, |m, v| m.max(v.abs()));
+        check_curvature_reach(reach, "--color curvature")?;
+    }
+    // cast in the solid's own unit, so that data at any scale give the picture of unit scale
+    let scaled = Rescaled::of(solid, bounds);
+    let (solid, view) = (&scaled as &dyn Implicit, &scaled_view(view, scaled.unit));
+    let bounds = checked_bounds(solid)?;
     let (rank, size) = (comm.rank(), comm.size());
     // the lattice: nodes dealt round the ranks, the others' left zero and the sum taken
     let cells = Lattice::cells_for(bounds);
@@ -223,14 +232,21 @@ pub fn preview_view() -> View {
     }
 }
 
+/// `view` with its camera distance in the unit of a [`Rescaled`] solid.
+fn scaled_view(view: &View, unit: f64) -> View {
+    View { distance: view.distance.map(|d| d / unit), ..*view }
+}
+
 /// Why a picture with `hits` pixels on the solid shows little of it, when the view is the cause
 /// or nothing was hit: the solid's box smaller than a pixel from the camera, the camera inside
 /// the solid (every ray starts inside), or no ray meeting the solid.
 fn view_warning(solid: &dyn Implicit, view: &View, hits: usize) -> Option<String> {
     let pixels = view.width * view.height;
-    let bounds = checked_bounds(solid).ok()?;
-    let camera = Camera::frame(bounds, view);
-    let (distance, radius) = (camera.distance, camera.radius);
+    let scaled = Rescaled::of(solid, checked_bounds(solid).ok()?);
+    let bounds = checked_bounds(&scaled).ok()?;
+    let camera = Camera::frame(bounds, &scaled_view(view, scaled.unit));
+    // the camera's lengths in the solid's units again, for the messages
+    let (distance, radius) = (camera.distance * scaled.unit, camera.radius * scaled.unit);
     // the half-width of a pixel at the centre's distance
     let pixel = distance * camera.tan_half / view.height as f64;
     if hits == 0 && radius < pixel {
@@ -239,7 +255,7 @@ fn view_warning(solid: &dyn Implicit, view: &View, hits: usize) -> Option<String
              {radius:.4e}) spans less than a pixel; leave out --distance to fill the view"
         ));
     }
-    if hits == pixels && distance < radius && solid.value(camera.eye) >= 0.0 {
+    if hits == pixels && distance < radius && scaled.value(camera.eye) >= 0.0 {
         return Some(format!(
             "the camera (at distance {distance:.4e} from the centre of the solid's box) is inside the solid, \
              so every ray starts inside and the picture shows no surface; a --distance above {radius:.4e} \

@@ -12,7 +12,7 @@ use super::progress::Progress;
 use super::report::Report;
 use super::stages::{Stage, Stages};
 use crate::error::{Error, Result};
-use crate::frep::curvature::{curvature, Curvature};
+use crate::frep::curvature::{check_curvature_reach, curvature, Curvature};
 use crate::frep::Implicit;
 use crate::grid::{padded_box, Grid, GridSize, FACE_NAMES, GROW_NODES, GROW_STEPS};
 use crate::io::{self, vtkhdf};
@@ -139,6 +139,11 @@ pub fn model_grid(
 /// memory beside the program's fixed part ([`FIXED_BYTES`], which the dense checks count too).
 /// Collective.
 pub fn check_grid(comm: &dyn Comm, grid: &Grid, curvature: bool) -> Result<()> {
+    if curvature {
+        let far = (0..3).map(|d| grid.origin[d] + grid.spacing[d] * (grid.dims[d] - 1) as f64);
+        let reach = grid.origin.iter().copied().chain(far).fold(0.0f64, |m, v| m.max(v.abs()));
+        check_curvature_reach(reach, "--curvature")?;
+    }
     let [nx, ny, nz] = grid.dims;
     let slab = grid_bytes(grid, comm.size(), curvature);
     check_memory(

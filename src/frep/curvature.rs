@@ -66,6 +66,24 @@ pub fn curvature<S: Implicit + ?Sized>(solid: &S, p: [f64; 3]) -> Curvature {
     from_derivatives(solid.gradient(p), solid.hessian(p))
 }
 
+/// The largest magnitude of a coordinate where curvature is taken: it needs f's second
+/// derivatives, of the order f / length^2, and for a solid whose f is of order one (a fitted
+/// ellipsoid's carrier) those underflow where lengths reach 1e154; below 1e150 they are
+/// representable for every carrier.
+pub const MAX_CURVATURE_REACH: f64 = 1e150;
+
+/// Refuses curvature over a region whose coordinates reach beyond [`MAX_CURVATURE_REACH`]
+/// (`reach`: their largest magnitude), naming what asked for it.
+pub fn check_curvature_reach(reach: f64, what: &str) -> crate::error::Result<()> {
+    if reach <= MAX_CURVATURE_REACH {
+        return Ok(());
+    }
+    Err(crate::error::Error::Usage(format!(
+        "{what} takes the mean curvature from f's second derivatives, which underflow for coordinates of \
+         {reach:e} (at most {MAX_CURVATURE_REACH:e}); rescale the data"
+    )))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

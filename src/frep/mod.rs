@@ -90,6 +90,48 @@ pub trait Implicit: Sync {
     }
 }
 
+/// A solid seen in its coordinates divided by `unit`, a power of two near the largest magnitude
+/// of its box's corners: y = x / unit. What squares coordinates (a camera's distance, the length
+/// of a ray, |grad f|) then stays representable at any scale of the data, and since scaling by a
+/// power of two is exact, every value, root and direction is the unscaled solid's, scaled: a
+/// picture of a solid at unit scale is the same, pixel for pixel, through this view or without.
+pub struct Rescaled<'a> {
+    pub solid: &'a dyn Implicit,
+    pub unit: f64,
+}
+
+impl<'a> Rescaled<'a> {
+    /// `solid` in the unit of its box `bounds` (1 where the box has no finite, non-zero corner).
+    pub fn of(solid: &'a dyn Implicit, bounds: ([f64; 3], [f64; 3])) -> Rescaled<'a> {
+        let big = bounds.0.iter().chain(&bounds.1).fold(0.0f64, |m, v| m.max(v.abs()));
+        let unit = if big.is_normal() { 2f64.powi(big.log2().floor() as i32) } else { 1.0 };
+        Rescaled { solid, unit: if unit.is_normal() { unit } else { 1.0 } }
+    }
+
+    fn outer(&self, y: [f64; 3]) -> [f64; 3] {
+        y.map(|v| v * self.unit)
+    }
+}
+
+impl Implicit for Rescaled<'_> {
+    fn value(&self, y: [f64; 3]) -> f64 {
+        self.solid.value(self.outer(y))
+    }
+
+    fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+        let (lo, hi) = self.solid.bounds();
+        (lo.map(|v| v / self.unit), hi.map(|v| v / self.unit))
+    }
+
+    fn gradient(&self, y: [f64; 3]) -> [f64; 3] {
+        self.solid.gradient(self.outer(y)).map(|g| g * self.unit)
+    }
+
+    fn hessian(&self, y: [f64; 3]) -> [[f64; 3]; 3] {
+        self.solid.hessian(self.outer(y)).map(|row| row.map(|h| h * self.unit * self.unit))
+    }
+}
+
 fn diff_step<S: Implicit + ?Sized>(s: &S) -> f64 {
     let (lo, hi) = s.bounds();
     let size = (0..3).map(|d| (hi[d] - lo[d]).abs()).fold(0.0, f64::max);

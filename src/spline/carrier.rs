@@ -303,6 +303,12 @@ impl fmt::Display for Carrier {
 /// and the square of 1e150 (1e300) is still below the largest double (about 1.8e308).
 pub const MAX_CARRIER_NUMBER: f64 = 1e150;
 
+/// The largest magnitude of a number in an ellipsoid's spec: f_c = 1 - sum_j (t_j / a_j)^2 squares
+/// only the ratios t_j / a_j of a coordinate along an axis to the semi-axis, so the centre and the
+/// semi-axes may be as large as the data (a fit's ellipsoid is as large as its points), short of
+/// the differences x - c overflowing.
+pub const MAX_ELLIPSOID_NUMBER: f64 = 1e300;
+
 /// The smallest radius or semi-axis of a carrier: f_c divides by their squares (an ellipsoid) or
 /// subtracts a coordinate's square from theirs (a ball), and below 1e-150 the square underflows
 /// (a ball of radius 1e-300 would be f_c = -|x - c|^2 to the last bit, zero at its centre only,
@@ -359,6 +365,12 @@ impl Parser<'_> {
     }
 
     fn numbers(&mut self) -> Result<Vec<f64>> {
+        self.numbers_within(MAX_CARRIER_NUMBER)
+    }
+
+    /// The numbers of a spec up to the next carrier or ')', each finite and at most `limit` in
+    /// magnitude.
+    fn numbers_within(&mut self, limit: f64) -> Result<Vec<f64>> {
         let start = self.pos;
         while self.pos < self.s.len() && !matches!(self.s[self.pos], b')') {
             if self.s[self.pos] == b',' && self.carrier_follows(self.pos + 1) {
@@ -371,12 +383,19 @@ impl Parser<'_> {
         for tok in text.split(',') {
             let tok = tok.trim();
             match tok.parse::<f64>() {
-                Ok(v) if v.is_finite() && v.abs() <= MAX_CARRIER_NUMBER => out.push(v),
-                Ok(v) if v.is_finite() => {
+                Ok(v) if v.is_finite() && v.abs() <= limit => out.push(v),
+                Ok(v) if v.is_finite() && limit == MAX_CARRIER_NUMBER => {
                     self.pos = start;
                     return Err(self.error(&format!(
                         "{tok} is larger in magnitude than {MAX_CARRIER_NUMBER:e}, the largest carrier \
                          number whose square is representable; rescale the data"
+                    )));
+                }
+                Ok(v) if v.is_finite() => {
+                    self.pos = start;
+                    return Err(self.error(&format!(
+                        "{tok} is larger in magnitude than {limit:e}, the largest ellipsoid number whose \
+                         differences are representable; rescale the data"
                     )));
                 }
                 _ => {
@@ -455,7 +474,7 @@ impl Parser<'_> {
                     return Ok(Carrier::AutoEllipsoid { spread: 1.0 });
                 }
                 self.pos += 1;
-                let v = self.numbers()?;
+                let v = self.numbers_within(MAX_ELLIPSOID_NUMBER)?;
                 if v.len() != 2 * d && v.len() != 2 * d + d * d {
                     return Err(self.error(&format!(
                         "ellipsoid needs {} numbers (centre, semi-axes) or {} (centre, semi-axes, then the \
@@ -604,6 +623,18 @@ mod tests {
         assert!(d.eval(&[1.5, 0.0, 0.0]) > 0.0 && d.eval(&[0.5, 0.0, 0.0]) < 0.0);
         // the zero sets are exactly the boundary of the set operation
         assert!(u.eval(&[2.0, 0.0, 0.0]).abs() < 1e-12);
+    }
+
+    #[test]
+    fn ellipsoid_numbers_may_reach_1e300_where_a_balls_stop_at_1e150() {
+        let big = "ellipsoid:1e299,0,0,2e299,1e299,5e298";
+        let c = Carrier::parse(big, 3).unwrap();
+        assert_eq!(Carrier::parse(&c.to_string(), 3).unwrap(), c);
+        assert!((c.eval(&[3e299, 0.0, 0.0])).abs() < 1e-12, "{}", c.eval(&[3e299, 0.0, 0.0]));
+        let e = Carrier::parse("ellipsoid:2e300,0,0,1,1,1", 3).unwrap_err().to_string();
+        assert!(e.contains("larger in magnitude than 1e300"), "{e}");
+        let e = Carrier::parse("ball:0,0,0,1e160", 3).unwrap_err().to_string();
+        assert!(e.contains("larger in magnitude than 1e150"), "{e}");
     }
 
     #[test]
