@@ -16,8 +16,7 @@ use super::report::Report;
 use super::stages::{Stage, Stages};
 use crate::cli::{RenderArgs, ViewArgs};
 use crate::error::{Error, Result};
-use crate::frep::curvature::check_curvature_reach;
-use crate::frep::curvature::curvature;
+use crate::frep::curvature::{check_curvature_reach, curvature};
 use crate::frep::raycast::{
     first_root, pixel_colour, shade, Axis, Camera, Colouring, Lattice, View, BACKGROUND,
 };
