@@ -27,7 +27,7 @@ use crate::spline::hygiene::Prepared;
 use crate::spline::{Field, Model};
 
 /// Largest magnitude in `v` (NaN counts as infinite).
-fn reach(v: &[f64]) -> f64 {
+pub(super) fn reach(v: &[f64]) -> f64 {
     v.iter().fold(0.0f64, |a, &b| if b.is_nan() { f64::INFINITY } else { a.max(b.abs()) })
 }
 

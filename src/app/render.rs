@@ -11,6 +11,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 
+use super::finite::reach;
 use super::progress::Progress;
 use super::report::Report;
 use super::stages::{Stage, Stages};
@@ -86,8 +87,7 @@ pub fn render(
 ) -> Result<Option<Picture>> {
     let bounds = agree(comm, checked_bounds(solid))?;
     if colouring == Colouring::Curvature {
-        let reach = bounds.0.iter().chain(&bounds.1).fold(0.0f64, |m, v| m.max(v.abs()));
-        check_curvature_reach(reach, "--color curvature")?;
+        check_curvature_reach(reach(&bounds.0).max(reach(&bounds.1)), "--color curvature")?;
     }
     // cast in the solid's own unit, so that data at any scale give the picture of unit scale
     let scaled = Rescaled::of(solid, bounds);

@@ -7,6 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
+use super::finite::reach;
 use super::preflight::{check_memory, grid_bytes, FIXED_BYTES};
 use super::progress::Progress;
 use super::report::Report;
@@ -140,9 +141,8 @@ pub fn model_grid(
 /// Collective.
 pub fn check_grid(comm: &dyn Comm, grid: &Grid, curvature: bool) -> Result<()> {
     if curvature {
-        let far = (0..3).map(|d| grid.origin[d] + grid.spacing[d] * (grid.dims[d] - 1) as f64);
-        let reach = grid.origin.iter().copied().chain(far).fold(0.0f64, |m, v| m.max(v.abs()));
-        check_curvature_reach(reach, "--curvature")?;
+        let far = [0, 1, 2].map(|d| grid.origin[d] + grid.spacing[d] * (grid.dims[d] - 1) as f64);
+        check_curvature_reach(reach(&grid.origin).max(reach(&far)), "--curvature")?;
     }
     let [nx, ny, nz] = grid.dims;
     let slab = grid_bytes(grid, comm.size(), curvature);

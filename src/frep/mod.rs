@@ -105,7 +105,7 @@ impl<'a> Rescaled<'a> {
     pub fn of(solid: &'a dyn Implicit, bounds: ([f64; 3], [f64; 3])) -> Rescaled<'a> {
         let big = bounds.0.iter().chain(&bounds.1).fold(0.0f64, |m, v| m.max(v.abs()));
         let unit = if big.is_normal() { 2f64.powi(big.log2().floor() as i32) } else { 1.0 };
-        Rescaled { solid, unit: if unit.is_normal() { unit } else { 1.0 } }
+        Rescaled { solid, unit }
     }
 
     fn outer(&self, y: [f64; 3]) -> [f64; 3] {

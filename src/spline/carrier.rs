@@ -365,12 +365,12 @@ impl Parser<'_> {
     }
 
     fn numbers(&mut self) -> Result<Vec<f64>> {
-        self.numbers_within(MAX_CARRIER_NUMBER)
+        self.numbers_within(MAX_CARRIER_NUMBER, "carrier number whose square is representable")
     }
 
     /// The numbers of a spec up to the next carrier or ')', each finite and at most `limit` in
-    /// magnitude.
-    fn numbers_within(&mut self, limit: f64) -> Result<Vec<f64>> {
+    /// magnitude (`largest` says what the limit is, for the message).
+    fn numbers_within(&mut self, limit: f64, largest: &str) -> Result<Vec<f64>> {
         let start = self.pos;
         while self.pos < self.s.len() && !matches!(self.s[self.pos], b')') {
             if self.s[self.pos] == b',' && self.carrier_follows(self.pos + 1) {
@@ -384,18 +384,10 @@ impl Parser<'_> {
             let tok = tok.trim();
             match tok.parse::<f64>() {
                 Ok(v) if v.is_finite() && v.abs() <= limit => out.push(v),
-                Ok(v) if v.is_finite() && limit == MAX_CARRIER_NUMBER => {
-                    self.pos = start;
-                    return Err(self.error(&format!(
-                        "{tok} is larger in magnitude than {MAX_CARRIER_NUMBER:e}, the largest carrier \
-                         number whose square is representable; rescale the data"
-                    )));
-                }
                 Ok(v) if v.is_finite() => {
                     self.pos = start;
                     return Err(self.error(&format!(
-                        "{tok} is larger in magnitude than {limit:e}, the largest ellipsoid number whose \
-                         differences are representable; rescale the data"
+                        "{tok} is larger in magnitude than {limit:e}, the largest {largest}; rescale the data"
                     )));
                 }
                 _ => {
@@ -474,7 +466,10 @@ impl Parser<'_> {
                     return Ok(Carrier::AutoEllipsoid { spread: 1.0 });
                 }
                 self.pos += 1;
-                let v = self.numbers_within(MAX_ELLIPSOID_NUMBER)?;
+                let v = self.numbers_within(
+                    MAX_ELLIPSOID_NUMBER,
+                    "ellipsoid number whose differences are representable",
+                )?;
                 if v.len() != 2 * d && v.len() != 2 * d + d * d {
                     return Err(self.error(&format!(
                         "ellipsoid needs {} numbers (centre, semi-axes) or {} (centre, semi-axes, then the \

@@ -451,13 +451,9 @@ pub fn carrier_slope(carrier: &Carrier, x: &[f64], h: f64) -> f64 {
         b[d] -= h;
         (carrier.eval(&a) - carrier.eval(&b)) / (2.0 * h)
     });
-    // the length taken relative to the largest component: an ellipsoid's slope is about 2 / a,
-    // whose square underflows for the semi-axes of data at 1e160
-    let big = g.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    if big == 0.0 || !big.is_finite() {
-        return big;
-    }
-    big * g.iter().map(|v| (v / big).powi(2)).sum::<f64>().sqrt()
+    // hypot rather than the root of the squares: an ellipsoid's slope is about 2 / a, whose
+    // square underflows for the semi-axes of data at 1e160
+    g[0].hypot(g[1]).hypot(g[2])
 }
 
 /// The spline's values r = f_c(q) - t at the off points, t = -side * g * delta in the caller's
