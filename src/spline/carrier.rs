@@ -175,6 +175,17 @@ impl Carrier {
                 let d2: f64 = centre.iter().zip(x).map(|(c, v)| (v - c) * (v - c)).sum();
                 radius * radius - d2
             }
+            // the fitted ellipsoid of a 3D fit, evaluated at every grid and lattice node: straight
+            // code with the same operations in the same order as the general sum below, so the
+            // same bits
+            Carrier::Ellipsoid { centre, semi_axes, axes: Some(u) } if semi_axes.len() == 3 => {
+                let (c, a) = (&centre[..3], &semi_axes[..3]);
+                let (u, x) = (&u[..9], &x[..3]);
+                let d = [x[0] - c[0], x[1] - c[1], x[2] - c[2]];
+                let q = |j: usize| ((d[0] * u[3 * j] + d[1] * u[3 * j + 1]) + d[2] * u[3 * j + 2]) / a[j];
+                let (q0, q1, q2) = (q(0), q(1), q(2));
+                1.0 - ((q0 * q0 + q1 * q1) + q2 * q2)
+            }
             Carrier::Ellipsoid { centre, semi_axes, axes } => {
                 let s: f64 = (0..semi_axes.len())
                     .map(|j| (ellipsoid_coordinate(centre, axes.as_deref(), j, x) / semi_axes[j]).powi(2))
@@ -630,6 +641,29 @@ mod tests {
         assert!(e.contains("larger in magnitude than 1e300"), "{e}");
         let e = Carrier::parse("ball:0,0,0,1e160", 3).unwrap_err().to_string();
         assert!(e.contains("larger in magnitude than 1e150"), "{e}");
+    }
+
+    #[test]
+    fn a_turned_ellipsoid_in_3d_gives_the_bits_of_the_general_sum() {
+        // the fitted ellipsoid of scattered points, whose axes are turned every which way
+        let pts: Vec<f64> = (0..200)
+            .flat_map(|i| {
+                let t = i as f64 * 0.37;
+                [3.0 * t.cos() + 0.1 * t, 1.5 * t.sin() - 0.2 * t.cos(), 0.7 * (2.0 * t).sin() + 0.05 * t]
+            })
+            .collect();
+        let c = fitted_ellipsoid(&[-4.0, -2.0, -1.0], &[5.0, 2.0, 1.0], &pts, 0.3);
+        let Carrier::Ellipsoid { centre, semi_axes, axes } = &c else { panic!("{c:?}") };
+        assert!(axes.is_some());
+        let general = |x: &[f64]| {
+            let s: f64 = (0..3)
+                .map(|j| (ellipsoid_coordinate(centre, axes.as_deref(), j, x) / semi_axes[j]).powi(2))
+                .sum();
+            1.0 - s
+        };
+        for x in pts.chunks_exact(3).chain([[0.0; 3].as_slice(), &[-0.0, 1e-300, 7e5]]) {
+            assert_eq!(c.eval(x).to_bits(), general(x).to_bits(), "{x:?}");
+        }
     }
 
     #[test]
