@@ -140,11 +140,11 @@ pub fn model_grid(
 /// memory beside the program's fixed part ([`FIXED_BYTES`], which the dense checks count too).
 /// Collective.
 pub fn check_grid(comm: &dyn Comm, grid: &Grid, curvature: bool) -> Result<()> {
+    let [nx, ny, nz] = grid.dims;
     if curvature {
-        let far = [0, 1, 2].map(|d| grid.origin[d] + grid.spacing[d] * (grid.dims[d] - 1) as f64);
+        let far = grid.node(nx - 1, ny - 1, nz - 1);
         check_curvature_reach(reach(&grid.origin).max(reach(&far)), "--curvature")?;
     }
-    let [nx, ny, nz] = grid.dims;
     let slab = grid_bytes(grid, comm.size(), curvature);
     check_memory(
         comm,
