@@ -1,6 +1,7 @@
 //! `volspline render` and the previews of `fit`, through the real binary: a reconstructed sphere
-//! covers the disc of pixels its radius predicts, pictures are the same on 1, 2 and 3 ranks, and
-//! bad arguments give a clear error and no file.
+//! covers the disc of pixels its radius predicts, a rod thinner than the ray caster's lattice
+//! shows whole, pictures are the same on 1, 2 and 3 ranks, and bad arguments give a clear error
+//! and no file.
 
 mod common;
 
@@ -99,6 +100,44 @@ fn a_rendered_sphere_covers_the_disc_its_radius_predicts() {
         }
     }
     assert!(inside > 3000 && rim > 100, "{inside} {rim}");
+}
+
+#[test]
+fn a_rod_thinner_than_a_cell_of_the_ray_casters_lattice_shows_whole() {
+    // 800 points on a rod of radius 0.1 and length 10 along x: the ray caster's lattice has 48
+    // cells along the box's longest side, 0.25 wide, and its nodes miss the rod (0.2 across);
+    // the fit's grid of 200 nodes resolves it
+    let dir = temp_dir("render-rod");
+    let input = dir.join("rod.xyz");
+    let golden = PI * (3.0 - 5f64.sqrt());
+    let rod: Vec<f64> = (0..800)
+        .flat_map(|i| {
+            let (x, a) = (10.0 * (i as f64 + 0.5) / 800.0, golden * i as f64);
+            [x, 0.1 * a.cos(), 0.1 * a.sin()]
+        })
+        .collect();
+    write_xyz(&input, &rod);
+    let prefix = dir.join("r");
+    run_ok(2, &["fit", input.to_str().unwrap(), "--out", prefix.to_str().unwrap(), "--grid", "200"]);
+    // the preview (256 x 256, from azimuth 30 and elevation 20, y up) and a picture from the
+    // side, square to the rod
+    let side = dir.join("side.png");
+    let model = dir.join("r.model.h5");
+    run_ok(1, &["render", model.to_str().unwrap(), "--out", side.to_str().unwrap(), "--up", "z"]);
+    for (pic, (columns, least)) in [(dir.join("r.png"), (150, 500)), (side, (180, 1200))] {
+        let (w, h, rgb) = read_png(&pic);
+        let hit: Vec<bool> = rgb.chunks_exact(3).map(|c| c != BACKGROUND).collect();
+        let pixels = hit.iter().filter(|&&b| b).count();
+        let spanned = (0..w).filter(|&i| (0..h).any(|j| hit[j * w + i])).count();
+        // the rod seen whole: a long thin line of pixels (the picture of the lattice's nodes
+        // alone had 9 pixels in two dots), no wider than a few pixels
+        assert!(
+            spanned >= columns && pixels >= least,
+            "{}: {pixels} pixels over {spanned} columns",
+            pic.display()
+        );
+        assert!(pixels <= 16 * spanned, "{}: {pixels} pixels over {spanned} columns", pic.display());
+    }
 }
 
 #[test]

@@ -1552,7 +1552,7 @@ fn trimming_a_sparsely_scanned_flank_keeps_its_gaps_and_leaves_out_the_bulges() 
     assert!(text.contains("points moved onto quadrics"), "the noisy scan is denoised: {text}");
     // the data the trimming measures against are the denoised points the model records
     let model = read_model(&dir.join("s.model.h5")).unwrap();
-    let data = volspline::surface::support::data_points(&model).unwrap();
+    let data = model.data_points().unwrap();
     assert_eq!(data.len(), pts.len());
     let closed = common::load_mesh(&dir.join("s.ply"));
     let trimmed = common::load_mesh(&dir.join("s.trimmed.ply"));

@@ -102,7 +102,8 @@ pub fn render(
         *v = solid.value(Lattice::node(bounds, cells, q));
     });
     comm.sum_f64(&mut values);
-    let lattice = Lattice::new(bounds, cells, &values);
+    let mut lattice = Lattice::new(bounds, cells, &values);
+    lattice.look_closely(&solid.surface_points());
 
     let camera = Camera::frame(bounds, view);
     let (w, h) = (view.width, view.height);

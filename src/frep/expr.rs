@@ -421,6 +421,28 @@ impl Implicit for Expr {
         self.domain().map_or(([-1.0; 3], [1.0; 3]), widened)
     }
 
+    /// The data points of every fitted model in the expression, moved with it by translations,
+    /// rotations and scalings (points of an operand's surface: some lie on the result's, the
+    /// others only cost the ray caster a closer look).
+    fn surface_points(&self) -> Vec<[f64; 3]> {
+        match self {
+            Expr::Model { model, .. } => model.surface_points(),
+            Expr::Apply(op, args) => {
+                let points = args.iter().flat_map(|a| a.surface_points());
+                match op {
+                    Op::Translate(t) => points.map(|p| add(p, *t)).collect(),
+                    Op::Rotate { axis, degrees } => {
+                        let r = rotation(*axis, *degrees);
+                        points.map(|p| mul(&r, p)).collect()
+                    }
+                    Op::Scale(s) => points.map(|p| [0, 1, 2].map(|d| p[d] * s[d])).collect(),
+                    _ => points.collect(),
+                }
+            }
+            Expr::Contour { .. } | Expr::Carrier { .. } | Expr::Number(_) => Vec::new(),
+        }
+    }
+
     /// A model's own gradient for a model; central differences of the value otherwise.
     fn gradient(&self, p: [f64; 3]) -> [f64; 3] {
         match self {

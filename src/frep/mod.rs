@@ -50,6 +50,15 @@ pub trait Implicit: Sync {
     /// looked at (for a reconstructed model: the data's box with a margin).
     fn bounds(&self) -> ([f64; 3], [f64; 3]);
 
+    /// Points on the surface f = 0, or near it, in the caller's coordinates: for a model fitted
+    /// to points, its data points. The ray caster samples f on a coarse lattice to know where
+    /// the surface can be, and a part thinner than a lattice cell can fall between its nodes
+    /// unseen; it looks closely around these points wherever they lie in a cell the lattice
+    /// sees no surface in ([`raycast`]). None by default.
+    fn surface_points(&self) -> Vec<[f64; 3]> {
+        Vec::new()
+    }
+
     /// grad f at a point. The default takes central differences of [`Implicit::value`] with a
     /// step relative to [`Implicit::bounds`]; implementations with analytic derivatives override it.
     fn gradient(&self, p: [f64; 3]) -> [f64; 3] {
@@ -123,6 +132,10 @@ impl Implicit for Rescaled<'_> {
         (lo.map(|v| v / self.unit), hi.map(|v| v / self.unit))
     }
 
+    fn surface_points(&self) -> Vec<[f64; 3]> {
+        self.solid.surface_points().into_iter().map(|p| p.map(|v| v / self.unit)).collect()
+    }
+
     fn gradient(&self, y: [f64; 3]) -> [f64; 3] {
         self.solid.gradient(self.outer(y)).map(|g| g * self.unit)
     }
@@ -145,6 +158,12 @@ fn padded_data_box(p: &Provenance) -> ([f64; 3], [f64; 3]) {
     (std::array::from_fn(|d| lo[d] - pad[d]), std::array::from_fn(|d| hi[d] + pad[d]))
 }
 
+/// The data points `model` records, as points (none where it records none).
+fn model_points(model: &Model) -> Vec<[f64; 3]> {
+    let points = model.data_points().unwrap_or_default();
+    points.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect()
+}
+
 /// The plain sums over all centres: every kernel, but N terms per point whatever the kernel; see
 /// [`ModelSolid`] for a model prepared for many points.
 impl Implicit for Model {
@@ -155,6 +174,11 @@ impl Implicit for Model {
     /// The data's bounding box widened by a tenth of its size on every side.
     fn bounds(&self) -> ([f64; 3], [f64; 3]) {
         padded_data_box(&self.provenance)
+    }
+
+    /// The data points the model records.
+    fn surface_points(&self) -> Vec<[f64; 3]> {
+        model_points(self)
     }
 
     /// Analytic: carrier, kernels, polynomials and normalisation differentiated term by term
@@ -194,6 +218,10 @@ impl Implicit for ModelSolid {
 
     fn bounds(&self) -> ([f64; 3], [f64; 3]) {
         padded_data_box(&self.model().provenance)
+    }
+
+    fn surface_points(&self) -> Vec<[f64; 3]> {
+        model_points(self.model())
     }
 
     fn gradient(&self, p: [f64; 3]) -> [f64; 3] {

@@ -30,6 +30,19 @@
 //! than h / 4 along the ray, in a cell that may hold the surface, can be missed. The lattice is
 //! an estimate, not a proof: L is a sampled bound with the safety factor [`SAFETY`].
 //!
+//! # Parts thinner than a cell
+//!
+//! The corners of a cell see f only at the nodes: a part of the solid thinner than a cell (a
+//! rod, a fin) can pass between them, every corner negative and far enough from zero for the
+//! cell to count as away from the surface, and every ray crosses it in one step. A solid may
+//! name points on its surface ([`Implicit::surface_points`]: a fitted model's data points).
+//! Where one lies in a cell the corners class as away from the surface, the lattice missed a
+//! part there ([`Lattice::look_closely`]): that cell and its neighbours are marked as cells that
+//! may hold the surface, with an unbounded slope, so rays through them, or heading into them,
+//! advance by the smallest step (h / [`MIN_STEP_DIVISOR`]). A part at least that thick along the
+//! ray is then found wherever points mark it; cells of the usual surface, which the corners see,
+//! hold the points already, and cost nothing more.
+//!
 //! The surface is looked for only inside the bounds; a ray that starts inside the solid (where
 //! the solid reaches the bounds) is shown cut there.
 //!
@@ -273,6 +286,39 @@ impl Lattice {
             }
         });
         (ijk, ijk[0] + self.cells[0] * (ijk[1] + self.cells[1] * ijk[2]))
+    }
+
+    /// Takes a close look around `points`, points on or near the surface
+    /// ([`Implicit::surface_points`]), where the corners missed it (see the module doc, "Parts
+    /// thinner than a cell"): each cell holding one of them that the corners class as away from
+    /// the surface is marked, with its neighbours, as one that may hold it, with an unbounded
+    /// slope. Rays through those cells, and rays heading into them, then advance by the
+    /// smallest step and evaluate f at every sample. Points outside the bounds are passed over.
+    /// Returns the number of cells the corners had missed.
+    pub fn look_closely(&mut self, points: &[[f64; 3]]) -> usize {
+        let mut missed: Vec<usize> = points
+            .iter()
+            .filter(|p| (0..3).all(|d| p[d] >= self.lo[d] && p[d] <= self.hi[d]))
+            .map(|&p| self.cell_of(p).1)
+            .filter(|&c| !self.surface[c])
+            .collect();
+        missed.sort_unstable();
+        missed.dedup();
+        let [cx, cy, cz] = self.cells;
+        let around = |i: usize, n: usize| i.saturating_sub(1)..(i + 2).min(n);
+        for &c in &missed {
+            let (i, j, k) = (c % cx, (c / cx) % cy, c / (cx * cy));
+            for kk in around(k, cz) {
+                for jj in around(j, cy) {
+                    for ii in around(i, cx) {
+                        let n = ii + cx * (jj + cy * kk);
+                        self.surface[n] = true;
+                        self.slope[n] = f64::INFINITY;
+                    }
+                }
+            }
+        }
+        missed.len()
     }
 
     /// How many cells may hold the surface.
@@ -519,6 +565,56 @@ mod tests {
             let (t, samples) = march(&ball, &lat, add(c, [10.0, 0.3, 2.3], 1.0), unit([-1.0, 0.01, 0.0]));
             assert!(t.is_none() && samples > 5 && samples <= 2 * cells, "{t:?}, {samples} samples");
         }
+    }
+
+    /// The rod y^2 + z^2 <= 0.01 along x in the box [-5.5, 5.5] x [-0.6, 0.6]^2, with points
+    /// on its surface.
+    struct Rod;
+    impl Implicit for Rod {
+        fn value(&self, p: [f64; 3]) -> f64 {
+            0.01 - p[1] * p[1] - p[2] * p[2]
+        }
+        fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+            ([-5.5, -0.6, -0.6], [5.5, 0.6, 0.6])
+        }
+        fn surface_points(&self) -> Vec<[f64; 3]> {
+            (0..200)
+                .map(|i| (i as f64 * 2.4, -5.0 + 0.05 * i as f64))
+                .map(|(a, x)| [x, 0.1 * a.cos(), 0.1 * a.sin()])
+                .collect()
+        }
+    }
+
+    #[test]
+    fn a_rod_between_the_nodes_is_found_where_its_points_mark_it() {
+        let mut lat = lattice_of(&Rod);
+        // 48 cells along x, 5 across (0.24 wide): the nodes nearest the axis lie 0.17 from it,
+        // every corner of the middle column of cells is negative, and no ray down across the
+        // rod samples f there
+        assert_eq!(lat.cells, [48, 5, 5]);
+        let down = |lat: &Lattice, x: f64| first_root(&Rod, lat, [x, 0.0, 10.0], [0.0, 0.0, -1.0]);
+        for x in [-4.95, -2.0, 0.0, 1.3, 4.9] {
+            assert!(down(&lat, x).is_none(), "x = {x}");
+        }
+        // the points lie in that column's cells from x = -5 to 4.95: 44 of the 48
+        assert_eq!(lat.look_closely(&Rod.surface_points()), 44);
+        for x in [-4.95, -2.0, 0.0, 1.3, 4.9] {
+            let t = down(&lat, x).unwrap_or_else(|| panic!("x = {x}: the ray misses the rod"));
+            assert!((t - 9.9).abs() < 1e-6 * 10.0, "x = {x}: t = {t}");
+        }
+        // a ball's points lie in cells the corners see already: nothing changes
+        let ball = Ball(2.0);
+        let mut lat = lattice_of(&ball);
+        let before = lat.surface_cells();
+        let on: Vec<[f64; 3]> = (0..500)
+            .map(|i| {
+                let (z, a) = (1.0 - 2.0 * (i as f64 + 0.5) / 500.0, 2.4 * i as f64);
+                let r = (1.0 - z * z).sqrt();
+                [2.0 * r * a.cos(), 2.0 * r * a.sin(), 2.0 * z]
+            })
+            .collect();
+        assert_eq!(lat.look_closely(&on), 0);
+        assert_eq!(lat.surface_cells(), before);
     }
 
     /// The disc x^2 + y^2 <= 1 of the box [-2, 2]^2 x [0, thickness].

@@ -114,6 +114,25 @@ impl Model {
         self.levels().map(Spline::len).sum()
     }
 
+    /// The data points the model records (the first `provenance.data_points` centres of its
+    /// finest level, mapped back to the caller's coordinates: after denoising, the moved points
+    /// the spline interpolates), 3 values per point, or None where it does not record them (a
+    /// model of another dimension, or one that does not say how many of its centres are data).
+    pub fn data_points(&self) -> Option<Vec<f64>> {
+        let n = self.provenance.data_points;
+        let sp = &self.spline;
+        if n == 0 || n > sp.len() || sp.kernel.dim() != 3 {
+            return None;
+        }
+        let norm = sp.norm;
+        Some(
+            sp.centres[..3 * n]
+                .chunks_exact(3)
+                .flat_map(|c| (0..3).map(move |d| c[d] * norm.scale + norm.centre[d]))
+                .collect(),
+        )
+    }
+
     /// f at a point in the caller's coordinates.
     #[inline]
     pub fn eval(&self, x: &[f64]) -> f64 {

@@ -183,7 +183,7 @@ impl DataSupport {
     /// finest level, mapped back to the caller's coordinates), or None where it does not record
     /// them. `fit --trim` and `eval --trim` both take it, so that they trim alike.
     pub fn of_model(model: &Model, factor: f64) -> Option<Self> {
-        data_points(model).map(|points| DataSupport::new(&points, factor))
+        model.data_points().map(|points| DataSupport::new(&points, factor))
     }
 
     /// Whether some data point lies within the radius of `x`.
@@ -239,24 +239,6 @@ impl DataSupport {
     fn plane_distance(&self, x: &[f64; 3], near: &[(f64, usize)]) -> f64 {
         Plane::of(|| near.iter().map(|&(_, i)| self.tree.point(i))).distance(x)
     }
-}
-
-/// The data points `model` records (the first `data_points` centres of its finest level, mapped
-/// back to the caller's coordinates: after denoising, the moved points the spline interpolates),
-/// 3 values per point, or None where it does not record them.
-pub fn data_points(model: &Model) -> Option<Vec<f64>> {
-    let n = model.provenance.data_points;
-    let sp = &model.spline;
-    if n == 0 || n > sp.len() || sp.kernel.dim() != 3 {
-        return None;
-    }
-    let norm = sp.norm;
-    Some(
-        sp.centres[..3 * n]
-            .chunks_exact(3)
-            .flat_map(|c| (0..3).map(move |d| c[d] * norm.scale + norm.centre[d]))
-            .collect(),
-    )
 }
 
 /// The median of `v` (the upper of the two middle values of an even count; 0 for none).
