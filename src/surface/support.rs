@@ -164,6 +164,21 @@ impl DataSupport {
         self
     }
 
+    /// Whether the value of f at node `i` of `lattice` can bear on the unsupported crossings of
+    /// the lattice's edges ([`crate::surface::choice`]): false where the classes of
+    /// [`DataSupport::on_lattice`] for this lattice say that every point within one spacing of
+    /// the node is supported. Every edge of the node lies within one spacing of it, so a surface
+    /// crossing on one is supported whatever f does: the answer for an edge whose lower end is the
+    /// node, and, for an edge from the node below, the tree's (that node's class cannot say none,
+    /// since a data point within R - h of this node lies within R of it). True wherever the
+    /// classes do not decide it (another lattice, or none worked out).
+    pub fn bears_on_crossings(&self, lattice: &Lattice, i: usize) -> bool {
+        match &self.nodes {
+            Some(r) if r.lattice == *lattice => r.class[i] != ALL_NEAR,
+            _ => true,
+        }
+    }
+
     /// [`DataSupport::supports`] for a point `x` within one spacing of node `i` of `lattice`
     /// (a crossing of one of the node's edges): the same answer, found from the node's class
     /// where [`DataSupport::on_lattice`] worked them out for this lattice, from the tree where
@@ -253,6 +268,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::surface::choice::unsupported_crossings;
 
     #[test]
     fn a_grid_of_points_supports_its_neighbourhood_only() {
@@ -303,6 +319,46 @@ mod tests {
         // most nodes are decided by their class alone
         let open = classes.iter().filter(|&&c| c == SOME_NEAR).count();
         assert!(open * 4 < classes.len(), "{open} of {} left to the tree", classes.len());
+    }
+
+    #[test]
+    fn values_at_nodes_that_bear_on_no_crossing_change_no_count() {
+        // every 8th vertex of the test bunny (about 4500 points) and a lattice of 48 nodes along
+        // the longest side of their box with a margin; a field of random signs and sizes, so
+        // that most edges change sign
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/bunny10k.obj");
+        let set = crate::io::points::read_points(std::path::Path::new(path)).unwrap();
+        let pts: Vec<f64> = set.points.iter().step_by(8).flatten().copied().collect();
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for p in pts.chunks_exact(3) {
+            for d in 0..3 {
+                (lo[d], hi[d]) = (lo[d].min(p[d]), hi[d].max(p[d]));
+            }
+        }
+        let pad = 0.05 * (0..3).map(|d| hi[d] - lo[d]).fold(0.0, f64::max);
+        let lattice = Lattice::new(lo.map(|v| v - pad), hi.map(|v| v + pad), 48);
+        let s = DataSupport::new(&pts, 2.0).on_lattice(&lattice);
+        let mut x = 7u64;
+        let mut draw = || {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (x >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let values: Vec<f64> = (0..lattice.len()).map(|_| draw()).collect();
+        let (far, all) = unsupported_crossings(&lattice, &values, &s);
+        // the others' values changed, signs and sizes
+        let idle: Vec<usize> = (0..lattice.len()).filter(|&i| !s.bears_on_crossings(&lattice, i)).collect();
+        let mut changed = values.clone();
+        for &i in &idle {
+            changed[i] = -3.0 * changed[i] + draw();
+        }
+        let (far2, all2) = unsupported_crossings(&lattice, &changed, &s);
+        assert_eq!(far2, far, "the unsupported crossings moved");
+        // the count of all crossings did change: the idle nodes hold supported ones
+        assert_ne!(all2, all);
+        assert!(idle.len() > 1000 && far.len() > 1000, "{} idle nodes, {} far", idle.len(), far.len());
+        // another lattice, or none worked out: every node bears
+        let bare = DataSupport::new(&pts, 2.0);
+        assert!((0..lattice.len()).all(|i| bare.bears_on_crossings(&lattice, i)));
     }
 
     #[test]

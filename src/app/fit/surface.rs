@@ -953,7 +953,10 @@ type Superposed<'a> = (&'a KeptFactor, Vec<Vec<f64>>, f64);
 /// fit's own (bordered) factor, where there is one (else a fresh fit of a small system): the
 /// kept fit's solution plus the candidate's column of one solve of the candidates' changes,
 /// where no kept turn changed the same values (see "Cost" in [`crate::surface::turns`]), and only
-/// the lattice around the patch is sampled again, and its crossings counted again (a patch whose
+/// the nodes around the patch whose values bear on the unsupported crossings
+/// ([`DataSupport::bears_on_crossings`]) are sampled again, and its crossings counted again: the
+/// values returned are the kept fit's at every such node, and may be an earlier fit's at the
+/// others, which no count of unsupported crossings reads (a patch whose
 /// window holds too few unsupported crossings for their removal to be a gain is passed over
 /// without a solve). The lattice is the blob search's; `values`, the
 /// fit's values on it where the search sampled them; `areas`, the data points' shares of the
@@ -1077,7 +1080,8 @@ fn turn_by_surface(
         check.facing += usize::from(facing);
         let (tried_values, after, kept) = stages.time(Stage::Turns, || {
             let mut tried_values = values.clone();
-            sample_window(run.comm, lattice, &window, (&data.carrier, &tried.spline), &mut tried_values);
+            let nodes = bearing_nodes(lattice, &window, support);
+            sample_nodes(run.comm, lattice, &nodes, (&data.carrier, &tried.spline), &mut tried_values);
             let after = far - now + within(&tried_values);
             let kept = match open_before {
                 _ if vote => turns::keeps_side(far, after).then_some(false),
@@ -1132,7 +1136,8 @@ fn turn_by_surface(
 /// `--mouth-points`, the fit with off points on both sides of those on a rim nearest to
 /// several of its unsupported crossings in the mouths of holes, kept. The off points are
 /// appended, so each fit borders `factor` where there is one; `values` are `fit`'s on `lattice`
-/// where they were sampled, `areas` the data points' shares of the surface for the winding
+/// where they were sampled (at every node that bears on the unsupported crossings: only those
+/// are read, here and after), `areas` the data points' shares of the surface for the winding
 /// numbers. Where the points with those already appended to the first fit's would be more than
 /// `room`, none are added. Collective.
 fn outside_after_turns(
@@ -1238,6 +1243,8 @@ fn outside_in_open_space(
         let around = (crossings, winding, OPEN_SPACE);
         let nodes = outside::window_nodes(lattice, &data.centres, &c.hoods.tree, around, &extra);
         let mut values = values;
+        let nodes: Vec<usize> =
+            nodes.into_iter().filter(|&i| support.bears_on_crossings(lattice, i)).collect();
         sample_nodes(run.comm, lattice, &nodes, (&data.carrier, &tried.spline), &mut values);
         choice::unsupported_crossings(lattice, &values, support).0.len()
     });
@@ -1248,6 +1255,21 @@ fn outside_in_open_space(
     }
     c.prep = prep;
     Ok(tried)
+}
+
+/// The nodes of `window` (index ranges of `lattice`, x fastest) whose values bear on the
+/// unsupported crossings `support` counts there ([`DataSupport::bears_on_crossings`]): the
+/// nodes a try must sample again for its count. The others keep the values they had, which no
+/// count of unsupported crossings reads.
+fn bearing_nodes(
+    lattice: &Lattice,
+    window: &[std::ops::Range<usize>; 3],
+    support: &DataSupport,
+) -> Vec<usize> {
+    let mut nodes = Vec::with_capacity(window.iter().map(|r| r.len()).product());
+    lattice.push_window(window, &mut nodes);
+    nodes.retain(|&i| support.bears_on_crossings(lattice, i));
+    nodes
 }
 
 /// `prep` with the constraint points of `blobs` appended (`data` the data alone).
