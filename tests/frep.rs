@@ -428,7 +428,13 @@ fn grids_and_pictures_without_surface_say_why() {
     let ball = fit(&dir, "sphere", &sphere(300), &[]);
     let bx = "-1.5,-1.5,-1.5,1.5,1.5,1.5";
     let cases = [
-        ("translate({}, 10, 0, 0)", Some("f < 0 at all 9261 nodes of the grid: the solid is empty there")),
+        (
+            "translate({}, 10, 0, 0)",
+            Some(
+                "f < 0 at all 9261 nodes of the grid: the solid is empty there (or thinner than a cell), so \
+                 the surface has no triangles; a finer --grid shows a solid thinner than the cells",
+            ),
+        ),
         (
             "complement(translate({}, 10, 0, 0))",
             Some("f >= 0 at all 9261 nodes of the grid: the grid lies inside the solid"),

@@ -529,7 +529,7 @@ fn nothing_to_mesh(inside: u64, nodes: u64) -> Option<String> {
     if inside == 0 {
         Some(format!(
             "f < 0 at all {nodes} nodes of the grid: the solid is empty there (or thinner than a cell), \
-             so the surface has no triangles"
+             so the surface has no triangles; a finer --grid shows a solid thinner than the cells"
         ))
     } else if inside == nodes {
         Some(format!(
