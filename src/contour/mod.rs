@@ -364,6 +364,23 @@ mod tests {
     }
 
     #[test]
+    fn the_contour_points_named_for_the_ray_caster_lie_on_the_surface() {
+        use crate::frep::Implicit;
+        let (zs, radii) = ([0.0, 1.0, 3.0, 4.0], [0.5, 0.8, 0.6, 0.4]);
+        let m = stack(&zs, &radii, Interp::Linear);
+        let points = m.surface_points();
+        assert_eq!(points.len(), 4 * 24);
+        for (k, p) in points.iter().enumerate() {
+            let (z, r) = (zs[k / 24], radii[k / 24]);
+            assert!(
+                (p[2] - z).abs() < 1e-15 && ((p[0] * p[0] + p[1] * p[1]).sqrt() - r).abs() < 1e-14,
+                "{p:?}"
+            );
+            assert!(m.eval(*p).abs() < 1e-9, "{p:?}: f = {}", m.eval(*p));
+        }
+    }
+
+    #[test]
     fn cubic_blend_agrees_with_linear_at_the_slices() {
         let lin = stack(&[0.0, 1.0, 2.0, 3.5, 4.0], &[0.5, 0.8, 0.6, 0.7, 0.4], Interp::Linear);
         let cub = stack(&[0.0, 1.0, 2.0, 3.5, 4.0], &[0.5, 0.8, 0.6, 0.7, 0.4], Interp::Cubic);

@@ -370,18 +370,7 @@ fn model_samples(m: &Model) -> Vec<[f64; 3]> {
 
 /// Up to [`UNIT_SAMPLES`] of a contour model's section points in world coordinates.
 fn contour_samples(m: &ContourModel) -> Vec<[f64; 3]> {
-    let all: Vec<[f64; 3]> = m
-        .sections
-        .iter()
-        .flat_map(|s| {
-            let sp = &s.spline;
-            sp.centres.chunks_exact(2).map(move |c| {
-                let a = sp.norm.centre[0] + sp.norm.scale * c[0];
-                let b = sp.norm.centre[1] + sp.norm.scale * c[1];
-                (s.origin + s.frame.x_axis * a + s.frame.y_axis * b).to_array()
-            })
-        })
-        .collect();
+    let all = m.surface_points();
     let stride = all.len().div_ceil(UNIT_SAMPLES).max(1);
     all.into_iter().step_by(stride).collect()
 }
@@ -421,12 +410,14 @@ impl Implicit for Expr {
         self.domain().map_or(([-1.0; 3], [1.0; 3]), widened)
     }
 
-    /// The data points of every fitted model in the expression, moved with it by translations,
-    /// rotations and scalings (points of an operand's surface: some lie on the result's, the
-    /// others only cost the ray caster a closer look).
+    /// The data points of every fitted model and the contour points of every contour model in
+    /// the expression, moved with them by translations, rotations and scalings (points of an
+    /// operand's surface: some lie on the result's, the others only cost the ray caster a closer
+    /// look).
     fn surface_points(&self) -> Vec<[f64; 3]> {
         match self {
             Expr::Model { model, .. } => model.surface_points(),
+            Expr::Contour { model, .. } => model.surface_points(),
             Expr::Apply(op, args) => {
                 let points = args.iter().flat_map(|a| a.surface_points());
                 match op {
@@ -439,7 +430,7 @@ impl Implicit for Expr {
                     _ => points.collect(),
                 }
             }
-            Expr::Contour { .. } | Expr::Carrier { .. } | Expr::Number(_) => Vec::new(),
+            Expr::Carrier { .. } | Expr::Number(_) => Vec::new(),
         }
     }
 

@@ -243,6 +243,22 @@ impl Implicit for ContourModel {
     fn bounds(&self) -> ([f64; 3], [f64; 3]) {
         padded_data_box(&self.provenance)
     }
+
+    /// The contours' points: every section's spline interpolates zero at its contour points,
+    /// which lie in the section's plane, where the solid is the section's.
+    fn surface_points(&self) -> Vec<[f64; 3]> {
+        self.sections
+            .iter()
+            .flat_map(|s| {
+                let sp = &s.spline;
+                sp.centres.chunks_exact(2).map(move |c| {
+                    let a = sp.norm.centre[0] + sp.norm.scale * c[0];
+                    let b = sp.norm.centre[1] + sp.norm.scale * c[1];
+                    (s.origin + s.frame.x_axis * a + s.frame.y_axis * b).to_array()
+                })
+            })
+            .collect()
+    }
 }
 
 #[cfg(test)]

@@ -35,7 +35,8 @@
 //! The corners of a cell see f only at the nodes: a part of the solid thinner than a cell (a
 //! rod, a fin) can pass between them, every corner negative and far enough from zero for the
 //! cell to count as away from the surface, and every ray crosses it in one step. A solid may
-//! name points on its surface ([`Implicit::surface_points`]: a fitted model's data points).
+//! name points on its surface ([`Implicit::surface_points`]: a fitted model's data points, a
+//! contour model's contour points).
 //! Where one lies in a cell the corners class as away from the surface, the lattice missed a
 //! part there ([`Lattice::look_closely`]): that cell and its neighbours are marked as cells that
 //! may hold the surface, with an unbounded slope, so rays through them, or heading into them,
