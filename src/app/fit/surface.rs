@@ -1241,10 +1241,9 @@ fn outside_in_open_space(
     // the lattice sampled again around the outside points alone
     check.after = stages.time(Stage::Turns, || {
         let around = (crossings, winding, OPEN_SPACE);
-        let nodes = outside::window_nodes(lattice, &data.centres, &c.hoods.tree, around, &extra);
+        let mut nodes = outside::window_nodes(lattice, &data.centres, &c.hoods.tree, around, &extra);
+        nodes.retain(|&i| support.bears_on_crossings(lattice, i));
         let mut values = values;
-        let nodes: Vec<usize> =
-            nodes.into_iter().filter(|&i| support.bears_on_crossings(lattice, i)).collect();
         sample_nodes(run.comm, lattice, &nodes, (&data.carrier, &tried.spline), &mut values);
         choice::unsupported_crossings(lattice, &values, support).0.len()
     });
