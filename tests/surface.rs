@@ -29,8 +29,8 @@ use volspline::surface::rays::{self, RayCheck};
 use volspline::surface::support::DataSupport;
 use volspline::surface::turns::{self, SideTry, TurnCheck};
 use volspline::surface::{
-    neighbourhoods, off_points_by_trust, off_value_parts, off_values, oriented, oriented_with, Doubt,
-    Neighbourhoods, OffPoints,
+    neighbourhoods, off_points_by_trust, off_value_parts, off_values, off_values_sloped, oriented,
+    oriented_with, Doubt, Neighbourhoods, OffPoints,
 };
 
 /// The default off-point rate of `volspline fit` (`--off-points`).
@@ -488,7 +488,8 @@ fn serial_offsurface(read: &[f64], rate: OffRates, choose: bool, turns: bool, si
         }
         if !mouth.side.is_empty() {
             system.centres.extend_from_slice(&mouth.centres);
-            system.values.extend(off_values(&mouth, &data.points, &data.carrier, &data.norm));
+            let slope = volspline::surface::outside::MOUTH_SLOPE;
+            system.values.extend(off_values_sloped(&mouth, &data.points, &data.carrier, &data.norm, slope));
             spline = solve_serial(&system, &k, SolverKind::Householder);
             mouth_count = mouth.side.len();
         }
@@ -1199,6 +1200,45 @@ fn the_clearance_choice_keeps_the_cap_over_a_hole_in_the_cow() {
     // the binary makes the same choice
     let (_, _, line) = fit_mesh("cow-cap", &pts, "32", &[&UNIFORM[..], &NO_TURNS].concat());
     assert!(line.contains("wide kept") && line.contains("fitted three times"), "{line}");
+}
+
+/// The stored samples of the cow with the hole of the surface benchmark's `open` variant (the
+/// data within 15 % of the diagonal of the point farthest along (1, 1, 1), the head, left out).
+const OPEN_COWS: [&str; 4] =
+    ["cow-1000-open", "cow-1000-open-seed2", "cow-1000-open-seed8", "cow-2000-open-seed11"];
+
+#[test]
+fn steeper_targets_at_the_rims_lift_the_caps_over_the_open_cows_heads() {
+    // the mouth points' targets twice the other off points' slope hold the rim's slope more
+    // firmly and the cap follows the surface around the hole further. Truth -> mesh rms over the
+    // cow's vertices within the hole's ball, as a fraction of the diagonal (grid 64, the default
+    // fit), measured: with the mouth points' targets as the others' 0.0455 / 0.0415 / 0.0396 /
+    // 0.0386 (mean 0.0413), twice as steep (the default) 0.0383 / 0.0332 / 0.0297 / 0.0387
+    // (mean 0.0350; the last cow's fit keeps no mouth point that changes its cap)
+    let (truth, _, diag) = cow_sample(OPEN_COWS[0]);
+    let all: Vec<f64> = truth.vertices.iter().flatten().copied().collect();
+    let (lo, hi) = volspline::spline::hygiene::bounding_box(&all, 3);
+    let along = |p: &[f64; 3]| (0..3).map(|d| (p[d] - lo[d]) / (hi[d] - lo[d])).sum::<f64>();
+    let top = *truth.vertices.iter().max_by(|a, b| along(a).total_cmp(&along(b))).unwrap();
+    let cap: Vec<[f64; 3]> = truth
+        .vertices
+        .iter()
+        .filter(|p| (0..3).map(|d| (p[d] - top[d]).powi(2)).sum::<f64>() < (0.15 * diag).powi(2))
+        .copied()
+        .collect();
+    assert!(cap.len() > 300, "{} vertices under the hole", cap.len());
+    let mut sum = 0.0;
+    for name in OPEN_COWS {
+        let (_, pts, _) = cow_sample(name);
+        let (mesh, _, line) = fit_mesh(name, &pts, "64", &["--orient-side", "try", "--carrier", "auto"]);
+        assert!(line.contains("mouth points: "), "{line}");
+        let d = point_mesh_distances(&mesh, &cap);
+        let rms = (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt() / diag;
+        println!("{name}: {line}\n  truth under the hole -> mesh rms {rms:.5}");
+        sum += rms;
+    }
+    let mean = sum / OPEN_COWS.len() as f64;
+    assert!(mean < 0.0380, "the caps over the holes: truth -> mesh rms {mean:.5} on average");
 }
 
 /// Mesh -> truth rms distance and fraction of vertices beyond 2 % of the truth's diagonal, as
@@ -2265,17 +2305,20 @@ fn a_patch_whose_turn_smooths_the_spline_is_turned_on_an_open_cow() {
     // left out (tests/data/cow-1000-open-seed8.xyz, seed 8's cow-1000-open of the surface
     // benchmark), grid 64, one rank: the patch tried second removes 20 of the 431 unsupported
     // crossings left after the first turn (4.6 %, under the twentieth a count keeps) and takes
-    // 0.22 % of the bending energy off, so it is turned as the smoother spline. Measured:
-    // without that rule (the same build with it off) mesh -> cow rms 0.516 % of the diagonal,
-    // 1.77 % of the vertices beyond 2 %, truth -> mesh 1.66 %; with it 0.475 %, 1.26 % and 1.62 %
+    // 0.22 % of the bending energy off, so it is turned as the smoother spline. Measured (with
+    // the mouth points' targets twice as steep as the others', which lift the cap over the hole):
+    // without that rule (the same build with it off) mesh -> cow rms 0.566 % of the diagonal,
+    // 2.14 % of the vertices beyond 2 %, truth -> mesh 1.333 %; with it 0.558 %, 1.97 % and
+    // 1.291 % (before the steeper mouth points 0.516 %, 1.77 %, 1.66 % without it and 0.475 %,
+    // 1.26 %, 1.62 % with it)
     let (truth, pts, diag) = cow_sample("cow-1000-open-seed8");
     let (mesh, _, line) = fit_mesh("cow-smoother-turn", &pts, "64", &[]);
     let (rms, far) = mesh_to_truth(&truth, &mesh);
     let complete = truth_to_mesh(&truth, &mesh, diag);
     println!("{line}\n  mesh -> cow rms {rms:.5}, far {far:.5}, truth -> mesh {complete:.5}");
     assert!(line.contains("turns: 2 of 6 patches tried (22 points) turned (1 as smoother)"), "{line}");
-    assert!(rms < 0.0050 && far < 0.015, "mesh -> cow rms {rms}, far {far}");
-    assert!(complete < 0.0166, "truth -> mesh {complete}");
+    assert!(rms < 0.0060 && far < 0.0205, "mesh -> cow rms {rms}, far {far}");
+    assert!(complete < 0.0131, "truth -> mesh {complete}");
 }
 
 /// 2000 area-uniform samples of the bunny (seed 3) with Gaussian noise of 0.5 % of the diagonal

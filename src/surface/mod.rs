@@ -49,8 +49,8 @@ pub mod support;
 pub mod turns;
 
 pub use offsurface::{
-    doubtful_share_in_effect, off_points, off_points_by_trust, off_value_parts, off_values, Doubt, OffPoints,
-    DELTA,
+    doubtful_share_in_effect, off_points, off_points_by_trust, off_value_parts, off_values,
+    off_values_sloped, Doubt, OffPoints, DELTA,
 };
 pub use orient::{orient, Orientation};
 

@@ -483,6 +483,19 @@ pub fn off_values(off: &OffPoints, raw: &[f64], carrier: &Carrier, norm: &Normal
     fc.iter().zip(&t).map(|(a, b)| a + b).collect()
 }
 
+/// [`off_values`] with the targets scaled by `slope`: r = f_c(q) - slope * t (the mouth points'
+/// steeper targets, [`crate::surface::outside::MOUTH_SLOPE`]).
+pub fn off_values_sloped(
+    off: &OffPoints,
+    raw: &[f64],
+    carrier: &Carrier,
+    norm: &Normalisation,
+    slope: f64,
+) -> Vec<f64> {
+    let (fc, t) = off_value_parts(off, raw, carrier, norm);
+    fc.iter().zip(&t).map(|(a, b)| a + slope * b).collect()
+}
+
 /// The two parts of [`off_values`]: the carrier's values f_c(q) at the off points and what the
 /// targets add to them, side * g * delta (so that the values are their sums, bit for bit).
 pub fn off_value_parts(

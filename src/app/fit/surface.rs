@@ -29,7 +29,8 @@ use crate::surface::sheets;
 use crate::surface::support::DataSupport;
 use crate::surface::turns::{self, SideTry, TurnCheck};
 use crate::surface::{
-    self, neighbourhoods_on, off_points_by_trust, off_values, Doubt, Neighbourhoods, OffPoints,
+    self, neighbourhoods_on, off_points_by_trust, off_values, off_values_sloped, Doubt, Neighbourhoods,
+    OffPoints,
 };
 
 /// Fewest points for which `--surface auto` adds off-surface constraints.
@@ -1189,7 +1190,16 @@ fn outside_after_turns(
     if check.points == 0 || check.no_room {
         return Ok(fit);
     }
-    let prep = with_off_points(&c.prep, &mouth);
+    // the mouth points' targets steeper than the other off points'
+    let mut prep = c.prep.clone();
+    prep.centres.extend_from_slice(&mouth.centres);
+    prep.values.extend(off_values_sloped(
+        &mouth,
+        &prep.points,
+        &prep.carrier,
+        &prep.norm,
+        outside::MOUTH_SLOPE,
+    ));
     let fitted = refit(&prep, factor, stages)?;
     c.prep = prep;
     Ok(fitted)
