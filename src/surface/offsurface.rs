@@ -479,8 +479,8 @@ pub fn carrier_slope(carrier: &Carrier, x: &[f64], h: f64) -> f64 {
 /// The spline's values r = f_c(q) - t at the off points, t = -side * g * delta in the caller's
 /// units (see the module doc), for data `raw` (caller's coordinates, 3 per point).
 pub fn off_values(off: &OffPoints, raw: &[f64], carrier: &Carrier, norm: &Normalisation) -> Vec<f64> {
-    let (fc, t) = off_value_parts(off, raw, carrier, norm);
-    fc.iter().zip(&t).map(|(a, b)| a + b).collect()
+    // 1 * t is t, bit for bit
+    off_values_sloped(off, raw, carrier, norm, 1.0)
 }
 
 /// [`off_values`] with the targets scaled by `slope`: r = f_c(q) - slope * t (the mouth points'

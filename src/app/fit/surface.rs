@@ -482,9 +482,15 @@ fn by_trust(
 
 /// `data` with the off points `off` and their values appended to its centres and values.
 fn with_off_points(data: &Prepared, off: &OffPoints) -> Prepared {
+    with_off_points_sloped(data, off, 1.0)
+}
+
+/// [`with_off_points`] with the off points' targets scaled by `slope` (see
+/// [`off_values_sloped`]).
+fn with_off_points_sloped(data: &Prepared, off: &OffPoints, slope: f64) -> Prepared {
     let mut out = data.clone();
     out.centres.extend_from_slice(&off.centres);
-    out.values.extend(off_values(off, &data.points, &data.carrier, &data.norm));
+    out.values.extend(off_values_sloped(off, &data.points, &data.carrier, &data.norm, slope));
     out
 }
 
@@ -1191,15 +1197,7 @@ fn outside_after_turns(
         return Ok(fit);
     }
     // the mouth points' targets steeper than the other off points'
-    let mut prep = c.prep.clone();
-    prep.centres.extend_from_slice(&mouth.centres);
-    prep.values.extend(off_values_sloped(
-        &mouth,
-        &prep.points,
-        &prep.carrier,
-        &prep.norm,
-        outside::MOUTH_SLOPE,
-    ));
+    let prep = with_off_points_sloped(&c.prep, &mouth, outside::MOUTH_SLOPE);
     let fitted = refit(&prep, factor, stages)?;
     c.prep = prep;
     Ok(fitted)
