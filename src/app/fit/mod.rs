@@ -206,6 +206,7 @@ fn idle_options(a: &FitArgs, off: bool, method: Method, two_levels: bool) -> Vec
         "orient_turns",
         "outside_points",
         "mouth_points",
+        "mouth_slope",
         "coarse_points",
     ];
     let groups: [(&[&str], bool, &str); 4] = [
@@ -707,6 +708,7 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
                 ("mouth_folds", m.folds),
             ];
             counts.into_iter().for_each(|(key, count)| r.figure(key, count));
+            r.figure("mouth_slope", a.mouth_slope);
         }
     }
     for (k, v) in &fitted.figures {

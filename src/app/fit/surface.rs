@@ -1197,7 +1197,7 @@ fn outside_after_turns(
         return Ok(fit);
     }
     // the mouth points' targets steeper than the other off points'
-    let prep = with_off_points_sloped(&c.prep, &mouth, outside::MOUTH_SLOPE);
+    let prep = with_off_points_sloped(&c.prep, &mouth, run.args.mouth_slope);
     let fitted = refit(&prep, factor, stages)?;
     c.prep = prep;
     Ok(fitted)
