@@ -296,13 +296,13 @@ pub struct FitArgs {
     /// bordering the kept fit's factor (see src/surface/outside.rs).
     #[arg(long, default_value = "on", value_name = "on|off", value_parser = on_off, action = clap::ArgAction::Set)]
     pub mouth_points: bool,
-    /// How steeply the mouth points' targets rise, as a multiple of the other off points' slope
-    /// (the carrier's at the point): above 1 the cap over a hole follows the surface around it
-    /// further instead of sagging toward the carrier. The default 2 lifted the caps of 8 of the
-    /// 240 holed sets of the benchmark to meet its targets and lost 2; steeper caps suit flat
-    /// surroundings (3: 5 more flank holes of 60) and overshoot round ones (a cow's head, 1 of
-    /// 60 lost). See src/surface/outside.rs, "Steeper at the rims".
-    #[arg(long, default_value = "2", value_name = "S", value_parser = mouth_slope)]
+    /// How steeply the targets of the off points at the rims of holes (--mouth-points) rise, as
+    /// a multiple of the other off points' slope (the carrier's at the point): above 1 the cap
+    /// over a hole follows the surface around it further instead of sagging toward the carrier.
+    /// On the 240 holed sets of the surface benchmark 1, 2 and 3 (the default) met every quality
+    /// target on 107, 116 and 122; steep caps suit flat surroundings and can overshoot round
+    /// ones (a cow's head: 2 may suit such a scan). See src/surface/outside.rs.
+    #[arg(long, default_value = "3", value_name = "S", value_parser = mouth_slope)]
     pub mouth_slope: f64,
     /// Points of level 0 of the two-level compactly supported fit (--method csrbf with --surface
     /// auto or offsurface): a dense off-surface fit of this many points chosen evenly over space,
