@@ -2042,13 +2042,13 @@ fn off_points_at_the_mouth_of_a_hole_are_the_same_on_one_two_and_three_ranks() {
     fits_match_the_oracle(&dir, &input, &oracle, "cholesky", &DEFAULT_RATES, &[]);
 }
 
-/// 1000 area-uniform samples of the cow with a hole around its rump (seed 2's cow-1000-open of
+/// 1000 area-uniform samples of the cow with a hole over its head (seed 2's cow-1000-open of
 /// the surface benchmark), whose cap sags into the solid without the off points at the mouth.
 const MOUTH_COW: &str = "cow-1000-open-seed2";
 
 #[test]
 fn off_points_at_the_mouth_of_a_hole_hold_the_cap_over_the_cow() {
-    // 1000 area-uniform samples of the cow with a ball of 15 % of the diagonal around its rump
+    // 1000 area-uniform samples of the cow with a ball of 15 % of the diagonal over its head
     // left out (tests/data/cow-1000-open-seed2.xyz, seed 2's cow-1000-open of the surface
     // benchmark), grid 64: the cap the fit puts over the hole sags into the solid; the points
     // nearest to 3 or more unsupported crossings in the hole's mouth, held on both sides, keep
@@ -2313,7 +2313,7 @@ fn turning_a_patch_of_a_small_system_removes_unsupported_surface_on_the_bunny() 
 
 #[test]
 fn a_patch_whose_turn_smooths_the_spline_is_turned_on_an_open_cow() {
-    // 1000 area-uniform samples of the cow with a ball of 15 % of the diagonal around its rump
+    // 1000 area-uniform samples of the cow with a ball of 15 % of the diagonal over its head
     // left out (tests/data/cow-1000-open-seed8.xyz, seed 8's cow-1000-open of the surface
     // benchmark), grid 64, one rank: the patch tried second removes 20 of the 431 unsupported
     // crossings left after the first turn (4.6 %, under the twentieth a count keeps) and takes

@@ -55,7 +55,7 @@
 //! supports. Its shape is the spline's continuation of the surface around the hole, and with
 //! half the points around the rim held by value 0 alone the continuation does not keep the
 //! rim's slope: the cap sags into the solid. On the cow at 1000 points with a ball of 15 % of the
-//! diagonal left out of its rump, 80-90 % of the truth -> mesh distance (squared) lies in that
+//! diagonal left out over its head, 80-90 % of the truth -> mesh distance (squared) lies in that
 //! ball, and the truth's points there lie outside the mesh.
 //!
 //! The crossings of such a cap lie in the hole's mouth, where the data's winding number is near
