@@ -302,7 +302,7 @@ pub struct FitArgs {
     /// On the 240 holed sets of the surface benchmark 1, 2 and 3 (the default) met every quality
     /// target on 107, 116 and 122; steep caps suit flat surroundings and can overshoot round
     /// ones (a cow's head: 2 may suit such a scan). See src/surface/outside.rs.
-    #[arg(long, default_value = "3", value_name = "S", value_parser = mouth_slope)]
+    #[arg(long, default_value_t = crate::surface::outside::MOUTH_SLOPE, value_name = "S", value_parser = mouth_slope)]
     pub mouth_slope: f64,
     /// Points of level 0 of the two-level compactly supported fit (--method csrbf with --surface
     /// auto or offsurface): a dense off-surface fit of this many points chosen evenly over space,
