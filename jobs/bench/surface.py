@@ -59,6 +59,9 @@ bounding-box diagonal, exact point-to-triangle distances (jobs/bench/distance.py
   adaptive octree makes them over a hole's cap, weighs that surface less per vertex than a mesh of
   a uniform grid; by area both weigh it alike);
 - far2_pct: the percentage of mesh vertices farther than 2 % of the diagonal from the truth;
+- t2m_hole_rms_pct, t2m_rest_rms_pct, m2t_hole_rms_pct, m2t_rest_rms_pct (open sets alone): both
+  rms distances split into the truth's samples and the mesh's vertices within the removed ball
+  (the hole, whose cap no data supports) and the others;
 - components: connected components of the reconstructed mesh; holes: its boundary loops (closed
   chains of edges that only one triangle uses: 0 for a closed surface);
 - fit_s: volspline's own stage times (--timings, the sum of each stage's maximum over ranks; the
@@ -93,9 +96,12 @@ MESHES = {"bunny": "tests/data/bunny10k.obj", "cow": "tests/data/cow.obj"}
 TRUTH_SAMPLES = 5000
 AREA_SAMPLES = 20000
 FAR_PCT = 2.0
+# The radius of an open set's hole (the ball of points left out), as a fraction of the diagonal
+HOLE_RADIUS = 0.15
 FIELDS = ["set", "mesh", "n_requested", "variant", "points", "method", "flags", "status", "ranks", "grid",
           "t2m_rms_pct", "t2m_mean_pct", "t2m_p95_pct", "t2m_max_pct",
           "m2t_rms_pct", "m2t_mean_pct", "m2t_p95_pct", "m2t_max_pct", "m2t_area_rms_pct", "far2_pct",
+          "t2m_hole_rms_pct", "t2m_rest_rms_pct", "m2t_hole_rms_pct", "m2t_rest_rms_pct",
           "components", "holes", "vertices", "triangles", "fit_s", "solve_s", "evaluate_s", "render_s", "solid_s", "wall_s", "note"]
 # Sets drawn as slices when they are run (else the first set and the first open one): the headline
 # scan, open scans, the noisiest cow
@@ -169,7 +175,7 @@ def make_sets(args):
                         continue
                     d = (pts - lo) / (hi - lo) @ np.array(direction, dtype=float)
                     centre = pts[np.argmax(d)]
-                    keep = np.linalg.norm(pts - centre, axis=1) > 0.15 * diag
+                    keep = np.linalg.norm(pts - centre, axis=1) > HOLE_RADIUS * diag
                     variants.append((variant, pts[keep], centre))
             for variant, p, focus in variants:
                 name = f"{mesh}-{n}-{variant}"
@@ -181,8 +187,10 @@ def make_sets(args):
     return sets
 
 
-def mesh_stats(rv, rf, truth_pts, tv, tf, diag):
-    """Both distances, the far fraction and the components of a reconstruction (rv, rf)."""
+def mesh_stats(rv, rf, truth_pts, tv, tf, diag, focus=None):
+    """Both distances, the far fraction and the components of a reconstruction (rv, rf); for an
+    open set (focus the centre of the removed ball) both distances also split into the truth's
+    points and the mesh's vertices within the ball (the hole) and the others (the rest)."""
     import numpy as np
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
@@ -209,6 +217,11 @@ def mesh_stats(rv, rf, truth_pts, tv, tf, diag):
     out = {"components": len(np.unique(label[used])), "holes": loops, "vertices": len(used), "triangles": len(rf),
            "far2_pct": f"{100 * (m2t > FAR_PCT).mean():.4g}",
            "m2t_area_rms_pct": f"{np.sqrt((m2t_area * m2t_area).mean()):.4g}"}
+    rms = lambda d: f"{np.sqrt((d * d).mean()):.4g}" if len(d) else ""  # noqa: E731
+    if focus is not None:
+        for key, d, at in (("t2m", t2m, truth_pts), ("m2t", m2t, rv[used])):
+            hole = np.linalg.norm(at - focus, axis=1) <= HOLE_RADIUS * diag
+            out.update({f"{key}_hole_rms_pct": rms(d[hole]), f"{key}_rest_rms_pct": rms(d[~hole])})
     for key, d in (("t2m", t2m), ("m2t", m2t)):
         out.update({f"{key}_rms_pct": f"{np.sqrt((d * d).mean()):.4g}", f"{key}_mean_pct": f"{d.mean():.4g}",
                     f"{key}_p95_pct": f"{np.percentile(d, 95):.4g}", f"{key}_max_pct": f"{d.max():.4g}"})
@@ -388,7 +401,7 @@ def main(argv):
                        "grid": args.grid if kind == "volspline" else f"depth {args.poisson_depth}", "note": why}
                 row.update(times)
                 if rec is not None:
-                    row.update(mesh_stats(rec[0], rec[1], truth, tv, tf, diag))
+                    row.update(mesh_stats(rec[0], rec[1], truth, tv, tf, diag, focus))
                     # the trimmed surface is drawn as its mesh's cut: its volume is the default's closed solid
                     results[label] = ("mesh" if "--trim" in flags else kind, prefix, rec)
                 writer.writerow(row)

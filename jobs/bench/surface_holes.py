@@ -5,14 +5,30 @@
 SWEEP/S/raw.csv gives the default's rows of each sampling S, PEERS/S/raw.csv screened Poisson's
 and the plain carrier method's for the same sets, BASE/S/raw.csv (optional) the default's rows to
 compare with. One line per set (truth -> mesh / mesh -> truth, % of the diagonal; met or MISS),
-then the counts and the sums of both distances, in all and per variant."""
+then the counts and the sums of both distances, in all and per variant. Where SWEEP's and PEERS'
+rows carry the split of both distances into the hole (the removed ball) and the rest (surface.py
+writes it since the columns were added), each line ends with truth -> mesh in the hole and in the
+rest for the default and the better peer there, and each variant's medians follow its count."""
 import os
 import sys
+
+import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from surface_compare import met  # noqa: E402
 from surface_report import PEERS  # noqa: E402
 from surface_robust import load  # noqa: E402
+
+
+SPLIT = ("t2m_hole_rms_pct", "t2m_rest_rms_pct", "m2t_hole_rms_pct", "m2t_rest_rms_pct")
+
+
+def split(row):
+    """The row's distances in the hole and in the rest (SPLIT's order), or None where it has none."""
+    try:
+        return tuple(float(row[k]) for k in SPLIT)
+    except (KeyError, TypeError, ValueError):
+        return None
 
 
 def compare(exp, peers, base=None):
@@ -51,10 +67,25 @@ def compare(exp, peers, base=None):
                 far += d > 0
                 line = (f"{s:8} {name:18} {fb[0]:.3f}/{fb[1]:.3f} -> {fe[0]:.3f}/{fe[1]:.3f}  peers {best[0]:.3f}/{best[1]:.3f}"
                         f" {'ok' if mb else 'MISS'} -> {'ok' if m else 'MISS'}")
+            own = split(e)
+            theirs = [x for x in (split(r) for r in pe.values()) if x]
+            if own and theirs:
+                best_split = tuple(min(x[k] for x in theirs) for k in range(4))
+                v.append((own, best_split))
+                line += (f"  hole {own[0]:.3f} (peer {best_split[0]:.3f}) rest {own[1]:.3f}"
+                         f" (peer {best_split[1]:.3f})")
             print(line)
     print(f"sets {n}: met {okb if base else ''} -> {ok}; sum {sb:.2f} -> {se:.2f}; nearer {near} farther {far}")
-    for k, (vn, vo, vb) in sorted(per.items()):
+    for k, (vn, vo, vb, *splits) in sorted(per.items()):
         print(f"  {k}: {vn} sets, met {vb if base else ''} -> {vo}")
+        if splits:
+            med = lambda xs: float(np.median(xs))  # noqa: E731
+            for i, what in enumerate(SPLIT):
+                own = [o[i] for o, _ in splits]
+                peer = [p[i] for _, p in splits]
+                below = sum(o <= p for o, p in zip(own, peer))
+                print(f"    {what}: median {med(own):.3f} against the better peer's {med(peer):.3f};"
+                      f" at or below it on {below} of {len(splits)}")
 
 
 if __name__ == "__main__":
