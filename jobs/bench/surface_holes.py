@@ -24,11 +24,15 @@ SPLIT = ("t2m_hole_rms_pct", "t2m_rest_rms_pct", "m2t_hole_rms_pct", "m2t_rest_r
 
 
 def split(row):
-    """The row's distances in the hole and in the rest (SPLIT's order), or None where it has none."""
-    try:
-        return tuple(float(row[k]) for k in SPLIT)
-    except (KeyError, TypeError, ValueError):
-        return None
+    """The row's distances in the hole and in the rest (SPLIT's order; None for one the row lacks,
+    as mesh -> truth in the hole of a mesh with no vertex there), or None where it has no split."""
+    def value(k):
+        try:
+            return float(row[k])
+        except (KeyError, TypeError, ValueError):
+            return None
+    out = tuple(value(k) for k in SPLIT)
+    return None if out[0] is None else out
 
 
 def compare(exp, peers, base=None):
@@ -70,7 +74,7 @@ def compare(exp, peers, base=None):
             own = split(e)
             theirs = [x for x in (split(r) for r in pe.values()) if x]
             if own and theirs:
-                best_split = tuple(min(x[k] for x in theirs) for k in range(4))
+                best_split = tuple(min((x[k] for x in theirs if x[k] is not None), default=None) for k in range(4))
                 v.append((own, best_split))
                 line += (f"  hole {own[0]:.3f} (peer {best_split[0]:.3f}) rest {own[1]:.3f}"
                          f" (peer {best_split[1]:.3f})")
@@ -81,11 +85,15 @@ def compare(exp, peers, base=None):
         if splits:
             med = lambda xs: float(np.median(xs))  # noqa: E731
             for i, what in enumerate(SPLIT):
-                own = [o[i] for o, _ in splits]
-                peer = [p[i] for _, p in splits]
-                below = sum(o <= p for o, p in zip(own, peer))
+                both = [(o[i], p[i]) for o, p in splits if o[i] is not None and p[i] is not None]
+                if not both:
+                    continue
+                own, peer = zip(*both)
+                below = sum(o <= p for o, p in both)
                 print(f"    {what}: median {med(own):.3f} against the better peer's {med(peer):.3f};"
-                      f" at or below it on {below} of {len(splits)}")
+                      f" at or below it on {below} of {len(both)}"
+                      + (f" (of {len(splits)}; on the others the default or every peer left no vertex there)"
+                         if len(both) < len(splits) else ""))
 
 
 if __name__ == "__main__":
