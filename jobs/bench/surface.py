@@ -223,7 +223,7 @@ def mesh_stats(rv, rf, truth_pts, tv, tf, diag, focus=None):
             hole = np.linalg.norm(at - focus, axis=1) <= HOLE_RADIUS * diag
             out.update({f"{key}_hole_rms_pct": rms(d[hole]), f"{key}_rest_rms_pct": rms(d[~hole])})
     for key, d in (("t2m", t2m), ("m2t", m2t)):
-        out.update({f"{key}_rms_pct": f"{np.sqrt((d * d).mean()):.4g}", f"{key}_mean_pct": f"{d.mean():.4g}",
+        out.update({f"{key}_rms_pct": rms(d), f"{key}_mean_pct": f"{d.mean():.4g}",
                     f"{key}_p95_pct": f"{np.percentile(d, 95):.4g}", f"{key}_max_pct": f"{d.max():.4g}"})
     return out
 

@@ -10,28 +10,19 @@ rows carry the split of both distances into the hole (the removed ball) and the 
 writes it since the columns were added), each line ends with truth -> mesh in the hole and in the
 rest for the default and the better peer there, and each variant's medians follow its count."""
 import os
+import statistics
 import sys
-
-import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from surface_compare import met  # noqa: E402
-from surface_report import PEERS  # noqa: E402
+from surface_report import HOLE, PEERS, num  # noqa: E402
 from surface_robust import load  # noqa: E402
 
 
-SPLIT = ("t2m_hole_rms_pct", "t2m_rest_rms_pct", "m2t_hole_rms_pct", "m2t_rest_rms_pct")
-
-
 def split(row):
-    """The row's distances in the hole and in the rest (SPLIT's order; None for one the row lacks,
+    """The row's distances in the hole and in the rest (HOLE's order; None for one the row lacks,
     as mesh -> truth in the hole of a mesh with no vertex there), or None where it has no split."""
-    def value(k):
-        try:
-            return float(row[k])
-        except (KeyError, TypeError, ValueError):
-            return None
-    out = tuple(value(k) for k in SPLIT)
+    out = tuple(num(row, k) for k in HOLE)
     return None if out[0] is None else out
 
 
@@ -83,8 +74,8 @@ def compare(exp, peers, base=None):
     for k, (vn, vo, vb, *splits) in sorted(per.items()):
         print(f"  {k}: {vn} sets, met {vb if base else ''} -> {vo}")
         if splits:
-            med = lambda xs: float(np.median(xs))  # noqa: E731
-            for i, what in enumerate(SPLIT):
+            med = statistics.median
+            for i, what in enumerate(HOLE):
                 both = [(o[i], p[i]) for o, p in splits if o[i] is not None and p[i] is not None]
                 if not both:
                     continue
