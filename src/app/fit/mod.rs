@@ -207,6 +207,7 @@ fn idle_options(a: &FitArgs, off: bool, method: Method, two_levels: bool) -> Vec
         "outside_points",
         "mouth_points",
         "mouth_slope",
+        "cap_bulge",
         "coarse_points",
     ];
     let groups: [(&[&str], bool, &str); 4] = [
@@ -706,9 +707,11 @@ pub fn run(a: &FitArgs, comm: &dyn Comm, threads: usize) -> Result<()> {
                 ("mouth_wanted", m.wanted),
                 ("mouth_points", m.points),
                 ("mouth_folds", m.folds),
+                ("cap_points", m.caps),
             ];
             counts.into_iter().for_each(|(key, count)| r.figure(key, count));
             r.figure("mouth_slope", a.mouth_slope);
+            r.figure("cap_bulge", a.cap_bulge);
         }
     }
     for (k, v) in &fitted.figures {
@@ -929,10 +932,15 @@ fn surface_line(summary: Option<&surface::SurfaceSummary>, two_level: bool) -> S
                 folds_left_out(m.folds)
             ),
             Some(m) if m.points > 0 => format!(
-                "; mouth points: {} for {} crossings in the mouths of holes{}",
+                "; mouth points: {} for {} crossings in the mouths of holes{}{}",
                 m.points,
                 m.crossings,
-                folds_left_out(m.folds)
+                folds_left_out(m.folds),
+                match m.caps {
+                    0 => String::new(),
+                    1 => ", 1 cap point".to_string(),
+                    k => format!(", {k} cap points"),
+                }
             ),
             Some(m) if m.crossings > 0 => format!(
                 "; mouth points: none placed for {} crossings in the mouths of holes{}",

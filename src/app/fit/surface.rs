@@ -191,6 +191,9 @@ pub struct MouthPoints {
     pub points: usize,
     /// Charged data points with the gap of a rim left out since the surface folds back there.
     pub folds: usize,
+    /// Inside points that push the caps over the holes outward (`--cap-bulge`), fitted with
+    /// the mouth points.
+    pub caps: usize,
     /// Whether they were not added since their fit would append more centres than the ranks'
     /// memory allows.
     pub no_room: bool,
@@ -1141,12 +1144,13 @@ fn turn_by_surface(
 /// nearest to its unsupported crossings in open space, kept where that removes at least
 /// [`crate::surface::turns::GAIN`] of all its unsupported crossings; then, with
 /// `--mouth-points`, the fit with off points on both sides of those on a rim nearest to
-/// several of its unsupported crossings in the mouths of holes, kept. The off points are
-/// appended, so each fit borders `factor` where there is one; `values` are `fit`'s on `lattice`
-/// where they were sampled (at every node that bears on the unsupported crossings: only those
-/// are read, here and after), `areas` the data points' shares of the surface for the winding
-/// numbers. Where the points with those already appended to the first fit's would be more than
-/// `room`, none are added. Collective.
+/// several of its unsupported crossings in the mouths of holes and, with `--cap-bulge` above 0,
+/// inside points at the crossings nearest to those rim points that push the caps outward, kept.
+/// The off points are appended, so each fit borders `factor` where there is one; `values` are
+/// `fit`'s on `lattice` where they were sampled (at every node that bears on the unsupported
+/// crossings: only those are read, here and after), `areas` the data points' shares of the
+/// surface for the winding numbers. Where the points with those already appended to the first
+/// fit's would be more than `room`, none are added. Collective.
 fn outside_after_turns(
     run: &Run<'_>,
     data: &Prepared,
@@ -1177,27 +1181,38 @@ fn outside_after_turns(
     } else {
         fit
     };
-    let Some((crossings, (mouth, folds))) = mouth else {
+    let Some((in_mouths, (mouth, folds))) = mouth else {
         return Ok(fit);
     };
+    // the caps pushed outward from the crossings nearest to the rim points just held
+    let caps = {
+        let mut rim = vec![false; n];
+        mouth.source.iter().for_each(|&i| rim[i] = true);
+        let spacing = outside::median_spacing(&data.centres, &c.hoods.knn, c.hoods.kmax);
+        outside::cap_points((&crossings[..], &winding[..]), &c.hoods.tree, &rim, spacing, run.args.cap_bulge)
+    };
     let mut check = MouthPoints {
-        crossings,
+        crossings: in_mouths,
         wanted: mouth.side.len() + mouth.dropped,
         points: mouth.side.len(),
         folds,
+        caps: caps.side.len(),
         no_room: false,
     };
     let appended = c.prep.values.len() - data.values.len() - c.off.side.len();
-    if appended + check.points > room {
-        MemoryLimit::record(&mut c.summary.memory_limit, room, appended + check.points);
+    if appended + check.points + check.caps > room {
+        MemoryLimit::record(&mut c.summary.memory_limit, room, appended + check.points + check.caps);
         check.no_room = true;
     }
     c.summary.mouth = Some(check);
     if check.points == 0 || check.no_room {
         return Ok(fit);
     }
-    // the mouth points' targets steeper than the other off points'
-    let prep = with_off_points_sloped(&c.prep, &mouth, run.args.mouth_slope);
+    // the mouth points' targets steeper than the other off points', the cap points' as theirs
+    let mut prep = with_off_points_sloped(&c.prep, &mouth, run.args.mouth_slope);
+    if !caps.side.is_empty() {
+        prep = with_off_points_sloped(&prep, &caps, 1.0);
+    }
     let fitted = refit(&prep, factor, stages)?;
     c.prep = prep;
     Ok(fitted)
