@@ -305,12 +305,12 @@ pub struct FitArgs {
     #[arg(long, default_value_t = crate::surface::outside::MOUTH_SLOPE, value_name = "S", value_parser = mouth_slope)]
     pub mouth_slope: f64,
     /// How far the caps over holes are pushed outward (--mouth-points): inside points at the
-    /// cap's crossings nearest to the rims held, farther than the data's median spacing from
-    /// them, with targets this fraction of that distance deep, so that the cap bulges the more
+    /// cap's crossings nearest to the rims held, farther than 3.5 median spacings of the data
+    /// from them, with targets this fraction of that distance deep, so that the cap bulges the more
     /// the farther it lies from the data, as the surface around a hole does; 0 turns it off. On
-    /// the surface benchmark 0.15 mended the flank and base holes of the bunny (truth -> mesh
-    /// e.g. 0.94 -> 0.74 % of the diagonal) at a small cost on closed scans with gaps of their
-    /// own. See src/surface/outside.rs.
+    /// the surface benchmark 0.25 mended most flank and base holes of the bunny (truth -> mesh
+    /// e.g. 0.94 -> 0.67 % of the diagonal, screened Poisson 0.86) at a small cost where a
+    /// scan's own holes are open in the truth. See src/surface/outside.rs.
     #[arg(long, default_value_t = crate::surface::outside::CAP_BULGE, value_name = "A", value_parser = cap_bulge)]
     pub cap_bulge: f64,
     /// Points of level 0 of the two-level compactly supported fit (--method csrbf with --surface

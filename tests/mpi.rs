@@ -472,7 +472,7 @@ fn the_2d_layout_matches_the_serial_oracles_and_refuses_what_it_cannot_do() {
 fn an_off_surface_fit_on_a_2d_grid_borders_its_factor_as_row_cyclic_does() {
     // the cow with a hole (tests/data/cow-1000-open.xyz, the off points dealt by index): its
     // second fits border the first fit's factor by 224 and by 303 appended centres, the last by
-    // 331 (the 14 off points at the hole's rim and its 14 cap points appended). On a 2D grid the
+    // 318 (the 14 off points at the hole's rim and its cap point appended). On a 2D grid the
     // factor is moved to the row-cyclic layout and bordered there: the same second fits, none
     // factored anew, and the same spline as the serial row-cyclic fit
     let dir = common::temp_dir("layout-2d-bordered");
@@ -488,7 +488,7 @@ fn an_off_surface_fit_on_a_2d_grid_borders_its_factor_as_row_cyclic_does() {
         (model, out, p.with_extension("hdf"))
     };
     let (serial, serial_out, _) = fit(1, "row-cyclic");
-    let bordered = "bordered by 331 appended centres";
+    let bordered = "bordered by 318 appended centres";
     let first = "second fit: the first fit's factor (1231 centres";
     assert!(serial_out.contains(&format!("{first}) {bordered}")), "{serial_out}");
     for (ranks, layout, grid) in [(1, "2d", "1x1"), (2, "2d", "1x2"), (2, "2x1", "2x1"), (3, "1x3", "1x3")] {

@@ -849,9 +849,10 @@ fn off_points_dealt_among_neighbours_give_the_same_solid_for_any_order_of_the_cl
         let signs = a.iter().zip(other).filter(|(x, y)| (**x >= 0.0) != (**y >= 0.0)).count();
         (common::rel_diff(other, &a), signs)
     };
+    // (to rounding: measured 2.0e-6 backwards since the hole's 2 cap points were added)
     for (name, other) in [("backwards", &b), ("scrambled", &c)] {
         let (d, signs) = differ(other);
-        assert!(d < 1e-6 && signs == 0, "{name}: volume differs by {d}, {signs} nodes change sign");
+        assert!(d < 1e-5 && signs == 0, "{name}: volume differs by {d}, {signs} nodes change sign");
     }
     let (x, _) = volume("order-index-file", 2, "index", &|i| i);
     let (y, _) = volume("order-index-scrambled", 2, "index", &scrambled);
@@ -1226,7 +1227,9 @@ fn steeper_targets_at_the_rims_lift_the_caps_over_the_open_cows_heads() {
     // the default fit), measured: with the mouth points' targets as the others' 0.0455 / 0.0415
     // / 0.0396 / 0.0386 (mean 0.0413), twice as steep 0.0383 / 0.0332 / 0.0297 / 0.0387 (mean
     // 0.0350), three times (the default) 0.0325 / 0.0278 / 0.0241 / 0.0388 (mean 0.0308; the
-    // last cow's fit keeps no mouth point that changes its cap)
+    // last cow's fit keeps no mouth point that changes its cap). Measured without the cap
+    // points (`--cap-bulge 0`): over these rounded heads their push carries the caps past the
+    // truth, 0.0328 / 0.0312 / 0.0322 / 0.0388 (mean 0.0338) with them
     let (truth, _, diag) = cow_sample(OPEN_COWS[0]);
     let all: Vec<f64> = truth.vertices.iter().flatten().copied().collect();
     let (lo, hi) = volspline::spline::hygiene::bounding_box(&all, 3);
@@ -1241,7 +1244,7 @@ fn steeper_targets_at_the_rims_lift_the_caps_over_the_open_cows_heads() {
     assert!(cap.len() > 300, "{} vertices under the hole", cap.len());
     let cap_rms = |name: &str, slope: &[&str]| {
         let (_, pts, _) = cow_sample(name);
-        let flags = [&["--orient-side", "try", "--carrier", "auto"][..], slope].concat();
+        let flags = [&["--orient-side", "try", "--carrier", "auto", "--cap-bulge", "0"][..], slope].concat();
         let (mesh, _, line) = fit_mesh(name, &pts, "64", &flags);
         assert!(line.contains("mouth points: "), "{line}");
         let d = point_mesh_distances(&mesh, &cap);
@@ -1274,8 +1277,7 @@ fn cap_points_push_the_cap_over_the_bunnys_flank_toward_the_truth() {
     // across the hole; the cap points (inside points at the cap's crossings, delta a quarter of
     // their distance from the data) lift it. Truth -> mesh rms over the bunny's vertices within
     // the hole's ball, as a fraction of the diagonal, measured: 0.0276 with `--cap-bulge 0`,
-    // 0.0218 with the default 0.25 (124 cap points); over all its vertices 0.0080 -> 0.0071;
-    // mesh -> truth 0.0051 -> 0.0059 (the cap lifted past the truth in places)
+    // 0.0216 with the default 0.25 (72 cap points); over all its vertices 0.0080 -> 0.0068
     let truth = common::load_mesh(Path::new(common::BUNNY));
     let all: Vec<f64> = truth.vertices.iter().flatten().copied().collect();
     let (lo, hi) = volspline::spline::hygiene::bounding_box(&all, 3);
@@ -1301,7 +1303,7 @@ fn cap_points_push_the_cap_over_the_bunnys_flank_toward_the_truth() {
     };
     let (pushed, pushed_all, line) = fit("bunny-flank-pushed", &[]);
     let (plain, plain_all, plain_line) = fit("bunny-flank-plain", &["--cap-bulge", "0"]);
-    assert!(line.contains(", 124 cap points"), "{line}");
+    assert!(line.contains(", 72 cap points"), "{line}");
     assert!(!plain_line.contains("cap point"), "{plain_line}");
     assert!(pushed < 0.0240 && plain > 0.0260, "under the hole: pushed {pushed}, without {plain}");
     assert!(pushed_all < plain_all - 0.0005, "truth -> mesh: pushed {pushed_all}, without {plain_all}");
@@ -2094,8 +2096,8 @@ fn off_points_at_the_mouth_of_a_hole_are_the_same_on_one_two_and_three_ranks() {
     // measured: 7 off points at the mouth of the hole, after a patch turned as the smoother
     // spline (a try no count keeps)
     assert_eq!(oracle.mouth, 7);
-    // and 15 cap points with them
-    assert_eq!(oracle.caps, 15);
+    // and 8 cap points with them
+    assert_eq!(oracle.caps, 8);
     assert_eq!(oracle.turns.smoother, 1, "{:?}", oracle.turns);
     fits_match_the_oracle(&dir, &input, &oracle, "cholesky", &DEFAULT_RATES, &[]);
 }
@@ -2381,14 +2383,15 @@ fn a_patch_whose_turn_smooths_the_spline_is_turned_on_an_open_cow() {
     // without that rule (the same build with it off) mesh -> cow rms 0.566 % of the diagonal,
     // 2.14 % of the vertices beyond 2 %, truth -> mesh 1.333 %; with it 0.558 %, 1.97 % and
     // 1.291 % (before the steeper mouth points 0.516 %, 1.77 %, 1.66 % without it and 0.475 %,
-    // 1.26 %, 1.62 % with it)
+    // 1.26 %, 1.62 % with it). The cap points pushed the cap out a little more: with them (the
+    // default `--cap-bulge`) 0.548 %, 2.21 % and 1.280 %
     let (truth, pts, diag) = cow_sample("cow-1000-open-seed8");
     let (mesh, _, line) = fit_mesh("cow-smoother-turn", &pts, "64", &["--mouth-slope", "2"]);
     let (rms, far) = mesh_to_truth(&truth, &mesh);
     let complete = truth_to_mesh(&truth, &mesh, diag);
     println!("{line}\n  mesh -> cow rms {rms:.5}, far {far:.5}, truth -> mesh {complete:.5}");
     assert!(line.contains("turns: 2 of 6 patches tried (22 points) turned (1 as smoother)"), "{line}");
-    assert!(rms < 0.0060 && far < 0.0205, "mesh -> cow rms {rms}, far {far}");
+    assert!(rms < 0.0060 && far < 0.0235, "mesh -> cow rms {rms}, far {far}");
     assert!(complete < 0.0131, "truth -> mesh {complete}");
 }
 
