@@ -1214,6 +1214,19 @@ fn the_clearance_choice_keeps_the_cap_over_a_hole_in_the_cow() {
     assert!(line.contains("wide kept") && line.contains("fitted three times"), "{line}");
 }
 
+/// The vertices of `truth` within 15 % of its bounding box's diagonal of the vertex farthest
+/// along `direction` in the box's unit coordinates: the truth under the surface benchmark's
+/// hole of that direction ((1, 1, 1) for `open`, (1, 0, 0) for `openx`).
+fn under_the_hole(truth: &volspline::mesh::TriMesh, direction: [f64; 3]) -> Vec<[f64; 3]> {
+    let all: Vec<f64> = truth.vertices.iter().flatten().copied().collect();
+    let (lo, hi) = volspline::spline::hygiene::bounding_box(&all, 3);
+    let radius = 0.15 * volspline::spline::hygiene::diagonal(&lo, &hi);
+    let along = |p: &[f64; 3]| (0..3).map(|d| direction[d] * (p[d] - lo[d]) / (hi[d] - lo[d])).sum::<f64>();
+    let centre = *truth.vertices.iter().max_by(|a, b| along(a).total_cmp(&along(b))).unwrap();
+    let near = |p: &&[f64; 3]| (0..3).map(|d| (p[d] - centre[d]).powi(2)).sum::<f64>() < radius * radius;
+    truth.vertices.iter().filter(near).copied().collect()
+}
+
 /// The stored samples of the cow with the hole of the surface benchmark's `open` variant (the
 /// data within 15 % of the diagonal of the point farthest along (1, 1, 1), the head, left out).
 const OPEN_COWS: [&str; 4] =
@@ -1231,16 +1244,7 @@ fn steeper_targets_at_the_rims_lift_the_caps_over_the_open_cows_heads() {
     // points (`--cap-bulge 0`): over these rounded heads their push carries the caps past the
     // truth, 0.0328 / 0.0312 / 0.0322 / 0.0388 (mean 0.0338) with them
     let (truth, _, diag) = cow_sample(OPEN_COWS[0]);
-    let all: Vec<f64> = truth.vertices.iter().flatten().copied().collect();
-    let (lo, hi) = volspline::spline::hygiene::bounding_box(&all, 3);
-    let along = |p: &[f64; 3]| (0..3).map(|d| (p[d] - lo[d]) / (hi[d] - lo[d])).sum::<f64>();
-    let top = *truth.vertices.iter().max_by(|a, b| along(a).total_cmp(&along(b))).unwrap();
-    let cap: Vec<[f64; 3]> = truth
-        .vertices
-        .iter()
-        .filter(|p| (0..3).map(|d| (p[d] - top[d]).powi(2)).sum::<f64>() < (0.15 * diag).powi(2))
-        .copied()
-        .collect();
+    let cap = under_the_hole(&truth, [1.0, 1.0, 1.0]);
     assert!(cap.len() > 300, "{} vertices under the hole", cap.len());
     let cap_rms = |name: &str, slope: &[&str]| {
         let (_, pts, _) = cow_sample(name);
@@ -1282,14 +1286,7 @@ fn cap_points_push_the_cap_over_the_bunnys_flank_toward_the_truth() {
     let all: Vec<f64> = truth.vertices.iter().flatten().copied().collect();
     let (lo, hi) = volspline::spline::hygiene::bounding_box(&all, 3);
     let diag = volspline::spline::hygiene::diagonal(&lo, &hi);
-    let along = |p: &[f64; 3]| (p[0] - lo[0]) / (hi[0] - lo[0]);
-    let side = *truth.vertices.iter().max_by(|a, b| along(a).total_cmp(&along(b))).unwrap();
-    let under: Vec<[f64; 3]> = truth
-        .vertices
-        .iter()
-        .filter(|p| (0..3).map(|d| (p[d] - side[d]).powi(2)).sum::<f64>() < (0.15 * diag).powi(2))
-        .copied()
-        .collect();
+    let under = under_the_hole(&truth, [1.0, 0.0, 0.0]);
     assert!(under.len() > 250, "{} vertices under the hole", under.len());
     let pts = read_back(&sample_path(FLANK_BUNNY));
     let fit = |tag: &str, extra: &[&str]| {
