@@ -496,8 +496,8 @@ fn serial_offsurface(read: &[f64], rate: OffRates, choose: bool, turns: bool, si
             // with them the cap points at the same crossings nearest to the rim points held
             let mut rim = vec![false; normals.len()];
             mouth.source.iter().for_each(|&i| rim[i] = true);
-            let spacing = outside::median_spacing(&data.centres, &hoods.knn, hoods.kmax);
-            let caps = outside::cap_points((&far, &winding), &hoods.tree, &rim, spacing, outside::CAP_BULGE);
+            let caps =
+                outside::cap_points((&far, &winding), &hoods.tree, &rim, support.spacing, outside::CAP_BULGE);
             system.centres.extend_from_slice(&caps.centres);
             system.values.extend(off_values(&caps, &data.points, &data.carrier, &data.norm));
             spline = solve_serial(&system, &k, SolverKind::Householder);

@@ -159,6 +159,7 @@ use std::ops::{Range, RangeBounds};
 
 use crate::spline::octree::Octree;
 use crate::surface::blobs::Lattice;
+use crate::surface::normals::dist2;
 use crate::surface::offsurface::{place_from, OffPoints};
 use crate::surface::orient::dot;
 use crate::surface::turns::WINDOW;
@@ -271,9 +272,10 @@ pub fn mouth_points(
 
 /// The cap points (see the module doc, "Caps pushed outward"): for each of the unsupported
 /// `crossings` (normalised coordinates) with the data's winding number (`winding`) in
-/// [`MOUTH`] whose nearest data point (of `tree`) is one that `rim` marks, farther than
-/// `spacing` from it and from every crossing taken before, an inside point at the crossing
-/// with delta `alpha` times that distance, its source the nearest data point. The crossings'
+/// [`MOUTH`] whose nearest data point (of `tree`) is one that `rim` marks, at least
+/// [`CAP_FROM`] times `spacing` (the data's median spacing) from it and `spacing` from every
+/// crossing taken before, an inside point at the crossing with delta `alpha` times its distance
+/// from the data, its source the nearest data point. The crossings'
 /// coordinates are first rounded to multiples of [`SNAP`]. In the order of the crossings.
 pub fn cap_points(
     (crossings, winding): (&[[f64; 3]], &[f64]),
@@ -305,10 +307,9 @@ pub fn cap_points(
         let crowded = (-1..=1).any(|i| {
             (-1..=1).any(|j| {
                 (-1..=1).any(|k| {
-                    taken.get(&[c[0] + i, c[1] + j, c[2] + k]).is_some_and(|ks| {
-                        ks.iter()
-                            .any(|t| (0..3).map(|d| (t[d] - q[d]).powi(2)).sum::<f64>() < spacing * spacing)
-                    })
+                    taken
+                        .get(&[c[0] + i, c[1] + j, c[2] + k])
+                        .is_some_and(|ks| ks.iter().any(|t| dist2(t, q) < spacing * spacing))
                 })
             })
         });
@@ -336,25 +337,6 @@ fn snapped(x: f64) -> f64 {
 /// The step the cap points' coordinates are rounded to (normalised units, the data's box about
 /// 2 across): 2^-20.
 pub const SNAP: f64 = 1.0 / 1_048_576.0;
-
-/// The median distance of the data points to their nearest neighbours (`knn`, `kmax` per point,
-/// nearest first); 0 without neighbours.
-pub fn median_spacing(points: &[f64], knn: &[usize], kmax: usize) -> f64 {
-    if kmax == 0 {
-        return 0.0;
-    }
-    let mut d: Vec<f64> = (0..points.len() / 3)
-        .map(|i| {
-            let j = knn[i * kmax];
-            (0..3).map(|k| (points[3 * i + k] - points[3 * j + k]).powi(2)).sum::<f64>().sqrt()
-        })
-        .collect();
-    if d.is_empty() {
-        return 0.0;
-    }
-    let mid = d.len() / 2;
-    *d.select_nth_unstable_by(mid, f64::total_cmp).1
-}
 
 /// The widest angle (radians) between the directions from data point `i` (of `points`, 3 per
 /// point) to consecutive ones of its `neighbours`, projected onto its tangent plane (unit
@@ -619,11 +601,8 @@ mod tests {
     fn cap_points_lie_at_mouth_crossings_nearest_to_rims_with_delta_growing_with_the_distance() {
         let (points, _) = plane();
         let tree = Octree::new(&points, 4);
-        let knn = nearest(&tree, &points, 8);
         // the grid's spacing: every point's nearest neighbour lies 0.1 away
-        let spacing = median_spacing(&points, &knn, 8);
-        assert!((spacing - 0.1).abs() < 1e-12, "{spacing}");
-        assert_eq!(median_spacing(&[], &[], 0), 0.0);
+        let spacing = 0.1;
         let mut rim = vec![false; 25];
         (rim[2], rim[12]) = (true, true);
         let crossings = [

@@ -1188,8 +1188,8 @@ fn outside_after_turns(
     let caps = {
         let mut rim = vec![false; n];
         mouth.source.iter().for_each(|&i| rim[i] = true);
-        let spacing = outside::median_spacing(&data.centres, &c.hoods.knn, c.hoods.kmax);
-        outside::cap_points((&crossings[..], &winding[..]), &c.hoods.tree, &rim, spacing, run.args.cap_bulge)
+        let found = (&crossings[..], &winding[..]);
+        outside::cap_points(found, &c.hoods.tree, &rim, support.spacing, run.args.cap_bulge)
     };
     let mut check = MouthPoints {
         crossings: in_mouths,
