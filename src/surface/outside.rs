@@ -155,12 +155,13 @@
 //! in the back, the head, a flank, the base or the far end of the long axis (five samplings)
 //! met every quality target on 41 sets unpushed. Pushed by a fraction of each crossing's
 //! distance from the data (the first form of this step) they met 47, 50, 55 and 59 with 0.1,
-//! 0.15, 0.25 and 0.35, the sum of both distances lowest with 0.25 (107.86 % of the diagonal),
-//! and 0.35 lost caps that rose past the truth. Pushed by a fraction of their depth they met
-//! 58, 61 and 60 with 0.6, 0.75 and 1 (sums 106.65, 106.17, 106.80). On all 240 holed sets of
-//! fifteen samplings 0.75 of the depth met 173 against 161 with a quarter of the distance (sum
-//! 316.93 against 321.41): the cut ends of the cow's body 24 -> 35 of 60, the flanks 56 -> 57,
-//! the bunny's base 24 -> 25, while two caps over the cow's head went past the truth (a rounded
+//! 0.15, 0.25 and 0.35, the sum of both distances lowest with 0.25 (109.70 % of the diagonal;
+//! 107.86 with [`CAP_FROM`]), and 0.35 lost caps that rose past the truth. Pushed by a
+//! fraction of their depth (with [`CAP_FROM`]) they met 58, 61 and 60 with 0.6, 0.75 and 1
+//! (sums 106.65, 106.17, 106.80). On all 240 holed sets of fifteen samplings 0.75 of the depth
+//! met 173 against 161 with a quarter of the distance (sum 316.93 against 321.41): the far ends
+//! of the long axis (the cow's rump, the bunny's ear) 24 -> 35 of 60, the flanks 56 -> 57, the
+//! base or a hoof 24 -> 25, while two caps over the cow's head went past the truth (a rounded
 //! end, whose rim runs along the head as the body's does along the body; 57 -> 56 of 60).
 //! On the 239 closed sets 232 met every target against 231 (sum of both distances +0.2 %; 45
 //! sets nearer, 25 farther): the bunny scan's own holes in its base, open in the truth too,
