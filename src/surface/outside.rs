@@ -290,15 +290,15 @@ pub fn mouth_points(
 
 /// The cap points (see the module doc, "Caps pushed outward"): for each of the unsupported
 /// `crossings` (normalised coordinates) with the data's winding number (`winding`) in
-/// [`MOUTH`] whose nearest data point (of `tree`; `points` 3 per point, outward unit `normals`)
-/// is one that `rim` marks, at least [`CAP_FROM`] times `spacing` (the data's median spacing)
+/// [`MOUTH`] whose nearest data point (of `tree`, with outward unit `normals`) is one that
+/// `rim` marks, at least [`CAP_FROM`] times `spacing` (the data's median spacing)
 /// from it, below its tangent plane, and `spacing` from every crossing taken before, an inside
 /// point at the crossing with delta `bulge` times its depth below that plane, its source the
 /// nearest data point. The crossings' coordinates are first rounded to multiples of [`SNAP`].
 /// In the order of the crossings.
 pub fn cap_points(
     (crossings, winding): (&[[f64; 3]], &[f64]),
-    (points, normals, tree): (&[f64], &[[f64; 3]], &Octree),
+    (normals, tree): (&[[f64; 3]], &Octree),
     rim: &[bool],
     spacing: f64,
     bulge: f64,
@@ -322,7 +322,8 @@ pub fn cap_points(
             continue;
         }
         // how far the crossing lies inside the tangent plane of its rim point
-        let depth = -(0..3).map(|k| (q[k] - points[3 * source + k]) * normals[source][k]).sum::<f64>();
+        let p = tree.point(source);
+        let depth = -dot(&[0, 1, 2].map(|k| q[k] - p[k]), &normals[source]);
         if depth <= 0.0 {
             continue;
         }
@@ -631,7 +632,7 @@ mod tests {
         // one whose surface bends away from its crossing: the crossing lies outside
         normals[22] = [0.0, 0.0, 1.0];
         let tree = Octree::new(&points, 4);
-        let data = (&points[..], &normals[..], &tree);
+        let data = (&normals[..], &tree);
         // the grid's spacing: every point's nearest neighbour lies 0.1 away
         let spacing = 0.1;
         let mut rim = vec![false; 25];

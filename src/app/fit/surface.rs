@@ -1189,7 +1189,7 @@ fn outside_after_turns(
         let mut rim = vec![false; n];
         mouth.source.iter().for_each(|&i| rim[i] = true);
         let found = (&crossings[..], &winding[..]);
-        let at = (&data.centres[..], &c.normals[..], &c.hoods.tree);
+        let at = (&c.normals[..], &c.hoods.tree);
         outside::cap_points(found, at, &rim, support.spacing, run.args.cap_bulge)
     };
     let mut check = MouthPoints {
